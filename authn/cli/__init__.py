@@ -1,0 +1,78 @@
+"""The `authn` command line: one Typer app, one module per command group.
+
+Heavy libraries (scipy, sklearn, torch, matplotlib, sqlalchemy) are imported
+inside the commands that need them, never here, so `authn --help` and a
+single `authn check` start fast.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+
+import typer
+
+app = typer.Typer(
+    name="authn",
+    help="Radar micro-Doppler + Remote ID identity authentication for UAVs.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+
+
+@dataclass(frozen=True)
+class CliState:
+    """Options shared by every command (set by the top-level callback)."""
+
+    db_url: str | None = None
+
+
+@app.callback()
+def _global_options(
+    ctx: typer.Context,
+    db: str | None = typer.Option(
+        None,
+        "--db",
+        envvar="AUTHN_DATABASE_URL",
+        help="SQLAlchemy database URL (default: SQLite file in the user data directory).",
+    ),
+) -> None:
+    ctx.obj = CliState(db_url=db)
+
+
+def _bad_input_types() -> tuple[type[BaseException], ...]:
+    """Every package's root error: bad input, reported in one line with exit 2."""
+    from authn.errors import AuthnError
+    from registry.errors import RegistryError
+    from signatures.errors import SignaturesError
+
+    return (SignaturesError, RegistryError, AuthnError)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI and return the exit code (tests call this directly)."""
+    import click
+
+    try:
+        rv = app(args=argv, prog_name="authn", standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        return exc.exit_code
+    except click.ClickException as exc:
+        exc.show()
+        return exc.exit_code
+    except click.exceptions.Abort:
+        print("aborted", file=sys.stderr)
+        return 130
+    except _bad_input_types() as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return rv if isinstance(rv, int) else 0
+
+
+def run() -> None:
+    """Console-script entry point."""
+    sys.exit(main())
+
+
+from authn.cli import simulate as _simulate  # noqa: E402,F401  (registers commands)

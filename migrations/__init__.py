@@ -1,0 +1,1 @@
+"""Alembic migration environment for the registry and audit schema."""

@@ -1,0 +1,95 @@
+"""UAV airframe profiles: a profile is its physical parameters, stored as data.
+
+A new airframe is a new JSON entry (or a registry row), never new code: the
+simulator and the classifiers read only these numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from importlib import resources
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from signatures.errors import SignaturesError
+
+#: Classes the radar knows besides UAV profiles (SPEC section 4).
+NON_UAV_CLASSES = ("bird", "none")
+UNKNOWN = "unknown"
+
+
+class UavProfile(BaseModel):
+    """Physical parameters of a multirotor airframe (SPEC section 4)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    slug: str = Field(pattern=r"^[a-z0-9][a-z0-9_-]{0,31}$")
+    name: str = Field(min_length=1, max_length=100)
+    rotors: int = Field(ge=1, le=16)
+    arms: int = Field(ge=1, le=16)
+    blades_per_rotor: int = Field(default=2, ge=1, le=8)
+    blade_length_m: float = Field(gt=0.01, le=3.0)
+    rotor_rate_hz: float = Field(gt=1.0, le=500.0)
+    propeller_distance_m: float = Field(gt=0.05, le=10.0)
+
+    @model_validator(mode="after")
+    def _check(self) -> "UavProfile":
+        if self.slug in NON_UAV_CLASSES or self.slug == UNKNOWN:
+            raise ValueError(f"slug {self.slug!r} is reserved")
+        if self.rotors % self.arms and self.arms % self.rotors:
+            raise ValueError("rotors must be a multiple of arms (coaxial) or equal to it")
+        return self
+
+    @property
+    def tip_speed_mps(self) -> float:
+        """Blade-tip speed 2*pi*f_rot*L."""
+        return 2.0 * math.pi * self.rotor_rate_hz * self.blade_length_m
+
+    @property
+    def blade_flash_rate_hz(self) -> float:
+        """Flashes per second of one rotor: N*f_rot for even N, 2*N*f_rot for odd N."""
+        n = self.blades_per_rotor
+        return (n if n % 2 == 0 else 2 * n) * self.rotor_rate_hz
+
+
+def parse_profiles(data: object, source: str) -> dict[str, UavProfile]:
+    """Validate a `{"profiles": [...]}` document into profiles keyed by slug."""
+    if not isinstance(data, dict) or not isinstance(data.get("profiles"), list):
+        raise SignaturesError(f"{source}: expected an object with a 'profiles' list")
+    out: dict[str, UavProfile] = {}
+    for i, entry in enumerate(data["profiles"]):
+        try:
+            p = UavProfile.model_validate(entry)
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            loc = ".".join(str(x) for x in err["loc"]) or "profile"
+            raise SignaturesError(f"{source}: profiles[{i}].{loc}: {err['msg']}") from None
+        if p.slug in out:
+            raise SignaturesError(f"{source}: duplicate profile slug {p.slug!r}")
+        out[p.slug] = p
+    return out
+
+
+def load_profiles(path: str | Path | None = None) -> dict[str, UavProfile]:
+    """Shipped profiles (default) or those of a JSON file, keyed by slug."""
+    if path is None:
+        text = resources.files("signatures.data").joinpath("profiles.json").read_text()
+        source = "shipped profiles"
+    else:
+        try:
+            text = Path(path).read_text()
+        except OSError as exc:
+            raise SignaturesError(f"{path}: cannot read profiles ({exc.strerror})") from None
+        source = str(path)
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SignaturesError(f"{source}: not JSON ({exc.msg} at line {exc.lineno})") from None
+    return parse_profiles(data, source)
+
+
+def shipped_profiles() -> dict[str, UavProfile]:
+    """The three profiles of SPEC section 4."""
+    return load_profiles()

@@ -1,0 +1,186 @@
+"""FMCW radar configuration, the two presets of SPEC section 5 and what they imply.
+
+Everything here is closed-form physics: range resolution c/2B, beat frequency
+2*S*R/c, unambiguous velocity lambda*PRF/4 (complex slow-time sampling), Doppler
+bin lambda/(2*N*PRI). No signal processing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from signatures.profiles import UavProfile
+
+C = 299_792_458.0  # speed of light, m/s
+
+
+class RadarConfig(BaseModel):
+    """Waveform of one recorded dwell: the SPEC section 3 radar attributes."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    carrier_hz: float = Field(gt=0, le=1e12)
+    bandwidth_hz: float = Field(gt=0, le=1e11)
+    ramp_s: float = Field(gt=0, le=1.0)
+    pri_s: float = Field(gt=0, le=10.0)
+    sample_rate_hz: float = Field(gt=0, le=1e11)
+    range_offset_m: float = Field(default=0.0, ge=0, le=1e6)
+
+    @model_validator(mode="after")
+    def _pri_covers_ramp(self) -> "RadarConfig":
+        if self.pri_s < self.ramp_s:
+            raise ValueError(f"pri_s ({self.pri_s:g}) < ramp_s ({self.ramp_s:g}): chirps would overlap")
+        return self
+
+    # --- derived quantities -------------------------------------------------
+    @property
+    def wavelength_m(self) -> float:
+        return C / self.carrier_hz
+
+    @property
+    def slope_hz_per_s(self) -> float:
+        return self.bandwidth_hz / self.ramp_s
+
+    @property
+    def prf_hz(self) -> float:
+        return 1.0 / self.pri_s
+
+    @property
+    def range_resolution_m(self) -> float:
+        """c / 2B: the nominal resolution of the swept bandwidth."""
+        return C / (2.0 * self.bandwidth_hz)
+
+    def range_bin_m(self, n_samples: int) -> float:
+        """Range spacing of one FFT bin over n_samples: c*fs / (2*S*n)."""
+        return C * self.sample_rate_hz / (2.0 * self.slope_hz_per_s * n_samples)
+
+    @property
+    def range_window_m(self) -> tuple[float, float]:
+        """[start, end) of ranges whose beat frequency lies in [0, fs)."""
+        span = C * self.sample_rate_hz / (2.0 * self.slope_hz_per_s)
+        return self.range_offset_m, self.range_offset_m + span
+
+    @property
+    def unambiguous_velocity_mps(self) -> float:
+        """Radial speeds in [-v, v) are measured without folding: lambda*PRF/4."""
+        return self.wavelength_m * self.prf_hz / 4.0
+
+    def doppler_bin_mps(self, n_chirps: int) -> float:
+        return self.wavelength_m / (2.0 * n_chirps * self.pri_s)
+
+    def fold_velocity(self, v_mps: float) -> float:
+        """The radial velocity the radar reports for a true one (into [-v_u, v_u))."""
+        vu = self.unambiguous_velocity_mps
+        return (v_mps + vu) % (2.0 * vu) - vu
+
+    def tip_doppler_hz(self, profile: UavProfile) -> float:
+        """Maximum blade-tip micro-Doppler 2*v_tip/lambda (rotor plane seen edge-on)."""
+        return 2.0 * profile.tip_speed_mps / self.wavelength_m
+
+    def tip_aliases(self, profile: UavProfile, radial_speed_mps: float = 0.0) -> bool:
+        """True when body Doppler +- tip Doppler leaves the unambiguous band [-PRF/2, PRF/2)."""
+        body = 2.0 * abs(radial_speed_mps) / self.wavelength_m
+        return body + self.tip_doppler_hz(profile) >= self.prf_hz / 2.0
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named waveform plus the cube size it records."""
+
+    name: str
+    config: RadarConfig
+    n_chirps: int
+    n_samples: int
+    max_range_m: float
+    note: str
+
+    @property
+    def window_m(self) -> float:
+        lo, hi = self.config.range_window_m
+        return hi - lo
+
+    @property
+    def dwell_s(self) -> float:
+        return self.n_chirps * self.config.pri_s
+
+    def with_offset(self, range_offset_m: float) -> RadarConfig:
+        return self.config.model_copy(update={"range_offset_m": float(range_offset_m)})
+
+
+def _paper() -> Preset:
+    # Paper: fc 77 GHz, dR 1 m -> B 150 MHz, Rmax 1200 m. Its "sweep time 5.5 s"
+    # is garbled; the usual rule is 5.5 x the round-trip time of Rmax:
+    # 5.5 * 2*1200/c = 44.03 us. 80 samples spread over the ramp make one FFT bin
+    # 1/T = the 1 m resolution cell, so 80 samples cover an 80 m gated window.
+    # Chirps back to back (PRI = ramp) give the highest PRF the ramp allows.
+    ramp = 5.5 * 2.0 * 1200.0 / C
+    n_samples = 80
+    cfg = RadarConfig(
+        carrier_hz=77e9,
+        bandwidth_hz=150e6,
+        ramp_s=ramp,
+        pri_s=ramp,
+        sample_rate_hz=n_samples / ramp,
+    )
+    return Preset("paper", cfg, n_chirps=600, n_samples=n_samples, max_range_m=1200.0,
+                  note="paper's numbers, sweep = 5.5 x round trip of 1200 m; blade tips alias")
+
+
+def _wide() -> Preset:
+    # Blade tips reach 115 m/s -> 59 kHz at 77 GHz; with +-25 m/s of body motion
+    # the complex slow-time band needs PRF > 2*(59+13) kHz. PRI 6.25 us -> 160 kHz,
+    # v_unamb = 156 m/s. Ramp 5 us with a range-offset (stretch) reference chirp,
+    # 64 samples over the ramp -> 64 one-metre bins. 8192 chirps = 51.2 ms dwell,
+    # about 4 blade-flash periods of the slowest shipped rotor.
+    ramp = 5e-6
+    n_samples = 64
+    cfg = RadarConfig(
+        carrier_hz=77e9,
+        bandwidth_hz=150e6,
+        ramp_s=ramp,
+        pri_s=6.25e-6,
+        sample_rate_hz=n_samples / ramp,
+    )
+    return Preset("wide", cfg, n_chirps=8192, n_samples=n_samples, max_range_m=1200.0,
+                  note="PRF 160 kHz resolves blade-tip micro-Doppler without aliasing")
+
+
+PRESETS: dict[str, Preset] = {p.name: p for p in (_paper(), _wide())}
+
+
+def get_preset(name: str) -> Preset:
+    from signatures.errors import SignaturesError
+
+    try:
+        return PRESETS[name]
+    except KeyError:
+        raise SignaturesError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})") from None
+
+
+def describe(config: RadarConfig, n_chirps: int, n_samples: int,
+             profiles: dict[str, UavProfile] | None = None) -> dict[str, object]:
+    """The validator's report: what this waveform can and cannot measure."""
+    lo, hi = config.range_window_m
+    report: dict[str, object] = {
+        "wavelength_m": config.wavelength_m,
+        "range_resolution_m": config.range_resolution_m,
+        "range_bin_m": config.range_bin_m(n_samples),
+        "range_window_m": [lo, hi],
+        "prf_hz": config.prf_hz,
+        "unambiguous_velocity_mps": config.unambiguous_velocity_mps,
+        "doppler_bin_mps": config.doppler_bin_mps(n_chirps),
+        "dwell_s": n_chirps * config.pri_s,
+    }
+    if profiles:
+        report["blade_tips"] = {
+            slug: {
+                "tip_speed_mps": p.tip_speed_mps,
+                "tip_doppler_hz": config.tip_doppler_hz(p),
+                "aliases_when_hovering": config.tip_aliases(p),
+            }
+            for slug, p in profiles.items()
+        }
+    return report
