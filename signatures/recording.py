@@ -50,6 +50,8 @@ class Recording:
     iq: np.ndarray
     remote_id: np.ndarray | None = None
     remote_id_time_s: np.ndarray | None = None
+    #: JSON of the simulated scene and its ground truth (attribute `simulation`); None for real data
+    simulation: str | None = None
 
     @property
     def n_chirps(self) -> int:
@@ -196,7 +198,16 @@ def _read_h5(path: Path, max_cells: int) -> Recording:
             raise RecordingError(f"{path}: data cannot be read (truncated or corrupt)") from None
     _check_iq_values(iq)
     _check_rid(rid, times)
-    return Recording(config, site, when, iq, rid, times)
+    return Recording(config, site, when, iq, rid, times, _simulation_attr(attrs))
+
+
+def _simulation_attr(attrs: dict[str, Any]) -> str | None:
+    if "simulation" not in attrs:
+        return None
+    value = _scalar(attrs, "simulation")
+    if not isinstance(value, str):
+        raise RecordingError("attribute 'simulation': expected a JSON string")
+    return value
 
 
 def _attrs_of(rec: Recording) -> dict[str, Any]:
@@ -206,6 +217,8 @@ def _attrs_of(rec: Recording) -> dict[str, Any]:
     attrs["radar_lon_deg"] = rec.site.lon_deg
     attrs["radar_alt_m"] = rec.site.alt_m
     attrs["start_time"] = rec.start_time.astimezone(timezone.utc).isoformat()
+    if rec.simulation is not None:
+        attrs["simulation"] = rec.simulation
     return attrs
 
 
@@ -250,6 +263,7 @@ def _read_npz(path: Path, max_cells: int) -> Recording:
         data = np.load(path, allow_pickle=False)
         attrs = {k: data[k] for k in members if k not in ("iq", "remote_id", "remote_id_time_s")}
         config, site, when = _metadata(attrs)
+        simulation = _simulation_attr(attrs)
         iq = data["iq"]
         rid = data["remote_id"] if "remote_id" in members else None
         times = (np.asarray(data["remote_id_time_s"], dtype=np.float64)
@@ -260,7 +274,7 @@ def _read_npz(path: Path, max_cells: int) -> Recording:
         raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt)") from None
     _check_iq_values(iq)
     _check_rid(rid, times)
-    return Recording(config, site, when, iq, rid, times)
+    return Recording(config, site, when, iq, rid, times, simulation)
 
 
 def _write_npz(rec: Recording, path: Path) -> None:

@@ -52,22 +52,15 @@ def _bad_input_types() -> tuple[type[BaseException], ...]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI and return the exit code (tests call this directly)."""
-    import click
-
     try:
-        rv = app(args=argv, prog_name="authn", standalone_mode=False)
-    except click.exceptions.Exit as exc:
-        return exc.exit_code
-    except click.ClickException as exc:
-        exc.show()
-        return exc.exit_code
-    except click.exceptions.Abort:
-        print("aborted", file=sys.stderr)
-        return 130
+        app(args=argv, prog_name="authn")
+    except SystemExit as exc:
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else 1)
     except _bad_input_types() as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    return rv if isinstance(rv, int) else 0
+    return 0
 
 
 def run() -> None:
@@ -75,4 +68,5 @@ def run() -> None:
     sys.exit(main())
 
 
-from authn.cli import simulate as _simulate  # noqa: E402,F401  (registers commands)
+from authn.cli import inspect_cmd as _inspect_cmd  # noqa: E402,F401  (registers commands)
+from authn.cli import simulate as _simulate  # noqa: E402,F401

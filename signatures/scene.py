@@ -1,0 +1,71 @@
+"""What a simulated dwell contains: the target, its motion, clutter and noise.
+
+A `Scene` is plain data (validated); `signatures.simulate` turns it into IQ.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from signatures.profiles import UavProfile
+
+SceneKind = Literal["uav", "bird", "none"]
+
+
+class BirdParams(BaseModel):
+    """Flapping-wing target: two line wings on a point body."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    wing_length_m: float = Field(default=0.35, gt=0.02, le=2.0)
+    flap_rate_hz: float = Field(default=6.0, gt=0.2, le=40.0)
+    flap_amplitude_deg: float = Field(default=40.0, gt=0, le=80)
+
+
+class Scene(BaseModel):
+    """One target (or none) seen by the radar during one dwell.
+
+    Powers: the target's mean power per IF sample is 1; white noise has power
+    10**(-snr_db/10) (so `snr_db` is target power over noise power per IF sample,
+    before any processing gain); clutter has power 10**(clutter_db/10) times the
+    noise power (clutter-to-noise ratio). `snr_db=None` means noiseless.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    kind: SceneKind = "uav"
+    profile: UavProfile | None = None
+    bird: BirdParams | None = None
+    range_m: float = Field(default=100.0, gt=0, le=1e5, description="slant range at the first chirp")
+    radial_speed_mps: float = Field(default=0.0, ge=-500, le=500, description="+ = receding")
+    elevation_deg: float = Field(default=10.0, ge=-90, le=90)
+    yaw_deg: float | None = Field(default=None, ge=-360, le=360, description="None = random")
+    snr_db: float | None = Field(default=20.0, ge=-60, le=120)
+    clutter_db: float | None = Field(default=None, ge=-30, le=80, description="clutter-to-noise ratio")
+    blade_to_body_db: float | None = Field(
+        default=None, ge=-40, le=20, description="blade/body power; None = -10 dB +- 3 dB random")
+    attitude_wobble_deg: float = Field(default=1.0, ge=0, le=20)
+    rotor_rate_jitter: float = Field(default=0.005, ge=0, le=0.1, description="std of per-rotor rate offset")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Scene":
+        if self.kind == "uav" and self.profile is None:
+            raise ValueError("a 'uav' scene needs a profile")
+        if self.kind != "uav" and self.profile is not None:
+            raise ValueError(f"a {self.kind!r} scene has no UAV profile")
+        if self.kind != "bird" and self.bird is not None:
+            raise ValueError("bird parameters given for a scene that is not a bird")
+        if self.clutter_db is not None and self.snr_db is None and self.kind != "none":
+            raise ValueError("clutter_db is relative to noise: give snr_db too")
+        return self
+
+    @property
+    def label(self) -> str:
+        """Class label of SPEC section 4: the profile slug, 'bird' or 'none'."""
+        return self.profile.slug if self.profile is not None else self.kind
+
+    @property
+    def hovering(self) -> bool:
+        return abs(self.radial_speed_mps) < 0.5

@@ -1,0 +1,125 @@
+"""Recorded-return files: round trips and every bad-file case (SPEC sections 3 and 8)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from authn.cli import main
+from signatures.errors import RecordingError
+from signatures.profiles import shipped_profiles
+from signatures.radar import get_preset
+from signatures.recording import read_recording, write_recording
+from signatures.scene import Scene
+from signatures.simulate import simulate
+
+
+@pytest.fixture(scope="module")
+def recording():
+    scene = Scene(profile=shipped_profiles()["m300"], range_m=300.0, radial_speed_mps=3.0, snr_db=10.0)
+    rec, _ = simulate(scene, get_preset("paper"), seed=7)
+    rid = np.arange(2 * 25, dtype=np.uint8).reshape(2, 25)
+    return rec.__class__(rec.config, rec.site, rec.start_time, rec.iq, rid,
+                         np.array([0.1, 0.6]), rec.simulation)
+
+
+@pytest.mark.parametrize("suffix", [".h5", ".npz"])
+def test_round_trip_is_identical(recording, tmp_path: Path, suffix: str) -> None:
+    path = write_recording(recording, tmp_path / f"r{suffix}")
+    back = read_recording(path)
+    assert back.iq.dtype == recording.iq.dtype
+    assert np.array_equal(back.iq, recording.iq)
+    assert back.config == recording.config
+    assert back.site == recording.site
+    assert back.start_time == recording.start_time
+    assert np.array_equal(back.remote_id, recording.remote_id)
+    assert np.array_equal(back.remote_id_time_s, recording.remote_id_time_s)
+    assert back.simulation == recording.simulation
+
+
+def _h5(path: Path, recording, *, drop: str | None = None, attrs: dict | None = None,
+        iq: np.ndarray | None = None, rid: np.ndarray | None = None) -> Path:
+    write_recording(recording, path)
+    with h5py.File(path, "a") as f:
+        if drop:
+            del f.attrs[drop]
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        if iq is not None:
+            del f["iq"]
+            f.create_dataset("iq", data=iq)
+        if rid is not None:
+            del f["remote_id"]
+            del f["remote_id_time_s"]
+            f.create_dataset("remote_id", data=rid)
+    return path
+
+
+BAD_CASES = {
+    "format tag": (dict(attrs={"format": "uav-radar-return/9"}), "attribute 'format'"),
+    "missing attribute": (dict(drop="sample_rate_hz"), "missing attribute 'sample_rate_hz'"),
+    "non-positive bandwidth": (dict(attrs={"bandwidth_hz": -1.0}), "attribute 'bandwidth_hz'"),
+    "pri below ramp": (dict(attrs={"pri_s": 1e-6}), "pri_s"),
+    "string where number": (dict(attrs={"carrier_hz": "77 GHz"}), "attribute 'carrier_hz'"),
+    "bad start time": (dict(attrs={"start_time": "yesterday"}), "attribute 'start_time'"),
+    "3-D iq": (dict(iq=np.zeros((2, 3, 4), np.complex64)), "dataset '/iq': expected 2-D"),
+    "real iq": (dict(iq=np.zeros((4, 8), np.float32)), "dataset '/iq': expected complex64"),
+    "NaN in iq": (dict(iq=np.full((4, 8), np.nan, np.complex64)), "non-finite"),
+    "Inf in iq": (dict(iq=np.array([[np.inf + 0j, 1]], np.complex128)), "non-finite"),
+    "remote id width": (dict(rid=np.zeros((3, 24), np.uint8)), "dataset '/remote_id'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CASES))
+def test_bad_file_gets_specific_error_and_exit_2(recording, tmp_path: Path, case: str, capsys) -> None:
+    kwargs, expected = BAD_CASES[case]
+    path = _h5(tmp_path / "bad.h5", recording, **kwargs)
+    with pytest.raises(RecordingError, match=expected.replace("(", r"\(").replace("[", r"\[")):
+        read_recording(path)
+    assert main(["inspect", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and "\n" not in err and expected in err
+
+
+def test_truncated_file_is_refused(recording, tmp_path: Path, capsys) -> None:
+    path = write_recording(recording, tmp_path / "full.h5")
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    with pytest.raises(RecordingError, match="truncated or corrupt"):
+        read_recording(cut)
+    assert main(["inspect", str(cut)]) == 2
+    npz = write_recording(recording, tmp_path / "full.npz")
+    cut_npz = tmp_path / "cut.npz"
+    cut_npz.write_bytes(npz.read_bytes()[:1000])
+    with pytest.raises(RecordingError, match="truncated or corrupt"):
+        read_recording(cut_npz)
+
+
+def test_shape_is_checked_before_loading(recording, tmp_path: Path) -> None:
+    """A huge declared cube is refused from its header, without allocating it."""
+    path = tmp_path / "huge.h5"
+    write_recording(recording, path)
+    with h5py.File(path, "a") as f:
+        del f["iq"]
+        f.create_dataset("iq", shape=(1 << 20, 1 << 16), dtype=np.complex64)  # 512 GiB, never written
+    with pytest.raises(RecordingError, match="exceed the limit"):
+        read_recording(path)
+
+
+def test_npz_header_checked_and_no_pickle(recording, tmp_path: Path) -> None:
+    path = tmp_path / "obj.npz"
+    arrays = {k: np.asarray(v) for k, v in {"format": "uav-radar-return/1"}.items()}
+    arrays["iq"] = np.array([[object()]], dtype=object)
+    np.savez(path, **arrays)
+    with pytest.raises(RecordingError, match="expected complex64"):
+        read_recording(path)
+
+
+def test_not_a_recording(tmp_path: Path) -> None:
+    path = tmp_path / "x.bin"
+    path.write_bytes(b"hello world")
+    with pytest.raises(RecordingError, match="neither HDF5 nor .npz"):
+        read_recording(path)
