@@ -75,9 +75,8 @@ class Components:
 
     def total(self, dtype: np.dtype | type = np.complex64) -> np.ndarray:
         parts = [p for p in (self.target, self.clutter, self.noise) if p is not None]
-        shape = next(p.shape for p in parts) if parts else (0, 0)
-        out = np.zeros(shape, dtype=dtype)
-        for p in parts:
+        out = parts[0].astype(dtype, copy=True)
+        for p in parts[1:]:
             out += p
         return out
 
@@ -222,7 +221,7 @@ def _target_cube(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: in
     else:
         rel = (scene.range_m - config.range_offset_m + scene.radial_speed_mps * t).astype(np.float32)
         cube = (amps @ g) * _cos_sin(np.float32(kappa) * rel[:, None] * tk[None, :])
-    power = float(np.mean(np.abs(cube) ** 2))
+    power = float(np.vdot(cube, cube).real) / cube.size
     cube *= np.float32(1.0 / math.sqrt(max(power, 1e-30)))  # target power per IF sample = 1
     return cube, truth
 
@@ -248,7 +247,7 @@ def _clutter_cube(config: RadarConfig, n_chirps: int, n_samples: int, power: flo
 def _noise_cube(n_chirps: int, n_samples: int, power: float, rng: np.random.Generator) -> np.ndarray:
     """Complex white Gaussian noise scaled to exactly `power` per sample."""
     noise = rng.standard_normal((n_chirps, 2 * n_samples), dtype=np.float32).view(np.complex64)
-    noise *= np.float32(math.sqrt(power / float(np.mean(np.abs(noise) ** 2))))
+    noise *= np.float32(math.sqrt(power * noise.size / float(np.vdot(noise, noise).real)))
     return noise
 
 
