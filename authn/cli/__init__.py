@@ -70,3 +70,7 @@ def run() -> None:
 
 from authn.cli import inspect_cmd as _inspect_cmd  # noqa: E402,F401  (registers commands)
 from authn.cli import simulate as _simulate  # noqa: E402,F401
+from authn.cli import registry_cmds as _registry_cmds  # noqa: E402,F401
+from authn.cli import rid as _rid  # noqa: E402,F401
+from authn.cli import db as _db  # noqa: E402,F401
+from authn.cli import audit_cmds as _audit_cmds  # noqa: E402,F401

@@ -1,0 +1,127 @@
+"""Cedar policy evaluation: the policy set is data, `cedarpy` is the engine.
+
+The policy text and its schema are parsed and validated once (`PolicyEngine.load`),
+then every request reuses the parsed handles. Reasons are the `@id` annotations of
+the policies that determined the decision.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import cedarpy
+
+from authn.errors import AuthnError
+
+ACTION = {"type": "Action", "id": "authenticate"}
+SITE_ID = "site"
+
+
+class PolicyError(AuthnError):
+    """A policy file that cannot be read, parsed or validated against the schema."""
+
+
+@dataclass(frozen=True)
+class PolicyResult:
+    decision: str  # "accept" | "reject"
+    reasons: list[str]
+    errors: list[str] = field(default_factory=list)
+
+
+def _shipped(name: str) -> str:
+    return resources.files("authn.policies").joinpath(name).read_text()
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+@dataclass(frozen=True)
+class PolicyEngine:
+    """A validated policy set and schema, parsed once."""
+
+    text: str
+    sha256: str
+    source: str
+    policy_set: Any
+    schema: Any
+    effects: dict[str, str]  # policy id (parser's) -> "permit" | "forbid"
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> "PolicyEngine":
+        """The shipped default policy, or a file that replaces it (validated against the schema)."""
+        schema_text = _shipped("schema.cedarschema")
+        if path is None:
+            text, source = _shipped("default.cedar"), "default"
+        else:
+            try:
+                text, source = Path(path).read_text(), str(path)
+            except (OSError, UnicodeDecodeError) as exc:
+                raise PolicyError(f"{path}: cannot read policy file ({exc})") from None
+        result = cedarpy.validate_policies(text, schema_text)
+        if not result.validation_passed:
+            first = result.errors[0] if result.errors else "invalid policy"
+            raise PolicyError(f"{source}: policy does not validate against the schema: {_one_line(first)}")
+        try:
+            policy_set = cedarpy.PolicySet.from_str(text)
+            schema = cedarpy.Schema.from_str(schema_text)
+        except ValueError as exc:
+            raise PolicyError(f"{source}: {_one_line(exc)}") from None
+        static = json.loads(cedarpy.policies_to_json_str(text)).get("staticPolicies", {})
+        effects = {pid: body["effect"] for pid, body in static.items()}
+        digest = hashlib.sha256(text.encode()).hexdigest()
+        return cls(text=text, sha256=digest, source=source, policy_set=policy_set, schema=schema,
+                   effects=effects)
+
+    # --- requests -----------------------------------------------------------------
+
+    @staticmethod
+    def _entities(serial: str, principal: dict[str, Any], resource: dict[str, Any]) -> list[dict]:
+        return [
+            {"uid": {"type": "Uav", "id": serial}, "attrs": principal, "parents": []},
+            {"uid": {"type": "RadarSite", "id": SITE_ID}, "attrs": resource, "parents": []},
+        ]
+
+    @staticmethod
+    def _request(serial: str, context: dict[str, Any] | None) -> dict[str, Any]:
+        req: dict[str, Any] = {"principal": {"type": "Uav", "id": serial}, "action": ACTION,
+                               "resource": {"type": "RadarSite", "id": SITE_ID}}
+        if context is not None:
+            req["context"] = context
+        return req
+
+    def _reasons(self, diag: Any, effect: str) -> list[str]:
+        """The @id names of the satisfied policies with this effect (parser ids without one)."""
+        ids = diag.id_annotations_by_reason
+        return sorted(ids.get(r, r) for r in diag.reasons if self.effects.get(r) == effect)
+
+    def decide(self, serial: str, principal: dict[str, Any], resource: dict[str, Any],
+               context: dict[str, Any]) -> PolicyResult:
+        """The complete decision over all the evidence gathered."""
+        result = cedarpy.is_authorized(self._request(serial, context), self.policy_set,
+                                       self._entities(serial, principal, resource), schema=self.schema)
+        errors = [_one_line(e) for e in result.diagnostics.errors]
+        if result.allowed:
+            return PolicyResult("accept", self._reasons(result.diagnostics, "permit"), errors)
+        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid") or ["default-deny"], errors)
+
+    def decide_without_evidence(self, serial: str, principal: dict[str, Any],
+                                resource: dict[str, Any]) -> PolicyResult | None:
+        """Partial evaluation with the context (radar + Remote ID evidence) unknown.
+
+        Returns the rejection when registry facts alone already force a deny,
+        else None (the evidence is needed). Never used as a final accept.
+        """
+        request = {"principal": f"Uav::{json.dumps(serial)}", "action": 'Action::"authenticate"',
+                   "resource": f"RadarSite::{json.dumps(SITE_ID)}"}
+        result = cedarpy.is_authorized_partial(request, self.policy_set,
+                                               self._entities(serial, principal, resource),
+                                               schema=self.schema)
+        if result.decision == cedarpy.Decision.Deny:
+            return PolicyResult("reject", self._reasons(result.diagnostics, "forbid") or ["default-deny"])
+        return None

@@ -1,0 +1,88 @@
+"""A simulated flight together with the Remote ID it broadcasts (truthful or spoofed).
+
+Composes the radar simulator (signatures) with the F3411 codec (registry): the
+true position comes from the scene geometry (slant range, elevation, azimuth
+from the radar site), converted to WGS-84 with pymap3d; a spoof replaces the
+declared serial, position or UA type.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from datetime import timedelta
+
+import numpy as np
+
+from signatures.radar import Preset
+from signatures.recording import Recording
+from signatures.scene import Scene
+from signatures.simulate import Truth, simulate
+
+UA_TYPE_MULTIROTOR = 2
+
+
+@dataclass(frozen=True)
+class Broadcast:
+    """What the drone says about itself; None fields are taken from the truth."""
+
+    serial: str
+    ua_type: int = UA_TYPE_MULTIROTOR
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    alt_m: float | None = None
+    offset_along_los_m: float = 0.0  # declared position this far beyond the true one
+    horizontal_accuracy: int = 11  # < 3 m
+    vertical_accuracy: int = 5  # < 3 m
+    speed_accuracy: int = 3  # < 1 m/s
+    messages: int = 3  # Basic ID + this many Location messages, from mid-dwell, 0.33 s apart
+
+
+def _line_of_sight(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
+    el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
+    return np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+
+
+def remote_id_rows(rec: Recording, scene: Scene, bc: Broadcast, azimuth_deg: float,
+                   dwell_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 25) uint8 messages and their times (s after the first chirp)."""
+    import pymap3d
+
+    from registry.remoteid import BasicId, Location, encode
+
+    u = _line_of_sight(scene.elevation_deg, azimuth_deg)
+    vel = scene.radial_speed_mps * u
+    rows, times = [encode(BasicId(id_type=1, ua_type=bc.ua_type, uas_id=bc.serial))], [0.0]
+    for i in range(bc.messages):
+        t = dwell_s / 2 + i / 3.0
+        pos = (scene.range_m + bc.offset_along_los_m) * u + vel * t
+        lat, lon, alt = pymap3d.enu2geodetic(pos[0], pos[1], pos[2], rec.site.lat_deg, rec.site.lon_deg,
+                                             rec.site.alt_m)
+        when = rec.start_time + timedelta(seconds=t)
+        loc = Location(
+            status=2, height_type=0,
+            direction_deg=math.degrees(math.atan2(vel[0], vel[1])) % 360.0,
+            speed_horizontal_mps=min(float(np.hypot(vel[0], vel[1])), 254.25),
+            speed_vertical_mps=float(np.clip(vel[2], -62.0, 62.0)),
+            latitude_deg=bc.lat_deg if bc.lat_deg is not None else float(lat),
+            longitude_deg=bc.lon_deg if bc.lon_deg is not None else float(lon),
+            altitude_geo_m=bc.alt_m if bc.alt_m is not None else float(alt),
+            altitude_baro_m=None, height_m=None,
+            horizontal_accuracy=bc.horizontal_accuracy, vertical_accuracy=bc.vertical_accuracy,
+            baro_accuracy=0, speed_accuracy=bc.speed_accuracy,
+            timestamp_s=round((when.minute * 60 + when.second + when.microsecond / 1e6) * 10) / 10 % 3600.0,
+            timestamp_accuracy_s=0.1,
+        )
+        rows.append(encode(loc))
+        times.append(t)
+    return np.frombuffer(b"".join(rows), dtype=np.uint8).reshape(-1, 25).copy(), np.array(times)
+
+
+def simulate_flight(scene: Scene, preset: Preset, seed: int | None, broadcast: Broadcast | None = None,
+                    azimuth_deg: float = 0.0, range_offset_m: float | None = None) -> tuple[Recording, Truth]:
+    """Simulate a dwell; with a broadcast, embed its Remote ID messages in the recording."""
+    rec, truth = simulate(scene, preset, seed, range_offset_m=range_offset_m)
+    if broadcast is None:
+        return rec, truth
+    rows, times = remote_id_rows(rec, scene, broadcast, azimuth_deg, preset.dwell_s)
+    return replace(rec, remote_id=rows, remote_id_time_s=times), truth

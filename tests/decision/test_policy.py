@@ -1,0 +1,100 @@
+"""Golden decision table for the default Cedar policy (one row per policy, combinations, accept)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from authn.policy import PolicyEngine, PolicyError
+
+T_NOW = 1_767_268_800  # 2026-01-01T12:00:00Z
+
+ACTIVE = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=T_NOW - 86400)
+SITE = dict(time_s=T_NOW, preset="paper")
+GOOD = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300", radar_known=True,
+            radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120, range_tolerance_cm=850,
+            velocity_residual_cmps=40, velocity_tolerance_cmps=170, remote_id_present=True, remote_id_issues=[])
+
+CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
+    "accept": ({}, {}, {}, "accept", ["registered-active"]),
+    "unregistered": (dict(registered=False, status="unregistered", model="", id_type=""), {}, {},
+                     "reject", ["radar-type-mismatch", "unregistered"]),
+    "revoked": (dict(status="revoked"), {}, {}, "reject", ["revoked"]),
+    "not yet valid": (dict(valid_from_s=T_NOW + 10), {}, {}, "reject", ["outside-validity-window"]),
+    "expired": (dict(valid_until_s=T_NOW), {}, {}, "reject", ["outside-validity-window"]),
+    "valid until later": (dict(valid_until_s=T_NOW + 1), {}, {}, "accept", ["registered-active"]),
+    "no target": ({}, {}, dict(target_detected=False), "reject", ["no-target"]),
+    "unknown airframe": ({}, {}, dict(radar_known=False, radar_model="unknown"), "reject",
+                         ["radar-unknown-airframe"]),
+    "type mismatch": ({}, {}, dict(radar_model="phantom4"), "reject", ["radar-type-mismatch"]),
+    "bird": ({}, {}, dict(radar_model="bird"), "reject", ["radar-type-mismatch"]),
+    "low confidence": ({}, {}, dict(radar_confidence_bp=7999), "reject", ["low-confidence"]),
+    "confidence at threshold": ({}, {}, dict(radar_confidence_bp=8000), "accept", ["registered-active"]),
+    "range mismatch": ({}, {}, dict(range_residual_cm=851), "reject", ["range-mismatch"]),
+    "range at tolerance": ({}, {}, dict(range_residual_cm=850), "accept", ["registered-active"]),
+    "velocity mismatch": ({}, {}, dict(velocity_residual_cmps=171), "reject", ["velocity-mismatch"]),
+    "no kinematics, type ok": ({}, {}, dict(has_kinematics=False, range_residual_cm=99999), "accept",
+                               ["registered-active"]),
+    "remote id implausible": ({}, {}, dict(remote_id_issues=["stale-timestamp"]), "reject",
+                              ["remote-id-implausible"]),
+    "issues ignored without remote id": ({}, {}, dict(remote_id_present=False, remote_id_issues=["x"]), "accept",
+                                         ["registered-active"]),
+    "radar skipped, registry ok": ({}, {}, dict(radar_run=False, target_detected=False), "accept",
+                                   ["registered-active"]),
+    "spoofed type and position": ({}, {}, dict(radar_model="phantom4", range_residual_cm=30000), "reject",
+                                  ["radar-type-mismatch", "range-mismatch"]),
+    "revoked and expired": (dict(status="revoked", valid_until_s=T_NOW - 5), {}, {}, "reject",
+                            ["outside-validity-window", "revoked"]),
+}
+
+
+@pytest.fixture(scope="module")
+def engine() -> PolicyEngine:
+    return PolicyEngine.load()
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_golden_decision(engine: PolicyEngine, name: str) -> None:
+    p, r, c, decision, reasons = CASES[name]
+    result = engine.decide("1581F5FJD2100123", {**ACTIVE, **p}, {**SITE, **r}, {**GOOD, **c})
+    assert (result.decision, result.reasons) == (decision, reasons)
+    assert result.errors == []
+
+
+@pytest.mark.parametrize("principal,reasons", [
+    (dict(registered=False, status="unregistered", model="", id_type=""), ["unregistered"]),
+    (dict(status="revoked"), ["revoked"]),
+    (dict(valid_until_s=T_NOW - 1), ["outside-validity-window"]),
+])
+def test_registry_facts_decide_without_evidence(engine: PolicyEngine, principal: dict, reasons: list[str]) -> None:
+    result = engine.decide_without_evidence("S1", {**ACTIVE, **principal}, SITE)
+    assert result is not None and result.decision == "reject" and result.reasons == reasons
+
+
+def test_active_identity_needs_the_evidence(engine: PolicyEngine) -> None:
+    assert engine.decide_without_evidence("S1", ACTIVE, SITE) is None
+
+
+def test_policy_file_replaces_default(tmp_path: Path) -> None:
+    strict = tmp_path / "strict.cedar"
+    strict.write_text('@id("only-m600")\npermit (principal, action == Action::"authenticate", resource)\n'
+                      'when { principal.registered && principal.model == "m600" };\n')
+    engine = PolicyEngine.load(strict)
+    assert engine.source == str(strict) and engine.sha256 != PolicyEngine.load().sha256
+    assert engine.decide("S1", ACTIVE, SITE, GOOD).decision == "reject"
+    assert engine.decide("S1", {**ACTIVE, "model": "m600"}, SITE, GOOD).reasons == ["only-m600"]
+
+
+@pytest.mark.parametrize("text,fragment", [
+    ('permit (principal, action, resource) when { context.no_such_field };', "no_such_field"),
+    ('permit (principal, action == Action::"fly", resource);', "fly"),
+    ("this is not cedar", ""),
+])
+def test_invalid_policy_refused_with_cedar_message(tmp_path: Path, text: str, fragment: str) -> None:
+    bad = tmp_path / "bad.cedar"
+    bad.write_text(text)
+    with pytest.raises(PolicyError) as info:
+        PolicyEngine.load(bad)
+    msg = str(info.value)
+    assert "\n" not in msg and str(bad) in msg and fragment in msg
