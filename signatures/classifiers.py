@@ -1,0 +1,86 @@
+"""The paper's classifiers as scikit-learn estimators (training side only).
+
+kNN (k = 5, Euclidean), Random Forest and RBF SVM (one-vs-rest), each with its
+scaling inside a Pipeline, and a soft-voting ensemble of the three whose averaged
+probabilities are calibrated by temperature scaling on held-out validation data
+(one parameter: it fixes the over-/under-confidence of the average without
+changing its arg-max). Labels are integer codes into the card's class list, so the
+exported ONNX outputs line up with it column for column.
+
+Inference never imports this module: see `signatures.inference`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.base import ClassifierMixin
+from sklearn.calibration import CalibratedClassifierCV
+from sklearn.ensemble import RandomForestClassifier, VotingClassifier
+from sklearn.frozen import FrozenEstimator
+from sklearn.multiclass import OneVsRestClassifier
+from sklearn.neighbors import KNeighborsClassifier
+from sklearn.pipeline import Pipeline, make_pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import SVC
+
+MEMBERS = ("knn", "rf", "svm")
+
+
+def make_knn() -> Pipeline:
+    """The paper's kNN: k = 5, Euclidean distance (on standardised features)."""
+    return make_pipeline(StandardScaler(), KNeighborsClassifier(n_neighbors=5, metric="euclidean"))
+
+
+def make_rf(seed: int, n_estimators: int = 100) -> Pipeline:
+    """Random Forest (no scaler: trees are scale-free); leaves of >= 2 samples keep the file small."""
+    return make_pipeline(RandomForestClassifier(
+        n_estimators=n_estimators, min_samples_leaf=2, random_state=seed, n_jobs=1))
+
+
+def make_svm(seed: int) -> Pipeline:
+    """RBF SVM, one-vs-rest as in the paper, Platt probabilities per binary machine."""
+    return make_pipeline(StandardScaler(), OneVsRestClassifier(
+        SVC(kernel="rbf", C=10.0, gamma="scale", probability=True, random_state=seed)))
+
+
+def make_member(name: str, seed: int) -> Pipeline:
+    if name == "knn":
+        return make_knn()
+    if name == "rf":
+        return make_rf(seed)
+    if name == "svm":
+        return make_svm(seed)
+    raise ValueError(f"unknown model {name!r}")
+
+
+def fit_members(X: np.ndarray, y: np.ndarray, seed: int) -> dict[str, Pipeline]:
+    """Fit kNN, RF and SVM on the same data."""
+    return {name: make_member(name, seed).fit(X, y) for name in MEMBERS}
+
+
+def calibrated_ensemble(members: dict[str, Pipeline], X_val: np.ndarray,
+                        y_val: np.ndarray) -> CalibratedClassifierCV:
+    """Soft vote of the fitted members, temperature-calibrated on validation data."""
+    vote = VotingClassifier([(n, FrozenEstimator(m)) for n, m in members.items()], voting="soft")
+    vote.fit(X_val, y_val)  # frozen members: this only records the classes
+    return CalibratedClassifierCV(FrozenEstimator(vote), method="temperature").fit(X_val, y_val)
+
+
+def temperature_beta(ensemble: CalibratedClassifierCV) -> float:
+    """The fitted inverse temperature (the only calibration parameter shipped)."""
+    return float(ensemble.calibrated_classifiers_[0].calibrators[0].beta_)
+
+
+def calibrate(avg_proba: np.ndarray, beta: float) -> np.ndarray:
+    """softmax(beta * log p): what `CalibratedClassifierCV(method="temperature")` computes."""
+    z = beta * np.log(avg_proba + 1e-12)
+    z -= z.max(axis=1, keepdims=True)
+    e = np.exp(z)
+    return e / e.sum(axis=1, keepdims=True)
+
+
+def fit_state_heads(X: np.ndarray, moving: np.ndarray, seed: int) -> dict[str, ClassifierMixin]:
+    """Second head per model: hovering (0) / moving (1), trained on UAV returns only."""
+    y = moving.astype(np.int64)
+    heads = {"knn": make_knn(), "rf": make_rf(seed, n_estimators=50), "svm": make_svm(seed)}
+    return {n: h.fit(X, y) for n, h in heads.items()}

@@ -1,0 +1,305 @@
+"""Training / evaluation datasets: scenes drawn from the paper's 3-D grid, simulated, featurised.
+
+Why it is built this way:
+
+* Geometry comes from the paper's grid (-1000 m .. 1000 m, 10 m spacing). The grid is
+  cut into 100 m blocks and every block is assigned to *one* split (train / val /
+  test) by a fixed hash of the block. Neighbouring grid points (near-identical
+  returns) therefore never straddle splits, whatever the dataset seed.
+* Each sample's simulator seed is derived from (dataset seed, split, index): two
+  datasets with different seeds or splits never share a noise realisation.
+* Generation is chunked (2 worker processes by default); only the feature vectors
+  and RD patches are kept, never the IQ cubes.
+* The result is cached as `.npz` (no pickle) under a key that digests everything the
+  samples depend on, so a retrain does not re-simulate.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from signatures.errors import SignaturesError
+from signatures.profiles import NON_UAV_CLASSES, UavProfile
+from signatures.radar import get_preset
+from signatures.scene import BirdParams, Scene
+
+#: Bump when the scene sampling changes: cached datasets are then regenerated.
+GENERATOR_VERSION = 1
+SPLITS = {"train": 0, "val": 1, "test": 2}
+GRID_STEP_M = 10.0
+GRID_HALF_M = 1000.0
+BLOCK_M = 100.0
+_SPLIT_SALT = b"uav-radar-authn/split/1"
+#: Radial speeds of moving targets (m/s, either sign); below the paper preset's 22 m/s.
+MOVING_SPEEDS_MPS = (2.0, 5.0, 10.0, 15.0, 20.0)
+HOVER_FRACTION = 0.4
+MIN_RANGE_M = 20.0
+
+Featurizer = Callable[..., Any]
+
+
+class DatasetError(SignaturesError):
+    """A dataset that cannot be generated or read back."""
+
+
+def block_split(x: float, y: float, z: float) -> str:
+    """Split of the 100 m grid block holding (x, y, z): 70 % train, 10 % val, 20 % test."""
+    b = tuple(int(math.floor((c + GRID_HALF_M) / BLOCK_M)) for c in (x, y, z))
+    h = hashlib.blake2b(_SPLIT_SALT + repr(b).encode(), digest_size=8).digest()
+    r = int.from_bytes(h, "little") % 10
+    return "train" if r < 7 else ("val" if r < 8 else "test")
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Everything a dataset depends on (its cache key digests all of it)."""
+
+    preset: str
+    profiles: tuple[UavProfile, ...]
+    split: str
+    n: int
+    seed: int = 0
+    snr_db: tuple[float, float] | float = (-5.0, 30.0)
+    max_elevation_deg: float = 60.0
+    clutter_fraction: float = 0.25
+    clutter_db: tuple[float, float] = (0.0, 10.0)
+    include_non_uav: bool = True
+    feature_version: str = ""
+
+    def __post_init__(self) -> None:
+        if self.split not in SPLITS:
+            raise DatasetError(f"unknown split {self.split!r} (known: {', '.join(SPLITS)})")
+        if self.n < 1:
+            raise DatasetError("a dataset needs at least one sample")
+        get_preset(self.preset)
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        """Labels in a fixed order: profiles (as given), then bird and none."""
+        uav = tuple(p.slug for p in self.profiles)
+        return uav + (NON_UAV_CLASSES if self.include_non_uav else ())
+
+    def key(self) -> str:
+        doc = asdict(self)
+        doc["profiles"] = [p.model_dump(mode="json") for p in self.profiles]
+        doc["generator_version"] = GENERATOR_VERSION
+        blob = json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
+        return hashlib.sha256(blob).hexdigest()[:24]
+
+
+@dataclass
+class Dataset:
+    """Feature matrix plus labels and the scene parameters of every sample."""
+
+    X: np.ndarray  # (n, n_features) float32
+    rd: np.ndarray  # (n, h, w) float32 RD patches
+    y: np.ndarray  # (n,) str labels
+    moving: np.ndarray  # (n,) bool operational state (radial speed != 0)
+    snr_db: np.ndarray
+    range_m: np.ndarray
+    speed_mps: np.ndarray
+    elevation_deg: np.ndarray
+    feature_ms: np.ndarray  # feature-extraction wall time per sample
+    classes: tuple[str, ...] = field(default=())
+    feature_names: tuple[str, ...] = field(default=())
+
+    def __len__(self) -> int:
+        return int(self.y.shape[0])
+
+    def subset(self, mask: np.ndarray) -> "Dataset":
+        arrays = {k: getattr(self, k)[mask] for k in _ARRAYS}
+        return Dataset(**arrays, classes=self.classes, feature_names=self.feature_names)
+
+    def save(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez_compressed(tmp, **{k: getattr(self, k) for k in _ARRAYS},
+                            classes=np.array(self.classes, dtype=str),
+                            feature_names=np.array(self.feature_names, dtype=str))
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: Path) -> "Dataset":
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                arrays = {k: z[k] for k in _ARRAYS}
+                return cls(**arrays, classes=tuple(str(c) for c in z["classes"]),
+                           feature_names=tuple(str(c) for c in z["feature_names"]))
+        except (OSError, KeyError, ValueError) as exc:
+            raise DatasetError(f"{path}: unreadable dataset cache ({exc})") from None
+
+    @staticmethod
+    def concat(parts: Sequence["Dataset"]) -> "Dataset":
+        arrays = {k: np.concatenate([getattr(p, k) for p in parts]) for k in _ARRAYS}
+        return Dataset(**arrays, classes=parts[0].classes, feature_names=parts[0].feature_names)
+
+
+_ARRAYS = ("X", "rd", "y", "moving", "snr_db", "range_m", "speed_mps", "elevation_deg", "feature_ms")
+
+
+def _draw_point(rng: np.random.Generator, spec: DatasetSpec, max_range: float) -> tuple[float, float, float]:
+    """A grid point of the spec's split, inside the radar's range and elevation cover."""
+    n = int(2 * GRID_HALF_M / GRID_STEP_M) + 1
+    sin_max = math.sin(math.radians(spec.max_elevation_deg))
+    for _ in range(10_000):
+        x, y, z = (rng.integers(0, n, 3) * GRID_STEP_M - GRID_HALF_M).tolist()
+        r = math.sqrt(x * x + y * y + z * z)
+        if MIN_RANGE_M <= r <= max_range and abs(z) <= sin_max * r and block_split(x, y, z) == spec.split:
+            return x, y, z
+    raise DatasetError("no grid point satisfies the geometry constraints")  # pragma: no cover
+
+
+def draw_scene(spec: DatasetSpec, index: int) -> tuple[Scene, int]:
+    """Scene number `index` of the dataset and its simulator seed (pure function of both)."""
+    rng = np.random.default_rng([spec.seed, SPLITS[spec.split], index, GENERATOR_VERSION])
+    classes = spec.classes
+    label = classes[index % len(classes)]
+    x, y, z = _draw_point(rng, spec, get_preset(spec.preset).max_range_m)
+    r = math.sqrt(x * x + y * y + z * z)
+    elev = math.degrees(math.asin(z / r))
+    hover = label != "bird" and rng.random() < HOVER_FRACTION
+    speed = 0.0 if hover else float(rng.choice(MOVING_SPEEDS_MPS)) * float(rng.choice((-1.0, 1.0)))
+    if isinstance(spec.snr_db, tuple):
+        snr = float(rng.uniform(*spec.snr_db))
+    else:
+        snr = float(spec.snr_db)
+    clutter = float(rng.uniform(*spec.clutter_db)) if rng.random() < spec.clutter_fraction else None
+    common = dict(range_m=r, elevation_deg=elev, snr_db=snr, clutter_db=clutter)
+    if label == "none":
+        scene = Scene(kind="none", **common)
+    elif label == "bird":
+        bird = BirdParams(wing_length_m=float(rng.uniform(0.15, 0.6)), flap_rate_hz=float(rng.uniform(2, 12)),
+                          flap_amplitude_deg=float(rng.uniform(20, 60)))
+        scene = Scene(kind="bird", bird=bird, radial_speed_mps=speed, **common)
+    else:
+        profile = next(p for p in spec.profiles if p.slug == label)
+        scene = Scene(kind="uav", profile=profile, radial_speed_mps=speed, **common)
+    sim_seed = int(rng.integers(0, 2**63 - 1))
+    return scene, sim_seed
+
+
+def default_featurizer() -> Featurizer:
+    """The package's feature extractor (`signatures.features.extract`)."""
+    from signatures.features import extract
+
+    return extract
+
+
+def feature_version(featurizer: Featurizer) -> str:
+    """Digest of the featurizer's identity and feature names (part of the cache key)."""
+    import importlib
+
+    mod = importlib.import_module(featurizer.__module__)
+    names = getattr(mod, "FEATURE_NAMES", ())
+    ver = getattr(mod, "FEATURE_VERSION", "")
+    blob = json.dumps([featurizer.__module__, featurizer.__qualname__, list(names), str(ver)]).encode()
+    return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def _chunk(spec: DatasetSpec, featurizer: Featurizer, start: int, stop: int) -> Dataset:
+    """Simulate and featurise samples [start, stop) (runs in a worker process)."""
+    from signatures.simulate import simulate
+
+    preset = get_preset(spec.preset)
+    feats, rds, meta = [], [], []
+    for i in range(start, stop):
+        scene, seed = draw_scene(spec, i)
+        rec, _ = simulate(scene, preset, seed=seed)
+        t0 = time.perf_counter()
+        res = featurizer(rec)
+        ms = (time.perf_counter() - t0) * 1e3
+        feats.append(np.asarray(res.as_array(), dtype=np.float32))
+        rds.append(np.asarray(res.rd_patch, dtype=np.float32))
+        meta.append((scene.label, not scene.hovering and scene.kind != "none", scene.snr_db,
+                     scene.range_m, scene.radial_speed_mps, scene.elevation_deg, ms))
+    names = tuple(getattr(res, "names", None) or _names_of(featurizer))
+    lab, mov, snr, rng_m, spd, el, ms = zip(*meta)
+    return Dataset(X=np.stack(feats), rd=np.stack(rds), y=np.array(lab, dtype=str),
+                   moving=np.array(mov, dtype=bool), snr_db=np.array(snr, dtype=np.float32),
+                   range_m=np.array(rng_m, dtype=np.float32), speed_mps=np.array(spd, dtype=np.float32),
+                   elevation_deg=np.array(el, dtype=np.float32), feature_ms=np.array(ms, dtype=np.float32),
+                   classes=spec.classes, feature_names=names)
+
+
+def _names_of(featurizer: Featurizer) -> tuple[str, ...]:
+    import importlib
+
+    return tuple(getattr(importlib.import_module(featurizer.__module__), "FEATURE_NAMES", ()))
+
+
+def cache_dir() -> Path:
+    """Feature cache: `$AUTHN_CACHE_DIR` or the user cache directory."""
+    env = os.environ.get("AUTHN_CACHE_DIR")
+    if env:
+        return Path(env)
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("uav-radar-authn")) / "datasets"
+
+
+def generate(spec: DatasetSpec, featurizer: Featurizer | None = None, *, workers: int = 2,
+             chunk: int = 64, cache: Path | None | bool = None, progress: bool = False) -> Dataset:
+    """Simulate + featurise `spec.n` samples, or read them from the cache.
+
+    `cache=None` uses `cache_dir()`, `False` disables caching, a Path picks the folder.
+    Results do not depend on `workers` or `chunk` (every sample has its own seed).
+    """
+    featurizer = featurizer or default_featurizer()
+    if not spec.feature_version:
+        spec = DatasetSpec(**{**spec.__dict__, "feature_version": feature_version(featurizer)})
+    path = None
+    if cache is not False:
+        folder = cache_dir() if cache is None or cache is True else Path(cache)
+        path = folder / f"{spec.preset}-{spec.split}-{spec.n}-{spec.key()}.npz"
+        if path.exists():
+            return Dataset.load(path)
+    bounds = [(s, min(s + chunk, spec.n)) for s in range(0, spec.n, chunk)]
+    parts: list[Dataset] = []
+    with _progress(progress, f"simulating {spec.n} {spec.preset} returns ({spec.split})", spec.n) as advance:
+        if workers <= 1 or len(bounds) == 1:
+            for a, b in bounds:
+                parts.append(_chunk(spec, featurizer, a, b))
+                advance(b - a)
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                futures = [pool.submit(_chunk, spec, featurizer, a, b) for a, b in bounds]
+                for fut, (a, b) in zip(futures, bounds):
+                    parts.append(fut.result())
+                    advance(b - a)
+    data = Dataset.concat(parts)
+    if path is not None:
+        data.save(path)
+    return data
+
+
+class _progress:
+    """A rich progress bar when asked for, a no-op otherwise."""
+
+    def __init__(self, enabled: bool, text: str, total: int) -> None:
+        self.enabled, self.text, self.total = enabled, text, total
+
+    def __enter__(self) -> Callable[[int], None]:
+        if not self.enabled:
+            return lambda n: None
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+        self._p = Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
+                           TimeRemainingColumn(), transient=True)
+        self._p.start()
+        task = self._p.add_task(self.text, total=self.total)
+        return lambda n: self._p.advance(task, n)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.enabled:
+            self._p.stop()

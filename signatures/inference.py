@@ -1,0 +1,195 @@
+"""Run a shipped model bundle: onnxruntime + numpy only (no scikit-learn, no torch).
+
+`load_classifier(preset)` verifies the bundle's digests against its card, opens one
+onnxruntime session per model file and keeps the result for the process (batch mode
+reuses it). `Classifier.predict` turns one feature vector (and optionally the RD
+patch) into a `Prediction`: calibrated soft-vote of kNN + RF + SVM, the CNN only
+when the ensemble is unsure (cascade), then open-set rejection.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from signatures.errors import SignaturesError
+from signatures.modelcard import read_card
+from signatures.openset import OpenSet
+from signatures.profiles import NON_UAV_CLASSES, UNKNOWN
+from signatures.radar import PRESETS, RadarConfig
+
+MEMBERS = ("knn", "rf", "svm")
+_LOADED: dict[str, "Classifier"] = {}
+
+
+class NoModelError(SignaturesError):
+    """No model bundle fits the recording's waveform."""
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What the radar says about one return."""
+
+    label: str  # profile slug, "bird", "none" or "unknown"
+    confidence: float  # calibrated probability of the best known class
+    known: bool  # False when open-set rejection turned the label into "unknown"
+    probabilities: dict[str, float]
+    operational_state: str | None  # "hovering" / "moving" for multirotors, else None
+    used_cnn: bool
+    nearest: str = ""  # best known class even when the label is "unknown"
+    openset_score: float = 0.0
+    member_labels: dict[str, str] = field(default_factory=dict)
+
+
+def _calibrate(p: np.ndarray, beta: float) -> np.ndarray:
+    z = beta * np.log(p + 1e-12)
+    z -= z.max(axis=1, keepdims=True)
+    e = np.exp(z)
+    return e / e.sum(axis=1, keepdims=True)
+
+
+class Classifier:
+    """A verified model bundle ready for inference."""
+
+    def __init__(self, folder: Path) -> None:
+        import onnxruntime as ort
+
+        self.folder = Path(folder)
+        self.card, self.card_digest = read_card(self.folder)
+        c = self.card
+        self.preset: str = c["preset"]
+        self.classes: tuple[str, ...] = tuple(c["classes"])
+        self.n_features = len(c["feature_names"])
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = 1
+        opts.inter_op_num_threads = 1
+        opts.log_severity_level = 3
+
+        def session(name: str) -> Any:
+            return ort.InferenceSession(str(self.folder / name), opts, providers=["CPUExecutionProvider"])
+
+        self._members = {m: session(f"{m}.onnx") for m in MEMBERS}
+        self._state = {m: session(f"{m}_state.onnx") for m in MEMBERS}
+        self._cnn = session("cnn.onnx") if "cnn.onnx" in c["files"] else None
+        with np.load(self.folder / "openset.npz", allow_pickle=False) as z:
+            self.openset = OpenSet.from_arrays({k: z[k] for k in z.files})
+        self.beta = float(c["ensemble"]["temperature_beta"])
+        cas = c.get("cascade") or {}
+        self.cascade_threshold = float(cas.get("threshold", 0.0)) if self._cnn is not None else 0.0
+        cnn = c.get("cnn") or {}
+        self._cnn_mean = float(cnn.get("input_mean", 0.0))
+        self._cnn_std = float(cnn.get("input_std", 1.0))
+        self._uav = np.array([k not in NON_UAV_CLASSES for k in self.classes])
+
+    @property
+    def has_cnn(self) -> bool:
+        return self._cnn is not None
+
+    # --- vectorised building blocks (evaluation uses these) --------------------------
+    def _x(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X, dtype=np.float32)
+        X = X.reshape(1, -1) if X.ndim == 1 else X
+        if X.shape[1] != self.n_features:
+            raise SignaturesError(f"feature vector has {X.shape[1]} values, the model expects {self.n_features}")
+        return np.nan_to_num(X, nan=0.0, posinf=1e6, neginf=-1e6)
+
+    def member_proba(self, name: str, X: np.ndarray) -> np.ndarray:
+        """Probabilities of one member model ('knn', 'rf', 'svm'), columns in `classes` order."""
+        return self._members[name].run(["probabilities"], {"X": self._x(X)})[0]
+
+    def ensemble_proba(self, X: np.ndarray) -> np.ndarray:
+        """Temperature-calibrated mean of the three members."""
+        Xf = self._x(X)
+        avg = sum(self.member_proba(m, Xf) for m in MEMBERS) / len(MEMBERS)
+        return _calibrate(avg.astype(np.float64), self.beta)
+
+    def cnn_proba(self, rd: np.ndarray) -> np.ndarray:
+        if self._cnn is None:
+            raise SignaturesError("this model bundle has no CNN (train with --cnn)")
+        x = (np.asarray(rd, dtype=np.float32) - self._cnn_mean) / self._cnn_std
+        x = x.reshape(-1, 1, *x.shape[-2:])
+        logits = self._cnn.run(["logits"], {"rd": x})[0].astype(np.float64)
+        return _calibrate(np.exp(logits - logits.max(axis=1, keepdims=True)), 1.0)
+
+    def cascade_proba(self, X: np.ndarray, rd: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Ensemble, averaged with the CNN where the ensemble's top probability < threshold."""
+        p = self.ensemble_proba(X)
+        used = np.zeros(len(p), dtype=bool)
+        if self._cnn is not None and rd is not None and self.cascade_threshold > 0:
+            used = p.max(axis=1) < self.cascade_threshold
+            if used.any():
+                rd = np.asarray(rd).reshape(len(p), *np.asarray(rd).shape[-2:])
+                p[used] = 0.5 * (p[used] + self.cnn_proba(rd[used]))
+        return p, used
+
+    def moving_proba(self, X: np.ndarray) -> np.ndarray:
+        """P(moving) from the operational-state heads (mean of kNN, RF, SVM)."""
+        Xf = self._x(X)
+        return sum(s.run(["probabilities"], {"X": Xf})[0][:, 1] for s in self._state.values()) / len(self._state)
+
+    def unknown_mask(self, X: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        return self.openset.unknown(self._x(X), pred)
+
+    # --- one return -----------------------------------------------------------------
+    def predict(self, features: np.ndarray, rd_patch: np.ndarray | None = None) -> Prediction:
+        """Classify one return from its feature vector (and RD patch for the cascade)."""
+        X = self._x(features)
+        p, used = self.cascade_proba(X, None if rd_patch is None else np.asarray(rd_patch)[None])
+        p = p[0]
+        k = int(np.argmax(p))
+        score = float(self.openset.scores(X, np.array([k]))[0])
+        known = bool(score <= self.openset.thresholds[k])
+        label = self.classes[k] if known else UNKNOWN
+        state = None
+        if label not in NON_UAV_CLASSES:
+            state = "moving" if float(self.moving_proba(X)[0]) >= 0.5 else "hovering"
+        return Prediction(label=label, confidence=float(p[k]), known=known,
+                          probabilities={c: float(v) for c, v in zip(self.classes, p)},
+                          operational_state=state, used_cnn=bool(used[0]), nearest=self.classes[k],
+                          openset_score=score)
+
+
+def bundle_dir(preset: str) -> Path:
+    """Folder of the shipped bundle of a preset (inside the installed package)."""
+    return Path(str(resources.files("signatures.models").joinpath(preset)))
+
+
+def load_classifier(preset: str | None = None, path: str | Path | None = None) -> Classifier:
+    """The verified classifier of a preset's shipped bundle, or of the bundle at `path` (cached)."""
+    if path is None:
+        if preset is None:
+            raise SignaturesError("give a preset or a model bundle path")
+        if preset not in PRESETS:
+            raise NoModelError(f"no model for unknown preset {preset!r} (known: {', '.join(PRESETS)})")
+        folder = bundle_dir(preset)
+    else:
+        folder = Path(path)
+    key = str(folder.resolve())
+    if key not in _LOADED:
+        if not (folder / "card.json").is_file():
+            raise NoModelError(f"{folder}: no model bundle here (card.json missing); "
+                               "build one with `authn models train`")
+        _LOADED[key] = Classifier(folder)
+    return _LOADED[key]
+
+
+def match_preset(config: RadarConfig, n_chirps: int, n_samples: int) -> str:
+    """The preset whose waveform the recording used (range offset aside), or NoModelError."""
+    fields = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz")
+    for name, pre in PRESETS.items():
+        if (pre.n_chirps, pre.n_samples) == (n_chirps, n_samples) and all(
+                math.isclose(getattr(config, f), getattr(pre.config, f), rel_tol=1e-6) for f in fields):
+            return name
+    raise NoModelError(f"no classifier for this waveform ({n_chirps}x{n_samples} at "
+                       f"{config.carrier_hz / 1e9:g} GHz, PRI {config.pri_s * 1e6:g} us): "
+                       f"models exist for presets {', '.join(PRESETS)}")
+
+
+def classifier_for(recording: Any) -> Classifier:
+    """The shipped classifier matching a Recording's waveform."""
+    return load_classifier(match_preset(recording.config, recording.n_chirps, recording.n_samples))

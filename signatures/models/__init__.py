@@ -1,0 +1,1 @@
+"""Shipped model bundles, one folder per radar preset (card.json + ONNX files)."""
