@@ -1,0 +1,295 @@
+"""`authn register` and `authn registry list/show/revoke/import/export/models`."""
+
+from __future__ import annotations
+
+import json
+import sys
+from datetime import datetime
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from authn.cli import app
+
+registry_app = typer.Typer(help="Inspect and change the registry of authorised UAVs.",
+                           no_args_is_help=True)
+app.add_typer(registry_app, name="registry")
+
+_PROFILE_OPTS = ("rotors", "arms", "blades_per_rotor", "blade_length_m", "rotor_rate_hz",
+                 "propeller_distance_m")
+
+
+def _time(value: Optional[str], option: str) -> Optional[datetime]:
+    from authn.errors import AuthnError
+
+    if value is None:
+        return None
+    try:
+        return datetime.fromisoformat(value.replace("Z", "+00:00"))
+    except ValueError:
+        raise AuthnError(f"{option}: {value!r} is not an ISO 8601 date/time") from None
+
+
+def _validated(cls, **fields):
+    """Build a pydantic input model; its first error becomes a one-line RegistryError."""
+    from pydantic import ValidationError
+
+    from registry.errors import RegistryError
+    from registry.store import describe_validation_error
+
+    try:
+        return cls(**fields)
+    except ValidationError as exc:
+        raise RegistryError(describe_validation_error(exc)) from None
+
+
+def _record_json(rec) -> dict:
+    return json.loads(rec.model_dump_json())
+
+
+@app.command("register")
+def register_cmd(
+    ctx: typer.Context,
+    serial: Optional[str] = typer.Option(None, "--serial", help="Remote ID UAS ID (ANSI/CTA-2063-A serial by default)."),
+    model: str = typer.Option(..., "--model", help="Model profile slug (m600, m300, phantom4 or a new one)."),
+    id_type: str = typer.Option("serial", "--id-type", help="serial | caa_registration | utm_uuid | specific_session."),
+    operator_id: Optional[str] = typer.Option(None, "--operator-id", help="Operator registration ID (max 20 chars)."),
+    public_key: Optional[Path] = typer.Option(None, "--public-key", help="Ed25519 public key file: 32 raw bytes, hex or PEM."),
+    valid_from: Optional[str] = typer.Option(None, "--valid-from", help="ISO 8601 start (default: now; naive = UTC)."),
+    valid_until: Optional[str] = typer.Option(None, "--valid-until", help="ISO 8601 end (default: open-ended)."),
+    notes: Optional[str] = typer.Option(None, "--notes", help="Free text."),
+    model_name: Optional[str] = typer.Option(None, "--model-name", help="New model: display name."),
+    rotors: Optional[int] = typer.Option(None, "--rotors", help="New model: number of rotors."),
+    arms: Optional[int] = typer.Option(None, "--arms", help="New model: number of arms (default: rotors)."),
+    blades_per_rotor: int = typer.Option(2, "--blades-per-rotor", help="New model: blades per rotor."),
+    blade_length_m: Optional[float] = typer.Option(None, "--blade-length", help="New model: blade length, m."),
+    rotor_rate_hz: Optional[float] = typer.Option(None, "--rotor-rate", help="New model: rotor rate, Hz."),
+    propeller_distance_m: Optional[float] = typer.Option(None, "--propeller-distance", help="New model: propeller distance, m."),
+    as_json: bool = typer.Option(False, "--json", help="Print the registered identity as JSON."),
+) -> None:
+    """Register an authorised UAV identity, and optionally a new model profile.
+
+    Giving --rotors/--blade-length/--rotor-rate/--propeller-distance (and
+    --model-name) registers --model as a new airframe first; without --serial
+    only the profile is registered. Everything is validated before anything is
+    written, and profile + identity are one transaction.
+
+    Example: authn register --serial 1581F5FJD12345678901 --model m300 --operator-id FIN87astrdge12k
+
+    Example: authn register --model x8 --model-name "Octo X8" --rotors 8 --arms 4 --blade-length 0.38 --rotor-rate 45 --propeller-distance 1.2
+    """
+    from registry.errors import RegistryError
+    from registry.keys import read_public_key
+    from registry.store import NewIdentity
+    from signatures.profiles import UavProfile
+
+    new_profile = None
+    physical = (rotors, blade_length_m, rotor_rate_hz, propeller_distance_m)
+    if model_name is not None or any(v is not None for v in physical):
+        if model_name is None or any(v is None for v in physical):
+            raise RegistryError("a new model needs --model-name, --rotors, --blade-length, "
+                                "--rotor-rate and --propeller-distance")
+        new_profile = _validated(
+            UavProfile, slug=model, name=model_name, rotors=rotors, arms=arms or rotors,
+            blades_per_rotor=blades_per_rotor, blade_length_m=blade_length_m,
+            rotor_rate_hz=rotor_rate_hz, propeller_distance_m=propeller_distance_m)
+    new = None
+    if serial is not None:
+        new = _validated(
+            NewIdentity, serial=serial, id_type=id_type, model=model, operator_id=operator_id,
+            public_key=read_public_key(public_key) if public_key else None,
+            valid_from=_time(valid_from, "--valid-from"), valid_until=_time(valid_until, "--valid-until"),
+            notes=notes)
+    elif new_profile is None:
+        raise RegistryError("nothing to register: give --serial (and/or a new model's parameters)")
+
+    from registry.db import session_scope
+    from registry.store import register_identity, register_profile
+
+    with session_scope(ctx.obj.db_url) as session:
+        if new_profile is not None:
+            register_profile(session, new_profile)
+        rec = register_identity(session, new) if new is not None else None
+    if as_json:
+        out = {"profile": new_profile.model_dump() if new_profile else None,
+               "identity": _record_json(rec) if rec else None}
+        typer.echo(json.dumps(out, indent=2))
+        return
+    if new_profile is not None:
+        typer.echo(f"registered model {new_profile.slug} ({new_profile.name})")
+    if rec is not None:
+        typer.echo(f"registered {rec.serial} ({rec.id_type}, model {rec.model}, {rec.status})")
+
+
+def _table(records, title: str):
+    from rich.table import Table
+
+    t = Table(title=title)
+    t.add_column("serial", no_wrap=True)
+    for col in ("type", "model", "operator", "status", "valid from", "valid until", "key"):
+        t.add_column(col)
+    for r in records:
+        t.add_row(r.serial, r.id_type, r.model, r.operator_id or "", r.status,
+                  r.valid_from.strftime("%Y-%m-%d %H:%M:%SZ"),
+                  r.valid_until.strftime("%Y-%m-%d %H:%M:%SZ") if r.valid_until else "",
+                  "yes" if r.public_key else "")
+    return t
+
+
+@registry_app.command("list")
+def list_cmd(
+    ctx: typer.Context,
+    status: Optional[str] = typer.Option(None, "--status", help="Only 'active' or 'revoked'."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON array."),
+) -> None:
+    """List registered identities.
+
+    Example: authn registry list --status active --json
+    """
+    from registry.db import session_scope
+    from registry.errors import RegistryError
+    from registry.store import list_identities
+
+    if status not in (None, "active", "revoked"):
+        raise RegistryError(f"--status {status!r}: expected active or revoked")
+    with session_scope(ctx.obj.db_url) as session:
+        records = list_identities(session, status)
+    if as_json:
+        typer.echo(json.dumps([_record_json(r) for r in records], indent=2))
+        return
+    from rich.console import Console
+
+    Console().print(_table(records, f"{len(records)} registered identities"))
+
+
+@registry_app.command("show")
+def show_cmd(
+    ctx: typer.Context,
+    serial: str = typer.Argument(..., help="UAS ID to show."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Show one identity with its declared model's physical parameters.
+
+    Example: authn registry show 1581F5FJD12345678901 --json
+    """
+    from registry.db import session_scope
+    from registry.errors import RegistryError
+    from registry.store import get_identity
+
+    with session_scope(ctx.obj.db_url) as session:
+        rec = get_identity(session, serial)
+    if rec is None:
+        raise RegistryError(f"serial {serial}: not registered")
+    if as_json:
+        typer.echo(json.dumps(_record_json(rec), indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=rec.serial, show_header=False)
+    data = _record_json(rec)
+    profile = data.pop("profile")
+    for k, v in data.items():
+        t.add_row(k, "" if v is None else str(v))
+    for k, v in profile.items():
+        t.add_row(f"profile.{k}", str(v))
+    Console().print(t)
+
+
+@registry_app.command("revoke")
+def revoke_cmd(
+    ctx: typer.Context,
+    serial: str = typer.Argument(..., help="UAS ID to revoke."),
+    reason: Optional[str] = typer.Option(None, "--reason", help="Appended to the notes."),
+) -> None:
+    """Revoke an identity (kept, marked revoked: checks against it are rejected).
+
+    Example: authn registry revoke 1581F5FJD12345678901 --reason "reported stolen"
+    """
+    from registry.db import session_scope
+    from registry.store import revoke_identity
+
+    with session_scope(ctx.obj.db_url) as session:
+        rec = revoke_identity(session, serial, reason)
+    typer.echo(f"revoked {rec.serial}")
+
+
+@registry_app.command("import")
+def import_cmd(
+    ctx: typer.Context,
+    file: Path = typer.Argument(..., help="CSV: serial,id_type,model,operator_id,valid_from,valid_until,notes"),
+) -> None:
+    """Register every row of a CSV file in one transaction: all rows or none.
+
+    Columns: serial,id_type,model,operator_id,valid_from,valid_until,notes
+    (header row required; only serial and model must be filled; id_type
+    defaults to serial; times are ISO 8601, naive = UTC). Use - for stdin.
+
+    Example: authn registry import fleet.csv
+    """
+    from registry.db import session_scope
+    from registry.errors import RegistryError
+    from registry.store import import_csv, parse_csv
+
+    try:
+        text = sys.stdin.read() if str(file) == "-" else file.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RegistryError(f"{file}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    parse_csv(text)  # validate before touching the database
+    with session_scope(ctx.obj.db_url) as session:
+        n = import_csv(session, text)
+    typer.echo(f"imported {n} identities from {file}")
+
+
+@registry_app.command("export")
+def export_cmd(
+    ctx: typer.Context,
+    out: Optional[Path] = typer.Option(None, "--out", help="Write here instead of stdout."),
+) -> None:
+    """Write all identities as CSV in the import format.
+
+    Example: authn registry export --out fleet.csv
+    """
+    from registry.db import session_scope
+    from registry.errors import RegistryError
+    from registry.store import export_csv
+
+    with session_scope(ctx.obj.db_url) as session:
+        text = export_csv(session)
+    if out is None:
+        typer.echo(text, nl=False)
+        return
+    try:
+        out.write_text(text)
+    except OSError as exc:
+        raise RegistryError(f"{out}: cannot write ({exc.strerror})") from None
+
+
+@registry_app.command("models")
+def models_cmd(
+    ctx: typer.Context,
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON array."),
+) -> None:
+    """List the model profiles (declared airframes) in the registry.
+
+    Example: authn registry models --json
+    """
+    from registry.db import session_scope
+    from registry.store import list_profiles
+
+    with session_scope(ctx.obj.db_url) as session:
+        profiles = list_profiles(session)
+    if as_json:
+        typer.echo(json.dumps([p.model_dump() for p in profiles], indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title="model profiles")
+    for col in ("slug", "name", "rotors", "arms", "blades", "blade m", "rotor Hz", "prop. dist. m"):
+        t.add_column(col)
+    for p in profiles:
+        t.add_row(p.slug, p.name, str(p.rotors), str(p.arms), str(p.blades_per_rotor),
+                  f"{p.blade_length_m:g}", f"{p.rotor_rate_hz:g}", f"{p.propeller_distance_m:g}")
+    Console().print(t)

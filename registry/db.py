@@ -1,0 +1,191 @@
+"""Database engines and sessions; schema migrations applied on first use.
+
+Any SQLAlchemy URL works (`--db` / AUTHN_DATABASE_URL); the default is a SQLite
+file in the user data directory. SQLite runs in WAL mode with foreign keys on,
+a busy timeout, and `BEGIN IMMEDIATE` transactions so that concurrent writers
+queue instead of failing. The first use of a database upgrades it to the
+newest Alembic revision under a lock (a file lock beside a SQLite file, a
+`pg_advisory_lock` on PostgreSQL) so that processes starting together do not
+race. SQLAlchemy and Alembic are imported here, never by `authn --help`.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from sqlalchemy import Connection, Engine, create_engine, event, text
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import ArgumentError, DBAPIError
+from sqlalchemy.orm import Session, sessionmaker
+
+from registry.errors import RegistryError
+
+ENV_URL = "AUTHN_DATABASE_URL"
+_PG_LOCK_KEY = 0x61757468_6E726567  # "authnreg": one advisory lock for migrations
+_engines: dict[str, Engine] = {}
+_engines_lock = threading.Lock()
+
+
+def default_url() -> str:
+    """SQLite file `registry.sqlite3` in the platform's user data directory."""
+    from platformdirs import user_data_dir
+
+    return f"sqlite:///{Path(user_data_dir('authn')) / 'registry.sqlite3'}"
+
+
+def resolve_url(url: str | None = None) -> str:
+    """Explicit URL, else $AUTHN_DATABASE_URL, else the default SQLite file.
+
+    Bare `postgresql://` URLs get the psycopg (3) driver, the one we ship.
+    """
+    url = url or os.environ.get(ENV_URL) or default_url()
+    for prefix in ("postgresql://", "postgres://"):
+        if url.startswith(prefix):
+            return "postgresql+psycopg://" + url[len(prefix):]
+    return url
+
+
+def _sqlite_setup(engine: Engine) -> None:
+    @event.listens_for(engine, "connect")
+    def _on_connect(dbapi_conn, _record) -> None:
+        dbapi_conn.isolation_level = None  # we issue BEGIN ourselves
+        cur = dbapi_conn.cursor()
+        cur.execute("PRAGMA busy_timeout = 30000")
+        cur.execute("PRAGMA foreign_keys = ON")
+        if engine.url.database not in (None, "", ":memory:"):
+            cur.execute("PRAGMA journal_mode = WAL")
+        cur.close()
+
+    @event.listens_for(engine, "begin")
+    def _on_begin(conn: Connection) -> None:
+        conn.exec_driver_sql("BEGIN IMMEDIATE")
+
+
+def create_db_engine(url: str | None = None) -> Engine:
+    """A new engine for `url` (see resolve_url); no migration is run."""
+    resolved = resolve_url(url)
+    try:
+        parsed = make_url(resolved)
+    except ArgumentError:
+        raise RegistryError(f"database URL {resolved!r} is not a valid SQLAlchemy URL") from None
+    if parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "", ":memory:"):
+        try:
+            Path(parsed.database).expanduser().parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RegistryError(f"cannot create the database directory: {exc.strerror}") from None
+    try:
+        engine = create_engine(parsed, pool_pre_ping=parsed.get_backend_name() != "sqlite")
+    except (ArgumentError, ImportError) as exc:
+        raise RegistryError(f"database URL {parsed.render_as_string()!r}: {exc}") from None
+    if engine.dialect.name == "sqlite":
+        _sqlite_setup(engine)
+    return engine
+
+
+def alembic_config(connection: Connection | None = None):
+    """Alembic Config built in code: works from an installed package, no alembic.ini."""
+    from alembic.config import Config
+
+    import migrations
+
+    cfg = Config()
+    cfg.set_main_option("script_location", str(Path(migrations.__file__).parent))
+    cfg.attributes["connection"] = connection
+    return cfg
+
+
+def _is_current(conn: Connection) -> bool:
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
+
+    heads = set(ScriptDirectory.from_config(alembic_config()).get_heads())
+    return set(MigrationContext.configure(conn).get_current_heads()) == heads
+
+
+def _upgrade_on(conn: Connection) -> None:
+    from alembic import command
+
+    command.upgrade(alembic_config(conn), "head")
+
+
+def upgrade(engine: Engine) -> None:
+    """Apply all pending migrations, serialised against other processes."""
+    try:
+        if engine.dialect.name == "postgresql":
+            with engine.connect() as conn:
+                conn.execute(text("SELECT pg_advisory_lock(:k)"), {"k": _PG_LOCK_KEY})
+                conn.commit()
+                try:
+                    if not _is_current(conn):
+                        _upgrade_on(conn)
+                    conn.commit()
+                finally:
+                    conn.rollback()
+                    conn.execute(text("SELECT pg_advisory_unlock(:k)"), {"k": _PG_LOCK_KEY})
+                    conn.commit()
+            return
+        db = engine.url.database if engine.dialect.name == "sqlite" else None
+        if db and db != ":memory:":
+            from filelock import FileLock
+
+            with FileLock(str(Path(db).expanduser()) + ".migrate.lock", timeout=120):
+                _upgrade_locked(engine)
+        else:
+            _upgrade_locked(engine)
+    except DBAPIError as exc:
+        raise RegistryError(f"database {engine.url.render_as_string()}: {_one_line(exc)}") from None
+
+
+def _upgrade_locked(engine: Engine) -> None:
+    with engine.begin() as conn:
+        if not _is_current(conn):
+            _upgrade_on(conn)
+
+
+def _one_line(exc: DBAPIError) -> str:
+    return str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc).splitlines()[0]
+
+
+def get_engine(url: str | None = None) -> Engine:
+    """The process-wide engine for `url`, migrated to the newest schema on first use."""
+    resolved = resolve_url(url)
+    with _engines_lock:
+        engine = _engines.get(resolved)
+        if engine is None:
+            engine = create_db_engine(resolved)
+            try:
+                with engine.connect() as conn:
+                    current = _is_current(conn)
+            except DBAPIError as exc:
+                raise RegistryError(
+                    f"cannot open database {engine.url.render_as_string()}: {_one_line(exc)}"
+                ) from None
+            if not current:
+                upgrade(engine)
+            _engines[resolved] = engine
+    return engine
+
+
+def dispose_engines() -> None:
+    """Close every cached engine (tests, forked workers)."""
+    with _engines_lock:
+        for engine in _engines.values():
+            engine.dispose()
+        _engines.clear()
+
+
+@contextmanager
+def session_scope(url: str | None = None) -> Iterator[Session]:
+    """One transaction: commit on success, roll back on any exception."""
+    factory = sessionmaker(get_engine(url), expire_on_commit=False)
+    with factory() as session:
+        try:
+            yield session
+            session.commit()
+        except BaseException:
+            session.rollback()
+            raise

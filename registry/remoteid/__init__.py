@@ -1,0 +1,20 @@
+"""ASTM F3411 (Open Drone ID) broadcast Remote ID: messages, codec, capture reader."""
+
+from registry.remoteid.codec import decode, decode_hex, decode_rows, encode, flatten, location_time
+from registry.remoteid.errors import CaptureError, RemoteIdError
+from registry.remoteid.messages import (
+    AuthPage,
+    AuthPage0,
+    BasicId,
+    Location,
+    MessagePack,
+    OperatorId,
+    SelfId,
+    System,
+)
+
+__all__ = [
+    "AuthPage", "AuthPage0", "BasicId", "CaptureError", "Location", "MessagePack",
+    "OperatorId", "RemoteIdError", "SelfId", "System", "decode", "decode_hex",
+    "decode_rows", "encode", "flatten", "location_time",
+]

@@ -1,0 +1,55 @@
+"""Registry fixtures: every test runs on a fresh SQLite file, and on a fresh
+PostgreSQL database too when AUTHN_TEST_POSTGRES_URL points at a server."""
+
+from __future__ import annotations
+
+import os
+import uuid
+
+import pytest
+
+PG_URL = os.environ.get("AUTHN_TEST_POSTGRES_URL")
+BACKENDS = ["sqlite"] + (["postgresql"] if PG_URL else [])
+
+
+def _pg_admin():
+    from sqlalchemy import create_engine
+
+    from registry.db import resolve_url
+
+    return create_engine(resolve_url(PG_URL), isolation_level="AUTOCOMMIT")
+
+
+@pytest.fixture(params=BACKENDS, ids=BACKENDS)
+def db_url(request, tmp_path):
+    """URL of an empty database (never migrated yet)."""
+    from registry.db import dispose_engines
+
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path / 'registry.sqlite3'}"
+        dispose_engines()
+        return
+    from sqlalchemy.engine import make_url
+
+    from registry.db import resolve_url
+
+    name = f"authn_test_{uuid.uuid4().hex[:12]}"
+    admin = _pg_admin()
+    with admin.connect() as conn:
+        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
+    yield make_url(resolve_url(PG_URL)).set(database=name).render_as_string(hide_password=False)
+    dispose_engines()
+    with admin.connect() as conn:
+        conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+    admin.dispose()
+
+
+@pytest.fixture
+def session(db_url):
+    """A session on a migrated database; the test commits what it wants kept."""
+    from sqlalchemy.orm import Session
+
+    from registry.db import get_engine
+
+    with Session(get_engine(db_url), expire_on_commit=False) as s:
+        yield s
