@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from datetime import timedelta
+from datetime import datetime, timedelta
 
 import numpy as np
 
 from signatures.radar import Preset
 from signatures.recording import Recording
 from signatures.scene import Scene
-from signatures.simulate import Truth, simulate
+from signatures.simulate import DEFAULT_START, Truth, simulate
 
 UA_TYPE_MULTIROTOR = 2
 
@@ -79,9 +79,10 @@ def remote_id_rows(rec: Recording, scene: Scene, bc: Broadcast, azimuth_deg: flo
 
 
 def simulate_flight(scene: Scene, preset: Preset, seed: int | None, broadcast: Broadcast | None = None,
-                    azimuth_deg: float = 0.0, range_offset_m: float | None = None) -> tuple[Recording, Truth]:
+                    azimuth_deg: float = 0.0, range_offset_m: float | None = None,
+                    start_time: datetime = DEFAULT_START) -> tuple[Recording, Truth]:
     """Simulate a dwell; with a broadcast, embed its Remote ID messages in the recording."""
-    rec, truth = simulate(scene, preset, seed, range_offset_m=range_offset_m)
+    rec, truth = simulate(scene, preset, seed, range_offset_m=range_offset_m, start_time=start_time)
     if broadcast is None:
         return rec, truth
     rows, times = remote_id_rows(rec, scene, broadcast, azimuth_deg, preset.dwell_s)

@@ -74,3 +74,6 @@ from authn.cli import registry_cmds as _registry_cmds  # noqa: E402,F401
 from authn.cli import rid as _rid  # noqa: E402,F401
 from authn.cli import db as _db  # noqa: E402,F401
 from authn.cli import audit_cmds as _audit_cmds  # noqa: E402,F401
+from authn.cli import check_cmd as _check_cmd  # noqa: E402,F401
+from authn.cli import demo_cmd as _demo_cmd  # noqa: E402,F401
+from authn.cli import models as _models  # noqa: E402,F401

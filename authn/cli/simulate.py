@@ -42,17 +42,31 @@ def simulate(
                                               help="Start of the range gate, m (default: target mid-window)."),
     count: int = typer.Option(1, "--count", min=1, max=1_000_000, help="Number of returns (writes DIR/scene_NNNNNN.h5)."),
     profiles: Path | None = typer.Option(None, "--profiles", help="JSON file of extra UAV profiles."),
+    azimuth: float = typer.Option(0.0, "--azimuth", help="Azimuth of the target from the radar, degrees from north."),
+    rid_serial: str | None = typer.Option(None, "--rid-serial",
+                                          help="Embed the Remote ID (Basic ID + Location) this drone broadcasts."),
+    rid_lat: float | None = typer.Option(None, "--rid-lat", help="Declared latitude (spoof; default: the truth)."),
+    rid_lon: float | None = typer.Option(None, "--rid-lon", help="Declared longitude (spoof; default: the truth)."),
+    rid_alt: float | None = typer.Option(None, "--rid-alt", help="Declared WGS-84 altitude, m (spoof)."),
+    rid_offset: float = typer.Option(0.0, "--rid-offset",
+                                     help="Declare a position this many metres beyond the true one along the line of sight."),
+    rid_ua_type: int = typer.Option(2, "--rid-ua-type", min=0, max=15,
+                                    help="Declared F3411 UA type (2 = helicopter/multirotor)."),
+    start_time: str | None = typer.Option(None, "--start-time",
+                                          help="ISO 8601 UTC time of the first chirp (default: now)."),
 ) -> None:
     """Simulate the radar return of one scene and write it as a recorded-return file.
 
     Example: authn simulate --model m300 --range 500 --speed 5 --snr 10 --out m300.h5
+
+    Example (spoofed position): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000002 --rid-offset 300 --out spoof.h5
     """
     from pydantic import ValidationError
 
     from signatures.errors import SignaturesError
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.simulate import simulate as run_simulation
+    from authn.scenario import Broadcast, simulate_flight
 
     pre = get_preset(preset)
     if not 0 < range_m <= pre.max_range_m:
@@ -64,8 +78,29 @@ def simulate(
         err = exc.errors()[0]
         field = str(err["loc"][0]) if err["loc"] else "model"
         raise SignaturesError(f"--{_OPTION_OF.get(field, field)}: {err['msg']}") from None
+    from datetime import datetime, timezone
+
+    try:
+        start = datetime.now(timezone.utc) if start_time is None else datetime.fromisoformat(start_time)
+    except ValueError:
+        raise SignaturesError(f"--start-time: not ISO 8601: {start_time!r}") from None
+    start = start if start.tzinfo else start.replace(tzinfo=timezone.utc)
+    broadcast = None
+    if rid_serial is not None:
+        broadcast = Broadcast(serial=rid_serial, ua_type=rid_ua_type, lat_deg=rid_lat, lon_deg=rid_lon,
+                              alt_m=rid_alt, offset_along_los_m=rid_offset)
+    elif any(v is not None for v in (rid_lat, rid_lon, rid_alt)) or rid_offset:
+        raise SignaturesError("--rid-lat/--rid-lon/--rid-alt/--rid-offset need --rid-serial")
+
+    def run_simulation(i: int):
+        try:
+            return simulate_flight(scene, pre, seed + i, broadcast, azimuth, range_offset, start)
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            raise SignaturesError(f"--rid-*: {'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+
     if count == 1 and out.suffix:
-        rec, truth = run_simulation(scene, pre, seed, range_offset_m=range_offset)
+        rec, truth = run_simulation(0)
         write_recording(rec, out)
         typer.echo(f"wrote {out} ({scene.label}, {rec.n_chirps}x{rec.n_samples}, "
                    f"range gate {rec.config.range_offset_m:g} m, flash rate {truth.blade_flash_rate_hz:.1f} Hz)")
@@ -76,7 +111,7 @@ def simulate(
     with Progress(transient=True) as progress:
         task = progress.add_task(f"simulating {count} x {scene.label}", total=count)
         for i in range(count):
-            rec, _ = run_simulation(scene, pre, seed + i, range_offset_m=range_offset)
+            rec, _ = run_simulation(i)
             write_recording(rec, out / f"scene_{i:06d}.h5")
             progress.advance(task)
     typer.echo(f"wrote {count} returns to {out}/")

@@ -57,7 +57,7 @@ def engine() -> PolicyEngine:
 @pytest.mark.parametrize("name", list(CASES))
 def test_golden_decision(engine: PolicyEngine, name: str) -> None:
     p, r, c, decision, reasons = CASES[name]
-    result = engine.decide("1581F5FJD2100123", {**ACTIVE, **p}, {**SITE, **r}, {**GOOD, **c})
+    result = engine.decide("1581BDEM00000002", {**ACTIVE, **p}, {**SITE, **r}, {**GOOD, **c})
     assert (result.decision, result.reasons) == (decision, reasons)
     assert result.errors == []
 

@@ -1,0 +1,287 @@
+"""`authn check`: gather evidence for one claim, decide with Cedar, record in the audit log.
+
+Stages run in the order that lets cheap facts decide first:
+read -> remote_id -> registry -> policy on registry facts alone (partial evaluation)
+-> [radar: features at the expected range, classifier, kinematics] -> policy -> audit.
+When the registry facts already force a rejection the radar stages are skipped and
+listed in `skipped`; the final decision always comes from a complete
+`is_authorized` call over the evidence gathered.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+from authn.audit import NewEntry, append
+from authn.errors import AuthnError
+from authn.kinematics import DeclaredState, expected_from_radar, residuals, sanity
+from authn.policy import PolicyEngine
+
+RADAR_STAGES = ("radar_features", "classify", "kinematics")
+
+
+@dataclass
+class Claim:
+    serial: str
+    source: str  # "cli" | "remote_id"
+    rid_serial: str | None = None
+    ua_type: int | None = None
+    state: DeclaredState | None = None
+    n_messages: int = 0
+
+
+@dataclass
+class Outcome:
+    """Everything `authn check --json` prints (SPEC section 6) plus what the audit keeps."""
+
+    file: str
+    decision: str
+    reasons: list[str]
+    claim: dict[str, Any]
+    registry: dict[str, Any]
+    radar: dict[str, Any] | None
+    kinematics: dict[str, Any] | None
+    remote_id: dict[str, Any]
+    skipped: list[str]
+    timings_ms: dict[str, float]
+    policy_sha256: str
+    model_card_sha256: str | None
+    file_sha256: str
+    audit_id: int | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+    def audit_payload(self) -> dict[str, Any]:
+        doc = self.to_json()
+        doc.pop("audit_id")
+        doc.pop("timings_ms")
+        return doc
+
+
+class _Timer:
+    def __init__(self) -> None:
+        self.ms: dict[str, float] = {}
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.ms[name] = round((time.perf_counter() - t0) * 1e3, 3)
+
+
+def _file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def read_claim(rec: Any, serial: str | None) -> Claim:
+    """The claimed serial (--serial wins) and what the Remote ID messages declare."""
+    from registry.remoteid import BasicId, Location, decode_rows, flatten
+
+    msgs = flatten(decode_rows(rec.remote_id)) if rec.remote_id is not None else []
+    basic = next((m for m in msgs if isinstance(m, BasicId) and m.uas_id), None)
+    mid = rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2)
+    states = [s for s in (DeclaredState.from_location(m, rec.start_time) for m in msgs
+                          if isinstance(m, Location)) if s is not None]
+    state = min(states, key=lambda s: abs((s.time - mid).total_seconds()) if s.time else 1e9, default=None)
+    rid_serial = basic.uas_id.strip() if basic else None
+    if serial is None and rid_serial is None:
+        raise AuthnError("no claim: give --serial, or a file whose Remote ID carries a Basic ID serial")
+    return Claim(serial=serial or rid_serial, source="cli" if serial else "remote_id", rid_serial=rid_serial,
+                 ua_type=basic.ua_type if basic else None, state=state, n_messages=len(msgs))
+
+
+def _epoch(when: datetime) -> int:
+    return int(when.timestamp())
+
+
+def registry_facts(identity: Any) -> dict[str, Any]:
+    """The principal's attributes; an unregistered serial is represented too."""
+    if identity is None:
+        return {"registered": False, "status": "unregistered", "model": "", "id_type": "", "valid_from_s": 0}
+    attrs = {"registered": True, "status": identity.status, "model": identity.model,
+             "id_type": identity.id_type, "valid_from_s": _epoch(identity.valid_from)}
+    if identity.valid_until is not None:
+        attrs["valid_until_s"] = _epoch(identity.valid_until)
+    return attrs
+
+
+def _skipped_context(claim: Claim, issues: list[str]) -> dict[str, Any]:
+    return {"claim_source": claim.source, "radar_run": False, "target_detected": False, "radar_model": "",
+            "radar_known": False, "radar_confidence_bp": 0, "has_kinematics": False, "range_residual_cm": 0,
+            "range_tolerance_cm": 0, "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0,
+            "remote_id_present": claim.n_messages > 0, "remote_id_issues": issues}
+
+
+def _cm(x: float) -> int:
+    return int(min(round(x * 100.0), 2**53))
+
+
+class Checker:
+    """Loads the policy once (and the classifier on first radar use); checks many files."""
+
+    def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None) -> None:
+        self.db_url = db_url
+        self.policy = PolicyEngine.load(policy_path)
+
+    # --- stages -------------------------------------------------------------------
+    def _identity(self, serial: str) -> Any:
+        from registry.db import session_scope
+        from registry.store import get_identity
+
+        with session_scope(self.db_url) as s:
+            return get_identity(s, serial)
+
+    def _radar(self, rec: Any, claim: Claim, timer: _Timer) -> tuple[dict[str, Any], dict[str, Any] | None,
+                                                                      dict[str, Any], str]:
+        """Features (gated at the claimed range when it lies in the window), class, kinematics."""
+        from signatures.features import extract
+        from signatures.inference import classifier_for
+
+        mid = rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2)
+        expected = None
+        if claim.state is not None:
+            expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m, mid)
+        lo, hi = rec.config.range_window_m
+        gate = expected.range_m if expected is not None and lo <= expected.range_m < hi else None
+        with timer.stage("radar_features"):
+            feats = extract(rec, expected_range_m=gate)
+        detected = bool(feats.detected)
+        classifier = classifier_for(rec)
+        radar: dict[str, Any] = {"model": "none", "confidence": None, "known": True, "range_m": None,
+                                 "radial_velocity_mps": None, "gated": gate is not None, "used_cnn": False}
+        if detected:
+            with timer.stage("classify"):
+                pred = classifier.predict(feats.as_array(), getattr(feats, "rd_patch", None))
+            radar.update(model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
+                         range_m=round(float(feats.range_m), 3),
+                         radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
+                         operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest)
+            detected = pred.label != "none"
+        context = {"radar_run": True, "target_detected": detected, "radar_model": radar["model"],
+                   "radar_known": bool(radar["known"]),
+                   "radar_confidence_bp": int(round((radar["confidence"] or 0.0) * 10000)),
+                   "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
+                   "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0}
+        kin = None
+        if expected is not None and detected:
+            with timer.stage("kinematics"):
+                res = residuals(expected, claim.state, radar["range_m"], radar["radial_velocity_mps"],
+                                rec.config.range_bin_m(rec.n_samples), rec.config.doppler_bin_mps(rec.n_chirps),
+                                rec.config.doppler_wavelength_m(rec.n_samples) * rec.config.prf_hz / 4)
+            kin = {"expected_range_m": round(expected.range_m, 3),
+                   "expected_radial_velocity_mps": None if expected.radial_velocity_mps is None
+                   else round(expected.radial_velocity_mps, 4),
+                   "range_residual_m": round(res.range_residual_m, 3), "range_tolerance_m": round(res.range_tolerance_m, 3),
+                   "radial_velocity_residual_mps": None if res.radial_velocity_residual_mps is None
+                   else round(res.radial_velocity_residual_mps, 4),
+                   "radial_velocity_tolerance_mps": None if res.radial_velocity_tolerance_mps is None
+                   else round(res.radial_velocity_tolerance_mps, 4)}
+            context.update(has_kinematics=True, range_residual_cm=_cm(res.range_residual_m),
+                           range_tolerance_cm=_cm(res.range_tolerance_m))
+            if res.radial_velocity_residual_mps is not None:
+                context.update(velocity_residual_cmps=_cm(res.radial_velocity_residual_mps),
+                               velocity_tolerance_cmps=_cm(res.radial_velocity_tolerance_mps))
+        return radar, kin, context, classifier.card_sha256
+
+    # --- one check ------------------------------------------------------------------
+    def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
+        """Decide one file (no audit write); raises package errors on bad input."""
+        from signatures.recording import read_recording
+
+        path = Path(path)
+        timer = _Timer()
+        with timer.stage("read"):
+            rec = read_recording(path)
+            digest = _file_sha256(path)
+        with timer.stage("remote_id"):
+            claim = read_claim(rec, serial)
+        with timer.stage("registry"):
+            identity = self._identity(claim.serial)
+            principal = registry_facts(identity)
+        resource = {"time_s": _epoch(rec.start_time), "preset": ""}
+        with timer.stage("policy_registry"):
+            early = self.policy.decide_without_evidence(claim.serial, principal, resource)
+        issues = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, rec.start_time
+                        + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2), None)
+        context = _skipped_context(claim, issues)
+        radar = kin = None
+        card = None
+        skipped: list[str] = []
+        if early is not None:
+            skipped = list(RADAR_STAGES)
+        else:
+            from signatures.inference import match_preset
+
+            resource["preset"] = match_preset(rec.config, rec.n_chirps, rec.n_samples)
+            radar, kin, radar_ctx, card = self._radar(rec, claim, timer)
+            context.update(radar_ctx)
+            rotorcraft = radar["model"] not in ("none", "bird", "unknown")
+            context["remote_id_issues"] = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
+                                                 rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2),
+                                                 rotorcraft)
+            skipped = [s for s in RADAR_STAGES if s not in timer.ms]
+        with timer.stage("policy"):
+            result = self.policy.decide(claim.serial, principal, resource, context)
+        return Outcome(
+            file=str(path), decision=result.decision, reasons=result.reasons,
+            claim={"serial": claim.serial, "source": claim.source, "remote_id_serial": claim.rid_serial},
+            registry={"registered": principal["registered"], "status": principal["status"],
+                      "model": principal["model"] or None},
+            radar=radar, kinematics=kin,
+            remote_id={"messages": claim.n_messages, "ua_type": claim.ua_type,
+                       "issues": context["remote_id_issues"]},
+            skipped=skipped, timings_ms=timer.ms, policy_sha256=self.policy.sha256, model_card_sha256=card,
+            file_sha256=digest)
+
+    def record(self, outcomes: Sequence[Outcome | tuple[str, str | None, str]]) -> list[int]:
+        """Append decisions and error entries ((file, serial, error) tuples) in one transaction."""
+        from registry.db import session_scope
+
+        entries = []
+        for o in outcomes:
+            if isinstance(o, Outcome):
+                entries.append(NewEntry("decision", o.claim["serial"], o.decision, o.audit_payload()))
+            else:
+                file, serial, error = o
+                entries.append(NewEntry("error", serial, None, {"file": file, "error": error,
+                                                                "policy_sha256": self.policy.sha256}))
+        t0 = time.perf_counter()
+        with session_scope(self.db_url) as s:
+            written = append(s, entries)
+        ms = round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)
+        ids = [e.seq for e in written]
+        for o, seq in zip(outcomes, ids):
+            if isinstance(o, Outcome):
+                o.audit_id = seq
+                o.timings_ms["audit"] = ms
+        return ids
+
+
+def bad_input_types() -> tuple[type[BaseException], ...]:
+    from registry.errors import RegistryError
+    from signatures.errors import SignaturesError
+
+    return (SignaturesError, RegistryError, AuthnError)
+
+
+@dataclass
+class BatchItem:
+    path: Path
+    serial: str | None = None
+    outcome: Outcome | None = None
+    error: str | None = None
+    audit_id: int | None = field(default=None)
