@@ -1,0 +1,87 @@
+"""Time-frequency views of the slow-time signal at the target's range bins.
+
+STFT by a strided sliding window and one batched FFT (8x faster here than
+`scipy.signal.ShortTimeFFT`, and no 1 s `scipy.signal` import). Arrays are
+(time, frequency), frequency fftshifted: Doppler from -PRF/2 to +PRF/2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from signatures import fft as _fft
+from signatures.radar import RadarConfig
+from signatures.rd import hann
+
+#: STFT window length in seconds, rounded to a power of two in chirps (paper 16, wide 64).
+STFT_WINDOW_S = 0.5e-3
+
+
+def stft_params(config: RadarConfig, n_chirps: int) -> tuple[int, int]:
+    """(window, hop) in chirps: ~0.5 ms window (resolves a ~30 us blade flash in time
+    while keeping 1-2.5 kHz Doppler resolution), hop = window / 4."""
+    win = 2 ** max(2, round(math.log2(max(STFT_WINDOW_S / config.pri_s, 1.0))))
+    win = min(win, max(4, 2 ** int(math.log2(max(n_chirps, 1)))))
+    return win, max(1, win // 4)
+
+
+@dataclass(frozen=True)
+class Spectrogram:
+    """Power spectrogram summed over range bins: power[t, f] (float32)."""
+
+    power: np.ndarray
+    time_s: np.ndarray  # frame centres
+    doppler_hz: np.ndarray  # fftshifted
+
+
+def spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int) -> Spectrogram:
+    """Hann STFT of each column of `slow` (chirps x bins), power summed over the columns.
+
+    A dwell shorter than the window is zero-padded to one frame.
+    """
+    x = slow if slow.ndim == 2 else slow[:, None]
+    if x.shape[0] < win:
+        x = np.concatenate([x, np.zeros((win - x.shape[0], x.shape[1]), x.dtype)])
+    frames = sliding_window_view(x, win, axis=0)[::hop]  # (n_frames, bins, win)
+    spec = _fft.fft(frames, axis=-1, window=hann(win))
+    power = np.fft.fftshift(np.sum(spec.real ** 2 + spec.imag ** 2, axis=1, dtype=np.float32), axes=-1)
+    t = (np.arange(power.shape[0]) * hop + win / 2) * config.pri_s
+    f = np.fft.fftshift(np.fft.fftfreq(win, d=config.pri_s))
+    return Spectrogram(power, t, f)
+
+
+def mean_spectrogram(specs: list[Spectrogram]) -> Spectrogram:
+    """Average of several spectrograms of the same shape (the paper's Fig. 3), each
+    normalised to unit total power first so loud returns do not dominate."""
+    acc = np.zeros_like(specs[0].power)
+    for s in specs:
+        acc += s.power / np.float32(max(float(s.power.sum()), float(np.finfo(np.float32).tiny)))
+    return Spectrogram(acc / np.float32(len(specs)), specs[0].time_s, specs[0].doppler_hz)
+
+
+@dataclass(frozen=True)
+class Cadence:
+    """Cadence-velocity diagram: |FFT over time| of each Doppler row of a spectrogram."""
+
+    magnitude: np.ndarray  # float32 (n_cadence, n_doppler), cadence frequency >= 0
+    cadence_hz: np.ndarray
+    doppler_hz: np.ndarray
+
+    def spectrum(self) -> np.ndarray:
+        """Cadence spectrum summed over Doppler, DC removed (float32)."""
+        out = self.magnitude.sum(axis=1)
+        out[0] = 0.0
+        return out
+
+
+def cadence(spec: Spectrogram) -> Cadence:
+    """CVD of a spectrogram. Periodic blade flashes give lines at multiples of the flash
+    rate whatever the Doppler does, so it survives blade-tip aliasing."""
+    p = spec.power - spec.power.mean(axis=0, keepdims=True)
+    mag = np.abs(np.fft.rfft(p, axis=0)).astype(np.float32)
+    step = float(spec.time_s[1] - spec.time_s[0]) if spec.time_s.size > 1 else 1.0
+    return Cadence(mag, np.fft.rfftfreq(p.shape[0], d=step), spec.doppler_hz)
