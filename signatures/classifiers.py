@@ -12,6 +12,8 @@ Inference never imports this module: see `signatures.inference`.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from sklearn.base import ClassifierMixin
 from sklearn.calibration import CalibratedClassifierCV
@@ -53,9 +55,17 @@ def make_member(name: str, seed: int) -> Pipeline:
     raise ValueError(f"unknown model {name!r}")
 
 
+def _fit(model: Pipeline, X: np.ndarray, y: np.ndarray) -> Pipeline:
+    """Fit; scikit-learn 1.9 deprecates SVC(probability=True) (removed in 1.11, hence the pin
+    in pyproject) but skl2onnx exports no other form of SVM probabilities yet."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=FutureWarning, message=".*probab.*")
+        return model.fit(X, y)
+
+
 def fit_members(X: np.ndarray, y: np.ndarray, seed: int) -> dict[str, Pipeline]:
     """Fit kNN, RF and SVM on the same data."""
-    return {name: make_member(name, seed).fit(X, y) for name in MEMBERS}
+    return {name: _fit(make_member(name, seed), X, y) for name in MEMBERS}
 
 
 def calibrated_ensemble(members: dict[str, Pipeline], X_val: np.ndarray,
@@ -83,4 +93,4 @@ def fit_state_heads(X: np.ndarray, moving: np.ndarray, seed: int) -> dict[str, C
     """Second head per model: hovering (0) / moving (1), trained on UAV returns only."""
     y = moving.astype(np.int64)
     heads = {"knn": make_knn(), "rf": make_rf(seed, n_estimators=50), "svm": make_svm(seed)}
-    return {n: h.fit(X, y) for n, h in heads.items()}
+    return {n: _fit(h, X, y) for n, h in heads.items()}

@@ -7,6 +7,7 @@ without importing scikit-learn. The opset is pinned so rebuilds are byte-identic
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -20,12 +21,24 @@ def sklearn_to_onnx(model: object, n_features: int, path: Path) -> None:
     from skl2onnx import convert_sklearn
     from skl2onnx.common.data_types import FloatTensorType
 
+    _reset_name_counters()
     final = model.steps[-1][1] if hasattr(model, "steps") else model
-    onx = convert_sklearn(
-        model, name=type(final).__name__, initial_types=[("X", FloatTensorType([None, n_features]))],
-        options={id(final): {"zipmap": False}}, target_opset={"": TARGET_OPSET, "ai.onnx.ml": ML_OPSET})
+    with warnings.catch_warnings():  # SVC probA_/probB_ deprecation (see classifiers._fit)
+        warnings.filterwarnings("ignore", category=FutureWarning)
+        onx = convert_sklearn(
+            model, name=type(final).__name__, initial_types=[("X", FloatTensorType([None, n_features]))],
+            options={id(final): {"zipmap": False}}, target_opset={"": TARGET_OPSET, "ai.onnx.ml": ML_OPSET})
     onx.doc_string = ""
     path.write_bytes(onx.SerializeToString(deterministic=True))
+
+
+def _reset_name_counters() -> None:
+    """skl2onnx numbers some node names with process-global counters: restart them so the
+    same model always serialises to the same bytes, whatever was converted before."""
+    from skl2onnx.common import _topology, utils
+
+    _topology.Variable._UNIQUE_NUMBER_ = 0
+    utils._unique_index["subgraph"] = 0
 
 
 def check_export(model: object, path: Path, X: np.ndarray, atol: float = 1e-4) -> float:
