@@ -2,31 +2,7 @@
 
 from __future__ import annotations
 
-import multiprocessing as mp
-
-
-def _call(fn, args, barrier, results, i) -> None:
-    try:
-        results.put((i, fn(*args, barrier)))
-    except BaseException as exc:  # reported to the parent test, not swallowed
-        results.put((i, exc))
-
-
-def run_in_processes(fn, arg_lists: list[tuple]) -> list:
-    """Run fn(*args, barrier) in one spawned process per arg tuple, released together."""
-    ctx = mp.get_context("spawn")
-    barrier, results = ctx.Barrier(len(arg_lists)), ctx.Queue()
-    procs = [ctx.Process(target=_call, args=(fn, a, barrier, results, i))
-             for i, a in enumerate(arg_lists)]
-    for p in procs:
-        p.start()
-    out = dict(results.get(timeout=120) for _ in procs)
-    for p in procs:
-        p.join(30)
-    errors = [r for r in out.values() if isinstance(r, BaseException)]
-    if errors:
-        raise errors[0]
-    return [out[i] for i in range(len(procs))]
+from proc_workers import run_in_processes  # noqa: F401  (re-exported for the tests)
 
 
 def register_many(url: str, serials: list[str], barrier) -> tuple[int, int]:
