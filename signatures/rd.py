@@ -49,10 +49,9 @@ def prepare(iq: np.ndarray) -> Prepared:
         work = a.astype(np.complex64, copy=False)
     else:
         work = a.astype(np.complex128, copy=False)
-    flat = work.view(work.real.dtype)
-    if not np.all(np.isfinite(flat)):
+    peak = float(np.max(np.abs(work.view(work.real.dtype))))  # NaN/Inf propagate: one pass
+    if not math.isfinite(peak):
         raise SignaturesError("IQ cube holds NaN or Inf")
-    peak = float(np.max(np.abs(flat)))
     if peak == 0.0:
         return Prepared(np.zeros(a.shape, np.complex64), 0, True)
     exponent = math.frexp(peak)[1]  # peak = m * 2**e with m in [0.5, 1)
@@ -93,8 +92,9 @@ def range_fft(iq: np.ndarray, suppress_clutter: bool = True) -> np.ndarray:
 
 
 def range_profile(spectrum: np.ndarray) -> np.ndarray:
-    """Mean power over chirps of each range bin (float32)."""
-    return np.mean(spectrum.real ** 2 + spectrum.imag ** 2, axis=0, dtype=np.float32)
+    """Mean power over chirps of each range bin (float32; one pass, no temporaries)."""
+    f = spectrum.view(np.float32).reshape(spectrum.shape[0], spectrum.shape[1], 2)
+    return (np.einsum("nkc,nkc->k", f, f) / np.float32(spectrum.shape[0])).astype(np.float32)
 
 
 def _cfar_factor(n_looks: int, n_train: int, pfa: float) -> float:

@@ -33,13 +33,15 @@ def stft_params(config: RadarConfig, n_chirps: int) -> tuple[int, int]:
 class Spectrogram:
     """Power spectrogram summed over range bins: power[t, f] (float32)."""
 
-    power: np.ndarray
+    power: np.ndarray  # (time, Doppler) or (time, Doppler, range bin)
     time_s: np.ndarray  # frame centres
     doppler_hz: np.ndarray  # fftshifted
 
 
-def spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int) -> Spectrogram:
-    """Hann STFT of each column of `slow` (chirps x bins), power summed over the columns.
+def spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int,
+                per_column: bool = False) -> Spectrogram:
+    """Hann STFT of each column of `slow` (chirps x bins), power summed over the columns
+    (power[t, f]) or kept per column (power[t, f, column]) with `per_column`.
 
     A dwell shorter than the window is zero-padded to one frame.
     """
@@ -48,7 +50,11 @@ def spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int) -> Sp
         x = np.concatenate([x, np.zeros((win - x.shape[0], x.shape[1]), x.dtype)])
     frames = sliding_window_view(x, win, axis=0)[::hop]  # (n_frames, bins, win)
     spec = _fft.fft(frames, axis=-1, window=hann(win))
-    power = np.fft.fftshift(np.sum(spec.real ** 2 + spec.imag ** 2, axis=1, dtype=np.float32), axes=-1)
+    cell = (spec.real ** 2 + spec.imag ** 2).astype(np.float32, copy=False)  # (frames, bins, win)
+    if per_column:
+        power = np.fft.fftshift(cell.transpose(0, 2, 1), axes=1)
+    else:
+        power = np.fft.fftshift(cell.sum(axis=1), axes=-1)
     t = (np.arange(power.shape[0]) * hop + win / 2) * config.pri_s
     f = np.fft.fftshift(np.fft.fftfreq(win, d=config.pri_s))
     return Spectrogram(power, t, f)
@@ -72,10 +78,8 @@ class Cadence:
     doppler_hz: np.ndarray
 
     def spectrum(self) -> np.ndarray:
-        """Cadence spectrum summed over Doppler, DC removed (float32)."""
-        out = self.magnitude.sum(axis=1)
-        out[0] = 0.0
-        return out
+        """Cadence spectrum summed over Doppler (float32; zero at DC: rows are mean-removed)."""
+        return self.magnitude.sum(axis=1)
 
 
 def cadence(spec: Spectrogram) -> Cadence:

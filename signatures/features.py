@@ -1,0 +1,399 @@
+"""Micro-Doppler features of one recorded return: the paper's 11 plus physical estimates.
+
+`extract(recording)` is the entry point (`extract_iq(iq, config)` for a bare cube).
+Only the range FFT and the range profile touch the whole cube; everything in
+slow time runs on the target's range gate (detected, or around a caller's
+expected range). Exact definitions: README "Micro-Doppler processing and features".
+
+Numerics: the cube is first scaled by an exact power of two (`rd.prepare`), so
+every feature but `peak_amplitude_db` is independent of the IQ scale and no
+power is ever squared out of float32 range; divisions use `max(x, tiny)`; logs
+are floored. Everything is float32 except scalar bookkeeping (absolute ranges,
+the peak amplitude's exponent) done in Python floats.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import astuple, dataclass, field, fields
+
+import numpy as np
+
+from signatures import estimators as est
+from signatures import rd
+from signatures import timefreq as tf
+from signatures.errors import SignaturesError
+from signatures.radar import RadarConfig
+
+FEATURE_VERSION = "1"
+GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
+PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
+PATCH_FLOOR_DB = -60.0
+BODY_BINS = 3  # Doppler bins either side of the body line that count as "body"
+PEAK_PROMINENCE_DB = 6.0  # a significant Doppler peak rises this much above its surroundings
+PEAK_ABOVE_NOISE_DB = 6.0  # ... and this much above the noise level
+PEAK_PROFILE_BANDS = 128  # Doppler profile pooled to at most this many bands for peak counting
+OCCUPANCY_DB = 6.0  # a Doppler bin is occupied when this much above the noise level
+ALIAS_FRACTION = 0.95  # micro-Doppler reaching this share of the half band = aliased
+PEAK_DB_FLOOR = -999.0  # peak amplitude of an all-zero cube
+_TINY = float(np.finfo(np.float32).tiny)
+_DB = np.float32(10.0 / math.log(10.0))
+
+
+@dataclass(frozen=True)
+class Features:
+    """The feature vector, in its fixed order (`FEATURE_NAMES`); all finite floats."""
+
+    # the paper's 11 (Eq. 12-21), in the paper's order
+    mean_range_m: float
+    mean_doppler_mps: float
+    std_range_m: float
+    std_doppler_mps: float
+    par_db: float
+    spectral_centroid_hz: float
+    spectral_bandwidth_hz: float
+    peak_amplitude_db: float
+    num_peaks: float
+    energy_ratio: float
+    entropy: float
+    # physical estimates and their one-sigma uncertainties
+    range_m: float
+    range_std_m: float
+    radial_velocity_mps: float
+    radial_velocity_std_mps: float
+    flash_rate_hz: float
+    flash_rate_std_hz: float
+    rotor_rate_hz: float
+    rotor_rate_std_hz: float
+    rotor_count: float
+    rotor_count_std: float
+    tip_speed_mps: float
+    tip_speed_std_mps: float
+    blade_length_m: float
+    blade_length_std_m: float
+    tip_aliased: float
+    # micro-Doppler / cadence descriptors
+    flash_score: float
+    flash_count: float
+    flash_par_db: float
+    doppler_occupancy: float
+    cadence_peak_hz: float
+    cadence_harmonic_ratio: float
+    snr_db: float
+    detected: float
+
+    def as_array(self) -> np.ndarray:
+        return np.array(astuple(self), dtype=np.float32)
+
+
+FEATURE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Features))
+
+
+@dataclass(frozen=True)
+class FeatureResult:
+    """What `extract` returns: detection flag, named features, the CNN patch, the gate."""
+
+    detected: bool
+    features: Features
+    rd_patch: np.ndarray  # float32 PATCH_SHAPE, log power in [0, 1], body Doppler centred
+    gate: tuple[int, int]  # [lo, hi) range bins the slow-time work ran on
+    names: tuple[str, ...] = field(default=FEATURE_NAMES)
+
+    def as_array(self) -> np.ndarray:
+        return self.features.as_array()
+
+    @property
+    def range_m(self) -> float:
+        return self.features.range_m
+
+    @property
+    def radial_velocity_mps(self) -> float:
+        return self.features.radial_velocity_mps
+
+
+def extract(recording, expected_range_m: float | None = None, gate_bins: int = GATE_BINS,
+            clutter_suppression: bool = True) -> FeatureResult:
+    """Features of a `Recording` (see `extract_iq`)."""
+    return extract_iq(recording.iq, recording.config, expected_range_m, gate_bins, clutter_suppression)
+
+
+def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | None = None,
+               gate_bins: int = GATE_BINS, clutter_suppression: bool = True,
+               full_cube: bool = False) -> FeatureResult:
+    """Features of a bare cube (chirps x samples, any numeric dtype).
+
+    `expected_range_m` (range at the dwell, e.g. from Remote ID) centres the gate
+    there and counts only a detection within it; it must lie inside the recorded
+    window. `full_cube=True` runs the slow-time work on every range bin first
+    (the ungated baseline of the benchmark; same numbers, more work).
+    """
+    if gate_bins < 1:
+        raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
+    prep = rd.prepare(iq)
+    n_chirps, n_bins = prep.iq.shape
+    bin_m = config.range_bin_m(n_bins)
+    within = None
+    if expected_range_m is not None:
+        lo, hi = config.range_window_m
+        if not (math.isfinite(expected_range_m) and lo <= expected_range_m < hi):
+            raise SignaturesError(f"expected range {expected_range_m:g} m is outside the recorded window "
+                                  f"[{lo:g}, {hi:g}) m")
+        k = int((expected_range_m - lo) / bin_m)
+        within = (max(0, k - gate_bins // 2), min(n_bins, k + gate_bins // 2 + 1))
+    if prep.all_zero:
+        return _empty(config, n_chirps, n_bins, within)
+    spectrum = rd.range_fft(prep.iq, clutter_suppression)
+    profile = rd.range_profile(spectrum)
+    looks = max(1, n_chirps - 1) if clutter_suppression else n_chirps
+    det = rd.detect(profile, looks, within=within)
+    gate = _window(det.peak_bin, gate_bins, n_bins)
+    if full_cube:  # what an ungated implementation computes before looking at the target
+        rd.rd_map(spectrum, config)
+        tf.spectrogram(spectrum, config, *tf.stft_params(config, n_chirps))
+    slow = spectrum[:, gate[0]:gate[1]]
+    dop = rd.doppler_spectrum(slow)
+    power = _power(dop)
+    raw_power = _unsuppressed(prep.iq, dop, power, gate) if clutter_suppression else power
+    noise_bin = float(np.median(profile))  # mean noise power per chirp in one range bin
+    noise_doppler = max(noise_bin * n_chirps * float(np.mean(rd.hann(n_chirps) ** 2)), _TINY)
+    return _features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
+                     noise_doppler, clutter_suppression)
+
+
+def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray, gate: tuple[int, int]) -> np.ndarray:
+    """Doppler power of the gate before mean removal, from the suppressed spectrum.
+
+    The removed mean mu (per range bin) adds mu * FFT(window) to the spectrum: for
+    the unit-mean periodic Hann, N*mu at zero Doppler and -N*mu/2 at +-1 bin only.
+    """
+    n = iq.shape[0]
+    mu = rd.range_fft(iq.mean(axis=0, keepdims=True), suppress_clutter=False)[0, gate[0]:gate[1]]
+    out = power.copy()
+    c = n // 2
+    for j, w in ((0, 1.0), (-1, -0.5), (1, -0.5)):
+        if 0 <= c + j < n and (j == 0 or n > 1):
+            out[c + j] = _power(dop[c + j] + mu * np.float32(n * w))
+    return out
+
+
+def _power(z: np.ndarray) -> np.ndarray:
+    return (z.real ** 2 + z.imag ** 2).astype(np.float32, copy=False)
+
+
+def _window(centre: int, size: int, n: int) -> tuple[int, int]:
+    size = min(size, n)
+    lo = min(max(0, centre - size // 2), n - size)
+    return lo, lo + size
+
+
+def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, profile: np.ndarray,
+              det: rd.Detection, gate: tuple[int, int], slow: np.ndarray, power: np.ndarray,
+              raw_power: np.ndarray, noise_doppler: float, suppressed: bool) -> FeatureResult:
+    n_chirps, n_bins = spectrum.shape
+    bin_m = config.range_bin_m(n_bins)
+    dop_bin_hz = config.prf_hz / n_chirps
+    lam = config.wavelength_m
+    d = power.sum(axis=1)  # Doppler intensity profile over the gate (fftshifted)
+    d_raw = raw_power.sum(axis=1)
+    centre = n_chirps // 2  # index of zero Doppler after fftshift
+    body_idx, vel_std_bins = _body_line(d, d_raw, centre, suppressed)
+    body_hz = (body_idx - centre) * dop_bin_hz
+    velocity = body_hz * lam / 2.0
+    vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
+    dwell = n_chirps * config.pri_s
+    snr = max(10.0 ** (det.snr_db / 10.0), 1e-3)
+    range_mid = config.range_offset_m + det.peak_bin_frac * bin_m
+    range_std = bin_m * (0.05 + 1.0 / math.sqrt(snr))
+
+    # --- Doppler axis relative to the body (circular), in Hz --------------------
+    rel_bins = np.mod(np.arange(n_chirps) - body_idx + n_chirps // 2, n_chirps) - n_chirps // 2
+    rel_hz = (rel_bins * dop_bin_hz).astype(np.float32)
+    total = max(float(d.sum()), _TINY)
+    q_d = d / np.float32(total)
+    q_r = power.sum(axis=0) / np.float32(total)
+    r_axis = (np.arange(gate[0], gate[1]) - det.peak_bin) * bin_m  # metres from the peak bin
+    mu_r_rel = float(np.sum(r_axis * q_r))
+    std_r = math.sqrt(max(float(np.sum((r_axis - mu_r_rel) ** 2 * q_r)), 0.0))
+    mu_hz = float(np.sum(rel_hz * q_d))
+    std_hz = math.sqrt(max(float(np.sum((rel_hz - mu_hz) ** 2 * q_d)), 0.0))
+    par_db = _db(float(d.max()) / max(float(d.mean()), _TINY))
+    md = np.abs(rel_bins) > BODY_BINS
+    md_tot = max(float(d[md].sum()), _TINY)
+    sc = float(np.sum(np.abs(rel_hz[md]) * d[md])) / md_tot
+    sb = math.sqrt(max(float(np.sum((np.abs(rel_hz[md]) - sc) ** 2 * d[md])) / md_tot, 0.0))
+    peak_db = _db(float(power.max())) + 20.0 * math.log10(2.0) * prep.log2_scale
+    n_peaks = _count_peaks(np.roll(d, n_chirps // 2 - body_idx), noise_doppler * (gate[1] - gate[0]))
+    energy_ratio = float(d[~md].sum()) / total
+    q = power / np.float32(total)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plogp = np.where(q > 0, q * np.log(np.maximum(q, np.float32(_TINY))), np.float32(0.0))
+    entropy = -float(plogp.sum()) / math.log(max(q.size, 2))
+
+    # --- blade flashes, rotors, tip speed ----------------------------------------
+    centre_cols = slice(max(0, det.peak_bin - 1 - gate[0]), min(gate[1] - gate[0], det.peak_bin + 2 - gate[0]))
+    series = est.flash_series(slow[:, centre_cols], config, body_hz, bin_m)
+    per = est.periodicity(series)
+    rotors = est.rotor_count(per)
+    flash = per.flash_rate
+    rotor = est.Estimate(flash.value / est.BLADES_ASSUMED, flash.std / est.BLADES_ASSUMED)
+    noise_gate = noise_doppler * (gate[1] - gate[0])
+    occupied = _smooth(d, max(1, n_chirps // 256)) > np.float32(noise_gate * 10 ** (OCCUPANCY_DB / 10))
+    occupancy = float(occupied.mean())
+    tip, tip_std, aliased = _tip_speed(occupied, rel_bins, body_hz, config, dop_bin_hz)
+    blade = est.Estimate(0.0, 0.0)
+    if rotor.value > 0 and tip > 0 and not aliased:  # a lower-bound tip gives no length
+        length = tip / (2 * math.pi * rotor.value)
+        blade = est.Estimate(length, length * math.hypot(tip_std / tip, rotor.std / rotor.value))
+
+    # --- cadence -----------------------------------------------------------------
+    win, hop = tf.stft_params(config, n_chirps)
+    cad = tf.cadence(tf.spectrogram(slow, config, win, hop))
+    cad_peak, cad_ratio = _cadence_features(cad, flash.value)
+
+    feats = Features(
+        mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
+        std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
+        spectral_centroid_hz=sc, spectral_bandwidth_hz=sb, peak_amplitude_db=peak_db,
+        num_peaks=float(n_peaks), energy_ratio=energy_ratio, entropy=entropy,
+        range_m=range_mid - velocity * dwell / 2.0, range_std_m=range_std,
+        radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
+        flash_rate_hz=flash.value, flash_rate_std_hz=flash.std,
+        rotor_rate_hz=rotor.value, rotor_rate_std_hz=rotor.std,
+        rotor_count=rotors.value, rotor_count_std=rotors.std,
+        tip_speed_mps=tip, tip_speed_std_mps=tip_std, blade_length_m=blade.value,
+        blade_length_std_m=blade.std, tip_aliased=float(aliased),
+        flash_score=per.score, flash_count=float(per.n_events), flash_par_db=per.flash_par_db,
+        doppler_occupancy=occupancy, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio,
+        snr_db=max(det.snr_db, -100.0), detected=float(det.detected))
+    patch = _patch(spectrum, config, det.peak_bin, body_idx)
+    return FeatureResult(det.detected, feats, patch, gate)
+
+
+def _db(x: float) -> float:
+    return 10.0 * math.log10(max(x, 1e-30))
+
+
+def _body_line(d: np.ndarray, d_raw: np.ndarray, centre: int, suppressed: bool) -> tuple[float, float]:
+    """Doppler index (fractional) of the body line and its std in bins.
+
+    The body is the strongest narrow line of the clutter-suppressed profile. When
+    that line sits within +-BODY_BINS of zero Doppler the body may be hovering, and
+    mean removal erased it with the clutter: then the unsuppressed profile's peak
+    near zero is taken (hovering body and stationary clutter share that bin).
+    """
+    k = int(np.argmax(d))
+    src = d
+    if suppressed and abs(k - centre) <= BODY_BINS:
+        lo, hi = max(0, centre - BODY_BINS), min(d.size, centre + BODY_BINS + 1)
+        k = lo + int(np.argmax(d_raw[lo:hi]))
+        src = d_raw
+    frac = rd._interp_peak(src, k)
+    line_snr = float(src[k]) / max(float(np.median(src)), _TINY)
+    return frac, 0.05 + 1.0 / math.sqrt(max(line_snr, 1.0))
+
+
+def _smooth(x: np.ndarray, half: int) -> np.ndarray:
+    if half < 1:
+        return x
+    k = np.ones(2 * half + 1, dtype=np.float32) / np.float32(2 * half + 1)
+    return np.convolve(np.concatenate([x[-half:], x, x[:half]]), k, mode="valid").astype(np.float32)
+
+
+def _count_peaks(d: np.ndarray, noise: float) -> int:
+    """Significant peaks of the (body-centred) Doppler profile: local maxima of the profile
+    pooled to <= PEAK_PROFILE_BANDS bands, >= PEAK_PROMINENCE_DB above the higher of the
+    lowest points between them and the next higher peak (or the ends) on each side, and
+    >= PEAK_ABOVE_NOISE_DB above the noise per band."""
+    group = max(1, d.size // PEAK_PROFILE_BANDS)
+    m = (d.size // group) * group
+    pooled = d[:m].reshape(-1, group).sum(axis=1)
+    with np.errstate(divide="ignore"):
+        y = np.log(np.maximum(pooled, np.float32(_TINY))) * _DB
+    floor = _db(noise * group) + PEAK_ABOVE_NOISE_DB
+    cand = [i for i in range(y.size) if y[i] >= floor
+            and (i == 0 or y[i] > y[i - 1]) and (i == y.size - 1 or y[i] >= y[i + 1])]
+    count = 0
+    for i in cand:
+        left = y[:i][::-1]
+        right = y[i + 1:]
+        bases = []
+        for side in (left, right):
+            higher = np.flatnonzero(side > y[i])
+            stop = int(higher[0]) if higher.size else side.size
+            bases.append(float(side[:stop].min()) if stop > 0 else float(y[i]))
+        if float(y[i]) - max(bases) >= PEAK_PROMINENCE_DB:
+            count += 1
+    return count
+
+
+def _tip_speed(occupied: np.ndarray, rel_bins: np.ndarray, body_hz: float, config: RadarConfig,
+               dop_bin_hz: float) -> tuple[float, float, bool]:
+    """LOS blade-tip speed from the micro-Doppler extent either side of the body line.
+
+    The extent on each side is the farthest occupied Doppler bin from the body line
+    (occupied = smoothed profile OCCUPANCY_DB above the noise). Reaching ALIAS_FRACTION
+    of the half band means the tips alias: the value is then the lower bound
+    lambda/2 * (PRF/2 - |f_body|).
+    """
+    half = occupied.size // 2
+    ext = [int(rel_bins[occupied & (rel_bins > 0)].max(initial=0)),
+           int(-rel_bins[occupied & (rel_bins < 0)].min(initial=0))]
+    lam2 = config.wavelength_m / 2.0
+    if max(ext) >= ALIAS_FRACTION * half:
+        return lam2 * max(config.prf_hz / 2.0 - abs(body_hz), 0.0), 0.0, True
+    tip_hz = 0.5 * (ext[0] + ext[1]) * dop_bin_hz
+    std_hz = math.hypot(0.5 * abs(ext[0] - ext[1]) * dop_bin_hz, dop_bin_hz)
+    return lam2 * tip_hz, lam2 * std_hz, False
+
+
+def _cadence_features(cad: tf.Cadence, flash_hz: float) -> tuple[float, float]:
+    """(strongest cadence frequency above FLASH_RATE_MIN_HZ, share of the cadence spectrum
+    within one cadence bin of multiples of the flash rate)."""
+    spec = cad.spectrum()
+    f = cad.cadence_hz
+    use = f >= est.FLASH_RATE_MIN_HZ
+    if not use.any():
+        return 0.0, 0.0
+    total = max(float(spec[use].sum()), _TINY)
+    peak = float(f[use][int(np.argmax(spec[use]))]) if total > _TINY else 0.0
+    if flash_hz <= 0 or f.size < 2:
+        return peak, 0.0
+    step = float(f[1] - f[0])
+    harm = np.abs(f / flash_hz - np.round(f / flash_hz)) * flash_hz <= step
+    return peak, float(spec[use & harm].sum()) / total
+
+
+def _patch(spectrum: np.ndarray, config: RadarConfig, peak_bin: int, body_idx: float) -> np.ndarray:
+    """CNN input: Doppler x range power of PATCH_SHAPE[1] range bins around the target, in
+    PATCH_SHAPE[0] Doppler bands (Welch: Hann frames of PATCH_SHAPE[0] chirps, averaged;
+    as informative as pooling a full-resolution spectrum into bands and several times
+    cheaper), rolled so the body's band is the middle one; dB below the patch maximum,
+    floored at PATCH_FLOOR_DB and mapped to [0, 1]."""
+    n_dop, n_rng = PATCH_SHAPE
+    n_chirps, n_bins = spectrum.shape
+    lo, hi = _window(peak_bin, n_rng, n_bins)
+    spec = tf.spectrogram(spectrum[:, lo:hi], config, n_dop, n_dop, per_column=True)
+    bands = spec.power.mean(axis=0)  # (n_dop, range)
+    body_band = int(round((body_idx - n_chirps // 2) * n_dop / n_chirps))
+    bands = np.roll(bands, -body_band, axis=0)
+    out = np.zeros(PATCH_SHAPE, dtype=np.float32)
+    out[:, :bands.shape[1]] = _to_unit_db(bands)
+    return out
+
+
+def _to_unit_db(p: np.ndarray) -> np.ndarray:
+    peak = max(float(p.max()), _TINY)
+    with np.errstate(divide="ignore"):
+        db = np.log(np.maximum(p / np.float32(peak), np.float32(_TINY))) * _DB
+    return ((np.maximum(db, np.float32(PATCH_FLOOR_DB)) - np.float32(PATCH_FLOOR_DB))
+            / np.float32(-PATCH_FLOOR_DB)).astype(np.float32)
+
+
+def _empty(config: RadarConfig, n_chirps: int, n_bins: int, within: tuple[int, int] | None) -> FeatureResult:
+    """An all-zero cube: nothing detected, every feature 0 but the peak amplitude floor."""
+    values = {name: 0.0 for name in FEATURE_NAMES}
+    values["peak_amplitude_db"] = PEAK_DB_FLOOR
+    values["snr_db"] = -100.0
+    centre = (within[0] + within[1]) // 2 if within else n_bins // 2
+    return FeatureResult(False, Features(**values), np.zeros(PATCH_SHAPE, np.float32),
+                         _window(centre, GATE_BINS, n_bins))
