@@ -153,27 +153,33 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
     slow = spectrum[:, gate[0]:gate[1]]
     dop = rd.doppler_spectrum(slow)
     power = _power(dop)
-    raw_power = _unsuppressed(prep.iq, dop, power, gate) if clutter_suppression else power
+    raw_power, stationary = _unsuppressed(prep.iq, dop, power, gate) if clutter_suppression else (power, 0.0)
     noise_bin = float(np.median(profile))  # mean noise power per chirp in one range bin
     noise_doppler = max(noise_bin * n_chirps * float(np.mean(rd.hann(n_chirps) ** 2)), _TINY)
     return _features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
-                     noise_doppler, clutter_suppression)
+                     noise_doppler, clutter_suppression, stationary)
 
 
-def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray, gate: tuple[int, int]) -> np.ndarray:
-    """Doppler power of the gate before mean removal, from the suppressed spectrum.
+def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
+                  gate: tuple[int, int]) -> tuple[np.ndarray, float]:
+    """Doppler power of the gate before mean removal, and the stationary excess power.
 
     The removed mean mu (per range bin) adds mu * FFT(window) to the spectrum: for
     the unit-mean periodic Hann, N*mu at zero Doppler and -N*mu/2 at +-1 bin only.
+    The excess is sum over the gate of N^2 (|mu|^2 - median over all range bins of
+    |mu|^2): the zero-Doppler line power beyond the window's typical clutter.
     """
     n = iq.shape[0]
-    mu = rd.range_fft(iq.mean(axis=0, keepdims=True), suppress_clutter=False)[0, gate[0]:gate[1]]
+    mu = rd.range_fft(iq.mean(axis=0, keepdims=True), suppress_clutter=False)[0]
+    mu2 = mu.real ** 2 + mu.imag ** 2
+    excess = float(np.sum(np.maximum(mu2[gate[0]:gate[1]] - np.median(mu2), 0.0))) * n * n
+    mu = mu[gate[0]:gate[1]]
     out = power.copy()
     c = n // 2
     for j, w in ((0, 1.0), (-1, -0.5), (1, -0.5)):
-        if 0 <= c + j < n and (j == 0 or n > 1):
+        if 0 <= c + j < n and (j == 0 or n > 2):
             out[c + j] = _power(dop[c + j] + mu * np.float32(n * w))
-    return out
+    return out, excess
 
 
 def _power(z: np.ndarray) -> np.ndarray:
@@ -188,7 +194,8 @@ def _window(centre: int, size: int, n: int) -> tuple[int, int]:
 
 def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, profile: np.ndarray,
               det: rd.Detection, gate: tuple[int, int], slow: np.ndarray, power: np.ndarray,
-              raw_power: np.ndarray, noise_doppler: float, suppressed: bool) -> FeatureResult:
+              raw_power: np.ndarray, noise_doppler: float, suppressed: bool,
+              stationary: float) -> FeatureResult:
     n_chirps, n_bins = spectrum.shape
     bin_m = config.range_bin_m(n_bins)
     dop_bin_hz = config.prf_hz / n_chirps
@@ -196,7 +203,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
     d = power.sum(axis=1)  # Doppler intensity profile over the gate (fftshifted)
     d_raw = raw_power.sum(axis=1)
     centre = n_chirps // 2  # index of zero Doppler after fftshift
-    body_idx, vel_std_bins = _body_line(d, d_raw, centre, suppressed)
+    body_idx, vel_std_bins = _body_line(d, d_raw, centre, suppressed and stationary > float(d.max()))
     body_hz = (body_idx - centre) * dop_bin_hz
     velocity = body_hz * lam / 2.0
     vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
@@ -273,17 +280,18 @@ def _db(x: float) -> float:
     return 10.0 * math.log10(max(x, 1e-30))
 
 
-def _body_line(d: np.ndarray, d_raw: np.ndarray, centre: int, suppressed: bool) -> tuple[float, float]:
+def _body_line(d: np.ndarray, d_raw: np.ndarray, centre: int, hovering: bool) -> tuple[float, float]:
     """Doppler index (fractional) of the body line and its std in bins.
 
-    The body is the strongest narrow line of the clutter-suppressed profile. When
-    that line sits within +-BODY_BINS of zero Doppler the body may be hovering, and
-    mean removal erased it with the clutter: then the unsuppressed profile's peak
-    near zero is taken (hovering body and stationary clutter share that bin).
+    Moving body: the strongest line of the clutter-suppressed profile. Hovering
+    body (`hovering`: the zero-Doppler power removed from the gate beyond the
+    window's median clutter exceeds that line): mean removal erased it with the
+    clutter, so the peak of the unsuppressed profile within +-BODY_BINS of zero
+    Doppler is taken; the same happens when the suppressed line itself lies there.
     """
     k = int(np.argmax(d))
     src = d
-    if suppressed and abs(k - centre) <= BODY_BINS:
+    if hovering or abs(k - centre) <= BODY_BINS:
         lo, hi = max(0, centre - BODY_BINS), min(d.size, centre + BODY_BINS + 1)
         k = lo + int(np.argmax(d_raw[lo:hi]))
         src = d_raw
