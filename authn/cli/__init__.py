@@ -77,3 +77,6 @@ from authn.cli import audit_cmds as _audit_cmds  # noqa: E402,F401
 from authn.cli import check_cmd as _check_cmd  # noqa: E402,F401
 from authn.cli import demo_cmd as _demo_cmd  # noqa: E402,F401
 from authn.cli import models as _models  # noqa: E402,F401
+from authn.cli import bench_cmd as _bench_cmd  # noqa: E402,F401
+from authn.cli import features as _features  # noqa: E402,F401
+from authn.cli import plot as _plot  # noqa: E402,F401
