@@ -1,4 +1,4 @@
-"""Physical estimates with uncertainties: blade-flash rate, rotor rate, rotor count, tip speed.
+"""Blade-flash estimators with uncertainties: flash rate, rotor rate, rotor count (tip speed: features).
 
 Blade flashes: a blade seen broadside returns all its length in phase for ~30 us
 (Chen's sinc); two opposite blades flash together, twice per turn, so one rotor
@@ -8,8 +8,8 @@ in slow time whatever the Doppler does, so timing survives blade-tip aliasing.
 Pipeline: demodulate the target bins by the body Doppler, subtract a short
 moving average (removes body, hubs and clutter: everything slow), sum |.|^2
 over the bins -> flash-energy series e[n]; keep what stands out of the noise;
-find flash events (local maxima); score each candidate period by how many
-flashes have a partner one period away (a z-score against chance). Flashes are
+find flash events (local maxima) and their range positions; score each
+candidate period by the same-place flash pairs one period apart. Flashes are
 treated as events, not weighted by energy: in the `paper` preset a ~30 us
 flash sampled once per 44 us PRI varies by >10 dB with where it falls between
 chirps, and energy-weighted autocorrelations then lock onto the few strongest
@@ -39,8 +39,8 @@ NOISE_MADS = 5.0
 POSITION_TOL_BINS = 0.3
 #: A period needs this share of the series overlapping itself.
 MIN_OVERLAP = 1.0 / 3.0
-#: A sub-multiple L/j of the best lag whose own lag explains this share of the flashes wins.
-SUBMULTIPLE_FRACTION = 0.7
+#: Score weight of a same-place flash pair two periods apart (one period apart = 1).
+SECOND_PERIOD_GAIN = 0.3
 BLADES_ASSUMED = 2
 
 
@@ -99,7 +99,7 @@ class Periodicity:
     """Blade-flash periodicity of a flash series."""
 
     flash_rate: Estimate  # Hz
-    score: float  # z-score of the chosen period (0 = no periodicity)
+    score: float  # matched flash pairs at the chosen period (0 = no periodicity)
     n_events: int  # flashes found in the dwell
     phases: np.ndarray  # flash times modulo the period, in periods [0, 1)
     tolerance: float  # matching tolerance in periods
@@ -143,14 +143,13 @@ def _peak_position(profile: np.ndarray) -> float:
 def periodicity(series: FlashSeries) -> Periodicity:
     """Flash period from flash events (module docstring).
 
-    A flash is explained at lag L when another flash from the same range position
-    lies L away (within 2 % of L, rotor-rate spread); it is eligible when t +- L
-    lies inside the dwell. Score(L) = explained / eligible over the multiples L,
-    2L, ... up to the longest usable lag, each flash weighted by sqrt(energy) (a
-    strong flash with a weak partner still counts fully). Sub-multiples L/2 fail
-    at odd multiples. The best lag loses to its half (third) when that lag alone
-    explains >= `SUBMULTIPLE_FRACTION` of the flashes: a multiple 2T explains all
-    the few flashes eligible at 2T and can outscore T when T misses a partner.
+    Score(L) = number of same-place flash pairs (range positions within
+    POSITION_TOL_BINS after the body's migration) whose interval is L +- 2 %
+    (the rotor-rate spread), plus SECOND_PERIOD_GAIN per pair at 2L. Pairs, not
+    energies: a strong flash with a weakly sampled partner counts fully. The
+    position test rejects most inter-rotor coincidences, which otherwise outscore
+    the true period when each rotor flashes only 2-3 times per dwell; the best
+    lag wins (ties: the shortest) and the period is the mean matched interval.
     """
     e = series.energy
     n = e.size
@@ -164,8 +163,6 @@ def periodicity(series: FlashSeries) -> Periodicity:
     lag_max = min(n * (1.0 - MIN_OVERLAP), series.rate_hz / FLASH_RATE_MIN_HZ)
     if k < 2 or lag_max <= lag_min:
         return Periodicity(Estimate(0.0, 0.0), 0.0, int(k), np.zeros(0), 0.0, par_db)
-    weight = np.sqrt(e[np.clip(np.round(times).astype(int), 0, n - 1)])
-    weight = weight / weight.max()
     diff = times[None, :] - times[:, None]  # (k, k): t_j - t_i
     moved = pos[None, :] - pos[:, None] - series.drift_bins_per_sample * diff
     same_place = np.abs(moved) <= POSITION_TOL_BINS
@@ -173,7 +170,7 @@ def periodicity(series: FlashSeries) -> Periodicity:
     pairs = same_place & (diff > 0)
     d = diff[pairs]  # lags between same-place flashes, each pair once
     score = np.zeros(lags.size)
-    for m, gain in ((1, 1.0), (2, 0.3)):
+    for m, gain in ((1, 1.0), (2, SECOND_PERIOD_GAIN)):
         ml = m * lags
         tol = np.maximum(1.5, 0.02 * ml)
         score += gain * (np.abs(d[None, :] - ml[:, None]) <= tol[:, None]).sum(axis=1)
@@ -182,10 +179,8 @@ def periodicity(series: FlashSeries) -> Periodicity:
     i0 = int(np.argmax(score))  # first (shortest) of equal scores
     lag0 = lags[i0]
     tol0 = max(1.5, 0.02 * lag0)
-    pair = same_place & (diff > 0)
-    ratio = diff / lag0
-    mult = np.round(ratio)
-    matched = pair & (mult >= 1) & (np.abs(diff - mult * lag0) <= np.maximum(1.5, 0.02 * mult * lag0))
+    mult = np.round(diff / lag0)
+    matched = pairs & (mult >= 1) & (np.abs(diff - mult * lag0) <= np.maximum(1.5, 0.02 * mult * lag0))
     periods = (diff / np.maximum(mult, 1))[matched]
     period = float(periods.mean()) if periods.size else float(lag0)
     scatter = float(periods.std()) if periods.size > 1 else tol0
