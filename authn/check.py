@@ -195,7 +195,7 @@ class Checker:
             if res.radial_velocity_residual_mps is not None:
                 context.update(velocity_residual_cmps=_cm(res.radial_velocity_residual_mps),
                                velocity_tolerance_cmps=_cm(res.radial_velocity_tolerance_mps))
-        return radar, kin, context, classifier.card_sha256
+        return radar, kin, context, classifier.card_digest
 
     # --- one check ------------------------------------------------------------------
     def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:

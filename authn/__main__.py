@@ -1,0 +1,5 @@
+"""`python -m authn` = the `authn` command."""
+
+from authn.cli import run
+
+run()

@@ -1,0 +1,162 @@
+"""End-to-end benchmark: decisions on simulated claims over random geometry, and latency.
+
+Categories (SPEC / issue 6): genuine claims, type spoofs between the shipped
+profiles, position spoofs (Remote ID displaced 100-300 m along the line of sight),
+unregistered and revoked serials. Each scene is a real file checked by the real
+`Checker` against a real (temporary SQLite) registry.
+"""
+
+from __future__ import annotations
+
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from authn.scenario import Broadcast, simulate_flight
+from signatures.profiles import shipped_profiles
+from signatures.radar import get_preset
+from signatures.recording import write_recording
+from signatures.scene import Scene
+
+CATEGORIES = ("genuine", "type_spoof", "position_spoof", "unregistered", "revoked")
+EXPECTED = {"genuine": "accept"} | {c: "reject" for c in CATEGORIES[1:]}
+VALID_FROM = datetime(2025, 1, 1, tzinfo=timezone.utc)
+
+
+def _serial(slug: str, revoked: bool = False) -> str:
+    return {"m600": "1581BBENCH00600", "m300": "1581BBENCH00300", "phantom4": "1581BBENCH00004"}[slug] \
+        + ("R" if revoked else "A")
+
+
+def _register(db_url: str) -> None:
+    from registry.db import session_scope
+    from registry.store import NewIdentity, register_identity, revoke_identity
+
+    with session_scope(db_url) as s:
+        for slug in shipped_profiles():
+            for revoked in (False, True):
+                register_identity(s, NewIdentity(serial=_serial(slug, revoked), model=slug, valid_from=VALID_FROM))
+                if revoked:
+                    revoke_identity(s, _serial(slug, revoked), "bench")
+
+
+@dataclass
+class Row:
+    preset: str
+    category: str
+    n: int
+    correct: int
+    radar_skipped: int
+    median_ms: float
+
+    @property
+    def rate(self) -> float:
+        return self.correct / self.n if self.n else float("nan")
+
+
+def _scene(rng: np.random.Generator, slug: str, snr_range: tuple[float, float]) -> tuple[Scene, float]:
+    speed = 0.0 if rng.random() < 0.3 else float(rng.choice([-1, 1]) * rng.uniform(1.0, 15.0))
+    scene = Scene(profile=shipped_profiles()[slug], range_m=float(rng.uniform(60.0, 1100.0)),
+                  radial_speed_mps=speed, elevation_deg=float(rng.uniform(0.0, 40.0)),
+                  snr_db=float(rng.uniform(*snr_range)),
+                  clutter_db=None if rng.random() < 0.3 else float(rng.uniform(0.0, 20.0)))
+    return scene, float(rng.uniform(0.0, 360.0))
+
+
+def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[float, float] = (10.0, 30.0),
+                  progress: Callable[[int], None] | None = None) -> list[Row]:
+    """n scenes per category and preset; returns one row per (preset, category)."""
+    from authn.check import Checker
+
+    slugs = list(shipped_profiles())
+    rows: list[Row] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        db = f"sqlite:///{Path(tmp) / 'bench.sqlite3'}"
+        _register(db)
+        checker = Checker(db)
+        now = datetime.now(timezone.utc)
+        for preset in presets:
+            pre = get_preset(preset)
+            rng = np.random.default_rng([seed, len(preset)])
+            for cat in CATEGORIES:
+                correct = skipped = 0
+                times = []
+                for i in range(n):
+                    flies = slugs[i % len(slugs)]
+                    claims = flies
+                    offset = 0.0
+                    if cat == "type_spoof":
+                        claims = slugs[(i + 1 + (i // 3) % 2) % len(slugs)]
+                    if cat == "position_spoof":
+                        offset = float(rng.choice([-1, 1]) * rng.uniform(100.0, 300.0))
+                    serial = {"unregistered": "1581BBENCH99999X", "revoked": _serial(claims, True)}.get(
+                        cat, _serial(claims))
+                    scene, az = _scene(rng, flies, snr_range)
+                    if offset < 0 and scene.range_m + offset < 30.0:
+                        offset = -offset
+                    rec, _ = simulate_flight(scene, pre, int(rng.integers(2**31)), Broadcast(serial=serial,
+                                             offset_along_los_m=offset), azimuth_deg=az, start_time=now)
+                    path = write_recording(rec, Path(tmp) / "scene.h5")
+                    t0 = time.perf_counter()
+                    out = checker.evaluate(path)
+                    times.append((time.perf_counter() - t0) * 1e3)
+                    correct += out.decision == EXPECTED[cat]
+                    skipped += out.radar is None
+                    if progress:
+                        progress(1)
+                rows.append(Row(preset, cat, n, correct, skipped, statistics.median(times)))
+    return rows
+
+
+def cold_check_ms(path: Path, serial: str, db_url: str, repeats: int = 5) -> float:
+    """Median wall time of a whole `authn check` process (interpreter start included)."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "authn", "--db", db_url, "check", str(path), "--serial", serial,
+                        "--json"], capture_output=True, check=False)
+        times.append((time.perf_counter() - t0) * 1e3)
+    return statistics.median(times)
+
+
+def latency(preset: str, n_batch: int, seed: int) -> dict[str, float]:
+    """Cold-process check vs one check inside batch mode (models loaded once), genuine claims."""
+    from authn.check import Checker
+
+    with tempfile.TemporaryDirectory() as tmp:
+        db = f"sqlite:///{Path(tmp) / 'lat.sqlite3'}"
+        _register(db)
+        rng = np.random.default_rng(seed)
+        pre = get_preset(preset)
+        paths = []
+        for i in range(n_batch):
+            scene, az = _scene(rng, "m300", (10.0, 30.0))
+            rec, _ = simulate_flight(scene, pre, i, Broadcast(serial=_serial("m300")), azimuth_deg=az,
+                                     start_time=datetime.now(timezone.utc))
+            paths.append(write_recording(rec, Path(tmp) / f"s{i}.h5"))
+        checker = Checker(db)
+        checker.record([checker.evaluate(paths[0])])  # warm: models and policy loaded once
+        per = []
+        for p in paths:
+            t0 = time.perf_counter()
+            checker.record([checker.evaluate(p)])
+            per.append((time.perf_counter() - t0) * 1e3)
+        return {"batch_ms_per_check": statistics.median(per),
+                "cold_process_ms": cold_check_ms(paths[0], _serial("m300"), db)}
+
+
+def summarise(rows: list[Row]) -> dict[str, dict[str, dict[str, float]]]:
+    out: dict[str, dict[str, dict[str, float]]] = defaultdict(dict)
+    for r in rows:
+        out[r.preset][r.category] = {"n": r.n, "correct_rate": r.rate, "radar_skipped_rate": r.radar_skipped / r.n,
+                                     "median_check_ms": round(r.median_ms, 2)}
+    return dict(out)
