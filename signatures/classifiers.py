@@ -68,10 +68,31 @@ def fit_members(X: np.ndarray, y: np.ndarray, seed: int) -> dict[str, Pipeline]:
     return {name: _fit(make_member(name, seed), X, y) for name in MEMBERS}
 
 
-def calibrated_ensemble(members: dict[str, Pipeline], X_val: np.ndarray,
-                        y_val: np.ndarray) -> CalibratedClassifierCV:
-    """Soft vote of the fitted members, temperature-calibrated on validation data."""
-    vote = VotingClassifier([(n, FrozenEstimator(m)) for n, m in members.items()], voting="soft")
+def vote_weights(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndarray) -> list[float]:
+    """Integer member weights (0-3 each) with the best validation accuracy, then log-loss.
+
+    Equal weights let the weakest member (kNN) drag the vote below the best one.
+    """
+    import itertools
+
+    probs = [m.predict_proba(X_val) for m in members.values()]
+    best: tuple[float, float] | None = None
+    chosen = [1.0] * len(probs)
+    for w in itertools.product(range(4), repeat=len(probs)):
+        if not any(w):
+            continue
+        p = sum(wi * pi for wi, pi in zip(w, probs)) / sum(w)
+        key = (-float(np.mean(p.argmax(1) == y_val)), -float(np.mean(np.log(p[np.arange(len(y_val)), y_val] + 1e-12))))
+        if best is None or key < best:
+            best, chosen = key, [float(x) for x in w]
+    return chosen
+
+
+def calibrated_ensemble(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndarray,
+                        weights: list[float] | None = None) -> CalibratedClassifierCV:
+    """Weighted soft vote of the fitted members, temperature-calibrated on validation data."""
+    vote = VotingClassifier([(n, FrozenEstimator(m)) for n, m in members.items()], voting="soft",
+                            weights=weights)
     vote.fit(X_val, y_val)  # frozen members: this only records the classes
     return CalibratedClassifierCV(FrozenEstimator(vote), method="temperature").fit(X_val, y_val)
 

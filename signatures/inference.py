@@ -65,6 +65,8 @@ class Classifier:
         self.preset: str = c["preset"]
         self.classes: tuple[str, ...] = tuple(c["classes"])
         self.n_features = len(c["feature_names"])
+        names = list(c["feature_names"])
+        self._cols = np.array([names.index(n) for n in c.get("class_features", names)])
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = 1
         opts.inter_op_num_threads = 1
@@ -79,6 +81,7 @@ class Classifier:
         with np.load(self.folder / "openset.npz", allow_pickle=False) as z:
             self.openset = OpenSet.from_arrays({k: z[k] for k in z.files})
         self.beta = float(c["ensemble"]["temperature_beta"])
+        self.weights = [float(w) for w in c["ensemble"].get("weights", [1.0] * len(MEMBERS))]
         cas = c.get("cascade") or {}
         self.cascade_threshold = float(cas.get("threshold", 0.0)) if self._cnn is not None else 0.0
         cnn = c.get("cnn") or {}
@@ -100,12 +103,12 @@ class Classifier:
 
     def member_proba(self, name: str, X: np.ndarray) -> np.ndarray:
         """Probabilities of one member model ('knn', 'rf', 'svm'), columns in `classes` order."""
-        return self._members[name].run(["probabilities"], {"X": self._x(X)})[0]
+        return self._members[name].run(["probabilities"], {"X": self._x(X)[:, self._cols]})[0]
 
     def ensemble_proba(self, X: np.ndarray) -> np.ndarray:
-        """Temperature-calibrated mean of the three members."""
+        """Temperature-calibrated weighted mean of the three members."""
         Xf = self._x(X)
-        avg = sum(self.member_proba(m, Xf) for m in MEMBERS) / len(MEMBERS)
+        avg = sum(w * self.member_proba(m, Xf) for m, w in zip(MEMBERS, self.weights) if w) / sum(self.weights)
         return _calibrate(avg.astype(np.float64), self.beta)
 
     def cnn_proba(self, rd: np.ndarray) -> np.ndarray:
@@ -127,13 +130,13 @@ class Classifier:
                 p[used] = 0.5 * (p[used] + self.cnn_proba(rd[used]))
         return p, used
 
-    def moving_proba(self, X: np.ndarray) -> np.ndarray:
-        """P(moving) from the operational-state heads (mean of kNN, RF, SVM)."""
+    def moving_proba(self, X: np.ndarray, heads: tuple[str, ...] = ("rf", "svm")) -> np.ndarray:
+        """P(moving): mean of the operational-state heads (kNN's ONNX graph is ~10 ms, so off by default)."""
         Xf = self._x(X)
-        return sum(s.run(["probabilities"], {"X": Xf})[0][:, 1] for s in self._state.values()) / len(self._state)
+        return sum(self._state[h].run(["probabilities"], {"X": Xf})[0][:, 1] for h in heads) / len(heads)
 
     def unknown_mask(self, X: np.ndarray, pred: np.ndarray) -> np.ndarray:
-        return self.openset.unknown(self._x(X), pred)
+        return self.openset.unknown(self._x(X)[:, self._cols], pred)
 
     # --- one return -----------------------------------------------------------------
     def predict(self, features: np.ndarray, rd_patch: np.ndarray | None = None) -> Prediction:
@@ -142,7 +145,7 @@ class Classifier:
         p, used = self.cascade_proba(X, None if rd_patch is None else np.asarray(rd_patch)[None])
         p = p[0]
         k = int(np.argmax(p))
-        score = float(self.openset.scores(X, np.array([k]))[0])
+        score = float(self.openset.scores(X[:, self._cols], np.array([k]))[0])
         known = bool(score <= self.openset.thresholds[k])
         label = self.classes[k] if known else UNKNOWN
         state = None

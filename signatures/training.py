@@ -23,6 +23,8 @@ from signatures.radar import get_preset
 
 #: Open-set threshold: this quantile of known validation returns' manifold distance.
 OPENSET_QUANTILE = 0.995
+#: Where the target is, not what it is: left out of the type classifiers (kept for the state heads).
+GEOMETRY_FEATURES = ("mean_range_m", "range_m", "mean_doppler_mps", "radial_velocity_mps")
 CASCADE_GRID = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
 
 
@@ -81,9 +83,12 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     val = generate(DatasetSpec(split="val", n=cfg.n_val, **common), featurizer,
                    workers=cfg.workers, cache=cache, progress=progress)
     y, yv = _codes(train), _codes(val)
-    n_cls, n_feat = len(train.classes), train.X.shape[1]
-    members = clf.fit_members(train.X, y, cfg.seed)
-    ensemble = clf.calibrated_ensemble(members, val.X, yv)
+    n_cls, n_all = len(train.classes), train.X.shape[1]
+    cols = [i for i, n in enumerate(train.feature_names) if n not in GEOMETRY_FEATURES]
+    Xt, Xv, n_feat = train.X[:, cols], val.X[:, cols], len(cols)
+    members = clf.fit_members(Xt, y, cfg.seed)
+    weights = clf.vote_weights(members, Xv, yv)
+    ensemble = clf.calibrated_ensemble(members, Xv, yv, weights)
     uav = np.isin(train.y, [p.slug for p in cfg.profiles])
     heads = clf.fit_state_heads(train.X[uav], train.moving[uav], cfg.seed)
 
@@ -93,12 +98,12 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         for name, model in members.items():
             sklearn_to_onnx(model, n_feat, tmp / f"{name}.onnx")
             files.append(f"{name}.onnx")
-        export_err = {n: round(check_export(m, tmp / f"{n}.onnx", val.X), 6) for n, m in members.items()}
+        export_err = {n: round(check_export(m, tmp / f"{n}.onnx", Xv), 6) for n, m in members.items()}
         for name, model in heads.items():
-            sklearn_to_onnx(model, n_feat, tmp / f"{name}_state.onnx")
+            sklearn_to_onnx(model, n_all, tmp / f"{name}_state.onnx")
             files.append(f"{name}_state.onnx")
-        pred_val = ensemble.predict(val.X)
-        openset = fit_openset(train.X, y, n_cls, val.X, yv, pred_val, cfg.openset_quantile)
+        pred_val = ensemble.predict(Xv)
+        openset = fit_openset(Xt, y, n_cls, Xv, yv, pred_val, cfg.openset_quantile)
         np.savez(tmp / "openset.npz", **openset.arrays())
         files.append("openset.npz")
         cnn_card = None
@@ -114,6 +119,7 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                       "n_chirps": get_preset(cfg.preset).n_chirps, "n_samples": get_preset(cfg.preset).n_samples},
             "classes": list(train.classes),
             "feature_names": list(train.feature_names),
+            "class_features": [train.feature_names[i] for i in cols],
             "profiles": [p.model_dump(mode="json") for p in cfg.profiles],
             "training": {"seed": cfg.seed, "n_train": cfg.n_train, "n_val": cfg.n_val,
                          "generator_version": GENERATOR_VERSION,
@@ -124,7 +130,8 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                        "rf": "RandomForestClassifier(100 trees, min_samples_leaf=2)",
                        "svm": "StandardScaler + OneVsRest(SVC(rbf, C=10, gamma=scale, Platt))",
                        "state_heads": "same three on hovering/moving, UAV returns only"},
-            "ensemble": {"members": list(members), "voting": "soft, equal weights",
+            "ensemble": {"members": list(members), "voting": "soft, weights chosen on validation data",
+                         "weights": weights,
                          "temperature_beta": round(clf.temperature_beta(ensemble), 9)},
             "open_set": {"method": "mean distance to 5 nearest training returns of the predicted class, "
                                    "standardised features", "quantile": cfg.openset_quantile},

@@ -36,8 +36,8 @@ def test_calibration_matches_sklearn() -> None:
     X, y = _blobs(400, CENTRES, 0)
     Xv, yv = _blobs(200, CENTRES, 2)
     members = clf.fit_members(X, y, seed=0)
-    ens = clf.calibrated_ensemble(members, Xv, yv)
-    avg = sum(m.predict_proba(Xv) for m in members.values()) / 3
+    ens = clf.calibrated_ensemble(members, Xv, yv, [1.0, 2.0, 1.0])
+    avg = sum(w * m.predict_proba(Xv) for w, m in zip((1, 2, 1), members.values())) / 4
     np.testing.assert_allclose(clf.calibrate(avg, clf.temperature_beta(ens)), ens.predict_proba(Xv), atol=1e-6)
 
 
