@@ -151,10 +151,10 @@ class Checker:
         from signatures.features import extract
         from signatures.inference import classifier_for
 
-        mid = rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2)
-        expected = None
+        expected = None  # at the first chirp, the time the radar's range estimate refers to
         if claim.state is not None:
-            expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m, mid)
+            expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
+                                           rec.start_time)
         lo, hi = rec.config.range_window_m
         gate = expected.range_m if expected is not None and lo <= expected.range_m < hi else None
         with timer.stage("radar_features"):
@@ -215,15 +215,12 @@ class Checker:
         resource = {"time_s": _epoch(rec.start_time), "preset": ""}
         with timer.stage("policy_registry"):
             early = self.policy.decide_without_evidence(claim.serial, principal, resource)
-        issues = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, rec.start_time
-                        + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2), None)
-        context = _skipped_context(claim, issues)
-        radar = kin = None
-        card = None
-        skipped: list[str] = []
-        if early is not None:
-            skipped = list(RADAR_STAGES)
-        else:
+        mid = rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2)
+        context = _skipped_context(claim, sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
+                                                 mid, None))
+        radar = kin = card = None
+        skipped = list(RADAR_STAGES)
+        if early is None:
             from signatures.inference import match_preset
 
             resource["preset"] = match_preset(rec.config, rec.n_chirps, rec.n_samples)
@@ -231,8 +228,7 @@ class Checker:
             context.update(radar_ctx)
             rotorcraft = radar["model"] not in ("none", "bird", "unknown")
             context["remote_id_issues"] = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
-                                                 rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2),
-                                                 rotorcraft)
+                                                 mid, rotorcraft)
             skipped = [s for s in RADAR_STAGES if s not in timer.ms]
         with timer.stage("policy"):
             result = self.policy.decide(claim.serial, principal, resource, context)

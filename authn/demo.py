@@ -41,11 +41,11 @@ class DemoScene:
 
 SCENES = (
     DemoScene("genuine M300", "m300", "1581BDEM00000002", "accept", 420.0, 4.0),
-    DemoScene("spoofed type (Phantom 4 as M600)", "phantom4", "1581BDEM00000001", "reject", 350.0, -3.0),
-    DemoScene("spoofed position (+300 m)", "m600", "1581BDEM00000001", "reject", 610.0, 2.5, offset_m=300.0),
+    DemoScene("Phantom 4 claiming an M600", "phantom4", "1581BDEM00000001", "reject", 350.0, -3.0),
+    DemoScene("position spoofed by 300 m", "m600", "1581BDEM00000001", "reject", 610.0, 2.5, offset_m=300.0),
     DemoScene("unregistered serial", "m300", UNREGISTERED, "reject", 500.0, 0.0),
     DemoScene("revoked serial", "phantom4", "1581BDEM00000003", "reject", 280.0, 1.5),
-    DemoScene("bird, checked as the M300", "bird", "1581BDEM00000002", "reject", 150.0, 6.0, broadcast=False),
+    DemoScene("bird checked as the M300", "bird", "1581BDEM00000002", "reject", 150.0, 6.0, broadcast=False),
 )
 
 
@@ -74,7 +74,7 @@ def write_scenes(out: Path, seed: int = 2026) -> list[tuple[DemoScene, Path]]:
                       snr_db=15.0, clutter_db=10.0, elevation_deg=12.0)
         bc = Broadcast(serial=sc.serial, offset_along_los_m=sc.offset_m) if sc.broadcast else None
         rec, _ = simulate_flight(scene, pre, seed + i, bc, azimuth_deg=35.0 + 40 * i, start_time=now)
-        path = out / f"{i + 1}-{sc.name.split(' (')[0].replace(' ', '-').replace(',', '')}.h5"
+        path = out / f"{i + 1}-{sc.name.replace(' ', '-')}.h5"
         write_recording(rec, path)
         written.append((sc, path))
     return written

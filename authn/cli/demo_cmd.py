@@ -41,17 +41,18 @@ def demo(
     outcomes = [checker.evaluate(path, None if sc.broadcast else sc.serial) for sc, path in scenes]
     checker.record(outcomes)
     table = Table(title="authn demo: is the drone the radar sees the UAV it claims to be?")
-    for col in ("scene", "claims", "radar sees", "decision", "reasons", "skipped", "audit"):
+    for col in ("#", "scene", "claimed", "radar sees", "decision"):
         table.add_column(col)
+    table.add_column("reasons", overflow="fold")
     all_ok = True
     for (sc, path), o in zip(scenes, outcomes):
         ok = o.decision == sc.expected
         all_ok &= ok
         colour = "green" if o.decision == "accept" else "red"
-        radar = "-" if o.radar is None else f"{o.radar['model']} ({o.radar['confidence'] or 0:.0%})"
-        table.add_row(sc.name, f"{o.claim['serial']} ({o.registry['model'] or o.registry['status']})", radar,
+        radar = "skipped" if o.radar is None else f"{o.radar['model']} {o.radar['confidence'] or 0:.0%}"
+        table.add_row(str(o.audit_id), sc.name, o.registry["model"] or o.registry["status"], radar,
                       f"[{colour}]{o.decision}[/]" + ("" if ok else " [yellow](unexpected)[/]"),
-                      ", ".join(o.reasons), ", ".join(o.skipped) or "-", f"#{o.audit_id}")
+                      ", ".join(o.reasons))
     console.print(table)
     console.print(f"returns in {out}; inspect one with `authn check {scenes[0][1]}`; "
                   f"audit with `authn audit verify`.  ({time.perf_counter() - t0:.1f} s)")
