@@ -1,0 +1,92 @@
+"""`authn check` end to end on simulated returns: accept path, spoofs, batch mode, JSON contract."""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime, timezone
+from pathlib import Path
+
+import pytest
+
+from authn.cli import main
+from authn.demo import register_examples
+from authn.scenario import Broadcast, simulate_flight
+from signatures.profiles import shipped_profiles
+from signatures.radar import get_preset
+from signatures.recording import write_recording
+from signatures.scene import Scene
+
+M600, M300 = "1581BDEM00000001", "1581BDEM00000002"
+SPEC_KEYS = {"decision", "reasons", "claim", "registry", "radar", "kinematics", "skipped", "timings_ms", "audit_id"}
+
+
+def _flight(out: Path, name: str, flies: str, serial: str | None, offset: float = 0.0, **scene) -> Path:
+    kind = "bird" if flies == "bird" else "uav"
+    sc = Scene(kind=kind, profile=shipped_profiles().get(flies), snr_db=20.0,
+               **{"range_m": 400.0, "radial_speed_mps": 3.0, "elevation_deg": 10.0, **scene})
+    bc = Broadcast(serial=serial, offset_along_los_m=offset) if serial else None
+    rec, _ = simulate_flight(sc, get_preset("paper"), 11, bc, azimuth_deg=60.0,
+                             start_time=datetime.now(timezone.utc))
+    return write_recording(rec, out / f"{name}.h5")
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    root = tmp_path_factory.mktemp("e2e")
+    db = f"sqlite:///{root / 'r.sqlite3'}"
+    register_examples(db)
+    files = {
+        "genuine": _flight(root, "genuine", "m300", M300),
+        "type": _flight(root, "type", "phantom4", M600),
+        "position": _flight(root, "position", "m600", M600, offset=150.0),
+        "bird": _flight(root, "bird", "bird", None, range_m=150.0),
+    }
+    return root, db, files
+
+
+def _check(db: str, path: Path, capsys, *extra: str) -> tuple[int, dict]:
+    capsys.readouterr()
+    code = main(["--db", db, "check", str(path), "--json", *extra])
+    return code, json.loads(capsys.readouterr().out)
+
+
+def test_genuine_claim_is_accepted(setup, capsys) -> None:
+    _, db, files = setup
+    code, out = _check(db, files["genuine"], capsys)
+    assert code == 0 and out["decision"] == "accept" and out["reasons"] == ["registered-active"]
+    assert SPEC_KEYS <= set(out)
+    assert out["claim"]["source"] == "remote_id" and out["registry"]["model"] == "m300"
+    assert out["radar"]["model"] == "m300" and out["radar"]["known"] and out["radar"]["gated"]
+    assert abs(out["radar"]["range_m"] - 400.0) <= 1.0
+    assert out["kinematics"]["range_residual_m"] <= out["kinematics"]["range_tolerance_m"]
+    assert out["skipped"] == [] and out["audit_id"] >= 1
+
+
+@pytest.mark.parametrize("case,reason", [("type", "radar-type-mismatch"), ("position", "range-mismatch")])
+def test_spoofs_are_rejected(setup, capsys, case: str, reason: str) -> None:
+    _, db, files = setup
+    code, out = _check(db, files[case], capsys)
+    assert code == 1 and out["decision"] == "reject" and reason in out["reasons"]
+
+
+def test_bird_checked_against_a_serial(setup, capsys) -> None:
+    _, db, files = setup
+    code, out = _check(db, files["bird"], capsys, "--serial", M300)
+    assert code == 1 and out["radar"]["model"] == "bird" and out["reasons"] == ["radar-type-mismatch"]
+    assert out["kinematics"] is None and "kinematics" in out["skipped"]
+
+
+def test_batch_mode_with_claims_csv(setup, capsys) -> None:
+    root, db, files = setup
+    claims = root / "claims.csv"
+    claims.write_text(f"file,serial\nbird.h5,{M300}\n")
+    capsys.readouterr()
+    code = main(["--db", db, "check", str(root), "--claims", str(claims), "--json"])
+    results = json.loads(capsys.readouterr().out)
+    assert code == 1  # some rejected, none bad
+    by_file = {Path(r["file"]).stem: r for r in results}
+    assert set(by_file) == set(files)
+    assert by_file["genuine"]["decision"] == "accept" and by_file["bird"]["claim"]["serial"] == M300
+    ids = [r["audit_id"] for r in results]
+    assert len(set(ids)) == len(ids) == 4
+    assert main(["--db", db, "audit", "verify"]) == 0
