@@ -99,11 +99,15 @@ def alembic_config(connection: Connection | None = None):
 
 
 def _is_current(conn: Connection) -> bool:
-    from alembic.runtime.migration import MigrationContext
-    from alembic.script import ScriptDirectory
+    """One SELECT against `alembic_version` (Alembic itself is imported only to upgrade)."""
+    from sqlalchemy import inspect
 
-    heads = set(ScriptDirectory.from_config(alembic_config()).get_heads())
-    return set(MigrationContext.configure(conn).get_current_heads()) == heads
+    import migrations
+
+    if not inspect(conn).has_table("alembic_version"):
+        return False
+    rows = conn.execute(text("SELECT version_num FROM alembic_version")).scalars().all()
+    return rows == [migrations.HEAD_REVISION]
 
 
 def _upgrade_on(conn: Connection) -> None:

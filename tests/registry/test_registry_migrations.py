@@ -34,3 +34,13 @@ def test_concurrent_first_use_migrates_once(db_url):
     with get_engine(db_url).connect() as conn:
         assert conn.execute(text("SELECT count(*) FROM model_profiles")).scalar_one() == 3
         assert conn.execute(text("SELECT count(*) FROM alembic_version")).scalar_one() == 1
+
+
+def test_head_revision_constant_matches_alembic() -> None:
+    """`migrations.HEAD_REVISION` (read without importing Alembic) is Alembic's head."""
+    from alembic.script import ScriptDirectory
+
+    import migrations
+    from registry.db import alembic_config
+
+    assert ScriptDirectory.from_config(alembic_config()).get_heads() == [migrations.HEAD_REVISION]
