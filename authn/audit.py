@@ -16,11 +16,8 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import Any
 
-from sqlalchemy import select, text
-from sqlalchemy.orm import Session
-
 from authn.errors import AuthnError
-from registry.models import AuditLog
+from registry.dbapi import Database
 
 GENESIS = "0" * 64
 _PG_AUDIT_LOCK = 0x61756469_746C6F67  # "auditlog"
@@ -61,59 +58,60 @@ class Entry:
     prev_hash: str
     entry_hash: str
 
-    @classmethod
-    def of(cls, row: AuditLog) -> "Entry":
-        return cls(row.seq, row.created_at, row.kind, row.serial, row.decision, json.loads(row.payload),
-                   row.prev_hash, row.entry_hash)
+_COLUMNS = "seq, created_at, kind, serial, decision, payload, prev_hash, entry_hash"
 
 
-def _lock_head(session: Session) -> tuple[int, str]:
-    """Serialise appenders (SQLite: BEGIN IMMEDIATE already holds the write lock)."""
-    if session.get_bind().dialect.name == "postgresql":
-        session.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _PG_AUDIT_LOCK})
-    head = session.execute(select(AuditLog.seq, AuditLog.entry_hash).order_by(AuditLog.seq.desc())
-                           .limit(1)).first()
-    return (0, GENESIS) if head is None else (int(head[0]), str(head[1]))
+def _entry(row: tuple) -> Entry:
+    seq, created, kind, serial, decision, payload, prev, digest = row
+    return Entry(int(seq), Database.from_db_time(created), kind, serial, decision, json.loads(payload), prev, digest)
 
 
-def append(session: Session, entries: Sequence[NewEntry]) -> list[Entry]:
-    """Append entries in the caller's transaction (one per check, or one per batch)."""
-    seq, prev = _lock_head(session)
-    out: list[Entry] = []
+def append(db: Database, entries: Sequence[NewEntry]) -> list[Entry]:
+    """Append entries in one transaction (one per check, or one per batch), serialised
+    against other writers: SQLite's BEGIN IMMEDIATE, PostgreSQL's advisory lock."""
     for e in entries:
         if e.kind not in ("decision", "error"):
             raise AuthnError(f"audit entry kind must be 'decision' or 'error', got {e.kind!r}")
-        seq += 1
-        now = datetime.now(timezone.utc)
-        payload = canonical_json(e.payload)
-        digest = compute_hash(seq, now, e.kind, e.serial, e.decision, payload, prev)
-        session.add(AuditLog(seq=seq, created_at=now, kind=e.kind, serial=e.serial, decision=e.decision,
-                             payload=payload, prev_hash=prev, entry_hash=digest))
-        out.append(Entry(seq, now, e.kind, e.serial, e.decision, e.payload, prev, digest))
-        prev = digest
-    session.flush()
+    out: list[Entry] = []
+    with db.write():
+        if db.dialect == "postgresql":
+            db.execute("SELECT pg_advisory_xact_lock(:k)", {"k": _PG_AUDIT_LOCK})
+        head = db.fetch("SELECT seq, entry_hash FROM audit_log ORDER BY seq DESC LIMIT 1")
+        seq, prev = (0, GENESIS) if not head else (int(head[0][0]), str(head[0][1]))
+        for e in entries:
+            seq += 1
+            now = datetime.now(timezone.utc)
+            payload = canonical_json(e.payload)
+            digest = compute_hash(seq, now, e.kind, e.serial, e.decision, payload, prev)
+            db.execute(f"INSERT INTO audit_log ({_COLUMNS}) VALUES "
+                       "(:seq, :created_at, :kind, :serial, :decision, :payload, :prev_hash, :entry_hash)",
+                       {"seq": seq, "created_at": db.to_db_time(now), "kind": e.kind, "serial": e.serial,
+                        "decision": e.decision, "payload": payload, "prev_hash": prev, "entry_hash": digest})
+            out.append(Entry(seq, now, e.kind, e.serial, e.decision, e.payload, prev, digest))
+            prev = digest
     return out
 
 
-def list_entries(session: Session, *, since: datetime | None = None, decision: str | None = None,
+def list_entries(db: Database, *, since: datetime | None = None, decision: str | None = None,
                  serial: str | None = None, kind: str | None = None, limit: int | None = None) -> list[Entry]:
-    q = select(AuditLog).order_by(AuditLog.seq)
+    where, params = [], {}
+    for name, value in (("decision", decision), ("serial", serial), ("kind", kind)):
+        if value is not None:
+            where.append(f"{name} = :{name}")
+            params[name] = value
     if since is not None:
-        q = q.where(AuditLog.created_at >= since)
-    if decision is not None:
-        q = q.where(AuditLog.decision == decision)
-    if serial is not None:
-        q = q.where(AuditLog.serial == serial)
-    if kind is not None:
-        q = q.where(AuditLog.kind == kind)
+        where.append("created_at >= :since")
+        params["since"] = db.to_db_time(since)
+    sql = f"SELECT {_COLUMNS} FROM audit_log" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY seq"
     if limit is not None:
-        q = q.limit(limit)
-    return [Entry.of(r) for r in session.scalars(q)]
+        sql += " LIMIT :limit"
+        params["limit"] = int(limit)
+    return [_entry(r) for r in db.fetch(sql, params)]
 
 
-def get_entry(session: Session, seq: int) -> Entry | None:
-    row = session.scalars(select(AuditLog).where(AuditLog.seq == seq)).first()
-    return None if row is None else Entry.of(row)
+def get_entry(db: Database, seq: int) -> Entry | None:
+    rows = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :seq", {"seq": seq})
+    return _entry(rows[0]) if rows else None
 
 
 @dataclass(frozen=True)
@@ -147,27 +145,34 @@ class VerifyReport:
     problem: str | None = None
 
 
-def _rows(session: Session) -> Iterator[AuditLog]:
-    yield from session.scalars(select(AuditLog).order_by(AuditLog.seq, AuditLog.id).execution_options(yield_per=1000))
+def _rows(db: Database) -> Iterator[tuple]:
+    """Raw rows in seq order, a page at a time (the payload is hashed as stored)."""
+    last = None
+    while True:
+        page = db.fetch(f"SELECT {_COLUMNS} FROM audit_log" + ("" if last is None else " WHERE seq > :last")
+                        + " ORDER BY seq, id LIMIT 1000", {} if last is None else {"last": last})
+        yield from page
+        if len(page) < 1000:
+            return
+        last = page[-1][0]
 
 
-def verify(session: Session, against: Checkpoint | None = None) -> VerifyReport:
+def verify(db: Database, against: Checkpoint | None = None) -> VerifyReport:
     """Recompute the whole chain; with a checkpoint, also detect truncation and rewrites."""
     prev, size = GENESIS, 0
     checkpoint_hash: str | None = None
-    for row in _rows(session):
+    for seq, created, kind, serial, decision, payload, prev_hash, entry_hash in _rows(db):
         expected_seq = size + 1
-        if row.seq != expected_seq:
-            what = "missing (deleted?)" if row.seq > expected_seq else "duplicated"
+        if seq != expected_seq:
+            what = "missing (deleted?)" if seq > expected_seq else "duplicated"
             return VerifyReport(False, size, prev, expected_seq, f"entry {expected_seq} is {what}")
-        if row.prev_hash != prev:
-            return VerifyReport(False, size, prev, row.seq,
-                                f"entry {row.seq} does not link to entry {row.seq - 1} (reordered or rewritten)")
-        digest = compute_hash(row.seq, row.created_at, row.kind, row.serial, row.decision, row.payload,
-                              row.prev_hash)
-        if digest != row.entry_hash:
-            return VerifyReport(False, size, prev, row.seq, f"entry {row.seq} was modified (hash mismatch)")
-        prev, size = digest, row.seq
+        if prev_hash != prev:
+            return VerifyReport(False, size, prev, seq,
+                                f"entry {seq} does not link to entry {seq - 1} (reordered or rewritten)")
+        digest = compute_hash(seq, Database.from_db_time(created), kind, serial, decision, payload, prev_hash)
+        if digest != entry_hash:
+            return VerifyReport(False, size, prev, seq, f"entry {seq} was modified (hash mismatch)")
+        prev, size = digest, seq
         if against is not None and size == against.size:
             checkpoint_hash = digest
     if against is not None:
@@ -180,9 +185,9 @@ def verify(session: Session, against: Checkpoint | None = None) -> VerifyReport:
     return VerifyReport(True, size, prev)
 
 
-def checkpoint(session: Session) -> Checkpoint:
+def checkpoint(db: Database) -> Checkpoint:
     """Head hash and size of a verified log (refuses to checkpoint a broken chain)."""
-    report = verify(session)
+    report = verify(db)
     if not report.ok:
         raise AuthnError(f"audit log does not verify: {report.problem}")
     return Checkpoint(report.size, report.head)

@@ -134,16 +134,12 @@ class Checker:
     """Loads the policy once (and the classifier on first radar use); checks many files."""
 
     def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None) -> None:
-        self.db_url = db_url
+        from registry.dbapi import Database
+
         self.policy = PolicyEngine.load(policy_path)
+        self.db = Database(db_url)
 
     # --- stages -------------------------------------------------------------------
-    def _identity(self, serial: str) -> Any:
-        from registry.db import session_scope
-        from registry.store import get_identity
-
-        with session_scope(self.db_url) as s:
-            return get_identity(s, serial)
 
     def _radar(self, rec: Any, claim: Claim, timer: _Timer) -> tuple[dict[str, Any], dict[str, Any] | None,
                                                                       dict[str, Any], str]:
@@ -210,7 +206,7 @@ class Checker:
         with timer.stage("remote_id"):
             claim = read_claim(rec, serial)
         with timer.stage("registry"):
-            identity = self._identity(claim.serial)
+            identity = self.db.identity(claim.serial)
             principal = registry_facts(identity)
         resource = {"time_s": _epoch(rec.start_time), "preset": ""}
         with timer.stage("policy_registry"):
@@ -245,8 +241,6 @@ class Checker:
 
     def record(self, outcomes: Sequence[Outcome | tuple[str, str | None, str]]) -> list[int]:
         """Append decisions and error entries ((file, serial, error) tuples) in one transaction."""
-        from registry.db import session_scope
-
         entries = []
         for o in outcomes:
             if isinstance(o, Outcome):
@@ -256,8 +250,7 @@ class Checker:
                 entries.append(NewEntry("error", serial, None, {"file": file, "error": error,
                                                                 "policy_sha256": self.policy.sha256}))
         t0 = time.perf_counter()
-        with session_scope(self.db_url) as s:
-            written = append(s, entries)
+        written = append(self.db, entries)
         ms = round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)
         ids = [e.seq for e in written]
         for o, seq in zip(outcomes, ids):

@@ -11,7 +11,6 @@ race. SQLAlchemy and Alembic are imported here, never by `authn --help`.
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -23,30 +22,11 @@ from sqlalchemy.exc import ArgumentError, DBAPIError
 from sqlalchemy.orm import Session, sessionmaker
 
 from registry.errors import RegistryError
+from registry.urls import resolve_url
 
-ENV_URL = "AUTHN_DATABASE_URL"
 _PG_LOCK_KEY = 0x61757468_6E726567  # "authnreg": one advisory lock for migrations
 _engines: dict[str, Engine] = {}
 _engines_lock = threading.Lock()
-
-
-def default_url() -> str:
-    """SQLite file `registry.sqlite3` in the platform's user data directory."""
-    from platformdirs import user_data_dir
-
-    return f"sqlite:///{Path(user_data_dir('authn')) / 'registry.sqlite3'}"
-
-
-def resolve_url(url: str | None = None) -> str:
-    """Explicit URL, else $AUTHN_DATABASE_URL, else the default SQLite file.
-
-    Bare `postgresql://` URLs get the psycopg (3) driver, the one we ship.
-    """
-    url = url or os.environ.get(ENV_URL) or default_url()
-    for prefix in ("postgresql://", "postgres://"):
-        if url.startswith(prefix):
-            return "postgresql+psycopg://" + url[len(prefix):]
-    return url
 
 
 def _sqlite_setup(engine: Engine) -> None:

@@ -46,13 +46,13 @@ def list_cmd(
     """
     from authn.audit import list_entries
     from authn.errors import AuthnError
-    from registry.db import session_scope
+    from registry.dbapi import Database
 
     if decision not in (None, "accept", "reject"):
         raise AuthnError(f"--decision: must be accept or reject, got {decision!r}")
     state: CliState = ctx.obj
-    with session_scope(state.db_url) as s:
-        entries = list_entries(s, since=_since(since), decision=decision, serial=serial, limit=limit)
+    entries = list_entries(Database(state.db_url), since=_since(since), decision=decision, serial=serial,
+                           limit=limit)
     if as_json:
         typer.echo(json.dumps([_entry_json(e) for e in entries], indent=2))
         return
@@ -77,10 +77,9 @@ def show_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry numb
     """
     from authn.audit import get_entry
     from authn.errors import AuthnError
-    from registry.db import session_scope
+    from registry.dbapi import Database
 
-    with session_scope(ctx.obj.db_url) as s:
-        entry = get_entry(s, seq)
+    entry = get_entry(Database(ctx.obj.db_url), seq)
     if entry is None:
         raise AuthnError(f"no audit entry {seq}")
     typer.echo(json.dumps(_entry_json(entry), indent=2))
@@ -99,7 +98,7 @@ def verify_cmd(
     """
     from authn.audit import Checkpoint, verify
     from authn.errors import AuthnError
-    from registry.db import session_scope
+    from registry.dbapi import Database
 
     cp = None
     if against is not None:
@@ -107,8 +106,7 @@ def verify_cmd(
             cp = Checkpoint.from_json(against.read_text())
         except OSError as exc:
             raise AuthnError(f"{against}: cannot read checkpoint ({exc.strerror})") from None
-    with session_scope(ctx.obj.db_url) as s:
-        report = verify(s, cp)
+    report = verify(Database(ctx.obj.db_url), cp)
     if report.ok:
         typer.echo(f"ok: {report.size} entries, head {report.head}")
         return
@@ -127,13 +125,13 @@ def export_cmd(
     Example: authn audit export --checkpoint --out audit-checkpoint.json
     """
     from authn.audit import checkpoint, list_entries
-    from registry.db import session_scope
+    from registry.dbapi import Database
 
-    with session_scope(ctx.obj.db_url) as s:
-        if checkpoint_only:
-            text = checkpoint(s).to_json() + "\n"
-        else:
-            text = "".join(json.dumps(_entry_json(e), sort_keys=True) + "\n" for e in list_entries(s))
+    db = Database(ctx.obj.db_url)
+    if checkpoint_only:
+        text = checkpoint(db).to_json() + "\n"
+    else:
+        text = "".join(json.dumps(_entry_json(e), sort_keys=True) + "\n" for e in list_entries(db))
     if out is None:
         typer.echo(text, nl=False)
     else:

@@ -114,10 +114,9 @@ def check(
 def _record_failure(db_url, rows) -> None:
     """Best effort: a check that could not even start is an audit error entry too."""
     from authn.audit import NewEntry, append
-    from registry.db import session_scope
+    from registry.dbapi import Database
 
-    with session_scope(db_url) as s:
-        append(s, [NewEntry("error", serial, None, {"file": f, "error": err}) for f, serial, err in rows])
+    append(Database(db_url), [NewEntry("error", serial, None, {"file": f, "error": err}) for f, serial, err in rows])
 
 
 def _single(checker, path: Path, serial: str | None, as_json: bool) -> None:

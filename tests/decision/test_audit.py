@@ -2,20 +2,32 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import pytest
 from sqlalchemy import text
 from sqlalchemy.exc import DBAPIError
 
 from authn.audit import Checkpoint, NewEntry, append, checkpoint, list_entries, verify
-from registry.db import get_engine, session_scope
+from registry.db import get_engine
+from registry.dbapi import Database
 
 
 def _fill(url: str, n: int = 6) -> None:
-    with session_scope(url) as s:
-        append(s, [NewEntry("decision", f"S{i}", "accept" if i % 2 else "reject",
-                            {"reasons": ["r"], "value": i / 3}) for i in range(n - 1)])
-    with session_scope(url) as s:
-        append(s, [NewEntry("error", None, None, {"error": "truncated file"})])
+    db = Database(url)
+    append(db, [NewEntry("decision", f"S{i}", "accept" if i % 2 else "reject",
+                         {"reasons": ["r"], "value": i / 3}) for i in range(n - 1)])
+    append(db, [NewEntry("error", None, None, {"error": "truncated file"})])
+    db.close()
+
+
+@contextmanager
+def _db(url: str):
+    db = Database(url)
+    try:
+        yield db
+    finally:
+        db.close()
 
 
 def _drop_triggers(url: str) -> None:
@@ -36,7 +48,7 @@ def _drop_triggers(url: str) -> None:
 
 def test_append_and_verify(db_url: str) -> None:
     _fill(db_url)
-    with session_scope(db_url) as s:
+    with _db(db_url) as s:
         report = verify(s)
         entries = list_entries(s)
     assert report.ok and report.size == 6
@@ -51,9 +63,9 @@ def test_append_and_verify(db_url: str) -> None:
 def test_database_refuses_update_and_delete(db_url: str, statement: str) -> None:
     _fill(db_url)
     with pytest.raises(DBAPIError, match="append-only"):
-        with session_scope(db_url) as s:
-            s.execute(text(statement))
-    with session_scope(db_url) as s:
+        with get_engine(db_url).begin() as conn:
+            conn.execute(text(statement))
+    with _db(db_url) as s:
         assert verify(s).ok and verify(s).size == 6
 
 
@@ -75,20 +87,20 @@ def test_tampering_is_reported(db_url: str, name: str) -> None:
     with engine.begin() as conn:
         for part in statement.split("; "):
             conn.exec_driver_sql(part)
-    with session_scope(db_url) as s:
+    with _db(db_url) as s:
         report = verify(s)
     assert not report.ok and report.first_bad_seq == bad_seq and word in report.problem
 
 
 def test_checkpoint_detects_truncation_and_rewrite(db_url: str) -> None:
     _fill(db_url)
-    with session_scope(db_url) as s:
+    with _db(db_url) as s:
         cp = checkpoint(s)
     assert cp.size == 6
     _drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         conn.exec_driver_sql("DELETE FROM audit_log WHERE seq >= 5")
-    with session_scope(db_url) as s:
+    with _db(db_url) as s:
         assert verify(s).ok  # a clean truncation keeps a valid chain ...
         report = verify(s, cp)  # ... which only the checkpoint reveals
     assert not report.ok and "truncated" in report.problem
@@ -96,7 +108,7 @@ def test_checkpoint_detects_truncation_and_rewrite(db_url: str) -> None:
     with get_engine(db_url).begin() as conn:
         conn.exec_driver_sql("DELETE FROM audit_log")
     _fill(db_url)
-    with session_scope(db_url) as s:
+    with _db(db_url) as s:
         assert verify(s).ok
         report = verify(s, cp)
     assert not report.ok and "differs from the checkpoint" in report.problem

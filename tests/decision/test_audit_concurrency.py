@@ -8,7 +8,8 @@ from proc_workers import check_many, run_in_processes
 
 from authn.audit import list_entries, verify
 from authn.scenario import Broadcast, simulate_flight
-from registry.db import get_engine, session_scope
+from registry.db import get_engine
+from registry.dbapi import Database
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
@@ -27,9 +28,10 @@ def test_concurrent_checks_keep_one_chain(db_url: str, tmp_path: Path) -> None:
     ids = run_in_processes(check_many, [(db_url, path, s) for s in serials])
     flat = sorted(i for chunk in ids for i in chunk)
     assert flat == list(range(1, PROCS * PER_PROC + 1))  # no entry lost, none duplicated
-    with session_scope(db_url) as s:
-        report = verify(s)
-        entries = list_entries(s)
+    db = Database(db_url)
+    report = verify(db)
+    entries = list_entries(db)
+    db.close()
     assert report.ok and report.size == PROCS * PER_PROC
     assert {e.serial for e in entries} == {x for chunk in serials for x in chunk}
     assert {(e.decision, tuple(e.payload["reasons"])) for e in entries} == {

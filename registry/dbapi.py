@@ -1,0 +1,178 @@
+"""Plain DB-API access for the per-check hot path: no SQLAlchemy import (~0.3 s).
+
+`authn check` runs once per process, so start-up is its latency. It needs two
+things from the database: one identity row and one audit append. Those run here
+on the driver itself (stdlib `sqlite3` for SQLite files, `psycopg` for
+PostgreSQL) against the schema Alembic created. A database that is not at the
+current revision is handed once to `registry.db.get_engine`, which migrates it
+under its lock; everything else never imports SQLAlchemy or Alembic.
+"""
+
+from __future__ import annotations
+
+import re
+import sqlite3
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from typing import Any
+from urllib.parse import parse_qsl, unquote, urlsplit
+
+from registry.errors import RegistryError
+from registry.urls import resolve_url
+
+_NAMED = re.compile(r"(?<!:):([A-Za-z_]\w*)")
+SQLITE_TIME = "%Y-%m-%d %H:%M:%S.%f"  # what SQLAlchemy's DateTime stores in SQLite
+
+
+@dataclass(frozen=True)
+class IdentityFacts:
+    """What a decision needs from an identity row."""
+
+    serial: str
+    id_type: str
+    model: str
+    status: str
+    valid_from: datetime
+    valid_until: datetime | None
+
+
+def _sqlite_path(url: str) -> str:
+    rest = url.split(":///", 1)[1] if ":///" in url else ""
+    if rest in ("", ":memory:"):
+        raise RegistryError("an in-memory SQLite database cannot be shared with `authn check`; use a file")
+    return rest.split("?", 1)[0]
+
+
+def _pg_kwargs(url: str) -> dict[str, Any]:
+    parts = urlsplit(url)
+    kw: dict[str, Any] = {k: v for k, v in parse_qsl(parts.query)}
+    if parts.hostname:
+        kw["host"] = parts.hostname
+    if parts.port:
+        kw["port"] = parts.port
+    if parts.username:
+        kw["user"] = unquote(parts.username)
+    if parts.password:
+        kw["password"] = unquote(parts.password)
+    if parts.path.strip("/"):
+        kw["dbname"] = unquote(parts.path.strip("/"))
+    return kw
+
+
+class Database:
+    """One driver connection, reused for every check of a process (batch mode)."""
+
+    def __init__(self, url: str | None = None) -> None:
+        self.url = resolve_url(url)
+        if self.url.startswith("sqlite"):
+            self.dialect = "sqlite"
+        elif self.url.startswith("postgresql"):
+            self.dialect = "postgresql"
+        else:
+            raise RegistryError(f"database URL {self.url!r}: only sqlite and postgresql are supported")
+        self._conn: Any = None
+
+    # --- connection -------------------------------------------------------------------
+    def _open(self) -> Any:
+        if self.dialect == "sqlite":
+            conn = sqlite3.connect(_sqlite_path(self.url), timeout=30.0, isolation_level=None)
+            conn.execute("PRAGMA foreign_keys = ON")
+            return conn
+        try:
+            import psycopg
+        except ImportError as exc:  # pragma: no cover - psycopg is a dependency
+            raise RegistryError(f"PostgreSQL needs psycopg: {exc}") from None
+        try:
+            return psycopg.connect(**_pg_kwargs(self.url), autocommit=True)
+        except psycopg.Error as exc:
+            raise RegistryError(f"cannot open database: {str(exc).strip().splitlines()[0]}") from None
+
+    def _current(self, conn: Any) -> bool:
+        import migrations
+
+        try:
+            rows = self._fetch(conn, "SELECT version_num FROM alembic_version", {})
+        except Exception:  # no table yet: a fresh database
+            return False
+        return [r[0] for r in rows] == [migrations.HEAD_REVISION]
+
+    def connection(self) -> Any:
+        """The open connection, after making sure the schema is current (migrating once if not)."""
+        if self._conn is None:
+            conn = self._open()
+            if not self._current(conn):
+                conn.close()
+                from registry.db import get_engine
+
+                get_engine(self.url)  # migrates under the file lock / advisory lock
+                conn = self._open()
+            self._conn = conn
+        return self._conn
+
+    def close(self) -> None:
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+
+    # --- statements -------------------------------------------------------------------
+    def _sql(self, sql: str) -> str:
+        return sql if self.dialect == "sqlite" else _NAMED.sub(r"%(\1)s", sql)
+
+    def _fetch(self, conn: Any, sql: str, params: dict[str, Any]) -> list[tuple]:
+        cur = conn.cursor()
+        try:
+            cur.execute(self._sql(sql), params)
+            return list(cur.fetchall())
+        finally:
+            cur.close()
+
+    def fetch(self, sql: str, params: dict[str, Any] | None = None) -> list[tuple]:
+        """Rows of one query (named `:param` placeholders on both backends)."""
+        return self._fetch(self.connection(), sql, params or {})
+
+    @contextmanager
+    def write(self) -> Iterator["Database"]:
+        """One write transaction (SQLite: BEGIN IMMEDIATE, so writers queue instead of failing)."""
+        conn = self.connection()
+        if self.dialect == "sqlite":
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield self
+                conn.execute("COMMIT")
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+            return
+        with conn.transaction():
+            yield self
+
+    def execute(self, sql: str, params: dict[str, Any] | None = None) -> None:
+        cur = self.connection().cursor()
+        try:
+            cur.execute(self._sql(sql), params or {})
+        finally:
+            cur.close()
+
+    # --- values -----------------------------------------------------------------------
+    def to_db_time(self, when: datetime) -> Any:
+        when = when.astimezone(timezone.utc)
+        return when.replace(tzinfo=None).strftime(SQLITE_TIME) if self.dialect == "sqlite" else when
+
+    @staticmethod
+    def from_db_time(value: Any) -> datetime | None:
+        if value is None:
+            return None
+        if isinstance(value, str):
+            value = datetime.fromisoformat(value)
+        return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else value.astimezone(timezone.utc)
+
+    # --- the check's one registry read ------------------------------------------------
+    def identity(self, serial: str) -> IdentityFacts | None:
+        rows = self.fetch("SELECT serial, id_type, model_slug, status, valid_from, valid_until "
+                          "FROM identities WHERE serial = :serial", {"serial": serial})
+        if not rows:
+            return None
+        s, id_type, model, status, vf, vu = rows[0]
+        return IdentityFacts(s, id_type, model, status, self.from_db_time(vf), self.from_db_time(vu))
