@@ -203,6 +203,12 @@ class Checker:
         with timer.stage("read"):
             rec = read_recording(path)
             digest = _file_sha256(path)
+        return self.evaluate_recording(rec, serial, str(path), digest, timer)
+
+    def evaluate_recording(self, rec: Any, serial: str | None = None, file: str = "", digest: str = "",
+                           timer: _Timer | None = None) -> Outcome:
+        """Decide an in-memory recording (benchmarks and the stress suite skip the file)."""
+        timer = timer or _Timer()
         with timer.stage("remote_id"):
             claim = read_claim(rec, serial)
         with timer.stage("registry"):
@@ -229,7 +235,7 @@ class Checker:
         with timer.stage("policy"):
             result = self.policy.decide(claim.serial, principal, resource, context)
         return Outcome(
-            file=str(path), decision=result.decision, reasons=result.reasons,
+            file=file, decision=result.decision, reasons=result.reasons,
             claim={"serial": claim.serial, "source": claim.source, "remote_id_serial": claim.rid_serial},
             registry={"registered": principal["registered"], "status": principal["status"],
                       "model": principal["model"] or None},

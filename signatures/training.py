@@ -25,6 +25,8 @@ from signatures.radar import get_preset
 OPENSET_QUANTILE = 0.995
 #: Where the target is, not what it is: left out of the type classifiers (kept for the state heads).
 GEOMETRY_FEATURES = ("mean_range_m", "range_m", "mean_doppler_mps", "radial_velocity_mps")
+#: Absolute level (radar calibration x range): would make decisions depend on IQ scaling.
+LEVEL_FEATURES = ("peak_amplitude_db",)
 CASCADE_GRID = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
 
 
@@ -84,7 +86,7 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                    workers=cfg.workers, cache=cache, progress=progress)
     y, yv = _codes(train), _codes(val)
     n_cls, n_all = len(train.classes), train.X.shape[1]
-    cols = [i for i, n in enumerate(train.feature_names) if n not in GEOMETRY_FEATURES]
+    cols = [i for i, n in enumerate(train.feature_names) if n not in GEOMETRY_FEATURES + LEVEL_FEATURES]
     Xt, Xv, n_feat = train.X[:, cols], val.X[:, cols], len(cols)
     members = clf.fit_members(Xt, y, cfg.seed)
     weights = clf.vote_weights(members, Xv, yv)

@@ -16,16 +16,21 @@ def bench(
     seed: int = typer.Option(7, "--seed", help="Seed of the scene draws."),
     quick: bool = typer.Option(False, "--quick", help="CI-sized run: 12 scenes per category, paper preset."),
     with_latency: bool = typer.Option(True, "--latency/--no-latency", help="Also time cold and batch checks."),
+    stress: bool = typer.Option(False, "--stress", help="Run the numerical stress suite instead (exit 1 unless clean)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """End-to-end decision accuracy on simulated claims (SNR 10-30 dB, random geometry)
-    and check latency (cold process and batch mode).
+    and check latency (cold process and batch mode); with --stress, the numerical
+    stress suite (IQ scaled 1e-30..1e30, ADC types, degenerate cubes, NaN/Inf,
+    clipping, odd shapes, SNR -40..+80 dB, extreme geometry).
 
     Categories: genuine claims (must be accepted), type spoofs between the shipped
     profiles, position spoofs of 100-300 m along the line of sight, unregistered
     and revoked serials (must be rejected, the latter two with the radar skipped).
 
     Example: authn bench --preset paper --n 200 --json
+
+    Example: authn bench --stress --quick
     """
     from rich.console import Console
     from rich.progress import Progress
@@ -38,6 +43,9 @@ def bench(
         preset, n = ["paper"], 12
     for p in preset:
         get_preset(p)
+    if stress:
+        _stress(tuple(preset), quick, as_json)
+        return
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n)
         rows = run_decisions(tuple(preset), n, seed, progress=lambda k: progress.advance(task, k))
@@ -57,3 +65,29 @@ def bench(
     for p, d in lat.items():
         console.print(f"{p}: cold `authn check` process {d['cold_process_ms']:.0f} ms (median of 5); "
                       f"in batch mode {d['batch_ms_per_check']:.1f} ms per check (median)")
+
+
+def _stress(presets: tuple[str, ...], quick: bool, as_json: bool) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from authn.stress import is_clean, run
+
+    report = run(presets, quick=quick)
+    doc = report.as_dict()
+    if as_json:
+        typer.echo(json.dumps(doc, indent=2))
+    else:
+        table = Table(title=f"numerical stress suite ({doc['cases']} cases, presets {', '.join(presets)})")
+        table.add_column("check")
+        table.add_column("count", justify="right")
+        table.add_column("must be", justify="right")
+        for key, must in (("crashes", "0"), ("nonfinite_features", "0"), ("scale_dependent_decisions", "0"),
+                          ("nan_inf_not_refused", "0"), ("specific_errors", "-")):
+            table.add_row(key.replace("_", " "), str(doc[key]), must)
+        console = Console()
+        console.print(table)
+        for group in ("crashes", "nonfinite", "scale_decision_changes", "specific_errors"):
+            for line in doc["details"][group]:
+                console.print(f"  {group}: {line}", markup=False)
+    raise typer.Exit(0 if is_clean(report) else 1)
