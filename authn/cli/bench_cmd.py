@@ -46,11 +46,20 @@ def bench(
     if stress:
         _stress(tuple(preset), quick, as_json)
         return
+    from authn import perf
+
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n)
         rows = run_decisions(tuple(preset), n, seed, progress=lambda k: progress.advance(task, k))
         lat = {p: latency(p, 5 if quick else 20, seed) for p in preset} if with_latency else {}
-    report = {"decisions": summarise(rows), "latency_ms": lat, "n_per_category": n, "seed": seed}
+        progress.update(task, description="timing stages")
+        stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in preset}
+        floor = {p: perf.fft_floor(p) for p in preset}
+        progress.update(task, description="timing imports and throughput")
+        imports = perf.import_costs(1 if quick else 3)
+        tput = {p: perf.throughput(p, 20 if quick else 100, seed) for p in preset}
+    report = {"decisions": summarise(rows), "latency_ms": lat, "stages": stages, "fft_floor": floor,
+              "imports_ms": imports, "throughput_per_s": tput, "n_per_category": n, "seed": seed}
     if as_json:
         typer.echo(json.dumps(report, indent=2))
         return
@@ -65,6 +74,32 @@ def bench(
     for p, d in lat.items():
         console.print(f"{p}: cold `authn check` process {d['cold_process_ms']:.0f} ms (median of 5); "
                       f"in batch mode {d['batch_ms_per_check']:.1f} ms per check (median)")
+    for p in preset:
+        st, fl = stages[p], floor[p]
+        t = Table(title=f"{p}: where the time goes (median ms over {st['checks']} mixed claims, batch mode)")
+        t.add_column("stage")
+        t.add_column("ms", justify="right")
+        for k, v in st["stage_median_ms"].items():
+            t.add_row(k, f"{v:.3f}")
+        t.add_row("FFT floor (numpy, just the FFTs)", f"{fl['fft_ms']:.3f}")
+        console.print(t)
+        console.print(f"  FFTs of one gated check: {fl['fft_mflop']:.2f} MFLOP at {fl['gflops']:.1f} GFLOP/s; "
+                      f"radar_features is {st['stage_median_ms'].get('radar_features', float('nan')) / fl['fft_ms']:.1f}x "
+                      f"the FFT floor")
+        share = st["skip_share"].get("radar_features", 0.0)
+        console.print(f"  radar stage skipped in {share:.0%} of checks, saving "
+                      f"{st['radar_time_saved_per_skip_ms']:.1f} ms each; registry-only check "
+                      f"{st['registry_only_check_ms']:.1f} ms = {st['registry_only_vs_full']:.0%} of a full "
+                      f"check ({st['full_check_ms']:.1f} ms)")
+        tp = tput[p]
+        console.print(f"  throughput: {tp['1_worker']:.0f} returns/s with 1 worker, "
+                      f"{tp['2_worker']:.0f} with 2 workers")
+    t = Table(title="cold-start imports (fresh interpreter each, ms)")
+    t.add_column("import")
+    t.add_column("ms", justify="right")
+    for k, v in imports.items():
+        t.add_row(k, f"{v:.0f}")
+    console.print(t)
 
 
 def _stress(presets: tuple[str, ...], quick: bool, as_json: bool) -> None:
