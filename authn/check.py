@@ -11,6 +11,7 @@ listed in `skipped`; the final decision always comes from a complete
 from __future__ import annotations
 
 import hashlib
+import re
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -25,6 +26,7 @@ from authn.kinematics import DeclaredState, expected_from_radar, residuals, sani
 from authn.policy import PolicyEngine
 
 RADAR_STAGES = ("radar_features", "classify", "kinematics")
+_SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
 
 
 @dataclass
@@ -100,6 +102,8 @@ def read_claim(rec: Any, serial: str | None) -> Claim:
     rid_serial = basic.uas_id.strip() if basic else None
     if serial is None and rid_serial is None:
         raise AuthnError("no claim: give --serial, or a file whose Remote ID carries a Basic ID serial")
+    if serial is not None and not _SERIAL.fullmatch(serial):
+        raise AuthnError(f"--serial: {serial!r} is not a UAS ID (1-64 printable ASCII characters, no spaces)")
     return Claim(serial=serial or rid_serial, source="cli" if serial else "remote_id", rid_serial=rid_serial,
                  ua_type=basic.ua_type if basic else None, state=state, n_messages=len(msgs))
 

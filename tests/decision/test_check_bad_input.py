@@ -80,6 +80,20 @@ def test_bad_input_exit_2_and_audited(good_file: Path, tmp_path: Path, case: str
     assert main(["--db", db, "audit", "verify"]) == 0
 
 
+def test_unknown_waveform_and_bad_serial(good_file: Path, tmp_path: Path, capsys) -> None:
+    """A waveform no model was trained for, and a malformed --serial: exit 2, audited."""
+    from authn.demo import register_examples
+
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    register_examples(db)
+    odd = _variant(good_file, tmp_path / "odd.h5", attrs={"carrier_hz": 24e9})
+    assert main(["--db", db, "check", str(odd), "--serial", SERIAL]) == 2
+    assert "no classifier for this waveform" in capsys.readouterr().err
+    assert main(["--db", db, "check", str(good_file), "--serial", "has space"]) == 2
+    assert "--serial" in capsys.readouterr().err
+    assert [e["kind"] for e in _audit(db, capsys)] == ["error", "error"]
+
+
 def test_invalid_policy_file_is_refused(good_file: Path, tmp_path: Path, capsys) -> None:
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     bad = tmp_path / "bad.cedar"
