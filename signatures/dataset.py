@@ -196,14 +196,32 @@ def default_featurizer() -> Featurizer:
     return extract
 
 
+#: Modules whose source the samples depend on (besides the featurizer's own module): a change to
+#: any of them (an estimator fix that forgot to bump FEATURE_VERSION) regenerates cached datasets.
+SOURCE_MODULES = ("signatures.simulate", "signatures.scene", "signatures.radar", "signatures.recording",
+                  "signatures.profiles", "signatures.estimators", "signatures.timefreq", "signatures.rd",
+                  "signatures.fft")
+
+
+def _source_digest(module: str) -> str:
+    import importlib.util
+
+    spec = importlib.util.find_spec(module)
+    if spec is None or not spec.origin or not os.path.isfile(spec.origin):
+        return ""
+    return hashlib.sha256(Path(spec.origin).read_bytes()).hexdigest()[:16]
+
+
 def feature_version(featurizer: Featurizer) -> str:
-    """Digest of the featurizer's identity and feature names (part of the cache key)."""
+    """Digest of the featurizer's identity, feature names and the source code of the featurizer's
+    module and of the simulation / signal-processing modules (part of the cache key)."""
     import importlib
 
     mod = importlib.import_module(featurizer.__module__)
     names = getattr(mod, "FEATURE_NAMES", ())
     ver = getattr(mod, "FEATURE_VERSION", "")
-    blob = json.dumps([featurizer.__module__, featurizer.__qualname__, list(names), str(ver)]).encode()
+    sources = [_source_digest(m) for m in (featurizer.__module__, *SOURCE_MODULES)]
+    blob = json.dumps([featurizer.__module__, featurizer.__qualname__, list(names), str(ver), sources]).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
 
 

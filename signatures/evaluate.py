@@ -112,8 +112,12 @@ def evaluate(model: Classifier, snrs: Sequence[float], n_per_snr: int, seed: int
                                   snr_db=float(snr)), featurizer, cache=cache, progress=progress, workers=workers)
         first = first or ds
         row = {}
-        for name, (lab, conf) in predictions(model, ds).items():
+        predictions_cache = predictions(model, ds)
+        for name, (lab, conf) in predictions_cache.items():
             row[name] = metrics(ds.y, lab, conf, model.classes)
+        known_uav = ~np.isin(ds.y, NON_UAV_CLASSES)
+        row["system"]["known_uav_called_unknown"] = round(float(np.mean(
+            np.asarray(predictions_cache["system"][0])[known_uav] == UNKNOWN)), 4) if known_uav.any() else 0.0
         report["per_snr"][f"{snr:g}"] = row
         if unknown_profiles:
             uk = generate(DatasetSpec(preset=model.preset, profiles=tuple(unknown_profiles), split="test",

@@ -29,8 +29,8 @@ def train(
     preset: str = typer.Option("paper", "--preset", help="Radar preset: paper or wide."),
     profiles: list[Path] | None = typer.Option(None, "--profiles",
                                                help="JSON file of extra UAV profiles to enrol (repeatable)."),
-    samples: int | None = typer.Option(None, "--samples", min=50, help="Training returns (default: 3000 paper, 2000 wide)."),
-    val_samples: int | None = typer.Option(None, "--val-samples", min=50, help="Validation returns (default: samples / 3)."),
+    samples: int | None = typer.Option(None, "--samples", min=50, help="Training returns (default: 8000 paper, 4000 wide)."),
+    val_samples: int | None = typer.Option(None, "--val-samples", min=50, help="Validation returns (default: samples / 4)."),
     seed: int = typer.Option(0, "--seed", help="Training seed (datasets, forests, SVM, CNN)."),
     cnn: bool = typer.Option(False, "--cnn", help="Also train the RD-patch CNN (needs torch) and the cascade."),
     out: Path | None = typer.Option(None, "--out", help="Bundle folder (default: the shipped bundle of the preset)."),
@@ -47,9 +47,12 @@ def train(
     from signatures.training import TrainConfig, train_bundle
 
     get_preset(preset)
-    n = samples or (3000 if preset == "paper" else 2000)
-    cfg = TrainConfig(preset=preset, profiles=_profiles(profiles), n_train=n, n_val=val_samples or max(n // 3, 50),
-                      seed=seed, cnn=cnn, workers=workers)
+    n = samples or (8000 if preset == "paper" else 4000)
+    known = _profiles(profiles)
+    n_val = val_samples or max(n // 4, 50)
+    unknown = tuple(p for p in _invented() if p.slug not in {k.slug for k in known})
+    cfg = TrainConfig(preset=preset, profiles=known, n_train=n, n_val=n_val, seed=seed, cnn=cnn, workers=workers,
+                      unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20))
     folder = out or bundle_dir(preset)
     t0 = time.perf_counter()
     card = train_bundle(cfg, folder, progress=True)

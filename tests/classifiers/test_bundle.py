@@ -39,7 +39,7 @@ def test_tampered_bundle_is_refused(tiny_bundle: Path, tmp_path: Path, victim: s
     data = bytearray((bad / victim).read_bytes())
     if victim == "card.json":
         card = json.loads(data)
-        card["files"]["knn.onnx"] = "0" * 64
+        card["files"]["knn.npz"] = "0" * 64
         data = bytearray(json.dumps(card).encode())
     else:
         data[len(data) // 2] ^= 0xFF

@@ -57,3 +57,36 @@ def test_cascade_threshold_prefers_not_running_the_cnn_when_it_does_not_help() -
     assert choose_cascade_threshold(p_ens, p_ens, y) == 0.0
     p_cnn = np.array([[0.9, 0.1], [0.2, 0.8], [0.9, 0.1], [0.05, 0.95]])
     assert choose_cascade_threshold(p_ens, p_cnn, y) == 0.7
+
+
+def test_numpy_knn_matches_sklearn(tmp_path) -> None:
+    from signatures.inference import KnnArrays
+
+    X, y = _blobs(400, CENTRES, 0)
+    Xt, _ = _blobs(200, CENTRES, 1)
+    m = clf._fit(clf.make_knn(), X, y)
+    np.savez(tmp_path / "knn.npz", **clf.knn_arrays(m, 4))
+    np.testing.assert_allclose(KnnArrays(tmp_path / "knn.npz").proba(Xt), m.predict_proba(Xt), atol=1e-6)
+
+
+def test_physics_check_rejects_wrong_rotor_rates_and_abstains_when_unsure() -> None:
+    from signatures.openset import PHYS_FEATURES, physics_check
+    from signatures.profiles import shipped_profiles
+
+    prof = shipped_profiles()
+    classes = ("m600", "m300", "phantom4", "bird", "none")
+    names = PHYS_FEATURES
+    chk = physics_check(classes, prof, names, jitter=0.005, tip_bin_mps=0.2)
+
+    def row(rate, std, score=3.0, tip=0.0, tip_std=0.0, aliased=1.0):
+        return [rate, std, score, tip, tip_std, aliased]
+
+    F = prof["m300"].blade_flash_rate_hz  # 80 Hz
+    X = np.array([row(F * 1.005, 0.2), row(F * 1.25, 0.2), row(F * 1.25, 5.0), row(0.0, 0.0), row(F * 1.25, 0.2, 0.0),
+                  row(F, 0.2, tip=prof["m300"].tip_speed_mps * 1.2, aliased=0.0)])
+    bad, checked = chk.verdict(X, np.array([1] * len(X)))
+    assert bad.tolist() == [False, True, False, False, False, True]
+    assert checked.tolist() == [True, True, False, False, False, True]
+    # bird / none are classes: never unknown through this check
+    bad, checked = chk.verdict(X[:2], np.array([3, 4]))
+    assert not bad.any() and not checked.any()
