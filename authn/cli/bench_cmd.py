@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import typer
 
@@ -17,6 +18,7 @@ def bench(
     quick: bool = typer.Option(False, "--quick", help="CI-sized run: 12 scenes per category, paper preset."),
     with_latency: bool = typer.Option(True, "--latency/--no-latency", help="Also time cold and batch checks."),
     stress: bool = typer.Option(False, "--stress", help="Run the numerical stress suite instead (exit 1 unless clean)."),
+    plot_dir: Path | None = typer.Option(None, "--plot", help="Write the error-versus-time plot (PNG) here."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """End-to-end decision accuracy on simulated claims (SNR 10-30 dB, random geometry)
@@ -46,7 +48,7 @@ def bench(
     if stress:
         _stress(tuple(preset), quick, as_json)
         return
-    from authn import perf
+    from authn import pareto, perf
 
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n)
@@ -55,10 +57,17 @@ def bench(
         progress.update(task, description="timing stages")
         stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in preset}
         floor = {p: perf.fft_floor(p) for p in preset}
+        progress.update(task, description="run time against error")
+        grid = {p: pareto.run(p, per_class=4 if quick else 25, seed=seed) for p in preset}
         progress.update(task, description="timing imports and throughput")
         imports = perf.import_costs(1 if quick else 3)
         tput = {p: perf.throughput(p, 20 if quick else 100, seed) for p in preset}
+    if plot_dir is not None:
+        plot_dir.mkdir(parents=True, exist_ok=True)
+        for p, pts in grid.items():
+            pareto.plot(pts, (0.0, 10.0, 20.0), plot_dir / f"error-vs-time-{p}.png")
     report = {"decisions": summarise(rows), "latency_ms": lat, "stages": stages, "fft_floor": floor,
+              "pareto": {p: [pt.__dict__ for pt in pts] for p, pts in grid.items()},
               "imports_ms": imports, "throughput_per_s": tput, "n_per_category": n, "seed": seed}
     if as_json:
         typer.echo(json.dumps(report, indent=2))
@@ -94,6 +103,14 @@ def bench(
         tp = tput[p]
         console.print(f"  throughput: {tp['1_worker']:.0f} returns/s with 1 worker, "
                       f"{tp['2_worker']:.0f} with 2 workers")
+    for p, pts in grid.items():
+        t = Table(title=f"{p}: run time against error (same held-out returns; * = Pareto front)")
+        for col in ("configuration", "ms/return", "F1 0 dB", "F1 10 dB", "F1 20 dB", "FAR", "front"):
+            t.add_column(col, justify="right")
+        for pt in pts:
+            t.add_row(pt.name, f"{pt.ms_per_return:.2f}", *(f"{pt.f1_by_snr[s]:.3f}" for s in (0.0, 10.0, 20.0)),
+                      f"{pt.far:.3f}", "*" if pt.pareto else "")
+        console.print(t)
     t = Table(title="cold-start imports (fresh interpreter each, ms)")
     t.add_column("import")
     t.add_column("ms", justify="right")

@@ -1,0 +1,158 @@
+"""Run time against error: pipeline configurations on one held-out simulated set, Pareto front.
+
+Every configuration sees the same returns (scenes drawn with seeds and continuous
+geometry never used in training). Time per return = feature extraction + the
+classifier(s) of that configuration, medians measured here; error = 1 - macro F1 per
+SNR, and the false-alarm rate (`bird`/`none` called a UAV). Configurations that need a
+retrained model (fewer chirps, feature subsets, float64) are not in this grid.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from signatures.profiles import shipped_profiles
+from signatures.radar import get_preset
+from signatures.scene import BirdParams, Scene
+from signatures.simulate import simulate
+
+#: (name, feature mode, classifier) ; feature modes: gated at the known range, CFAR-detected, full cube
+CONFIGS = (
+    ("gated + ensemble (default)", "gated", "ensemble"),
+    ("gated + RF", "gated", "rf"),
+    ("gated + SVM", "gated", "svm"),
+    ("gated + kNN", "gated", "knn"),
+    ("gated + CNN", "gated", "cnn"),
+    ("gated + cascade (CNN always)", "gated", "cascade-always"),
+    ("CFAR-detected + ensemble", "detect", "ensemble"),
+    ("full cube + ensemble", "full", "ensemble"),
+)
+
+
+@dataclass
+class Point:
+    name: str
+    ms_per_return: float
+    f1_by_snr: dict[float, float]
+    far: float
+    pareto: bool = False
+
+
+def _scenes(preset: str, snrs: tuple[float, ...], per_class: int, seed: int):
+    rng = np.random.default_rng([seed, 9001])
+    classes = [*shipped_profiles(), "bird", "none"]
+    for snr in snrs:
+        for label in classes:
+            for _ in range(per_class):
+                r = float(rng.uniform(60.0, 1100.0))
+                v = 0.0 if rng.random() < 0.4 else float(rng.choice([-1, 1]) * rng.uniform(1.0, 15.0))
+                kw = dict(range_m=r, radial_speed_mps=v, elevation_deg=float(rng.uniform(0, 40)), snr_db=snr,
+                          clutter_db=None if rng.random() < 0.6 else float(rng.uniform(0, 10)))
+                if label == "bird":
+                    scene = Scene(kind="bird", bird=BirdParams(wing_length_m=float(rng.uniform(0.15, 0.5)),
+                                                               flap_rate_hz=float(rng.uniform(3, 10))), **kw)
+                elif label == "none":
+                    scene = Scene(kind="none", clutter_db=float(rng.uniform(0, 15)))
+                else:
+                    scene = Scene(profile=shipped_profiles()[label], **kw)
+                rec, truth = simulate(scene, get_preset(preset), int(rng.integers(2**31)) + 10**9)
+                yield snr, label, rec, truth
+
+
+def _classify(clf, mode: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    if mode == "ensemble":
+        return lambda X, rd: clf.ensemble_proba(X)
+    if mode == "cnn":
+        return lambda X, rd: clf.cnn_proba(rd)
+    if mode == "cascade-always":
+        return lambda X, rd: 0.5 * (clf.ensemble_proba(X) + clf.cnn_proba(rd))
+    return lambda X, rd: clf.member_proba(mode, X)
+
+
+def run(preset: str, snrs: tuple[float, ...] = (0.0, 10.0, 20.0), per_class: int = 20, seed: int = 5,
+        progress: Callable[[int], None] | None = None) -> list[Point]:
+    from signatures.evaluate import metrics
+    from signatures.features import extract
+    from signatures.inference import load_classifier
+
+    clf = load_classifier(preset)
+    data = list(_scenes(preset, snrs, per_class, seed))
+    feats: dict[str, list] = {}
+    ftime: dict[str, float] = {}
+    for mode in ("gated", "detect", "full"):
+        rows, times = [], []
+        for _, label, rec, truth in data:
+            lo, hi = rec.config.range_window_m
+            gate = truth.range_m if label != "none" and lo <= truth.range_m < hi else None
+            t0 = time.perf_counter()
+            fr = extract(rec, expected_range_m=gate if mode == "gated" else None)
+            if mode == "full":
+                from signatures.features import extract_iq
+
+                t0 = time.perf_counter()
+                fr = extract_iq(rec.iq, rec.config, full_cube=True)
+            times.append((time.perf_counter() - t0) * 1e3)
+            rows.append(fr)
+            if progress:
+                progress(1)
+        feats[mode], ftime[mode] = rows, statistics.median(times)
+    labels = np.array([label for _, label, _, _ in data])
+    snr_of = np.array([snr for snr, _, _, _ in data])
+    points = []
+    for name, fmode, cmode in CONFIGS:
+        if cmode in ("cnn", "cascade-always") and not clf.has_cnn:
+            continue
+        X = np.stack([f.as_array() for f in feats[fmode]])
+        rd = np.stack([f.rd_patch for f in feats[fmode]])
+        predict = _classify(clf, cmode)
+        times = []
+        for i in range(min(len(X), 200)):
+            t0 = time.perf_counter()
+            predict(X[i:i + 1], rd[i:i + 1])
+            times.append((time.perf_counter() - t0) * 1e3)
+        p = predict(X, rd)
+        detected = np.array([f.detected for f in feats[fmode]])
+        pred = np.where(detected, np.array(clf.classes)[np.argmax(p, axis=1)], "none")
+        f1 = {float(s): metrics(labels[snr_of == s], pred[snr_of == s], p.max(axis=1)[snr_of == s],
+                                clf.classes)["macro_f1"] for s in snrs}
+        far = metrics(labels, pred, p.max(axis=1), clf.classes)["false_alarm_rate"]
+        points.append(Point(name, ftime[fmode] + statistics.median(times), f1, far))
+    _mark_front(points, snrs)
+    return points
+
+
+def _mark_front(points: list[Point], snrs: tuple[float, ...]) -> None:
+    """Pareto-optimal in (time, mean error over SNRs): nothing is both faster and at least as good."""
+    err = {p.name: 1.0 - float(np.mean([p.f1_by_snr[s] for s in snrs])) for p in points}
+    for p in points:
+        p.pareto = not any(q is not p and q.ms_per_return <= p.ms_per_return and err[q.name] <= err[p.name]
+                           and (q.ms_per_return < p.ms_per_return or err[q.name] < err[p.name]) for q in points)
+
+
+def plot(points: list[Point], snrs: tuple[float, ...], path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for s, marker in zip(snrs, "o^sDv"):
+        xs = [p.ms_per_return for p in points]
+        ys = [1.0 - p.f1_by_snr[s] for p in points]
+        ax.scatter(xs, ys, marker=marker, label=f"{s:g} dB")
+    for p in points:
+        ax.annotate(p.name + (" *" if p.pareto else ""), (p.ms_per_return, 1.0 - np.mean(list(p.f1_by_snr.values()))),
+                    fontsize=7, alpha=0.8)
+    ax.set_xscale("log")
+    ax.set_xlabel("time per return, ms (features + classifier, median)")
+    ax.set_ylabel("error = 1 - macro F1")
+    ax.set_title("run time against error (* = Pareto front on mean error)")
+    ax.legend(title="SNR")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
