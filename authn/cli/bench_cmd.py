@@ -21,10 +21,14 @@ def bench(
     plot_dir: Path | None = typer.Option(None, "--plot", help="Write the error-versus-time plot (PNG) here."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """End-to-end decision accuracy on simulated claims (SNR 10-30 dB, random geometry)
-    and check latency (cold process and batch mode); with --stress, the numerical
-    stress suite (IQ scaled 1e-30..1e30, ADC types, degenerate cubes, NaN/Inf,
-    clipping, odd shapes, SNR -40..+80 dB, extreme geometry).
+    """Benchmark decisions and speed: accuracy, latency, stages, error vs time, throughput.
+
+    Decision accuracy on simulated claims (SNR 10-30 dB, random geometry); check
+    latency (cold process and batch mode); per-stage medians beside the FFT floor;
+    run time against error over pipeline configurations (Pareto front); import costs;
+    skip share; throughput with 1 and 2 workers. With --stress: the numerical stress
+    suite (IQ scaled 1e-30..1e30, ADC types, degenerate cubes, NaN/Inf, clipping, odd
+    shapes, SNR -40..+80 dB, extreme geometry).
 
     Categories: genuine claims (must be accepted), type spoofs between the shipped
     profiles, position spoofs of 100-300 m along the line of sight, unregistered

@@ -16,10 +16,11 @@ def demo(
     out: Path | None = typer.Option(None, "--out", help="Where to write the simulated returns "
                                     "(default: a 'demo' folder in the user cache directory)."),
 ) -> None:
-    """Register example UAVs, simulate six scenes (genuine, spoofed type, spoofed
-    position, unregistered, revoked, bird), check each and print the decisions.
+    """Register example UAVs, simulate six scenes, check each and print the decisions.
 
-    Uses the default SQLite registry unless --db / AUTHN_DATABASE_URL says otherwise.
+    The scenes: a genuine flight, a spoofed type (a Phantom 4 claiming an M600's
+    serial), a position spoofed by 300 m, an unregistered serial, a revoked one and a
+    bird. Uses the default SQLite registry unless --db / AUTHN_DATABASE_URL says otherwise.
     Exit code 0 when every decision is the expected one.
 
     Example: authn demo

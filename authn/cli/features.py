@@ -41,8 +41,12 @@ def accuracy(
     seed: int = typer.Option(0, "--seed"),
     as_json: bool = typer.Option(False, "--json", help="One JSON array of rows."),
 ) -> None:
-    """Estimator accuracy on simulated UAV returns: share of returns whose flash rate and rotor
-    rate are within 5 % of truth, range within one range bin, radial velocity within one Doppler bin.
+    """Estimator accuracy on simulated UAV returns, per preset and SNR.
+
+    Share of returns whose flash rate and rotor rate are within 5 % of truth, range
+    within one range bin, radial velocity within one Doppler bin.
+
+    Example: authn features accuracy --preset paper --n 100 --snr=-10,0,10,20
     """
     from signatures.accuracy import evaluate
     from signatures.errors import SignaturesError

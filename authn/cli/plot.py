@@ -16,8 +16,10 @@ def plot(
     no_clutter_suppression: bool = typer.Option(False, "--no-clutter-suppression",
                                                 help="Keep the zero-Doppler (stationary) part."),
 ) -> None:
-    """Write rd_map.png, spectrogram.png, mean_spectrogram.png, doppler_intensity.png and
-    cadence_velocity.png (one return, or the mean of several of the same shape).
+    """Plot the paper's figures 2-6 of one return (or the mean of several) as PNG files.
+
+    Writes rd_map.png, spectrogram.png, mean_spectrogram.png, doppler_intensity.png
+    and cadence_velocity.png (several files of the same shape are averaged).
 
     Example: authn plot m300.h5 --out plots/
     """
