@@ -82,8 +82,6 @@ class Classifier:
     """A verified model bundle ready for inference."""
 
     def __init__(self, folder: Path) -> None:
-        import onnxruntime as ort
-
         self.folder = Path(folder)
         self.card, self.card_digest = read_card(self.folder)
         c = self.card
@@ -92,23 +90,9 @@ class Classifier:
         self.n_features = len(c["feature_names"])
         names = list(c["feature_names"])
         self._cols = np.array([names.index(n) for n in c.get("class_features", names)])
-        opts = ort.SessionOptions()
-        opts.intra_op_num_threads = 1
-        opts.inter_op_num_threads = 1
-        opts.log_severity_level = 3
-
-        def session(name: str) -> Any:
-            return ort.InferenceSession(str(self.folder / name), opts, providers=["CPUExecutionProvider"])
-
-        files = c["files"]
-        self._members: dict[str, Any] = {}
-        for m in MEMBERS:
-            if f"{m}.npz" in files:
-                self._members[m] = KnnArrays(self.folder / f"{m}.npz")
-            else:
-                self._members[m] = session(f"{m}.onnx")
-        self._state = {m: session(f"{m}_state.onnx") for m in MEMBERS if f"{m}_state.onnx" in files}
-        self._cnn = session("cnn.onnx") if "cnn.onnx" in c["files"] else None
+        self._files = set(c["files"])
+        self._loaded: dict[str, Any] = {}  # model files open on first use (a CLI check needs few)
+        self.has_cnn = "cnn.onnx" in self._files
         with np.load(self.folder / "openset.npz", allow_pickle=False) as z:
             self.openset = OpenSet.from_arrays({k: z[k] for k in z.files})
         if self.openset.class_cols is None:  # older bundles: distance on the type features
@@ -116,15 +100,27 @@ class Classifier:
         self.beta = float(c["ensemble"]["temperature_beta"])
         self.weights = [float(w) for w in c["ensemble"].get("weights", [1.0] * len(MEMBERS))]
         cas = c.get("cascade") or {}
-        self.cascade_threshold = float(cas.get("threshold", 0.0)) if self._cnn is not None else 0.0
+        self.cascade_threshold = float(cas.get("threshold", 0.0)) if self.has_cnn else 0.0
         cnn = c.get("cnn") or {}
         self._cnn_mean = float(cnn.get("input_mean", 0.0))
         self._cnn_std = float(cnn.get("input_std", 1.0))
         self._uav = np.array([k not in NON_UAV_CLASSES for k in self.classes])
 
-    @property
-    def has_cnn(self) -> bool:
-        return self._cnn is not None
+    def _model(self, name: str) -> Any:
+        """kNN arrays (`name.npz`) or an onnxruntime session (`name.onnx`), opened once."""
+        if name not in self._loaded:
+            if f"{name}.npz" in self._files:
+                self._loaded[name] = KnnArrays(self.folder / f"{name}.npz")
+            else:
+                import onnxruntime as ort
+
+                opts = ort.SessionOptions()
+                opts.intra_op_num_threads = 1
+                opts.inter_op_num_threads = 1
+                opts.log_severity_level = 3
+                self._loaded[name] = ort.InferenceSession(str(self.folder / f"{name}.onnx"), opts,
+                                                          providers=["CPUExecutionProvider"])
+        return self._loaded[name]
 
     # --- vectorised building blocks (evaluation uses these) --------------------------
     def _x(self, X: np.ndarray) -> np.ndarray:
@@ -136,7 +132,7 @@ class Classifier:
 
     def member_proba(self, name: str, X: np.ndarray) -> np.ndarray:
         """Probabilities of one member model ('knn', 'rf', 'svm'), columns in `classes` order."""
-        m = self._members[name]
+        m = self._model(name)
         Xc = self._x(X)[:, self._cols]
         if isinstance(m, KnnArrays):
             return m.proba(Xc)
@@ -149,18 +145,18 @@ class Classifier:
         return _calibrate(avg.astype(np.float64), self.beta)
 
     def cnn_proba(self, rd: np.ndarray) -> np.ndarray:
-        if self._cnn is None:
+        if not self.has_cnn:
             raise SignaturesError("this model bundle has no CNN (train with --cnn)")
         x = (np.asarray(rd, dtype=np.float32) - self._cnn_mean) / self._cnn_std
         x = x.reshape(-1, 1, *x.shape[-2:])
-        logits = self._cnn.run(["logits"], {"rd": x})[0].astype(np.float64)
+        logits = self._model("cnn").run(["logits"], {"rd": x})[0].astype(np.float64)
         return _calibrate(np.exp(logits - logits.max(axis=1, keepdims=True)), 1.0)
 
     def cascade_proba(self, X: np.ndarray, rd: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """Ensemble, averaged with the CNN where the ensemble's top probability < threshold."""
         p = self.ensemble_proba(X)
         used = np.zeros(len(p), dtype=bool)
-        if self._cnn is not None and rd is not None and self.cascade_threshold > 0:
+        if self.has_cnn and rd is not None and self.cascade_threshold > 0:
             used = p.max(axis=1) < self.cascade_threshold
             if used.any():
                 rd = np.asarray(rd).reshape(len(p), *np.asarray(rd).shape[-2:])
@@ -170,8 +166,8 @@ class Classifier:
     def moving_proba(self, X: np.ndarray, heads: tuple[str, ...] = ("rf", "svm")) -> np.ndarray:
         """P(moving): mean of the operational-state heads (RF and SVM)."""
         Xf = self._x(X)
-        heads = tuple(h for h in heads if h in self._state)
-        return sum(self._state[h].run(["probabilities"], {"X": Xf})[0][:, 1] for h in heads) / len(heads)
+        heads = tuple(h for h in heads if f"{h}_state.onnx" in self._files)
+        return sum(self._model(f"{h}_state").run(["probabilities"], {"X": Xf})[0][:, 1] for h in heads) / len(heads)
 
     def unknown_mask(self, X: np.ndarray, pred: np.ndarray, mode: str | None = None) -> np.ndarray:
         """Open-set rejection of full feature vectors given their predicted class indices."""
