@@ -9,9 +9,14 @@ Pipeline: demodulate the target bins by the body Doppler, subtract a short
 moving average (removes body, hubs and clutter: everything slow), sum |.|^2
 over the bins -> flash-energy series e[n]; keep what stands out of the noise;
 find flash events (local maxima) and their range positions; score each
-candidate period by the same-place flash pairs one period apart. Flashes are
-treated as events, not weighted by energy: in the `paper` preset a ~30 us
-flash sampled once per 44 us PRI varies by >10 dB with where it falls between
+candidate period L by how consistently the events repeat at +-L: every event
+whose partner window lies inside the dwell checks for a same-place event there,
+and the share of checks that succeed is tested against the chance share (a
+binomial log-likelihood ratio). All rotors of an airframe share the rate
+(phases differ), so at the true period every rotor's checks succeed, while an
+inter-rotor lag or a sub-multiple is refuted by the rotors that do not fit it. Flashes are treated as events, not
+weighted by energy: in the `paper` preset a two-blade flash (main lobe ~20 us)
+sampled once per 44 us PRI varies by up to ~20 dB with where it falls between
 chirps, and energy-weighted autocorrelations then lock onto the few strongest
 flashes of different rotors (inter-rotor lags).
 """
@@ -39,8 +44,32 @@ NOISE_MADS = 5.0
 POSITION_TOL_BINS = 0.3
 #: A period needs this share of the series overlapping itself.
 MIN_OVERLAP = 1.0 / 3.0
+#: Partner tolerance (series samples): TOL_SAMPLES + TOL_FRACTION * lag (timing +-0.5
+#: sample, per-rotor rate spread 0.5 % std).
+TOL_SAMPLES = 1.0
+TOL_FRACTION = 0.01
+#: Events this many dB above the detection threshold vote fully; weaker ones (possibly
+#: noise) proportionally less, down to MIN_VOTE_WEIGHT.
+FULL_VOTE_DB = 10.0
+MIN_VOTE_WEIGHT = 0.2
+#: Half the chosen lag replaces it when at least this share (and SUBHARMONIC_MIN_FOUND)
+#: of its partner checks succeed. In `paper` a flash (~1 PRI) one period apart is
+#: sampled at another offset within the PRI and is often missed at 0 dB, while one two
+#: periods apart may be sampled alike (phantom4: period ~194.5 chirps), so twice the
+#: period can score above it; a chance half-period alignment of some rotors succeeds
+#: in fewer checks than the true period's.
+SUBHARMONIC_SHARE = 0.45
 #: Score weight of a same-place flash pair two periods apart (one period apart = 1).
 SECOND_PERIOD_GAIN = 0.3
+SUBHARMONIC_MIN_FOUND = 3
+#: ... unless the half's share falls below the lag's by more than this many standard errors
+#: (a true half period repeats as reliably as twice it; a chance alignment of some rotors does not).
+SUBHARMONIC_Z = 2.0
+#: Flash events: local maxima within +-EVENT_RADIUS series samples, and above the sinc
+#: skirt of every stronger event within SKIRT_REACH samples: SKIRT_DB - 20 log10(distance).
+EVENT_RADIUS = 2
+SKIRT_REACH = 12
+SKIRT_DB = -13.0
 BLADES_ASSUMED = 2
 
 
@@ -57,8 +86,9 @@ class FlashSeries:
     energy: np.ndarray  # float64 (n,), flash energy above the noise, >= 0
     per_bin: np.ndarray  # float64 (n, bins): the energy before the noise cut, per range bin
     rate_hz: float  # sample rate of the series
-    radius: int  # samples either side a flash (and its high-pass echo) can spread over
+    radius: int  # samples either side a flash can spread over
     drift_bins_per_sample: float  # body range migration (bins per series sample)
+    threshold: float = 0.0  # detection level subtracted from the energy (median + NOISE_MADS MAD)
 
 
 def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
@@ -71,27 +101,57 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     n = slow.shape[0]
     t = np.arange(n)
     demod = np.exp(-2j * math.pi * body_hz * config.pri_s * t).astype(np.complex64)
-    z = slow * demod[:, None]
+    z0 = slow * demod[:, None]
     length = max(3, int(round(HIGHPASS_S / config.pri_s)) | 1)
     if n > length:
-        c = np.cumsum(np.concatenate([np.zeros((1, z.shape[1]), z.dtype), z]), axis=0)
-        half = length // 2
-        lo = np.clip(t - half, 0, n)
-        hi = np.clip(t + half + 1, 0, n)
-        z = z - (c[hi] - c[lo]) / (hi - lo)[:, None].astype(np.float32)
+        # two passes: the second moving average leaves out the flashes the first one
+        # found (+-1 chirp), so a strong flash leaves no -19 dB echo around itself
+        z = _highpass(z0, length)
+        e1 = (z.real ** 2 + z.imag ** 2).sum(axis=1)
+        strong = e1 > _noise_level(e1)
+        strong[1:] |= strong[:-1].copy()
+        strong[:-1] |= strong[1:].copy()
+        z = _highpass(z0, length, ~strong)
     else:
-        z = z - z.mean(axis=0, keepdims=True)
+        z = z0 - z0.mean(axis=0, keepdims=True)
     eb = (z.real ** 2 + z.imag ** 2).astype(np.float64)
     dec = max(1, int(config.prf_hz // SERIES_RATE_HZ))
     m = (n // dec) * dec
     if m >= dec:
         eb = eb[:m].reshape(-1, dec, eb.shape[1]).sum(axis=1)
     e = eb.sum(axis=1)
-    med = float(np.median(e))
-    mad = float(np.median(np.abs(e - med)))
-    above = np.maximum(e - (med + NOISE_MADS * 1.4826 * mad), 0.0)
+    level = _noise_level(e)
+    above = np.maximum(e - level, 0.0)
     drift = body_hz * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
-    return FlashSeries(above, eb, config.prf_hz / dec, length // (2 * dec) + 1, drift)
+    return FlashSeries(above, eb, config.prf_hz / dec, EVENT_RADIUS, drift, level)
+
+
+def _noise_level(e: np.ndarray) -> float:
+    med = float(np.median(e))
+    return med + NOISE_MADS * 1.4826 * float(np.median(np.abs(e - med)))
+
+
+def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.ndarray:
+    """z minus its moving average over `length` chirps of the samples with keep = True; where
+    fewer than half the window is kept, the average runs over a 4x longer window."""
+    n = z.shape[0]
+    t = np.arange(n)
+    zk = z if keep is None else np.where(keep[:, None], z, 0)
+    c = np.empty((n + 1, z.shape[1]), z.dtype)
+    c[0] = 0
+    np.cumsum(zk, axis=0, out=c[1:])
+    half = length // 2
+    lo, hi = np.maximum(t - half, 0), np.minimum(t + half + 1, n)
+    if keep is None:
+        return z - (c[hi] - c[lo]) / (hi - lo)[:, None].astype(np.float32)
+    ck = np.concatenate([[0], np.cumsum(keep)])
+    cnt = ck[hi] - ck[lo]
+    thin = cnt < max(2, length // 2)
+    if thin.any():
+        lo2, hi2 = np.maximum(t - 2 * length, 0), np.minimum(t + 2 * length + 1, n)
+        lo, hi = np.where(thin, lo2, lo), np.where(thin, hi2, hi)
+        cnt = ck[hi] - ck[lo]
+    return z - (c[hi] - c[lo]) / np.maximum(cnt, 1)[:, None].astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -110,11 +170,11 @@ def flash_events(series: FlashSeries, radius: int,
                  max_events: int = 64) -> tuple[np.ndarray, np.ndarray]:
     """Flash times (series samples, sub-sample centroid) and range positions (bins).
 
-    Times: local maxima within +-radius of the energy above the noise, strongest
-    first up to `max_events`, then sorted. Position: log-parabolic peak of the
-    flash's energy over the gate's range bins. A blade flashes when broadside,
-    i.e. with all its length at its hub's range, so a rotor's flashes share a
-    range position and two rotors usually do not (arms sit at different LOS offsets).
+    Times: local maxima within +-radius of the energy above the noise that rise
+    above the sinc skirt of every stronger event within SKIRT_REACH samples
+    (SKIRT_DB - 20 log10 distance, relative to it), strongest first up to
+    `max_events`, then sorted. Position: log-parabolic peak of the flash's energy
+    over the gate's range bins (a broadside blade sits at its hub's range).
     """
     e = series.energy
     if e.size == 0 or float(e.max()) <= 0.0:
@@ -122,7 +182,16 @@ def flash_events(series: FlashSeries, radius: int,
     pad = np.concatenate([np.zeros(radius), e, np.zeros(radius)])
     windows = np.lib.stride_tricks.sliding_window_view(pad, 2 * radius + 1)
     peaks = np.flatnonzero((e > 0.0) & (e >= windows.max(axis=1)))
-    peaks = peaks[np.argsort(-e[peaks], kind="stable")][:max_events]
+    peaks = peaks[np.argsort(-e[peaks], kind="stable")]
+    raw = e + series.threshold
+    skirt = 10.0 ** (SKIRT_DB / 10.0)
+    kept: list[int] = []
+    for p in peaks.tolist():
+        if all(abs(p - q) > SKIRT_REACH or raw[p] >= raw[q] * skirt / (p - q) ** 2 for q in kept):
+            kept.append(p)
+            if len(kept) >= max_events:
+                break
+    peaks = np.array(kept, dtype=int)
     lo, hi = np.maximum(peaks - 1, 0), np.minimum(peaks + 1, e.size - 1)
     w = e[lo] + e[peaks] + e[hi]
     centroid = (lo * e[lo] + peaks * e[peaks] + hi * e[hi]) / np.maximum(w, 1e-300)
@@ -140,16 +209,54 @@ def _peak_position(profile: np.ndarray) -> float:
     return float(k + max(-0.5, min(0.5, 0.5 * (a - c) / den))) if den < 0 else float(k)
 
 
+def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndarray, n: int,
+           drift: float, n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per lag: log-likelihood ratio, partners found, partner checks made (see `periodicity`)."""
+    k = times.size
+    informative = (pos > 0.0) & (pos < n_bins - 1)  # a peak at the gate's edge has no position
+    moved = pos[None, :] - pos[:, None] - drift * (times[None, :] - times[:, None])
+    compat = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[None, :] | ~informative[:, None]
+    share_compat = (compat.sum() - k) / max(k * (k - 1), 1)
+    tol = (TOL_SAMPLES + TOL_FRACTION * lags)[None, :, None]
+    target = times[None, None, :] + np.array([1.0, -1.0])[:, None, None] * lags[None, :, None]
+    valid = (target >= tol) & (target <= n - 1 - tol)  # (2 signs, lags, events)
+    idx = np.searchsorted(times, target)
+    flat = compat.ravel()
+    own = np.arange(k) * k
+    found = np.zeros(target.shape, bool)
+    for cand in (np.minimum(idx, k - 1), np.maximum(idx - 1, 0)):
+        found |= (np.abs(times[cand] - target) <= tol) & flat[own + cand]
+    found &= valid
+    found_w = (found @ weight).sum(axis=0)
+    valid_w = (valid @ weight).sum(axis=0)
+    found_n = found.sum(axis=(0, 2)).astype(float)
+    valid_n = valid.sum(axis=(0, 2)).astype(float)
+    tol = tol[0, :, 0]
+    chance = np.clip(1.0 - np.exp(-(k - 1) / n * 2.0 * tol * share_compat), 1e-3, 0.999)
+    share = np.clip(found_w / np.maximum(valid_w, 1e-12), 1e-9, 1.0 - 1e-9)
+    llr = found_w * np.log(share / chance) + (valid_w - found_w) * np.log((1.0 - share) / (1.0 - chance))
+    # x share: at the true period all rotors' checks succeed, at an inter-rotor lag only some
+    return np.where(share > chance, llr * share, 0.0), found_n, valid_n
+
+
 def periodicity(series: FlashSeries) -> Periodicity:
     """Flash period from flash events (module docstring).
 
-    Score(L) = number of same-place flash pairs (range positions within
-    POSITION_TOL_BINS after the body's migration) whose interval is L +- 2 %
-    (the rotor-rate spread), plus SECOND_PERIOD_GAIN per pair at 2L. Pairs, not
-    energies: a strong flash with a weakly sampled partner counts fully. The
-    position test rejects most inter-rotor coincidences, which otherwise outscore
-    the true period when each rotor flashes only 2-3 times per dwell; the best
-    lag wins (ties: the shortest) and the period is the mean matched interval.
+    Each event checks for a partner event within +-(TOL_SAMPLES + TOL_FRACTION L)
+    of t - L and of t + L, where that window lies inside the dwell; a partner
+    counts when its range position agrees (POSITION_TOL_BINS after the body's
+    migration; positions at the gate's edge agree with any). With checks weighted
+    by the event's strength (FULL_VOTE_DB), the found share s is compared with the
+    chance share p0 (event density x window width x share of position-compatible
+    event pairs): score(L) = s [F ln(s / p0) + (V - F) ln((1 - s) / (1 - p0))], 0
+    where s <= p0. The log-likelihood ratio grows with the number of checks at a
+    given share, so the period beats twice it (fewer checks); the factor s favours
+    the lag at which all rotors' flash trains are consistent over an inter-rotor lag
+    or a sub-multiple that only some rotors fit (more checks, lower share). The best lag wins (centre of its plateau), then its half
+    replaces it while at least SUBHARMONIC_SHARE of the half's checks find a
+    partner and that share is not significantly (SUBHARMONIC_Z) below the lag's. The period is the mean of the event intervals matching multiples of
+    the lag; the score counts the same-place pairs one lag apart (+SECOND_PERIOD_GAIN
+    per pair two lags apart).
     """
     e = series.energy
     n = e.size
@@ -163,31 +270,48 @@ def periodicity(series: FlashSeries) -> Periodicity:
     lag_max = min(n * (1.0 - MIN_OVERLAP), series.rate_hz / FLASH_RATE_MIN_HZ)
     if k < 2 or lag_max <= lag_min:
         return Periodicity(Estimate(0.0, 0.0), 0.0, int(k), np.zeros(0), 0.0, par_db)
-    diff = times[None, :] - times[:, None]  # (k, k): t_j - t_i
-    moved = pos[None, :] - pos[:, None] - series.drift_bins_per_sample * diff
-    same_place = np.abs(moved) <= POSITION_TOL_BINS
+    strength = e[np.clip(np.round(times).astype(int), 0, n - 1)] / max(series.threshold, 1e-300)
+    weight = np.clip(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT, 1.0)
     lags = np.arange(math.ceil(lag_min), math.floor(lag_max) + 1, dtype=float)
-    pairs = same_place & (diff > 0)
-    d = diff[pairs]  # lags between same-place flashes, each pair once
-    score = np.zeros(lags.size)
-    for m, gain in ((1, 1.0), (2, SECOND_PERIOD_GAIN)):
-        ml = m * lags
-        tol = np.maximum(1.5, 0.02 * ml)
-        score += gain * (np.abs(d[None, :] - ml[:, None]) <= tol[:, None]).sum(axis=1)
-    if d.size == 0 or float(score.max()) <= 0.0:
+    vote, found_n, valid_n = _votes(times, pos, weight, lags, n, series.drift_bins_per_sample,
+                                    series.per_bin.shape[1])
+    best = float(vote.max())
+    if best <= 0.0 or float(found_n.max()) <= 0.0:
         return Periodicity(Estimate(0.0, 0.0), 0.0, int(k), np.zeros(0), 0.0, par_db)
-    i0 = int(np.argmax(score))  # first (shortest) of equal scores
-    lag0 = lags[i0]
-    tol0 = max(1.5, 0.02 * lag0)
+    i0 = int(np.argmax(vote))
+    i1 = i0
+    while i1 + 1 < lags.size and vote[i1 + 1] == best:
+        i1 += 1
+    lag0 = 0.5 * (lags[i0] + lags[i1])
+    while lag0 / 2.0 >= lags[0]:
+        sel = np.flatnonzero(np.abs(lags - lag0 / 2.0) <= TOL_SAMPLES + TOL_FRACTION * lag0 / 2.0)
+        if sel.size == 0:
+            break
+        j = int(sel[np.argmax(vote[sel])])
+        if found_n[j] < SUBHARMONIC_MIN_FOUND or found_n[j] < SUBHARMONIC_SHARE * valid_n[j]:
+            break
+        c = int(np.argmin(np.abs(lags - lag0)))
+        pooled = (found_n[c] + found_n[j]) / max(valid_n[c] + valid_n[j], 1.0)
+        se = math.sqrt(max(pooled * (1.0 - pooled), 1e-12) * (1.0 / max(valid_n[c], 1.0) + 1.0 / valid_n[j]))
+        if found_n[c] / max(valid_n[c], 1.0) - found_n[j] / valid_n[j] > SUBHARMONIC_Z * se:
+            break
+        lag0 = float(lags[j])
+    tol0 = TOL_SAMPLES + TOL_FRACTION * lag0
+    diff = times[None, :] - times[:, None]  # (k, k): t_j - t_i
     mult = np.round(diff / lag0)
-    matched = pairs & (mult >= 1) & (np.abs(diff - mult * lag0) <= np.maximum(1.5, 0.02 * mult * lag0))
+    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * lag0) <= TOL_SAMPLES + TOL_FRACTION * mult * lag0)
     periods = (diff / np.maximum(mult, 1))[matched]
     period = float(periods.mean()) if periods.size else float(lag0)
     scatter = float(periods.std()) if periods.size > 1 else tol0
     period_std = math.sqrt(scatter ** 2 + 1.0 / 12.0) / math.sqrt(max(periods.size, 1))
     rate = series.rate_hz / period
     phases = np.mod(times / period, 1.0)
-    return Periodicity(Estimate(rate, rate * period_std / period), float(score[i0]), int(k), phases,
+    moved = pos[None, :] - pos[:, None] - series.drift_bins_per_sample * diff
+    informative = (pos > 0.0) & (pos < series.per_bin.shape[1] - 1)
+    same_place = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[None, :] | ~informative[:, None]
+    score = float(np.sum(matched & same_place & (mult == 1))
+                  + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2)))
+    return Periodicity(Estimate(rate, rate * period_std / period), score, int(k), phases,
                        tol0 / period, par_db)
 
 
