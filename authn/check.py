@@ -15,7 +15,7 @@ import re
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -165,7 +165,7 @@ class Checker:
                                  "radial_velocity_mps": None, "gated": gate is not None, "used_cnn": False}
         if detected:
             with timer.stage("classify"):
-                pred = classifier.predict(feats.as_array(), getattr(feats, "rd_patch", None))
+                pred = classifier.predict(feats.as_array(), feats.rd_patch)
             radar.update(model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
                          range_m=round(float(feats.range_m), 3),
                          radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
@@ -268,19 +268,3 @@ class Checker:
                 o.audit_id = seq
                 o.timings_ms["audit"] = ms
         return ids
-
-
-def bad_input_types() -> tuple[type[BaseException], ...]:
-    from registry.errors import RegistryError
-    from signatures.errors import SignaturesError
-
-    return (SignaturesError, RegistryError, AuthnError)
-
-
-@dataclass
-class BatchItem:
-    path: Path
-    serial: str | None = None
-    outcome: Outcome | None = None
-    error: str | None = None
-    audit_id: int | None = field(default=None)

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import typer
 
+from authn.errors import bad_input_types
+
 app = typer.Typer(
     name="authn",
     help="Radar micro-Doppler + Remote ID identity authentication for UAVs.",
@@ -41,15 +43,6 @@ def _global_options(
     ctx.obj = CliState(db_url=db)
 
 
-def _bad_input_types() -> tuple[type[BaseException], ...]:
-    """Every package's root error: bad input, reported in one line with exit 2."""
-    from authn.errors import AuthnError
-    from registry.errors import RegistryError
-    from signatures.errors import SignaturesError
-
-    return (SignaturesError, RegistryError, AuthnError)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI and return the exit code (tests call this directly)."""
     try:
@@ -57,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
-    except _bad_input_types() as exc:
+    except bad_input_types() as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     return 0

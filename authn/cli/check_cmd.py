@@ -92,9 +92,10 @@ def check(
     directory, checks them in one process (models load once) with a progress
     bar and a summary table; the exit code is the worst one.
 
-    Example: authn check flight.h5 --serial 1581F5FJD2100123 --json
+    Example: authn check flight.h5 --serial 1581BDEM00000002 --json
     """
-    from authn.check import Checker, bad_input_types
+    from authn.check import Checker
+    from authn.errors import bad_input_types
 
     state = ctx.obj
     bad = bad_input_types()
@@ -120,7 +121,7 @@ def _record_failure(db_url, rows) -> None:
 
 
 def _single(checker, path: Path, serial: str | None, as_json: bool) -> None:
-    from authn.check import bad_input_types
+    from authn.errors import bad_input_types
 
     try:
         outcome = checker.evaluate(path, serial)
@@ -140,7 +141,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     from rich.progress import Progress
     from rich.table import Table
 
-    from authn.check import bad_input_types
+    from authn.errors import bad_input_types
 
     bad = bad_input_types()
     results: list = []
