@@ -57,6 +57,7 @@ class Row:
     correct: int
     radar_skipped: int
     median_ms: float
+    wrong_reasons: dict[str, int]  # reasons of the decisions that went the wrong way
 
     @property
     def rate(self) -> float:
@@ -90,6 +91,7 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
             for cat in CATEGORIES:
                 correct = skipped = 0
                 times = []
+                wrong: dict[str, int] = defaultdict(int)
                 for i in range(n):
                     flies = slugs[i % len(slugs)]
                     claims = flies
@@ -111,9 +113,11 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                     times.append((time.perf_counter() - t0) * 1e3)
                     correct += out.decision == EXPECTED[cat]
                     skipped += out.radar is None
+                    if out.decision != EXPECTED[cat]:
+                        wrong[",".join(out.reasons)] += 1
                     if progress:
                         progress(1)
-                rows.append(Row(preset, cat, n, correct, skipped, statistics.median(times)))
+                rows.append(Row(preset, cat, n, correct, skipped, statistics.median(times), dict(wrong)))
     return rows
 
 
@@ -158,5 +162,5 @@ def summarise(rows: list[Row]) -> dict[str, dict[str, dict[str, float]]]:
     out: dict[str, dict[str, dict[str, float]]] = defaultdict(dict)
     for r in rows:
         out[r.preset][r.category] = {"n": r.n, "correct_rate": r.rate, "radar_skipped_rate": r.radar_skipped / r.n,
-                                     "median_check_ms": round(r.median_ms, 2)}
+                                     "median_check_ms": round(r.median_ms, 2), "wrong_reasons": r.wrong_reasons}
     return dict(out)

@@ -30,6 +30,7 @@ GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Ha
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
 PATCH_FLOOR_DB = -60.0
 BODY_BINS = 3  # Doppler bins either side of the body line that count as "body"
+MOVING_LINE_BINS = 6  # a moving body line's peak-to-median exceeds n_chirps / this (see _features)
 PEAK_PROMINENCE_DB = 6.0  # a significant Doppler peak rises this much above its surroundings
 PEAK_ABOVE_NOISE_DB = 6.0  # ... and this much above the noise level
 PEAK_PROFILE_BANDS = 128  # Doppler profile pooled to at most this many bands for peak counting
@@ -199,11 +200,18 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
     n_chirps, n_bins = spectrum.shape
     bin_m = config.range_bin_m(n_bins)
     dop_bin_hz = config.prf_hz / n_chirps
-    lam = config.wavelength_m
+    lam = config.doppler_wavelength_m(n_bins)  # Doppler -> velocity at the sweep's mid frequency
     d = power.sum(axis=1)  # Doppler intensity profile over the gate (fftshifted)
     d_raw = raw_power.sum(axis=1)
     centre = n_chirps // 2  # index of zero Doppler after fftshift
-    body_idx, vel_std_bins = _body_line(d, d_raw, centre, suppressed and stationary > float(d.max()))
+    # Hovering when the removed zero-Doppler power beats the strongest remaining line AND
+    # no narrow moving line stands out of the micro-Doppler: strong clutter in the target's
+    # bin must not hide a moving body. A moving body line (about as strong as all blades
+    # together) sits in ~3 Doppler bins while the blades spread over more than half of them,
+    # so its peak-to-median exceeds n/6; a hovering airframe's blade comb stays below it.
+    contrast = float(d.max()) / max(float(np.median(d)), _TINY)
+    hovering = suppressed and stationary > float(d.max()) and contrast < n_chirps / MOVING_LINE_BINS
+    body_idx, vel_std_bins = _body_line(d, d_raw, centre, hovering)
     body_hz = (body_idx - centre) * dop_bin_hz
     velocity = body_hz * lam / 2.0
     vel_std = vel_std_bins * dop_bin_hz * lam / 2.0

@@ -12,7 +12,7 @@ Two tests, both fitted at training time and shipped as plain arrays (`openset.np
      simulator's per-rotor rate jitter (a single rotor's rate is off by up to 3 j), and the
      0.08 F floor the estimator's demonstrated accuracy on known airframes;
    * `wide` (tips not aliased): the line-of-sight tip speed cannot exceed the profile's
-     2 pi f_rot L (the projection only shrinks it): tip_est <= T (1 + 3 j) + z s_tip + 1 bin.
+     2 pi f_rot L (the projection only shrinks it): tip_est <= T (1 + 3 j) + max(z s_tip + 1 bin, 0.03 T).
      This test does not use the rate estimate at all.
 
    **Aliased preset: period slips.** When the blade tips alias (the `paper` preset) the
@@ -77,6 +77,9 @@ class PhysicsCheck:
     #: airframes (5 % for most returns, README "Estimator accuracy"): 8 % still separates
     #: profiles 20 % apart, the open-set design point.
     min_rel_tol: float = 0.08
+    #: Tip-speed upper bound slack: the spectral-edge estimate is ~2 % high on moving airframes
+    #: with a stated std far below that; 3 % still flags tips 20 % too fast.
+    min_rel_tip_tol: float = 0.03
     tip_bin_mps: float = 0.0
 
     def _col(self, X: np.ndarray, name: str) -> np.ndarray | None:
@@ -120,7 +123,8 @@ class PhysicsCheck:
             ts = np.zeros(n) if ts is None else ts
             run = (T > 0) & (alias < 0.5) & (tip > 0)
             checked |= run
-            bad |= run & (tip > T * (1 + 3 * self.jitter) + self.z * ts + self.tip_bin_mps)
+            slack = np.maximum(self.z * ts + self.tip_bin_mps, self.min_rel_tip_tol * T)
+            bad |= run & (tip > T * (1 + 3 * self.jitter) + slack)
         return bad, checked
 
 

@@ -144,8 +144,9 @@ def test_doppler_shift_moves_only_the_body(returns):
     ramp = np.exp(2j * math.pi * m * np.arange(n) / n)[:, None]
     a = extract_iq(rec.iq, rec.config, clutter_suppression=False).features
     b = extract_iq(rec.iq * ramp, rec.config, clutter_suppression=False).features
-    assert b.radial_velocity_mps - a.radial_velocity_mps == pytest.approx(
-        m * rec.config.doppler_bin_mps(n), abs=1e-3)
+    # one Doppler bin in m/s at the sweep's mid frequency (RadarConfig.doppler_wavelength_m)
+    bin_mps = rec.config.prf_hz / n * rec.config.doppler_wavelength_m(rec.n_samples) / 2
+    assert b.radial_velocity_mps - a.radial_velocity_mps == pytest.approx(m * bin_mps, abs=1e-3)
     for name in ("spectral_centroid_hz", "spectral_bandwidth_hz", "par_db", "energy_ratio", "entropy",
                  "std_doppler_mps", "num_peaks", "flash_rate_hz"):
         assert getattr(b, name) == pytest.approx(getattr(a, name), rel=RTOL, abs=1e-3), name
