@@ -326,20 +326,29 @@ def _count_peaks(d: np.ndarray, noise: float) -> int:
     with np.errstate(divide="ignore"):
         y = np.log(np.maximum(pooled, np.float32(_TINY))) * _DB
     floor = _db(noise * group) + PEAK_ABOVE_NOISE_DB
-    cand = [i for i in range(y.size) if y[i] >= floor
-            and (i == 0 or y[i] > y[i - 1]) and (i == y.size - 1 or y[i] >= y[i + 1])]
-    count = 0
-    for i in cand:
-        left = y[:i][::-1]
-        right = y[i + 1:]
-        bases = []
-        for side in (left, right):
-            higher = np.flatnonzero(side > y[i])
-            stop = int(higher[0]) if higher.size else side.size
-            bases.append(float(side[:stop].min()) if stop > 0 else float(y[i]))
-        if float(y[i]) - max(bases) >= PEAK_PROMINENCE_DB:
-            count += 1
-    return count
+    n = y.size
+    rise = np.ones(n, dtype=bool)
+    rise[1:] = y[1:] > y[:-1]
+    fall = np.ones(n, dtype=bool)
+    fall[:-1] = y[:-1] >= y[1:]
+    cand = np.flatnonzero((y >= floor) & rise & fall)
+    if cand.size == 0:
+        return 0
+    # prominence, vectorised over candidates (n <= PEAK_PROFILE_BANDS): the base on each side is
+    # the lowest point between the candidate and the nearest higher point (or the end)
+    idx = np.arange(n)
+    yc = y[cand][:, None]
+    higher = y[None, :] > yc
+    left, right = idx[None, :] < cand[:, None], idx[None, :] > cand[:, None]
+    last_left = np.where(higher & left, idx[None, :], -1).max(axis=1)
+    first_right = np.where(higher & right, idx[None, :], n).min(axis=1)
+    span_l = left & (idx[None, :] > last_left[:, None])
+    span_r = right & (idx[None, :] < first_right[:, None])
+    base_l = np.where(span_l, y[None, :], np.inf).min(axis=1)
+    base_r = np.where(span_r, y[None, :], np.inf).min(axis=1)
+    base_l = np.where(span_l.any(axis=1), base_l, y[cand])
+    base_r = np.where(span_r.any(axis=1), base_r, y[cand])
+    return int(np.count_nonzero(y[cand] - np.maximum(base_l, base_r) >= PEAK_PROMINENCE_DB))
 
 
 def _tip_speed(occupied: np.ndarray, rel_bins: np.ndarray, body_hz: float, config: RadarConfig,
