@@ -170,8 +170,11 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     else:
         table = Table(title=f"{len(paths)} returns: {sum(o.decision == 'accept' for o in outcomes)} accepted, "
                             f"{sum(o.decision == 'reject' for o in outcomes)} rejected, {len(errors)} bad input")
-        for col in ("file", "serial", "decision", "reasons", "radar", "ms"):
-            table.add_column(col)
+        for col in ("file", "serial", "decision"):
+            table.add_column(col, overflow="fold")
+        table.add_column("reasons", overflow="fold")
+        table.add_column("radar")
+        table.add_column("ms", justify="right")
         for r in results:
             if isinstance(r, tuple):
                 table.add_row(Path(r[0]).name, r[1] or "", "[yellow]error[/]", r[2], "", "")
