@@ -32,21 +32,21 @@ EXPECTED = {"genuine": "accept"} | {c: "reject" for c in CATEGORIES[1:]}
 VALID_FROM = datetime(2025, 1, 1, tzinfo=timezone.utc)
 
 
-def _serial(slug: str, revoked: bool = False) -> str:
+def bench_serial(slug: str, revoked: bool = False) -> str:
     return {"m600": "1581BBENCH00600", "m300": "1581BBENCH00300", "phantom4": "1581BBENCH00004"}[slug] \
         + ("R" if revoked else "A")
 
 
-def _register(db_url: str) -> None:
+def register_identities(db_url: str) -> None:
     from registry.db import session_scope
     from registry.store import NewIdentity, register_identity, revoke_identity
 
     with session_scope(db_url) as s:
         for slug in shipped_profiles():
             for revoked in (False, True):
-                register_identity(s, NewIdentity(serial=_serial(slug, revoked), model=slug, valid_from=VALID_FROM))
+                register_identity(s, NewIdentity(serial=bench_serial(slug, revoked), model=slug, valid_from=VALID_FROM))
                 if revoked:
-                    revoke_identity(s, _serial(slug, revoked), "bench")
+                    revoke_identity(s, bench_serial(slug, revoked), "bench")
 
 
 @dataclass
@@ -64,7 +64,7 @@ class Row:
         return self.correct / self.n if self.n else float("nan")
 
 
-def _scene(rng: np.random.Generator, slug: str, snr_range: tuple[float, float]) -> tuple[Scene, float]:
+def random_scene(rng: np.random.Generator, slug: str, snr_range: tuple[float, float]) -> tuple[Scene, float]:
     speed = 0.0 if rng.random() < 0.3 else float(rng.choice([-1, 1]) * rng.uniform(1.0, 15.0))
     scene = Scene(profile=shipped_profiles()[slug], range_m=float(rng.uniform(60.0, 1100.0)),
                   radial_speed_mps=speed, elevation_deg=float(rng.uniform(0.0, 40.0)),
@@ -82,7 +82,7 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
     rows: list[Row] = []
     with tempfile.TemporaryDirectory() as tmp:
         db = f"sqlite:///{Path(tmp) / 'bench.sqlite3'}"
-        _register(db)
+        register_identities(db)
         checker = Checker(db)
         now = datetime.now(timezone.utc)
         for preset in presets:
@@ -100,9 +100,9 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                         claims = slugs[(i + 1 + (i // 3) % 2) % len(slugs)]
                     if cat == "position_spoof":
                         offset = float(rng.choice([-1, 1]) * rng.uniform(100.0, 300.0))
-                    serial = {"unregistered": "1581BBENCH99999X", "revoked": _serial(claims, True)}.get(
-                        cat, _serial(claims))
-                    scene, az = _scene(rng, flies, snr_range)
+                    serial = {"unregistered": "1581BBENCH99999X", "revoked": bench_serial(claims, True)}.get(
+                        cat, bench_serial(claims))
+                    scene, az = random_scene(rng, flies, snr_range)
                     if offset < 0 and scene.range_m + offset < 30.0:
                         offset = -offset
                     rec, _ = simulate_flight(scene, pre, int(rng.integers(2**31)), Broadcast(serial=serial,
@@ -138,13 +138,13 @@ def latency(preset: str, n_batch: int, seed: int) -> dict[str, float]:
 
     with tempfile.TemporaryDirectory() as tmp:
         db = f"sqlite:///{Path(tmp) / 'lat.sqlite3'}"
-        _register(db)
+        register_identities(db)
         rng = np.random.default_rng(seed)
         pre = get_preset(preset)
         paths = []
         for i in range(n_batch):
-            scene, az = _scene(rng, "m300", (10.0, 30.0))
-            rec, _ = simulate_flight(scene, pre, i, Broadcast(serial=_serial("m300")), azimuth_deg=az,
+            scene, az = random_scene(rng, "m300", (10.0, 30.0))
+            rec, _ = simulate_flight(scene, pre, i, Broadcast(serial=bench_serial("m300")), azimuth_deg=az,
                                      start_time=datetime.now(timezone.utc))
             paths.append(write_recording(rec, Path(tmp) / f"s{i}.h5"))
         checker = Checker(db)
@@ -155,7 +155,7 @@ def latency(preset: str, n_batch: int, seed: int) -> dict[str, float]:
             checker.record([checker.evaluate(p)])
             per.append((time.perf_counter() - t0) * 1e3)
         return {"batch_ms_per_check": statistics.median(per),
-                "cold_process_ms": cold_check_ms(paths[0], _serial("m300"), db)}
+                "cold_process_ms": cold_check_ms(paths[0], bench_serial("m300"), db)}
 
 
 def summarise(rows: list[Row]) -> dict[str, dict[str, dict[str, float]]]:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from authn.bench import _register, _scene, _serial
+from authn.bench import bench_serial, random_scene, register_identities
 from authn.scenario import Broadcast, simulate_flight
 from signatures.radar import get_preset
 from signatures.recording import write_recording
@@ -61,7 +61,7 @@ def _files(tmp: Path, preset: str, n: int, seed: int, serial_for) -> list[Path]:
     out = []
     for i in range(n):
         slug = ("m600", "m300", "phantom4")[i % 3]
-        scene, az = _scene(rng, slug, (10.0, 30.0))
+        scene, az = random_scene(rng, slug, (10.0, 30.0))
         rec, _ = simulate_flight(scene, pre, i, Broadcast(serial=serial_for(i, slug)), azimuth_deg=az,
                                  start_time=now)
         out.append(write_recording(rec, tmp / f"{preset}-{i:04d}.h5"))
@@ -76,10 +76,10 @@ def _mixed_serial(i: int, slug: str) -> str:
     if kind == "unregistered":
         return "1581BBENCH99999X"
     if kind == "revoked":
-        return _serial(slug, revoked=True)
+        return bench_serial(slug, revoked=True)
     if kind == "type_spoof":
-        return _serial({"m600": "m300", "m300": "phantom4", "phantom4": "m600"}[slug])
-    return _serial(slug)
+        return bench_serial({"m600": "m300", "m300": "phantom4", "phantom4": "m600"}[slug])
+    return bench_serial(slug)
 
 
 def stage_table(preset: str, n: int, seed: int) -> dict[str, object]:
@@ -93,7 +93,7 @@ def stage_table(preset: str, n: int, seed: int) -> dict[str, object]:
 
     with tempfile.TemporaryDirectory() as tmp:
         db = f"sqlite:///{Path(tmp) / 'perf.sqlite3'}"
-        _register(db)
+        register_identities(db)
         files = _files(Path(tmp), preset, n, seed, _mixed_serial)
         checker = Checker(db)
         checker.record([checker.evaluate(files[0])])  # warm-up: models loaded once
@@ -159,8 +159,8 @@ def throughput(preset: str, n: int, seed: int) -> dict[str, float]:
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         db = f"sqlite:///{Path(tmp) / 'tp.sqlite3'}"
-        _register(db)
-        files = [str(f) for f in _files(Path(tmp), preset, n, seed, lambda i, slug: _serial(slug))]
+        register_identities(db)
+        files = [str(f) for f in _files(Path(tmp), preset, n, seed, lambda i, slug: bench_serial(slug))]
         ctx = mp.get_context("spawn")
         for workers in (1, 2):
             chunks = [files[i::workers] for i in range(workers)]
