@@ -16,7 +16,7 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -95,7 +95,7 @@ def read_claim(rec: Any, serial: str | None) -> Claim:
 
     msgs = flatten(decode_rows(rec.remote_id)) if rec.remote_id is not None else []
     basic = next((m for m in msgs if isinstance(m, BasicId) and m.uas_id), None)
-    mid = rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2)
+    mid = rec.mid_time
     states = [s for s in (DeclaredState.from_location(m, rec.start_time) for m in msgs
                           if isinstance(m, Location)) if s is not None]
     state = min(states, key=lambda s: abs((s.time - mid).total_seconds()) if s.time else 1e9, default=None)
@@ -181,7 +181,7 @@ class Checker:
             with timer.stage("kinematics"):
                 res = residuals(expected, claim.state, radar["range_m"], radar["radial_velocity_mps"],
                                 rec.config.range_bin_m(rec.n_samples), rec.config.doppler_bin_mps(rec.n_chirps),
-                                rec.config.doppler_wavelength_m(rec.n_samples) * rec.config.prf_hz / 4)
+                                rec.config.measured_unambiguous_velocity_mps(rec.n_samples))
             kin = {"expected_range_m": round(expected.range_m, 3),
                    "expected_radial_velocity_mps": None if expected.radial_velocity_mps is None
                    else round(expected.radial_velocity_mps, 4),
@@ -221,7 +221,7 @@ class Checker:
         resource = {"time_s": _epoch(rec.start_time), "preset": ""}
         with timer.stage("policy_registry"):
             early = self.policy.decide_without_evidence(claim.serial, principal, resource)
-        mid = rec.start_time + timedelta(seconds=rec.n_chirps * rec.config.pri_s / 2)
+        mid = rec.mid_time
         context = _skipped_context(claim, sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
                                                  mid, None))
         radar = kin = card = None

@@ -15,13 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from authn.bench import bench_serial, register_identities
 from authn.scenario import Broadcast, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import Recording, write_recording
 from signatures.scene import Scene
 
-SERIAL = "1581BSTRESS00001"
+SERIAL = bench_serial("m300")
 
 
 @dataclass
@@ -113,7 +114,7 @@ def run(presets: tuple[str, ...] = ("paper",), quick: bool = False, db_url: str 
     bad = bad_input_types()
     with tempfile.TemporaryDirectory() as tmp:
         db = db_url or f"sqlite:///{Path(tmp) / 'stress.sqlite3'}"
-        _register(db)
+        register_identities(db)
         checker = Checker(db)
         for preset in presets:
             reference: str | None = None
@@ -138,16 +139,6 @@ def run(presets: tuple[str, ...] = ("paper",), quick: bool = False, db_url: str 
                         report.scale_decision_changes.append(f"{label}: {decision} != {reference}")
             _nan_inf_refused(report, preset, checker, Path(tmp))
     return report
-
-
-def _register(db: str) -> None:
-    from registry.db import session_scope
-    from registry.store import NewIdentity, get_identity, register_identity
-
-    with session_scope(db) as s:
-        if get_identity(s, SERIAL) is None:
-            register_identity(s, NewIdentity(serial=SERIAL, model="m300",
-                                             valid_from=datetime(2025, 1, 1, tzinfo=timezone.utc)))
 
 
 def _nan_inf_refused(report: StressReport, preset: str, checker, tmp: Path) -> None:

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile, utcnow
-from registry.serials import ID_TYPES, validate_uas_id
+from registry.serials import validate_uas_id
 from signatures.profiles import UavProfile
 
 CSV_COLUMNS = ("serial", "id_type", "model", "operator_id", "valid_from", "valid_until", "notes")

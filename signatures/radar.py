@@ -7,7 +7,6 @@ bin lambda/(2*N*PRI). No signal processing.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -87,9 +86,12 @@ class RadarConfig(BaseModel):
         With n_samples the fold uses the Doppler wavelength of `doppler_wavelength_m`,
         which is what the processing measures.
         """
-        lam = self.wavelength_m if n_samples is None else self.doppler_wavelength_m(n_samples)
-        vu = lam * self.prf_hz / 4.0
+        vu = self.unambiguous_velocity_mps if n_samples is None else self.measured_unambiguous_velocity_mps(n_samples)
         return (v_mps + vu) % (2.0 * vu) - vu
+
+    def measured_unambiguous_velocity_mps(self, n_samples: int) -> float:
+        """lambda_D * PRF / 4 with the Doppler wavelength the processing measures with."""
+        return self.doppler_wavelength_m(n_samples) * self.prf_hz / 4.0
 
     def tip_doppler_hz(self, profile: UavProfile) -> float:
         """Maximum blade-tip micro-Doppler 2*v_tip/lambda (rotor plane seen edge-on)."""

@@ -10,7 +10,7 @@ import io
 import math
 import zipfile
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +58,11 @@ class Recording:
         return int(self.iq.shape[0])
 
     @property
+    def mid_time(self) -> datetime:
+        """Time of the middle of the dwell (Remote ID messages are matched to it)."""
+        return self.start_time + timedelta(seconds=self.n_chirps * self.config.pri_s / 2)
+
+    @property
     def n_samples(self) -> int:
         return int(self.iq.shape[1])
 
@@ -91,11 +96,12 @@ def _float_attr(attrs: dict[str, Any], name: str, default: float | None = None) 
 
 
 def _pydantic_error(exc: ValidationError) -> RecordingError:
+    """One line naming the attribute (the model-level check is the pri_s >= ramp_s rule)."""
     err = exc.errors()[0]
-    field = str(err["loc"][0]) if err["loc"] else "pri_s"
     msg = err["msg"].removeprefix("Value error, ")
-    return RecordingError(f"attribute '{field}': {msg} (got {err.get('input')!r})"
-                          if err["loc"] else f"attribute '{field}': {msg}")
+    if not err["loc"]:
+        return RecordingError(f"attribute 'pri_s': {msg}")
+    return RecordingError(f"attribute '{err['loc'][0]}': {msg} (got {err.get('input')!r})")
 
 
 def _metadata(attrs: dict[str, Any]) -> tuple[RadarConfig, RadarSite, datetime]:
