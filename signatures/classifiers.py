@@ -15,7 +15,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from sklearn.base import ClassifierMixin
 from sklearn.calibration import CalibratedClassifierCV
 from sklearn.ensemble import RandomForestClassifier, VotingClassifier
 from sklearn.frozen import FrozenEstimator
@@ -123,9 +122,37 @@ def knn_arrays(model: Pipeline, n_classes: int) -> dict[str, np.ndarray]:
             "n_classes": np.array(n_classes)}
 
 
-def fit_state_heads(X: np.ndarray, moving: np.ndarray, seed: int) -> dict[str, ClassifierMixin]:
-    """Second head: hovering (0) / moving (1), RF and SVM, trained on UAV returns only
-    (the kNN head was never used at inference: its ONNX graph alone cost ~10 ms)."""
-    y = moving.astype(np.int64)
-    heads = {"rf": make_rf(seed, n_estimators=50), "svm": make_svm(seed)}
-    return {n: _fit(h, X, y) for n, h in heads.items()}
+def forest_arrays(model: Pipeline | RandomForestClassifier, n_classes: int) -> dict[str, np.ndarray]:
+    """A fitted Random Forest as plain arrays (`rf.npz`): every tree's nodes in one table.
+
+    Evaluated in numpy (`signatures.inference.ForestArrays`): a cold check then never
+    imports onnxruntime (~25 ms) nor opens its sessions (~9 ms each). Leaf values are
+    class fractions in `n_classes` columns (classes the forest never saw stay 0).
+    """
+    forest = model.steps[-1][1] if hasattr(model, "steps") else model
+    feature, threshold, left, right, value, roots = [], [], [], [], [], []
+    offset = 0
+    for est in forest.estimators_:
+        t = est.tree_
+        leaf = t.children_left < 0
+        roots.append(offset)
+        feature.append(np.where(leaf, 0, t.feature))
+        threshold.append(np.where(leaf, 0.0, t.threshold))
+        left.append(np.where(leaf, np.arange(t.node_count), t.children_left) + offset)
+        right.append(np.where(leaf, np.arange(t.node_count), t.children_right) + offset)
+        v = t.value[:, 0, :]
+        frac = np.zeros((t.node_count, n_classes))
+        frac[:, forest.classes_.astype(np.int64)] = v / np.maximum(v.sum(axis=1, keepdims=True), 1e-300)
+        value.append(frac)
+        offset += t.node_count
+    return {"feature": np.concatenate(feature).astype(np.int32),
+            "threshold": np.concatenate(threshold).astype(np.float64),
+            "left": np.concatenate(left).astype(np.int32), "right": np.concatenate(right).astype(np.int32),
+            "value": np.concatenate(value).astype(np.float32), "roots": np.array(roots, dtype=np.int32),
+            "depth": np.array(max(e.tree_.max_depth for e in forest.estimators_))}
+
+
+def fit_state_head(X: np.ndarray, moving: np.ndarray, seed: int) -> Pipeline:
+    """Second head: hovering (0) / moving (1), a 50-tree RF on UAV returns only (shipped as
+    `rf_state.npz`; the SVM head it once averaged with needed onnxruntime on every check)."""
+    return _fit(make_rf(seed, n_estimators=50), X, moving.astype(np.int64))

@@ -24,6 +24,7 @@ from signatures import rd
 from signatures import timefreq as tf
 from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
+from signatures.stats import median
 
 FEATURE_VERSION = "1"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
@@ -155,7 +156,7 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
     dop = rd.doppler_spectrum(slow)
     power = _power(dop)
     raw_power, stationary = _unsuppressed(prep.iq, dop, power, gate) if clutter_suppression else (power, 0.0)
-    noise_bin = float(np.median(profile))  # mean noise power per chirp in one range bin
+    noise_bin = float(median(profile))  # mean noise power per chirp in one range bin
     noise_doppler = max(noise_bin * n_chirps * float(np.mean(rd.hann(n_chirps) ** 2)), _TINY)
     return _features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
                      noise_doppler, clutter_suppression, stationary)
@@ -173,7 +174,7 @@ def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
     n = iq.shape[0]
     mu = rd.range_fft(iq.mean(axis=0, keepdims=True), suppress_clutter=False)[0]
     mu2 = mu.real ** 2 + mu.imag ** 2
-    excess = float(np.sum(np.maximum(mu2[gate[0]:gate[1]] - np.median(mu2), 0.0))) * n * n
+    excess = float(np.sum(np.maximum(mu2[gate[0]:gate[1]] - median(mu2), 0.0))) * n * n
     mu = mu[gate[0]:gate[1]]
     out = power.copy()
     c = n // 2
@@ -209,7 +210,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
     # bin must not hide a moving body. A moving body line (about as strong as all blades
     # together) sits in ~3 Doppler bins while the blades spread over more than half of them,
     # so its peak-to-median exceeds n/6; a hovering airframe's blade comb stays below it.
-    contrast = float(d.max()) / max(float(np.median(d)), _TINY)
+    contrast = float(d.max()) / max(float(median(d)), _TINY)
     hovering = suppressed and stationary > float(d.max()) and contrast < n_chirps / MOVING_LINE_BINS
     body_idx, vel_std_bins = _body_line(d, d_raw, centre, hovering)
     body_hz = (body_idx - centre) * dop_bin_hz
@@ -304,7 +305,7 @@ def _body_line(d: np.ndarray, d_raw: np.ndarray, centre: int, hovering: bool) ->
         k = lo + int(np.argmax(d_raw[lo:hi]))
         src = d_raw
     frac = rd._interp_peak(src, k)
-    line_snr = float(src[k]) / max(float(np.median(src)), _TINY)
+    line_snr = float(src[k]) / max(float(median(src)), _TINY)
     return frac, 0.05 + 1.0 / math.sqrt(max(line_snr, 1.0))
 
 

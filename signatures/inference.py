@@ -1,9 +1,9 @@
 """Run a shipped model bundle: onnxruntime + numpy only (no scikit-learn, no torch).
 
-`load_classifier(preset)` verifies the bundle's digests against its card, opens one
-onnxruntime session per ONNX file (RF, SVM, state heads, CNN), loads the kNN's arrays
-(`knn.npz`: evaluated in numpy, ~0.05 ms instead of ~14 ms for skl2onnx's kNN graph) and
-keeps the result for the process (batch mode reuses it). `Classifier.predict` turns one
+`load_classifier(preset)` verifies the bundle's digests against its card and keeps the
+result for the process (batch mode reuses it). The kNN (`knn.npz`) and the Random
+Forests (`rf.npz`, `rf_state.npz`) are plain arrays evaluated in numpy, so the usual
+check never imports onnxruntime; the SVM and the CNN are ONNX files, opened on first use. `Classifier.predict` turns one
 feature vector (and optionally the RD patch) into a `Prediction`: calibrated soft-vote of
 kNN + RF + SVM, the CNN only when the ensemble is unsure (cascade), then open-set
 rejection (physical consistency with the predicted profile, see `signatures.openset`).
@@ -71,6 +71,41 @@ class KnnArrays:
         return out.astype(np.float32)
 
 
+class ForestArrays:
+    """Random Forest vote from `rf.npz` (what RandomForestClassifier.predict_proba computes).
+
+    All trees advance one level per step for all rows at once; leaves point to themselves,
+    so `depth` steps land every row on its leaf in every tree.
+    """
+
+    def __init__(self, path: Path) -> None:
+        with np.load(path, allow_pickle=False) as z:
+            self.feature = z["feature"].astype(np.intp)
+            self.threshold = z["threshold"].astype(np.float64)
+            self.left = z["left"].astype(np.intp)
+            self.right = z["right"].astype(np.intp)
+            self.value = z["value"].astype(np.float32)
+            self.roots = z["roots"].astype(np.intp)
+            self.depth = int(z["depth"])
+        n = len(self.feature)
+        if not (len(self.threshold) == len(self.left) == len(self.right) == len(self.value) == n) or n == 0 \
+                or min(self.left.min(), self.right.min(), self.roots.min()) < 0 \
+                or max(self.left.max(), self.right.max(), self.roots.max()) >= n:
+            raise SignaturesError(f"{path}: inconsistent tree arrays")
+
+    def proba(self, X: np.ndarray) -> np.ndarray:
+        # scikit-learn compares float32 features with float64 thresholds
+        Z = np.asarray(X, dtype=np.float32).astype(np.float64)
+        if self.feature.max() >= Z.shape[1]:
+            raise SignaturesError(f"forest uses feature {self.feature.max()}, the vector has {Z.shape[1]}")
+        rows = np.arange(len(Z))[:, None]
+        node = np.broadcast_to(self.roots, (len(Z), len(self.roots)))
+        for _ in range(self.depth):
+            go_left = Z[rows, self.feature[node]] <= self.threshold[node]
+            node = np.where(go_left, self.left[node], self.right[node])
+        return self.value[node].mean(axis=1)
+
+
 def _calibrate(p: np.ndarray, beta: float) -> np.ndarray:
     z = beta * np.log(p + 1e-12)
     z -= z.max(axis=1, keepdims=True)
@@ -107,10 +142,11 @@ class Classifier:
         self._uav = np.array([k not in NON_UAV_CLASSES for k in self.classes])
 
     def _model(self, name: str) -> Any:
-        """kNN arrays (`name.npz`) or an onnxruntime session (`name.onnx`), opened once."""
+        """kNN or forest arrays (`name.npz`) or an onnxruntime session (`name.onnx`), opened once."""
         if name not in self._loaded:
             if f"{name}.npz" in self._files:
-                self._loaded[name] = KnnArrays(self.folder / f"{name}.npz")
+                arrays = KnnArrays if name == "knn" else ForestArrays
+                self._loaded[name] = arrays(self.folder / f"{name}.npz")
             else:
                 import onnxruntime as ort
 
@@ -134,7 +170,7 @@ class Classifier:
         """Probabilities of one member model ('knn', 'rf', 'svm'), columns in `classes` order."""
         m = self._model(name)
         Xc = self._x(X)[:, self._cols]
-        if isinstance(m, KnnArrays):
+        if isinstance(m, (KnnArrays, ForestArrays)):
             return m.proba(Xc)
         return m.run(["probabilities"], {"X": Xc})[0]
 
@@ -163,11 +199,9 @@ class Classifier:
                 p[used] = 0.5 * (p[used] + self.cnn_proba(rd[used]))
         return p, used
 
-    def moving_proba(self, X: np.ndarray, heads: tuple[str, ...] = ("rf", "svm")) -> np.ndarray:
-        """P(moving): mean of the operational-state heads (RF and SVM)."""
-        Xf = self._x(X)
-        heads = tuple(h for h in heads if f"{h}_state.onnx" in self._files)
-        return sum(self._model(f"{h}_state").run(["probabilities"], {"X": Xf})[0][:, 1] for h in heads) / len(heads)
+    def moving_proba(self, X: np.ndarray) -> np.ndarray:
+        """P(moving) from the operational-state head."""
+        return self._model("rf_state").proba(self._x(X))[:, 1]
 
     def unknown_mask(self, X: np.ndarray, pred: np.ndarray, mode: str | None = None) -> np.ndarray:
         """Open-set rejection of full feature vectors given their predicted class indices."""

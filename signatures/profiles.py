@@ -23,7 +23,7 @@ UNKNOWN = "unknown"
 class UavProfile(BaseModel):
     """Physical parameters of a multirotor airframe (SPEC section 4)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", defer_build=True)
 
     slug: str = Field(pattern=r"^[a-z0-9][a-z0-9_-]{0,31}$")
     name: str = Field(min_length=1, max_length=100)

@@ -16,6 +16,7 @@ import numpy as np
 from signatures import fft as _fft
 from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
+from signatures.stats import median
 
 #: Per-range-cell false-alarm probability the CFAR threshold is designed for.
 CFAR_PFA = 1e-6
@@ -107,10 +108,10 @@ def _cfar_factor(n_looks: int, n_train: int, pfa: float) -> float:
     n = float(max(n_looks, 1))
     digamma = math.log(n) - 1.0 / (2 * n) - 1.0 / (12 * n * n)
     trigamma = 1.0 / n + 1.0 / (2 * n * n) + 1.0 / (6 * n ** 3)
-    median = n - 1.0 / 3.0 + 0.02 / n
+    gamma_median = n - 1.0 / 3.0 + 0.02 / n
     z = _norm_isf(pfa)
     var = trigamma * (1.0 + math.pi / (2.0 * max(n_train, 1)))
-    return math.exp(digamma - math.log(median) + z * math.sqrt(var))
+    return math.exp(digamma - math.log(gamma_median) + z * math.sqrt(var))
 
 
 def _norm_isf(p: float) -> float:
@@ -139,7 +140,7 @@ def cfar(profile: np.ndarray, n_looks: int, pfa: float = CFAR_PFA, guard: int = 
     period = max(2 * n - 2, 1)
     idx = np.mod(idx, period)
     idx = np.where(idx >= n, period - idx, idx)  # reflect
-    noise = np.median(profile[idx], axis=1).astype(np.float32)
+    noise = median(profile[idx], axis=1).astype(np.float32)
     factor = np.float32(_cfar_factor(n_looks, offsets.size, pfa))
     threshold = noise * factor
     hits = (profile > threshold) & (profile > _TINY)

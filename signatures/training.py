@@ -107,7 +107,7 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     weights = clf.vote_weights(members, Xv, yv)
     ensemble = clf.calibrated_ensemble(members, Xv, yv, weights)
     uav = np.isin(train.y, [p.slug for p in cfg.profiles])
-    heads = clf.fit_state_heads(train.X[uav], train.moving[uav], cfg.seed)
+    state_head = clf.fit_state_head(train.X[uav], train.moving[uav], cfg.seed)
     pre = get_preset(cfg.preset)
     jitter = float(Scene.model_fields["rotor_rate_jitter"].default)
     tip_bin = 299_792_458.0 / pre.config.carrier_hz / 2 / (pre.config.pri_s * pre.n_chirps)
@@ -118,18 +118,13 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     tmp = Path(tempfile.mkdtemp(prefix=f".{cfg.preset}-", dir=out.parent if out.parent.exists() else None))
     try:
         files = []
-        for name, model in members.items():
-            if name == "knn":  # numpy arrays, not ONNX: see classifiers.knn_arrays
-                np.savez(tmp / "knn.npz", **clf.knn_arrays(model, n_cls))
-                files.append("knn.npz")
-                continue
-            sklearn_to_onnx(model, n_feat, tmp / f"{name}.onnx")
-            files.append(f"{name}.onnx")
-        export_err = {n: round(check_export(m, tmp / f"{n}.onnx", Xv), 6) for n, m in members.items()
-                      if n != "knn"}
-        for name, model in heads.items():
-            sklearn_to_onnx(model, n_all, tmp / f"{name}_state.onnx")
-            files.append(f"{name}_state.onnx")
+        # kNN and forests as numpy arrays (classifiers.knn_arrays / forest_arrays), the SVM as ONNX
+        np.savez(tmp / "knn.npz", **clf.knn_arrays(members["knn"], n_cls))
+        np.savez(tmp / "rf.npz", **clf.forest_arrays(members["rf"], n_cls))
+        np.savez(tmp / "rf_state.npz", **clf.forest_arrays(state_head, 2))
+        sklearn_to_onnx(members["svm"], n_feat, tmp / "svm.onnx")
+        files += ["knn.npz", "rf.npz", "rf_state.npz", "svm.onnx"]
+        export_err = {"svm": round(check_export(members["svm"], tmp / "svm.onnx", Xv), 6)}
         pred_val = ensemble.predict(Xv)
         openset = fit_openset(train.X, y, n_cls, val.X, yv, pred_val, cfg.openset_quantile,
                               class_cols=np.array(cols, dtype=np.int64), physics=phys, mode=cfg.openset_mode)
@@ -159,7 +154,8 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                               "(scaler, standardised training set, labels), evaluated in numpy",
                        "rf": "RandomForestClassifier(100 trees, min_samples_leaf=2)",
                        "svm": "StandardScaler + OneVsRest(SVC(rbf, C=10, gamma=scale, Platt))",
-                       "state_heads": "RF (50 trees) and SVM on hovering/moving, UAV returns only"},
+                       "state_head": "RandomForestClassifier(50 trees, min_samples_leaf=2) on hovering/moving, "
+                                     "UAV returns only; shipped as rf_state.npz"},
             "ensemble": {"members": list(members), "voting": "soft, weights chosen on validation data",
                          "weights": weights,
                          "temperature_beta": round(clf.temperature_beta(ensemble), 9)},
@@ -186,6 +182,13 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         p_ens = model.ensemble_proba(val.X)
         metrics = {m: _acc_f1(yv, model.member_proba(m, val.X).argmax(axis=1), n_cls) for m in clf.MEMBERS}
         metrics["ensemble"] = _acc_f1(yv, p_ens.argmax(axis=1), n_cls)
+        uav_v = np.isin(val.y, [p.slug for p in cfg.profiles])
+        metrics["state_accuracy"] = round(float(np.mean((model.moving_proba(val.X[uav_v]) >= 0.5)
+                                                        == val.moving[uav_v])), 6)
+        metrics["forest_max_abs_error"] = round(max(  # numpy forests vs scikit-learn
+            float(np.max(np.abs(members["rf"].predict_proba(Xv) - model.member_proba("rf", val.X)))),
+            float(np.max(np.abs(state_head.predict_proba(val.X[uav_v])[:, 1] - model.moving_proba(val.X[uav_v]))))),
+            6)
         if model.has_cnn:
             p_cnn = model.cnn_proba(val.rd)
             card["cascade"]["threshold"] = choose_cascade_threshold(p_ens, p_cnn, yv)

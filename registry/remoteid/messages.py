@@ -34,7 +34,8 @@ def _ascii(max_len: int):
 
 
 class _Message(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid", ser_json_bytes="hex", val_json_bytes="hex")
+    model_config = ConfigDict(frozen=True, extra="forbid", ser_json_bytes="hex", val_json_bytes="hex",
+                              defer_build=True)  # a check builds only the types it meets
 
     protocol_version: Version = 2
 

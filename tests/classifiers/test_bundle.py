@@ -1,4 +1,4 @@
-"""Bundles: ONNX + model card, digest check, reproducible training, sklearn-free inference."""
+"""Bundles: numpy arrays + ONNX + model card, digest check, reproducible training, sklearn-free inference."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def test_card_lists_every_file_with_its_digest(tiny_bundle: Path) -> None:
     assert not any(p.suffix in (".pkl", ".joblib", ".pickle") for p in tiny_bundle.iterdir())
 
 
-@pytest.mark.parametrize("victim", ["rf.onnx", "openset.npz", "card.json"])
+@pytest.mark.parametrize("victim", ["rf.npz", "svm.onnx", "openset.npz", "card.json"])
 def test_tampered_bundle_is_refused(tiny_bundle: Path, tmp_path: Path, victim: str) -> None:
     bad = tmp_path / "bad"
     shutil.copytree(tiny_bundle, bad)
@@ -90,6 +90,29 @@ def test_cascade_runs_cnn_only_below_threshold(tiny_bundle: Path) -> None:
         assert not none_used.any()
     finally:
         clf.cascade_threshold = saved
+
+
+def test_numpy_forests_match_scikit_learn(tiny_bundle: Path) -> None:
+    metrics = read_card(tiny_bundle)[0]["metrics"]["validation"]
+    assert metrics["forest_max_abs_error"] < 1e-6  # rf.npz / rf_state.npz vs predict_proba on validation
+    assert 0.5 < metrics["state_accuracy"] <= 1.0
+
+
+def test_forest_arrays_against_scikit_learn_on_random_data(tmp_path: Path) -> None:
+    from sklearn.ensemble import RandomForestClassifier
+
+    from signatures.classifiers import forest_arrays
+    from signatures.inference import ForestArrays
+
+    rng = np.random.default_rng(1)
+    X = rng.normal(size=(400, 6)).astype(np.float32)
+    y = (X[:, 0] + X[:, 1] ** 2 > 0.5).astype(int) + 2 * (X[:, 2] > 1.0)  # classes 0, 1, 2, 3
+    rf = RandomForestClassifier(n_estimators=20, random_state=0).fit(X, y)
+    np.savez(tmp_path / "rf.npz", **forest_arrays(rf, 5))  # one class never seen: column of zeros
+    Xt = rng.normal(size=(300, 6)).astype(np.float32) * 3
+    p = ForestArrays(tmp_path / "rf.npz").proba(Xt)
+    np.testing.assert_allclose(p[:, :4], rf.predict_proba(Xt), atol=1e-6)
+    assert np.all(p[:, 4] == 0)
 
 
 def test_training_is_reproducible(tiny_bundle: Path, tmp_path: Path, cache_dir: Path) -> None:

@@ -29,3 +29,17 @@ def test_shipped_bundle_classifies_fresh_returns(preset: str) -> None:
                   workers=1, cache=False)
     labels = [clf.predict(x, rd).label for x, rd in zip(ds.X, ds.rd)]
     assert np.mean(np.array(labels) == ds.y) >= 0.8
+
+
+@pytest.mark.parametrize("preset", ["paper", "wide"])
+def test_shipped_ensemble_path_needs_no_onnxruntime(preset: str) -> None:
+    """kNN and forests are numpy arrays; the shipped ensembles give the SVM no weight, so a check
+    whose ensemble is sure (no CNN) never imports onnxruntime (~25 ms + ~9 ms per session)."""
+    import subprocess
+    import sys
+
+    assert load_classifier(preset).weights[2] == 0.0
+    code = ("import sys, numpy as np; from signatures.inference import load_classifier; "
+            f"c = load_classifier({preset!r}); c.predict(np.zeros(c.n_features)); "
+            "assert 'onnxruntime' not in sys.modules, 'onnxruntime imported'")
+    subprocess.run([sys.executable, "-c", code], check=True)
