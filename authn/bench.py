@@ -30,6 +30,7 @@ from signatures.scene import Scene
 CATEGORIES = ("genuine", "type_spoof", "position_spoof", "unregistered", "revoked")
 EXPECTED = {"genuine": "accept"} | {c: "reject" for c in CATEGORIES[1:]}
 VALID_FROM = datetime(2025, 1, 1, tzinfo=timezone.utc)
+UNREGISTERED = "1581BBENCH99999X"
 
 
 def bench_serial(slug: str, revoked: bool = False) -> str:
@@ -100,7 +101,7 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                         claims = slugs[(i + 1 + (i // 3) % 2) % len(slugs)]
                     if cat == "position_spoof":
                         offset = float(rng.choice([-1, 1]) * rng.uniform(100.0, 300.0))
-                    serial = {"unregistered": "1581BBENCH99999X", "revoked": bench_serial(claims, True)}.get(
+                    serial = {"unregistered": UNREGISTERED, "revoked": bench_serial(claims, True)}.get(
                         cat, bench_serial(claims))
                     scene, az = random_scene(rng, flies, snr_range)
                     if offset < 0 and scene.range_m + offset < 30.0:
@@ -121,19 +122,63 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
     return rows
 
 
-def cold_check_ms(path: Path, serial: str, db_url: str, repeats: int = 5) -> float:
-    """Median wall time of a whole `authn check` process (interpreter start included)."""
-    times = []
+def ensure_bytecode() -> None:
+    """Compile our packages' bytecode, as `pip install` does for a regular install.
+
+    An editable install run with PYTHONDONTWRITEBYTECODE=1 (this project's machines) would
+    otherwise recompile every module of ours in every process: ~40 ms of a cold check.
+    """
+    import compileall
+    import importlib.util
+
+    for pkg in ("authn", "signatures", "registry", "migrations"):
+        spec = importlib.util.find_spec(pkg)
+        if spec is not None and spec.submodule_search_locations:
+            for folder in spec.submodule_search_locations:
+                compileall.compile_dir(folder, quiet=1)
+
+
+_FIRST_CHECK = """
+import json, sys, time
+from authn.check import Checker
+checker = Checker(sys.argv[1])
+t0 = time.perf_counter()
+checker.record([checker.evaluate(sys.argv[2], sys.argv[3])])
+print(json.dumps((time.perf_counter() - t0) * 1e3))
+"""
+
+
+def _run_ms(args: list[str]) -> float:
+    t0 = time.perf_counter()
+    subprocess.run(args, capture_output=True, check=False)
+    return (time.perf_counter() - t0) * 1e3
+
+
+def cold_times(path: Path, serial: str, db_url: str, repeats: int = 5) -> dict[str, float]:
+    """Fresh processes, interleaved so they share the machine's state: `python -c 'import numpy'`,
+    a whole `authn check` (genuine claim, radar run) and a registry-only rejection (unregistered
+    serial), medians; plus each check's own time in a fresh process after start-up (imports of
+    `authn.check` and the policy load excluded; loading the radar modules and models included)."""
+    ensure_bytecode()
+    check = [sys.executable, "-m", "authn", "--db", db_url, "check", str(path), "--json", "--serial"]
+    first = [sys.executable, "-c", _FIRST_CHECK, db_url, str(path)]
+    runs: dict[str, list[float]] = defaultdict(list)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "authn", "--db", db_url, "check", str(path), "--serial", serial,
-                        "--json"], capture_output=True, check=False)
-        times.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(times)
+        runs["import_numpy_ms"].append(_run_ms([sys.executable, "-c", "import numpy"]))
+        runs["cold_process_ms"].append(_run_ms(check + [serial]))
+        runs["cold_registry_only_ms"].append(_run_ms(check + [UNREGISTERED]))
+        for key, who in (("first_check_ms", serial), ("first_registry_only_ms", UNREGISTERED)):
+            out = subprocess.run(first + [who], capture_output=True, text=True, check=True)
+            runs[key].append(float(out.stdout.strip().splitlines()[-1]))
+    med = {k: statistics.median(v) for k, v in runs.items()}
+    med["cold_vs_import_numpy"] = med["cold_process_ms"] / med["import_numpy_ms"]
+    med["first_registry_only_vs_full"] = med["first_registry_only_ms"] / med["first_check_ms"]
+    return med
 
 
-def latency(preset: str, n_batch: int, seed: int) -> dict[str, float]:
-    """Cold-process check vs one check inside batch mode (models loaded once), genuine claims."""
+def latency(preset: str, n_batch: int, seed: int, repeats: int = 5) -> dict[str, float]:
+    """Cold processes (see `cold_times`) and one check inside batch mode (models loaded once),
+    genuine claims."""
     from authn.check import Checker
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -155,7 +200,7 @@ def latency(preset: str, n_batch: int, seed: int) -> dict[str, float]:
             checker.record([checker.evaluate(p)])
             per.append((time.perf_counter() - t0) * 1e3)
         return {"batch_ms_per_check": statistics.median(per),
-                "cold_process_ms": cold_check_ms(paths[0], bench_serial("m300"), db)}
+                **cold_times(paths[0], bench_serial("m300"), db, repeats)}
 
 
 def summarise(rows: list[Row]) -> dict[str, dict[str, dict[str, float]]]:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from authn.bench import bench_serial, random_scene, register_identities
+from authn.bench import UNREGISTERED, bench_serial, random_scene, register_identities
 from authn.scenario import Broadcast, simulate_flight
 from signatures.radar import get_preset
 from signatures.recording import write_recording
@@ -74,7 +74,7 @@ MIX = ("genuine", "genuine", "genuine", "type_spoof", "position_spoof", "unregis
 def _mixed_serial(i: int, slug: str) -> str:
     kind = MIX[i % len(MIX)]
     if kind == "unregistered":
-        return "1581BBENCH99999X"
+        return UNREGISTERED
     if kind == "revoked":
         return bench_serial(slug, revoked=True)
     if kind == "type_spoof":

@@ -36,7 +36,7 @@ def train(
     out: Path | None = typer.Option(None, "--out", help="Bundle folder (default: the shipped bundle of the preset)."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Simulation worker processes."),
 ) -> None:
-    """Simulate, train and export a model bundle (ONNX files + model card).
+    """Simulate, train and export a model bundle (numpy arrays, ONNX files, model card).
 
     Example: authn models train --preset paper --cnn
     """

@@ -22,3 +22,24 @@ def test_pareto_front_marks_only_undominated_points() -> None:
            Point("dominated", 6.0, {0.0: 0.9, 10.0: 0.9}, 0.0)]
     _mark_front(pts, snrs)
     assert [p.pareto for p in pts] == [True, True, False]
+
+
+def test_cold_times_run_real_processes(tmp_path) -> None:
+    """One round of the cold-start measurement: every process runs to the end (a failing
+    first-check script raises), and the ratios are computed from the medians."""
+    from datetime import datetime, timezone
+
+    from authn.bench import bench_serial, cold_times, register_identities, random_scene
+    from authn.scenario import Broadcast, simulate_flight
+    import numpy as np
+    from signatures.radar import get_preset
+    from signatures.recording import write_recording
+
+    db = f"sqlite:///{tmp_path / 'cold.sqlite3'}"
+    register_identities(db)
+    scene, az = random_scene(np.random.default_rng(0), "m300", (20.0, 20.0))
+    rec, _ = simulate_flight(scene, get_preset("paper"), 0, Broadcast(serial=bench_serial("m300")), azimuth_deg=az,
+                             start_time=datetime.now(timezone.utc))
+    t = cold_times(write_recording(rec, tmp_path / "r.h5"), bench_serial("m300"), db, repeats=1)
+    assert all(v > 0 and np.isfinite(v) for v in t.values())
+    assert t["cold_vs_import_numpy"] == t["cold_process_ms"] / t["import_numpy_ms"]
