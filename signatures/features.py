@@ -89,6 +89,10 @@ class Features:
 
 
 FEATURE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Features))
+#: What `quick=True` computes (the rest stay 0): the paper's 11 and the gate's physics that need
+#: no slow-time estimator, no STFT and no CNN patch. Same values as the full extraction.
+QUICK_FEATURES: tuple[str, ...] = FEATURE_NAMES[:15] + ("tip_speed_mps", "tip_speed_std_mps", "tip_aliased",
+                                                         "doppler_occupancy", "snr_db", "detected")
 
 
 @dataclass(frozen=True)
@@ -114,20 +118,24 @@ class FeatureResult:
 
 
 def extract(recording, expected_range_m: float | None = None, gate_bins: int = GATE_BINS,
-            clutter_suppression: bool = True) -> FeatureResult:
+            clutter_suppression: bool = True, quick: bool = False) -> FeatureResult:
     """Features of a `Recording` (see `extract_iq`)."""
-    return extract_iq(recording.iq, recording.config, expected_range_m, gate_bins, clutter_suppression)
+    return extract_iq(recording.iq, recording.config, expected_range_m, gate_bins, clutter_suppression,
+                      quick=quick)
 
 
 def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | None = None,
                gate_bins: int = GATE_BINS, clutter_suppression: bool = True,
-               full_cube: bool = False) -> FeatureResult:
+               full_cube: bool = False, quick: bool = False) -> FeatureResult:
     """Features of a bare cube (chirps x samples, any numeric dtype).
 
     `expected_range_m` (range at the dwell, e.g. from Remote ID) centres the gate
     there and counts only a detection within it; it must lie inside the recorded
     window. `full_cube=True` runs the slow-time work on every range bin first
-    (the ungated baseline of the benchmark; same numbers, more work).
+    (the ungated baseline of the benchmark; same numbers, more work). `quick=True`
+    computes only `QUICK_FEATURES` (no flash estimator, cadence or CNN patch: a fast
+    configuration of the run-time-versus-error benchmark); the others are 0 and the
+    patch is empty.
     """
     if gate_bins < 1:
         raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
@@ -159,7 +167,7 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
     noise_bin = float(median(profile))  # mean noise power per chirp in one range bin
     noise_doppler = max(noise_bin * n_chirps * float(np.mean(rd.hann(n_chirps) ** 2)), _TINY)
     return _features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
-                     noise_doppler, clutter_suppression, stationary)
+                     noise_doppler, clutter_suppression, stationary, quick)
 
 
 def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
@@ -197,7 +205,7 @@ def _window(centre: int, size: int, n: int) -> tuple[int, int]:
 def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, profile: np.ndarray,
               det: rd.Detection, gate: tuple[int, int], slow: np.ndarray, power: np.ndarray,
               raw_power: np.ndarray, noise_doppler: float, suppressed: bool,
-              stationary: float) -> FeatureResult:
+              stationary: float, quick: bool = False) -> FeatureResult:
     n_chirps, n_bins = spectrum.shape
     bin_m = config.range_bin_m(n_bins)
     dop_bin_hz = config.prf_hz / n_chirps
@@ -245,17 +253,29 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
         plogp = np.where(q > 0, q * np.log(np.maximum(q, np.float32(_TINY))), np.float32(0.0))
     entropy = -float(plogp.sum()) / math.log(max(q.size, 2))
 
-    # --- blade flashes, rotors, tip speed ----------------------------------------
+    # --- tip speed, blade flashes, rotors ----------------------------------------
+    noise_gate = noise_doppler * (gate[1] - gate[0])
+    occupied = _smooth(d, max(1, n_chirps // 256)) > np.float32(noise_gate * 10 ** (OCCUPANCY_DB / 10))
+    occupancy = float(occupied.mean())
+    tip, tip_std, aliased = _tip_speed(occupied, rel_bins, body_hz, config, dop_bin_hz)
+    values = dict(
+        mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
+        std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
+        spectral_centroid_hz=sc, spectral_bandwidth_hz=sb, peak_amplitude_db=peak_db,
+        num_peaks=float(n_peaks), energy_ratio=energy_ratio, entropy=entropy,
+        range_m=range_mid - velocity * dwell / 2.0, range_std_m=range_std,
+        radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
+        tip_speed_mps=tip, tip_speed_std_mps=tip_std, tip_aliased=float(aliased), doppler_occupancy=occupancy,
+        snr_db=max(det.snr_db, -100.0), detected=float(det.detected))
+    if quick:
+        feats = Features(**{n: values.get(n, 0.0) for n in FEATURE_NAMES})
+        return FeatureResult(det.detected, feats, np.zeros(PATCH_SHAPE, np.float32), gate)
     centre_cols = slice(max(0, det.peak_bin - 1 - gate[0]), min(gate[1] - gate[0], det.peak_bin + 2 - gate[0]))
     series = est.flash_series(slow[:, centre_cols], config, body_hz, bin_m)
     per = est.periodicity(series)
     rotors = est.rotor_count(per)
     flash = per.flash_rate
     rotor = est.Estimate(flash.value / est.BLADES_ASSUMED, flash.std / est.BLADES_ASSUMED)
-    noise_gate = noise_doppler * (gate[1] - gate[0])
-    occupied = _smooth(d, max(1, n_chirps // 256)) > np.float32(noise_gate * 10 ** (OCCUPANCY_DB / 10))
-    occupancy = float(occupied.mean())
-    tip, tip_std, aliased = _tip_speed(occupied, rel_bins, body_hz, config, dop_bin_hz)
     blade = est.Estimate(0.0, 0.0)
     if rotor.value > 0 and tip > 0 and not aliased:  # a lower-bound tip gives no length
         length = tip / (2 * math.pi * rotor.value)
@@ -267,20 +287,11 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
     cad_peak, cad_ratio = _cadence_features(cad, flash.value)
 
     feats = Features(
-        mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
-        std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
-        spectral_centroid_hz=sc, spectral_bandwidth_hz=sb, peak_amplitude_db=peak_db,
-        num_peaks=float(n_peaks), energy_ratio=energy_ratio, entropy=entropy,
-        range_m=range_mid - velocity * dwell / 2.0, range_std_m=range_std,
-        radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
-        flash_rate_hz=flash.value, flash_rate_std_hz=flash.std,
+        **values, flash_rate_hz=flash.value, flash_rate_std_hz=flash.std,
         rotor_rate_hz=rotor.value, rotor_rate_std_hz=rotor.std,
-        rotor_count=rotors.value, rotor_count_std=rotors.std,
-        tip_speed_mps=tip, tip_speed_std_mps=tip_std, blade_length_m=blade.value,
-        blade_length_std_m=blade.std, tip_aliased=float(aliased),
-        flash_score=per.score, flash_count=float(per.n_events), flash_par_db=per.flash_par_db,
-        doppler_occupancy=occupancy, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio,
-        snr_db=max(det.snr_db, -100.0), detected=float(det.detected))
+        rotor_count=rotors.value, rotor_count_std=rotors.std, blade_length_m=blade.value,
+        blade_length_std_m=blade.std, flash_score=per.score, flash_count=float(per.n_events),
+        flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
     patch = _patch(spectrum, config, det.peak_bin, body_idx)
     return FeatureResult(det.detected, feats, patch, gate)
 

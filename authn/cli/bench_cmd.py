@@ -62,7 +62,8 @@ def bench(
         stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in preset}
         floor = {p: perf.fft_floor(p) for p in preset}
         progress.update(task, description="run time against error")
-        grid = {p: pareto.run(p, per_class=4 if quick else 25, seed=seed) for p in preset}
+        grid = {p: pareto.run(p, per_class=4 if quick else 25, seed=seed, n_train=300 if quick else 3000)
+                for p in preset}
         progress.update(task, description="timing imports and throughput")
         imports = perf.import_costs(1 if quick else 3)
         tput = {p: perf.throughput(p, 20 if quick else 100, seed) for p in preset}

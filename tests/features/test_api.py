@@ -62,3 +62,14 @@ def test_bad_cubes_are_specific_errors():
             extract_iq(bad, cfg)
     with pytest.raises(SignaturesError, match="gate_bins"):
         extract_iq(np.ones((8, 8), np.complex64), cfg, gate_bins=0)
+
+
+def test_quick_tier_computes_its_subset_exactly(returns):
+    from signatures.features import QUICK_FEATURES
+
+    idx = [FEATURE_NAMES.index(n) for n in QUICK_FEATURES]
+    rest = [i for i in range(len(FEATURE_NAMES)) if i not in idx]
+    for rec in returns.values():
+        full, quick = extract(rec).as_array(), extract(rec, quick=True)
+        np.testing.assert_array_equal(quick.as_array()[idx], full[idx])
+        assert not quick.as_array()[rest].any() and not quick.rd_patch.any()
