@@ -118,15 +118,15 @@ class FeatureResult:
 
 
 def extract(recording, expected_range_m: float | None = None, gate_bins: int = GATE_BINS,
-            clutter_suppression: bool = True, quick: bool = False) -> FeatureResult:
+            clutter_suppression: bool = True, quick: bool = False, float64: bool = False) -> FeatureResult:
     """Features of a `Recording` (see `extract_iq`)."""
     return extract_iq(recording.iq, recording.config, expected_range_m, gate_bins, clutter_suppression,
-                      quick=quick)
+                      quick=quick, float64=float64)
 
 
 def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | None = None,
                gate_bins: int = GATE_BINS, clutter_suppression: bool = True,
-               full_cube: bool = False, quick: bool = False) -> FeatureResult:
+               full_cube: bool = False, quick: bool = False, float64: bool = False) -> FeatureResult:
     """Features of a bare cube (chirps x samples, any numeric dtype).
 
     `expected_range_m` (range at the dwell, e.g. from Remote ID) centres the gate
@@ -135,11 +135,12 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
     (the ungated baseline of the benchmark; same numbers, more work). `quick=True`
     computes only `QUICK_FEATURES` (no flash estimator, cadence or CNN patch: a fast
     configuration of the run-time-versus-error benchmark); the others are 0 and the
-    patch is empty.
+    patch is empty. `float64=True` runs every array stage in float64/complex128: the
+    reference the float32 default is measured against (`authn bench --stress`).
     """
     if gate_bins < 1:
         raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
-    prep = rd.prepare(iq)
+    prep = rd.prepare(iq, float64)
     n_chirps, n_bins = prep.iq.shape
     bin_m = config.range_bin_m(n_bins)
     within = None
@@ -193,7 +194,7 @@ def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
 
 
 def _power(z: np.ndarray) -> np.ndarray:
-    return (z.real ** 2 + z.imag ** 2).astype(np.float32, copy=False)
+    return z.real ** 2 + z.imag ** 2
 
 
 def _window(centre: int, size: int, n: int) -> tuple[int, int]:
@@ -231,7 +232,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
 
     # --- Doppler axis relative to the body (circular), in Hz --------------------
     rel_bins = np.mod(np.arange(n_chirps) - body_idx + n_chirps // 2, n_chirps) - n_chirps // 2
-    rel_hz = (rel_bins * dop_bin_hz).astype(np.float32)
+    rel_hz = (rel_bins * dop_bin_hz).astype(d.dtype)
     total = max(float(d.sum()), _TINY)
     q_d = d / np.float32(total)
     q_r = power.sum(axis=0) / np.float32(total)
@@ -323,8 +324,8 @@ def _body_line(d: np.ndarray, d_raw: np.ndarray, centre: int, hovering: bool) ->
 def _smooth(x: np.ndarray, half: int) -> np.ndarray:
     if half < 1:
         return x
-    k = np.ones(2 * half + 1, dtype=np.float32) / np.float32(2 * half + 1)
-    return np.convolve(np.concatenate([x[-half:], x, x[:half]]), k, mode="valid").astype(np.float32)
+    k = np.full(2 * half + 1, 1.0 / (2 * half + 1), dtype=x.dtype)
+    return np.convolve(np.concatenate([x[-half:], x, x[:half]]), k, mode="valid").astype(x.dtype, copy=False)
 
 
 def _count_peaks(d: np.ndarray, noise: float) -> int:

@@ -53,7 +53,8 @@ def _workspace(key: str, shape: tuple[int, ...]) -> np.ndarray:
 
 def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
         inverse: bool = False) -> np.ndarray:
-    """(I)FFT of complex `x` along `axis`, optionally windowed first; complex64 result.
+    """(I)FFT of complex `x` along `axis`, optionally windowed first; complex64 result
+    (complex128 for complex128 input: the float64 reference pipeline).
 
     `window` broadcasts against `x` (e.g. shape (n,) for the last axis or (n, 1)
     for axis 0). The result is a new array; the workspaces never escape.
@@ -61,11 +62,12 @@ def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
     if _state["backend"] == "scipy":
         import scipy.fft as sfft
 
-        data = np.asarray(x, dtype=np.complex64)
+        out = np.complex128 if np.asarray(x).dtype == np.complex128 else np.complex64
+        data = np.asarray(x, dtype=out)
         if window is not None:
-            data = data * window.astype(np.float32, copy=False)
+            data = data * window.astype(data.real.dtype, copy=False)
         f = sfft.ifft if inverse else sfft.fft
-        return f(data, axis=axis, workers=-1).astype(np.complex64, copy=False)
+        return f(data, axis=axis, workers=-1).astype(out, copy=False)
     src = _workspace("in", x.shape)
     if window is None:
         src[...] = x
@@ -73,4 +75,4 @@ def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
         np.multiply(x, window, out=src)
     dst = _workspace("out", x.shape)
     (np.fft.ifft if inverse else np.fft.fft)(src, axis=axis, out=dst)
-    return dst.astype(np.complex64)
+    return dst.astype(np.complex128 if x.dtype == np.complex128 else np.complex64)

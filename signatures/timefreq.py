@@ -50,7 +50,7 @@ def spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int,
         x = np.concatenate([x, np.zeros((win - x.shape[0], x.shape[1]), x.dtype)])
     frames = sliding_window_view(x, win, axis=0)[::hop]  # (n_frames, bins, win)
     spec = _fft.fft(frames, axis=-1, window=hann(win))
-    cell = (spec.real ** 2 + spec.imag ** 2).astype(np.float32, copy=False)  # (frames, bins, win)
+    cell = spec.real ** 2 + spec.imag ** 2  # (frames, bins, win)
     if per_column:
         power = np.fft.fftshift(cell.transpose(0, 2, 1), axes=1)
     else:
@@ -86,6 +86,6 @@ def cadence(spec: Spectrogram) -> Cadence:
     """CVD of a spectrogram. Periodic blade flashes give lines at multiples of the flash
     rate whatever the Doppler does, so it survives blade-tip aliasing."""
     p = spec.power - spec.power.mean(axis=0, keepdims=True)
-    mag = np.abs(np.fft.rfft(p, axis=0)).astype(np.float32)
+    mag = np.abs(np.fft.rfft(p, axis=0)).astype(p.dtype, copy=False)
     step = float(spec.time_s[1] - spec.time_s[0]) if spec.time_s.size > 1 else 1.0
     return Cadence(mag, np.fft.rfftfreq(p.shape[0], d=step), spec.doppler_hz)

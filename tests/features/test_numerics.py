@@ -103,6 +103,23 @@ def test_float32_and_float64_inputs_agree(returns, seed, rel):
 
 
 @SETTINGS
+@given(which=st.sampled_from(["m300_moving", "m600_hover", "bird", "none"]),
+       log10_factor=st.floats(-20, 20))
+def test_float32_pipeline_agrees_with_float64_pipeline(returns, which, log10_factor):
+    """The default float32 pipeline against every stage in float64 (`float64=True`), on the
+    same scaled cube: continuous features within RTOL, and the float64 path really is wider
+    (its arrays differ from float32 round-off somewhere)."""
+    rec = returns[which]
+    iq = rec.iq.astype(np.complex128) * 10.0 ** log10_factor
+    single = extract_iq(iq, rec.config)
+    double = extract_iq(iq, rec.config, float64=True)
+    _close(double.as_array(), single.as_array(), skip=(PA,))
+    assert abs(double.features.peak_amplitude_db - single.features.peak_amplitude_db) < 1e-3
+    assert rd.prepare(iq, float64=True).iq.dtype == np.complex128
+    assert rd.range_profile(rd.range_fft(rd.prepare(iq, float64=True).iq)).dtype == np.float64
+
+
+@SETTINGS
 @given(seed=st.integers(0, 2**16))
 def test_range_profile_ignores_chirp_order(returns, seed):
     """The range profile and CFAR detection depend on the set of chirps, not their order."""
