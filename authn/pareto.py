@@ -28,7 +28,8 @@ from signatures.radar import get_preset
 from signatures.scene import BirdParams, Scene
 from signatures.simulate import simulate
 
-#: (name, feature mode, classifier) ; feature modes: gated at the known range, CFAR-detected, full cube
+#: (name, feature mode, classifier) ; feature modes: gated at the known range, CFAR-detected, full cube,
+#: gated with every stage in float64
 CONFIGS = (
     ("gated + ensemble (default)", "gated", "ensemble"),
     ("gated + RF", "gated", "rf"),
@@ -38,6 +39,7 @@ CONFIGS = (
     ("gated + cascade (CNN always)", "gated", "cascade-always"),
     ("CFAR-detected + ensemble", "detect", "ensemble"),
     ("full cube + ensemble", "full", "ensemble"),
+    ("gated, float64 features + ensemble", "gated64", "ensemble"),
 )
 
 
@@ -124,12 +126,13 @@ def run(preset: str, snrs: tuple[float, ...] = (0.0, 10.0, 20.0), per_class: int
     data = list(_scenes(preset, snrs, per_class, seed))
     feats: dict[str, list] = {}
     ftime: dict[str, float] = {}
-    for mode in ("gated", "detect", "full"):
+    for mode in ("gated", "detect", "full", "gated64"):
         rows, times = [], []
         for _, label, rec, truth in data:
             gate = _gate_of(label, rec, truth)
             t0 = time.perf_counter()
-            fr = extract(rec, expected_range_m=gate if mode == "gated" else None)
+            fr = extract(rec, expected_range_m=gate if mode in ("gated", "gated64") else None,
+                         float64=mode == "gated64")
             if mode == "full":
                 from signatures.features import extract_iq
 
