@@ -1,11 +1,11 @@
 """`authn check`: gather evidence for one claim, decide with Cedar, record in the audit log.
 
 Stages run in the order that lets cheap facts decide first:
-read -> remote_id -> registry -> policy on registry facts alone (partial evaluation)
+read -> remote_id -> registry -> policy with the radar not run
 -> [radar: features at the expected range, classifier, kinematics] -> policy -> audit.
-When the registry facts already force a rejection the radar stages are skipped and
-listed in `skipped`; the final decision always comes from a complete
-`is_authorized` call over the evidence gathered.
+When the registry facts already force a rejection (a satisfied forbid policy that reads
+no context, see `authn.policy`) the radar stages are skipped and listed in `skipped`;
+the decision always comes from a complete `is_authorized` call over the evidence gathered.
 """
 
 from __future__ import annotations
@@ -219,14 +219,14 @@ class Checker:
             identity = self.db.identity(claim.serial)
             principal = registry_facts(identity)
         resource = {"time_s": _epoch(rec.start_time), "preset": ""}
-        with timer.stage("policy_registry"):
-            early = self.policy.decide_without_evidence(claim.serial, principal, resource)
         mid = rec.mid_time
         context = _skipped_context(claim, sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
                                                  mid, None))
+        with timer.stage("policy_registry"):
+            result = self.policy.decide_without_evidence(claim.serial, principal, resource, context)
         radar = kin = card = None
         skipped = list(RADAR_STAGES)
-        if early is None:
+        if result is None:
             from signatures.inference import match_preset
 
             resource["preset"] = match_preset(rec.config, rec.n_chirps, rec.n_samples)
@@ -236,8 +236,8 @@ class Checker:
             context["remote_id_issues"] = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
                                                  mid, rotorcraft)
             skipped = [s for s in RADAR_STAGES if s not in timer.ms]
-        with timer.stage("policy"):
-            result = self.policy.decide(claim.serial, principal, resource, context)
+            with timer.stage("policy"):
+                result = self.policy.decide(claim.serial, principal, resource, context)
         return Outcome(
             file=file, decision=result.decision, reasons=result.reasons,
             claim={"serial": claim.serial, "source": claim.source, "remote_id_serial": claim.rid_serial},

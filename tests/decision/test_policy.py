@@ -15,6 +15,10 @@ SITE = dict(time_s=T_NOW, preset="paper")
 GOOD = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300", radar_known=True,
             radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120, range_tolerance_cm=850,
             velocity_residual_cmps=40, velocity_tolerance_cmps=170, remote_id_present=True, remote_id_issues=[])
+#: What the check knows before the radar runs (authn.check._skipped_context).
+NO_RADAR = {**GOOD, "radar_run": False, "target_detected": False, "radar_model": "", "radar_known": False,
+            "radar_confidence_bp": 0, "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
+            "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0}
 
 CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
     "accept": ({}, {}, {}, "accept", ["registered-active"]),
@@ -68,12 +72,28 @@ def test_golden_decision(engine: PolicyEngine, name: str) -> None:
     (dict(valid_until_s=T_NOW - 1), ["outside-validity-window"]),
 ])
 def test_registry_facts_decide_without_evidence(engine: PolicyEngine, principal: dict, reasons: list[str]) -> None:
-    result = engine.decide_without_evidence("S1", {**ACTIVE, **principal}, SITE)
+    result = engine.decide_without_evidence("S1", {**ACTIVE, **principal}, SITE, NO_RADAR)
     assert result is not None and result.decision == "reject" and result.reasons == reasons
+    # final whatever the radar says: the same registry facts with the best evidence still reject
+    assert engine.decide("S1", {**ACTIVE, **principal}, SITE, GOOD).decision == "reject"
 
 
 def test_active_identity_needs_the_evidence(engine: PolicyEngine) -> None:
-    assert engine.decide_without_evidence("S1", ACTIVE, SITE) is None
+    assert engine.decide_without_evidence("S1", ACTIVE, SITE, NO_RADAR) is None
+
+
+def test_only_forbids_that_never_read_context_are_context_free(tmp_path: Path) -> None:
+    text = ('@id("ctx")\nforbid (principal, action, resource) when { context.radar_run };\n'
+            '@id("reg")\nforbid (principal, action, resource) when { principal.status == "revoked" };\n'
+            '@id("ok")\npermit (principal, action, resource);\n')
+    f = tmp_path / "p.cedar"
+    f.write_text(text)
+    custom = PolicyEngine.load(f)
+    assert len(custom.context_free_forbids) == 1
+    revoked = {**ACTIVE, "status": "revoked"}
+    assert custom.decide_without_evidence("S1", revoked, SITE, NO_RADAR).reasons == ["reg"]
+    # a satisfied forbid that reads context is not final: the radar must run
+    assert custom.decide_without_evidence("S1", ACTIVE, SITE, {**NO_RADAR, "radar_run": True}) is None
 
 
 def test_policy_file_replaces_default(tmp_path: Path) -> None:
