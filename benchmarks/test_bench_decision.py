@@ -35,8 +35,11 @@ def test_policy_decision(benchmark, engine: PolicyEngine) -> None:
     assert benchmark(engine.decide, "S1", PRINCIPAL, SITE, CONTEXT).decision == "accept"
 
 
-def test_policy_partial_evaluation(benchmark, engine: PolicyEngine) -> None:
-    assert benchmark(engine.decide_without_evidence, "S1", {**PRINCIPAL, "status": "revoked"}, SITE) is not None
+def test_policy_early_rejection(benchmark, engine: PolicyEngine) -> None:
+    no_radar = {**CONTEXT, "radar_run": False, "target_detected": False, "radar_model": "", "radar_known": False,
+                "radar_confidence_bp": 0, "has_kinematics": False}
+    result = benchmark(engine.decide_without_evidence, "S1", {**PRINCIPAL, "status": "revoked"}, SITE, no_radar)
+    assert result is not None and result.reasons == ["revoked"]
 
 
 def test_audit_append_one_transaction(benchmark, tmp_path: Path) -> None:
