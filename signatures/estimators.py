@@ -19,6 +19,16 @@ weighted by energy: in the `paper` preset a two-blade flash (main lobe ~20 us)
 sampled once per 44 us PRI varies by up to ~20 dB with where it falls between
 chirps, and energy-weighted autocorrelations then lock onto the few strongest
 flashes of different rotors (inter-rotor lags).
+
+Coherent partner checks: the flashes of one rotor come from the same hub, so they
+share its complex range profile and, a period later, its carrier phase up to the
+sign of the sinc (the body Doppler is removed; wobble moves the hub little within a
+period). Projecting the target bins on an event's own profile and keeping the part
+in phase with it finds that rotor's weaker flashes below the energy threshold, while
+another rotor's flash (another hub range, a random phase) mostly fails it. These
+checks re-rank the best candidate periods of the event vote and decide whether half
+the chosen period is the period (in `paper` a flash one period later is often sampled
+between chirps and missed, so twice the period can win the event vote).
 """
 
 from __future__ import annotations
@@ -71,6 +81,20 @@ EVENT_RADIUS = 2
 SKIRT_REACH = 12
 SKIRT_DB = -13.0
 BLADES_ASSUMED = 2
+#: Coherent partner check: a partner is found where the target bins' power along the
+#: event's range profile and in phase with it (1 degree of freedom) exceeds this many
+#: noise levels (false-hit share ~1 %, measured per series as the chance share).
+COHERENT_LEVEL = 6.0
+#: The best RERANK_N candidate lags of the event vote are re-scored by
+#: vote + RERANK_WEIGHT x share x coherent log-likelihood ratio.
+RERANK_N = 6
+RERANK_WEIGHT = 0.5
+#: Half the lag replaces it when its coherent partner checks favour "found as often as at
+#: the lag" over chance by this log-likelihood ratio.
+HALF_LLR = 1.0
+#: The lag's found share is capped at this for that test (a lag found everywhere would
+#: otherwise make one miss at the half decisive).
+HALF_SHARE_CAP = 0.98
 
 
 @dataclass(frozen=True)
@@ -89,6 +113,8 @@ class FlashSeries:
     radius: int  # samples either side a flash can spread over
     drift_bins_per_sample: float  # body range migration (bins per series sample)
     threshold: float = 0.0  # detection level subtracted from the energy (median + NOISE_MADS MAD)
+    field: np.ndarray | None = None  # complex64 (chirps, bins): high-passed, body-demodulated bins
+    decimation: int = 1  # chirps per series sample
 
 
 def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
@@ -123,7 +149,7 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     level = _noise_level(e)
     above = np.maximum(e - level, 0.0)
     drift = body_hz * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
-    return FlashSeries(above, eb, config.prf_hz / dec, EVENT_RADIUS, drift, level)
+    return FlashSeries(above, eb, config.prf_hz / dec, EVENT_RADIUS, drift, level, z, dec)
 
 
 def _noise_level(e: np.ndarray) -> float:
@@ -239,6 +265,113 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     return np.where(share > chance, llr * share, 0.0), found_n, valid_n
 
 
+@dataclass(frozen=True)
+class _Coherent:
+    """Coherent partner hits of each event (see `_coherent`)."""
+
+    counts: np.ndarray  # (k, n + 1) cumulative count of hits along the series, per event
+    share: float  # share of series samples (away from the events themselves) that hit
+
+
+def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
+    """Per event and series sample: is there a flash with the event's range profile and
+    carrier phase (up to a sign)? The power of the target bins projected on the event's own
+    complex profile, real part only (in phase), over its median-based noise level, above
+    COHERENT_LEVEL (max over a decimation block)."""
+    if series.field is None or times.size == 0:
+        return None
+    n = series.energy.size
+    dec = max(1, series.decimation)
+    field = series.field[:n * dec]
+    n_bins = field.shape[1]
+    if field.shape[0] < n * dec:
+        return None
+    rows = np.clip(np.round(times).astype(int), 0, n - 1) * dec
+    if dec > 1:
+        block = field.reshape(n, dec, n_bins)[rows // dec]
+        rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=2), axis=1)
+    u = field[rows]
+    norm = np.sqrt((u.real ** 2 + u.imag ** 2).sum(axis=1, keepdims=True))
+    u = u / np.maximum(norm, np.float32(1e-30))
+    power = np.square((u.conj() @ field.T).real, dtype=np.float64)  # (k, n * dec)
+    if dec > 1:
+        power = power.reshape(power.shape[0], n, dec).max(axis=2)
+    noise = np.median(power, axis=1, keepdims=True) / 0.455  # chi-square 1 dof: median = 0.455 mean
+    hit = power > COHERENT_LEVEL * np.maximum(noise, 1e-300)
+    ti = np.clip(np.round(times).astype(int), 0, n - 1)
+    own = np.abs(np.arange(n)[None, :] - ti[:, None]) <= 2
+    share = float(np.count_nonzero(hit & ~own)) / max(float(np.count_nonzero(~own)), 1.0)
+    counts = np.zeros((times.size, n + 1), np.int32)
+    np.cumsum(hit, axis=1, out=counts[:, 1:])
+    return _Coherent(counts, share)
+
+
+def _coherent_llr(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lag: float,
+                  n: int, share: float | None = None) -> tuple[float, float, float]:
+    """Coherent partner checks at +-lag: (log-likelihood ratio, found share, weighted checks).
+
+    A check is an event whose window t +- lag (TOL_SAMPLES + TOL_FRACTION lag) lies inside
+    the dwell; it succeeds when the window holds a coherent hit. The chance of a hit is the
+    series' hit share over the window. The LLR is binomial: found share `share` (default: the
+    observed one) against chance; 0 where the share does not exceed chance.
+    """
+    tol = TOL_SAMPLES + TOL_FRACTION * lag
+    w = int(math.floor(tol + 0.5))
+    chance = min(max(1.0 - (1.0 - coh.share) ** (2 * w + 1), 1e-3), 0.999)
+    k = times.size
+    ev = np.arange(k)
+    found = made = 0.0
+    for sign in (1.0, -1.0):
+        target = times + sign * lag
+        ok = (target >= tol) & (target <= n - 1 - tol)
+        centre = np.round(target).astype(int)
+        lo = np.clip(centre - w, 0, n)
+        hi = np.clip(centre + w + 1, 0, n)
+        hit = coh.counts[ev, hi] > coh.counts[ev, lo]
+        made += float(weight[ok].sum())
+        found += float(weight[ok & hit].sum())
+    if made <= 0.0:
+        return 0.0, 0.0, 0.0
+    observed = found / made
+    s = min(max(observed if share is None else share, 1e-9), 1.0 - 1e-9)
+    if s <= chance:
+        return 0.0, observed, made
+    llr = found * math.log(s / chance) + (made - found) * math.log((1.0 - s) / (1.0 - chance))
+    return llr, observed, made
+
+
+def _rerank(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
+            vote: np.ndarray, lag0: float, n: int) -> float:
+    """The best of the RERANK_N strongest distinct lags of the vote by vote + RERANK_WEIGHT x
+    share x coherent LLR (the vote's own best keeps its plateau centre lag0)."""
+    cands: list[int] = []
+    for j in np.argsort(-vote, kind="stable").tolist():
+        if vote[j] <= 0.0 or len(cands) >= RERANK_N:
+            break
+        if all(abs(lags[j] - lags[c]) > TOL_SAMPLES + TOL_FRACTION * lags[j] for c in cands):
+            cands.append(j)
+    best, best_score = lag0, -math.inf
+    for rank, j in enumerate(cands):
+        llr, share, _ = _coherent_llr(coh, times, weight, float(lags[j]), n)
+        score = float(vote[j]) + RERANK_WEIGHT * share * llr
+        if score > best_score:
+            best, best_score = (lag0 if rank == 0 else float(lags[j])), score
+    return best
+
+
+def _half_is_period(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lag: float,
+                    n: int) -> bool:
+    """Do the coherent checks at lag/2 succeed about as often as at lag (binomial LLR of the
+    lag's share against chance above HALF_LLR)? A true half period repeats as reliably as
+    twice it; another rotor half a period away mostly fails the phase and profile test."""
+    _, s0, made0 = _coherent_llr(coh, times, weight, lag, n)
+    if made0 <= 0.0:
+        return False
+    llr, found_share, made = _coherent_llr(coh, times, weight, lag / 2.0, n,
+                                           share=min(s0, HALF_SHARE_CAP))
+    return found_share * made >= 1.0 and llr > HALF_LLR
+
+
 def periodicity(series: FlashSeries) -> Periodicity:
     """Flash period from flash events (module docstring).
 
@@ -283,19 +416,13 @@ def periodicity(series: FlashSeries) -> Periodicity:
     while i1 + 1 < lags.size and vote[i1 + 1] == best:
         i1 += 1
     lag0 = 0.5 * (lags[i0] + lags[i1])
-    while lag0 / 2.0 >= lags[0]:
-        sel = np.flatnonzero(np.abs(lags - lag0 / 2.0) <= TOL_SAMPLES + TOL_FRACTION * lag0 / 2.0)
-        if sel.size == 0:
-            break
-        j = int(sel[np.argmax(vote[sel])])
-        if found_n[j] < SUBHARMONIC_MIN_FOUND or found_n[j] < SUBHARMONIC_SHARE * valid_n[j]:
-            break
-        c = int(np.argmin(np.abs(lags - lag0)))
-        pooled = (found_n[c] + found_n[j]) / max(valid_n[c] + valid_n[j], 1.0)
-        se = math.sqrt(max(pooled * (1.0 - pooled), 1e-12) * (1.0 / max(valid_n[c], 1.0) + 1.0 / valid_n[j]))
-        if found_n[c] / max(valid_n[c], 1.0) - found_n[j] / valid_n[j] > SUBHARMONIC_Z * se:
-            break
-        lag0 = float(lags[j])
+    coh = _coherent(series, times)
+    if coh is not None:
+        lag0 = _rerank(coh, times, weight, lags, vote, lag0, n)
+        while lag0 / 2.0 >= lags[0] and _half_is_period(coh, times, weight, lag0, n):
+            lag0 /= 2.0
+    else:
+        lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
     tol0 = TOL_SAMPLES + TOL_FRACTION * lag0
     diff = times[None, :] - times[:, None]  # (k, k): t_j - t_i
     mult = np.round(diff / lag0)
@@ -313,6 +440,27 @@ def periodicity(series: FlashSeries) -> Periodicity:
                   + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2)))
     return Periodicity(Estimate(rate, rate * period_std / period), score, int(k), phases,
                        tol0 / period, par_db)
+
+
+def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, valid_n: np.ndarray,
+                     lag0: float) -> float:
+    """Halving by event checks alone (no complex field): the half replaces the lag while at
+    least SUBHARMONIC_SHARE (and SUBHARMONIC_MIN_FOUND) of its checks find a partner and its
+    share is not significantly (SUBHARMONIC_Z) below the lag's."""
+    while lag0 / 2.0 >= lags[0]:
+        sel = np.flatnonzero(np.abs(lags - lag0 / 2.0) <= TOL_SAMPLES + TOL_FRACTION * lag0 / 2.0)
+        if sel.size == 0:
+            break
+        j = int(sel[np.argmax(vote[sel])])
+        if found_n[j] < SUBHARMONIC_MIN_FOUND or found_n[j] < SUBHARMONIC_SHARE * valid_n[j]:
+            break
+        c = int(np.argmin(np.abs(lags - lag0)))
+        pooled = (found_n[c] + found_n[j]) / max(valid_n[c] + valid_n[j], 1.0)
+        se = math.sqrt(max(pooled * (1.0 - pooled), 1e-12) * (1.0 / max(valid_n[c], 1.0) + 1.0 / valid_n[j]))
+        if found_n[c] / max(valid_n[c], 1.0) - found_n[j] / valid_n[j] > SUBHARMONIC_Z * se:
+            break
+        lag0 = float(lags[j])
+    return lag0
 
 
 def rotor_count(per: Periodicity) -> Estimate:
