@@ -84,17 +84,23 @@ BLADES_ASSUMED = 2
 #: Coherent partner check: a partner is found where the target bins' power along the
 #: event's range profile and in phase with it (1 degree of freedom) exceeds this many
 #: noise levels (false-hit share ~1 %, measured per series as the chance share).
-COHERENT_LEVEL = 6.0
+COHERENT_LEVEL = 5.0
 #: The best RERANK_N candidate lags of the event vote are re-scored by
 #: vote + RERANK_WEIGHT x share x coherent log-likelihood ratio.
 RERANK_N = 6
-RERANK_WEIGHT = 0.5
+RERANK_WEIGHT = 2.0
 #: Half the lag replaces it when its coherent partner checks favour "found as often as at
 #: the lag" over chance by this log-likelihood ratio.
-HALF_LLR = 1.0
+HALF_LLR = 2.0
 #: The lag's found share is capped at this for that test (a lag found everywhere would
 #: otherwise make one miss at the half decisive).
 HALF_SHARE_CAP = 0.98
+#: The coherent hit must also hold this share of the bins' power (profile and phase agree).
+COHERENT_SHARE = 0.5
+#: Main lobe of a two-blade flash (s): lambda / (2 v_tip) ~ 18 us at 77 GHz and 100-115 m/s
+#: tips. The coherent checks run only where the PRI is longer: a flash is then seen in at
+#: most one chirp, or missed between two, and the energy events miss many partners.
+FLASH_LOBE_S = 18e-6
 
 
 @dataclass(frozen=True)
@@ -278,66 +284,71 @@ def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
     carrier phase (up to a sign)? The power of the target bins projected on the event's own
     complex profile, real part only (in phase), over its median-based noise level, above
     COHERENT_LEVEL (max over a decimation block)."""
-    if series.field is None or times.size == 0:
-        return None
     n = series.energy.size
     dec = max(1, series.decimation)
-    field = series.field[:n * dec]
-    n_bins = field.shape[1]
-    if field.shape[0] < n * dec:
+    if series.field is None or times.size == 0 or series.field.shape[0] < n * dec:
         return None
-    rows = np.clip(np.round(times).astype(int), 0, n - 1) * dec
+    if series.rate_hz * dec * FLASH_LOBE_S > 1.0:
+        return None  # flashes span several chirps: the energy events already find them
+    field = series.field[:n * dec]
+    rows = np.clip(np.rint(times).astype(int), 0, n - 1) * dec
     if dec > 1:
-        block = field.reshape(n, dec, n_bins)[rows // dec]
+        block = field.reshape(n, dec, -1)[rows // dec]
         rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=2), axis=1)
     u = field[rows]
     norm = np.sqrt((u.real ** 2 + u.imag ** 2).sum(axis=1, keepdims=True))
     u = u / np.maximum(norm, np.float32(1e-30))
-    power = np.square((u.conj() @ field.T).real, dtype=np.float64)  # (k, n * dec)
+    power = np.square((u.conj() @ field.T).real)  # (k, n * dec), float32
+    total = (field.real ** 2 + field.imag ** 2).sum(axis=1)  # (n * dec,)
+    coherent = power >= np.float32(COHERENT_SHARE) * total[None, :]
     if dec > 1:
-        power = power.reshape(power.shape[0], n, dec).max(axis=2)
-    noise = np.median(power, axis=1, keepdims=True) / 0.455  # chi-square 1 dof: median = 0.455 mean
-    hit = power > COHERENT_LEVEL * np.maximum(noise, 1e-300)
-    ti = np.clip(np.round(times).astype(int), 0, n - 1)
-    own = np.abs(np.arange(n)[None, :] - ti[:, None]) <= 2
-    share = float(np.count_nonzero(hit & ~own)) / max(float(np.count_nonzero(~own)), 1.0)
+        coherent = coherent.reshape(-1, n, dec)
+        power = power.reshape(-1, n, dec)
+        pick = np.argmax(np.where(coherent, power, np.float32(-1.0)), axis=2)[..., None]
+        coherent = np.take_along_axis(coherent, pick, axis=2)[..., 0]
+        power = np.take_along_axis(power, pick, axis=2)[..., 0]
+    half = n // 2
+    median = np.partition(power, half, axis=1)[:, half:half + 1]
+    # chi-square with 1 degree of freedom: median = 0.455 x mean
+    hit = coherent & (power > np.float32(COHERENT_LEVEL / 0.455) * np.maximum(median, np.float32(1e-30)))
     counts = np.zeros((times.size, n + 1), np.int32)
     np.cumsum(hit, axis=1, out=counts[:, 1:])
-    return _Coherent(counts, share)
+    ti = np.clip(np.rint(times).astype(int), 0, n - 1)
+    ev = np.arange(times.size)
+    lo, hi = np.maximum(ti - 2, 0), np.minimum(ti + 3, n)
+    own_hits = float((counts[ev, hi] - counts[ev, lo]).sum())  # each event's own flash +-2
+    others = max(float(times.size * n - (hi - lo).sum()), 1.0)
+    return _Coherent(counts, max(float(counts[:, -1].sum()) - own_hits, 0.0) / others)
 
 
-def _coherent_llr(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lag: float,
-                  n: int, share: float | None = None) -> tuple[float, float, float]:
-    """Coherent partner checks at +-lag: (log-likelihood ratio, found share, weighted checks).
+def _coherent_checks(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
+                     n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coherent partner checks at +-lag, per lag: (weighted found, weighted made, chance).
 
     A check is an event whose window t +- lag (TOL_SAMPLES + TOL_FRACTION lag) lies inside
     the dwell; it succeeds when the window holds a coherent hit. The chance of a hit is the
-    series' hit share over the window. The LLR is binomial: found share `share` (default: the
-    observed one) against chance; 0 where the share does not exceed chance.
+    series' hit share over the window.
     """
-    tol = TOL_SAMPLES + TOL_FRACTION * lag
-    w = int(math.floor(tol + 0.5))
-    chance = min(max(1.0 - (1.0 - coh.share) ** (2 * w + 1), 1e-3), 0.999)
-    k = times.size
-    ev = np.arange(k)
-    found = made = 0.0
-    for sign in (1.0, -1.0):
-        target = times + sign * lag
-        ok = (target >= tol) & (target <= n - 1 - tol)
-        centre = np.round(target).astype(int)
-        lo = np.clip(centre - w, 0, n)
-        hi = np.clip(centre + w + 1, 0, n)
-        hit = coh.counts[ev, hi] > coh.counts[ev, lo]
-        made += float(weight[ok].sum())
-        found += float(weight[ok & hit].sum())
-    if made <= 0.0:
-        return 0.0, 0.0, 0.0
-    observed = found / made
-    s = min(max(observed if share is None else share, 1e-9), 1.0 - 1e-9)
-    if s <= chance:
-        return 0.0, observed, made
-    llr = found * math.log(s / chance) + (made - found) * math.log((1.0 - s) / (1.0 - chance))
-    return llr, observed, made
+    tol = TOL_SAMPLES + TOL_FRACTION * lags  # (m,)
+    w = np.floor(tol + 0.5).astype(int)
+    chance = np.minimum(np.maximum(1.0 - (1.0 - coh.share) ** (2 * w + 1), 1e-3), 0.999)
+    target = times[None, None, :] + np.array([1.0, -1.0])[:, None, None] * lags[None, :, None]
+    t3, w3 = tol[None, :, None], w[None, :, None]
+    ok = (target >= t3) & (target <= n - 1 - t3)
+    centre = np.rint(target).astype(int)
+    lo = np.minimum(np.maximum(centre - w3, 0), n)
+    hi = np.minimum(np.maximum(centre + w3 + 1, 0), n)
+    ev = np.arange(times.size)[None, None, :]
+    hit = ok & (coh.counts[ev, hi] > coh.counts[ev, lo])
+    return (hit @ weight).sum(axis=0), (ok @ weight).sum(axis=0), chance
+
+
+def _binomial_llr(found: np.ndarray, made: np.ndarray, share: np.ndarray,
+                  chance: np.ndarray) -> np.ndarray:
+    """found of made checks at success share `share` against `chance`; 0 where share <= chance."""
+    s = np.minimum(np.maximum(share, 1e-9), 1.0 - 1e-9)
+    llr = found * np.log(s / chance) + (made - found) * np.log((1.0 - s) / (1.0 - chance))
+    return np.where((s > chance) & (made > 0.0), llr, 0.0)
 
 
 def _rerank(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
@@ -350,13 +361,13 @@ def _rerank(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndar
             break
         if all(abs(lags[j] - lags[c]) > TOL_SAMPLES + TOL_FRACTION * lags[j] for c in cands):
             cands.append(j)
-    best, best_score = lag0, -math.inf
-    for rank, j in enumerate(cands):
-        llr, share, _ = _coherent_llr(coh, times, weight, float(lags[j]), n)
-        score = float(vote[j]) + RERANK_WEIGHT * share * llr
-        if score > best_score:
-            best, best_score = (lag0 if rank == 0 else float(lags[j])), score
-    return best
+    if len(cands) < 2:
+        return lag0
+    idx = np.array(cands)
+    found, made, chance = _coherent_checks(coh, times, weight, lags[idx], n)
+    share = found / np.maximum(made, 1e-12)
+    best = int(np.argmax(vote[idx] + RERANK_WEIGHT * share * _binomial_llr(found, made, share, chance)))
+    return lag0 if best == 0 else float(lags[idx[best]])
 
 
 def _half_is_period(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lag: float,
@@ -364,13 +375,12 @@ def _half_is_period(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lag: 
     """Do the coherent checks at lag/2 succeed about as often as at lag (binomial LLR of the
     lag's share against chance above HALF_LLR)? A true half period repeats as reliably as
     twice it; another rotor half a period away mostly fails the phase and profile test."""
-    _, s0, made0 = _coherent_llr(coh, times, weight, lag, n)
-    if made0 <= 0.0:
+    found, made, chance = _coherent_checks(coh, times, weight, np.array([lag, lag / 2.0]), n)
+    if made[0] <= 0.0 or made[1] <= 0.0 or found[1] < 1.0:
         return False
-    llr, found_share, made = _coherent_llr(coh, times, weight, lag / 2.0, n,
-                                           share=min(s0, HALF_SHARE_CAP))
-    return found_share * made >= 1.0 and llr > HALF_LLR
-
+    s0 = min(found[0] / made[0], HALF_SHARE_CAP)
+    llr = _binomial_llr(found[1:], made[1:], np.array([s0]), chance[1:])
+    return bool(llr[0] > HALF_LLR)
 
 def periodicity(series: FlashSeries) -> Periodicity:
     """Flash period from flash events (module docstring).
