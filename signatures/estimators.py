@@ -395,11 +395,16 @@ def periodicity(series: FlashSeries) -> Periodicity:
     where s <= p0. The log-likelihood ratio grows with the number of checks at a
     given share, so the period beats twice it (fewer checks); the factor s favours
     the lag at which all rotors' flash trains are consistent over an inter-rotor lag
-    or a sub-multiple that only some rotors fit (more checks, lower share). The best lag wins (centre of its plateau), then its half
-    replaces it while at least SUBHARMONIC_SHARE of the half's checks find a
-    partner and that share is not significantly (SUBHARMONIC_Z) below the lag's. The period is the mean of the event intervals matching multiples of
-    the lag; the score counts the same-place pairs one lag apart (+SECOND_PERIOD_GAIN
-    per pair two lags apart).
+    or a sub-multiple that only some rotors fit (more checks, lower share). The best lag wins
+    (centre of its plateau). Where a flash fits within one PRI (`_coherent`), the
+    RERANK_N strongest lags are re-scored with the coherent partner checks (vote +
+    RERANK_WEIGHT x share x coherent LLR), and the winner's half replaces it (once) when
+    its coherent checks succeed about as often as the lag's (`_half_is_period`);
+    otherwise the half replaces it while at least SUBHARMONIC_SHARE of the half's event
+    checks find a partner and that share is not significantly (SUBHARMONIC_Z) below the
+    lag's. The period is the mean of the event intervals matching multiples of the lag;
+    the score counts the same-place pairs one lag apart (+SECOND_PERIOD_GAIN per pair two
+    lags apart).
     """
     e = series.energy
     n = e.size
@@ -429,8 +434,8 @@ def periodicity(series: FlashSeries) -> Periodicity:
     coh = _coherent(series, times)
     if coh is not None:
         lag0 = _rerank(coh, times, weight, lags, vote, lag0, n)
-        while lag0 / 2.0 >= lags[0] and _half_is_period(coh, times, weight, lag0, n):
-            lag0 /= 2.0
+        if lag0 / 2.0 >= lags[0] and _half_is_period(coh, times, weight, lag0, n):
+            lag0 /= 2.0  # once: the event vote errs by one missed flash between two
     else:
         lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
     tol0 = TOL_SAMPLES + TOL_FRACTION * lag0
