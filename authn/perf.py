@@ -19,9 +19,10 @@ from authn.scenario import Broadcast, simulate_flight
 from signatures.radar import get_preset
 from signatures.recording import write_recording
 
-#: Modules a cold `authn check` imports, timed one by one in fresh interpreters.
-COLD_IMPORTS = ("numpy", "h5py", "pydantic", "typer", "cedarpy", "onnxruntime", "pymap3d", "sqlite3",
-                "authn.check")
+#: Modules a cold `authn check` imports, timed one by one in fresh interpreters (onnxruntime only
+#: when the cascade runs the CNN, for comparison).
+COLD_IMPORTS = ("numpy", "h5py", "pydantic", "typer", "cedarpy", "pymap3d", "sqlite3", "authn.check",
+                "onnxruntime")
 
 
 def _fft_flops(n: int, count: int) -> float:
