@@ -354,7 +354,8 @@ def _binomial_llr(found: np.ndarray, made: np.ndarray, share: np.ndarray,
 def _rerank(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
             vote: np.ndarray, lag0: float, n: int) -> float:
     """The best of the RERANK_N strongest distinct lags of the vote by vote + RERANK_WEIGHT x
-    share x coherent LLR (the vote's own best keeps its plateau centre lag0)."""
+    share x coherent LLR over the checks at +-L and +-2L (the vote's own best keeps its
+    plateau centre lag0)."""
     cands: list[int] = []
     for j in np.argsort(-vote, kind="stable").tolist():
         if vote[j] <= 0.0 or len(cands) >= RERANK_N:
@@ -364,9 +365,13 @@ def _rerank(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndar
     if len(cands) < 2:
         return lag0
     idx = np.array(cands)
-    found, made, chance = _coherent_checks(coh, times, weight, lags[idx], n)
-    share = found / np.maximum(made, 1e-12)
-    best = int(np.argmax(vote[idx] + RERANK_WEIGHT * share * _binomial_llr(found, made, share, chance)))
+    # every period predicts partners at each of its multiples: checks at +-L and +-2L
+    found, made, chance = _coherent_checks(coh, times, weight, np.concatenate([lags[idx], 2.0 * lags[idx]]), n)
+    c = idx.size
+    share = (found[:c] + found[c:]) / np.maximum(made[:c] + made[c:], 1e-12)
+    llr = (_binomial_llr(found[:c], made[:c], share, chance[:c])
+           + _binomial_llr(found[c:], made[c:], share, chance[c:]))
+    best = int(np.argmax(vote[idx] + RERANK_WEIGHT * share * llr))
     return lag0 if best == 0 else float(lags[idx[best]])
 
 
