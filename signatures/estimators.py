@@ -87,7 +87,7 @@ BLADES_ASSUMED = 2
 COHERENT_LEVEL = 5.0
 #: The best RERANK_N candidate lags of the event vote are re-scored by
 #: vote + RERANK_WEIGHT x share x coherent log-likelihood ratio.
-RERANK_N = 6
+RERANK_N = 10
 RERANK_WEIGHT = 2.0
 #: Half the lag replaces it when its coherent partner checks favour "found as often as at
 #: the lag" over chance by this log-likelihood ratio.
