@@ -227,9 +227,27 @@ def flash_events(series: FlashSeries, radius: int,
     lo, hi = np.maximum(peaks - 1, 0), np.minimum(peaks + 1, e.size - 1)
     w = e[lo] + e[peaks] + e[hi]
     centroid = (lo * e[lo] + peaks * e[peaks] + hi * e[hi]) / np.maximum(w, 1e-300)
-    positions = np.array([_peak_position(series.per_bin[k]) for k in peaks])
+    positions = _peak_positions(series.per_bin[peaks])
     order = np.argsort(centroid)
     return centroid[order], positions[order]
+
+
+def _peak_positions(profiles: np.ndarray) -> np.ndarray:
+    """`_peak_position` of each row of (k, bins) profiles."""
+    k = profiles.shape[0]
+    out = np.argmax(profiles, axis=1).astype(np.float64) if k else np.zeros(0)
+    if k == 0 or profiles.shape[1] < 3:
+        return out
+    idx = out.astype(int)
+    inner = (idx > 0) & (idx < profiles.shape[1] - 1)
+    if inner.any():
+        rows = np.flatnonzero(inner)
+        c = idx[rows]
+        a, b, d = (np.log(np.maximum(profiles[rows, c + off].astype(np.float64), 1e-300)) for off in (-1, 0, 1))
+        den = a - 2.0 * b + d
+        shift = np.clip(0.5 * (a - d) / np.where(den < 0, den, -1.0), -0.5, 0.5)
+        out[rows] = np.where(den < 0, c + shift, c)
+    return out
 
 
 def _peak_position(profile: np.ndarray) -> float:
@@ -352,39 +370,50 @@ def _binomial_llr(found: np.ndarray, made: np.ndarray, share: np.ndarray,
 
 
 def _rerank(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
-            vote: np.ndarray, lag0: float, n: int) -> float:
-    """The best of the RERANK_N strongest distinct lags of the vote by vote + RERANK_WEIGHT x
-    share x coherent LLR over the checks at +-L and +-2L (the vote's own best keeps its
-    plateau centre lag0)."""
-    cands: list[int] = []
-    for j in np.argsort(-vote, kind="stable").tolist():
-        if vote[j] <= 0.0 or len(cands) >= RERANK_N:
+            vote: np.ndarray, lag0: float, n: int) -> tuple[float, bool]:
+    """Re-ranked lag and whether its half is the period.
+
+    Candidates: the RERANK_N strongest lags of the vote, each farther than the tolerance
+    from the stronger ones (the vote's own best at its plateau centre lag0). Each is scored
+    vote + RERANK_WEIGHT x share x coherent LLR over its checks at +-L and +-2L (a period
+    predicts partners at its multiples). The winner's half replaces it when its coherent
+    checks succeed about as often as the winner's own (`_half_is_period`).
+    """
+    positive = np.flatnonzero(vote > 0.0)
+    left, at = vote[positive], lags[positive]
+    reach = TOL_SAMPLES + TOL_FRACTION * at
+    cands: list[float] = []
+    scores: list[float] = []
+    while len(cands) < RERANK_N and left.size:  # greedy: strongest lag away from the chosen
+        j = int(np.argmax(left))
+        if left[j] <= 0.0:
             break
-        if all(abs(lags[j] - lags[c]) > TOL_SAMPLES + TOL_FRACTION * lags[j] for c in cands):
-            cands.append(j)
-    if len(cands) < 2:
-        return lag0
-    idx = np.array(cands)
-    # every period predicts partners at each of its multiples: checks at +-L and +-2L
-    found, made, chance = _coherent_checks(coh, times, weight, np.concatenate([lags[idx], 2.0 * lags[idx]]), n)
-    c = idx.size
-    share = (found[:c] + found[c:]) / np.maximum(made[:c] + made[c:], 1e-12)
+        cands.append(lag0 if not cands else float(at[j]))
+        scores.append(float(left[j]))
+        left = np.where(np.abs(at - at[j]) <= reach, -np.inf, left)
+    if not cands:
+        return lag0, False
+    c = len(cands)
+    cl = np.array(cands)
+    found, made, chance = _coherent_checks(coh, times, weight, np.concatenate([cl, 2.0 * cl, cl / 2.0]), n)
+    share = (found[:c] + found[c:2 * c]) / np.maximum(made[:c] + made[c:2 * c], 1e-12)
     llr = (_binomial_llr(found[:c], made[:c], share, chance[:c])
-           + _binomial_llr(found[c:], made[c:], share, chance[c:]))
-    best = int(np.argmax(vote[idx] + RERANK_WEIGHT * share * llr))
-    return lag0 if best == 0 else float(lags[idx[best]])
+           + _binomial_llr(found[c:2 * c], made[c:2 * c], share, chance[c:2 * c]))
+    best = int(np.argmax(np.array(scores) + RERANK_WEIGHT * share * llr))
+    half = bool(cands[best] / 2.0 >= lags[0] and _half_is_period(
+        found[best], made[best], found[2 * c + best], made[2 * c + best], chance[2 * c + best]))
+    return cands[best], half
 
 
-def _half_is_period(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lag: float,
-                    n: int) -> bool:
-    """Do the coherent checks at lag/2 succeed about as often as at lag (binomial LLR of the
-    lag's share against chance above HALF_LLR)? A true half period repeats as reliably as
-    twice it; another rotor half a period away mostly fails the phase and profile test."""
-    found, made, chance = _coherent_checks(coh, times, weight, np.array([lag, lag / 2.0]), n)
-    if made[0] <= 0.0 or made[1] <= 0.0 or found[1] < 1.0:
+def _half_is_period(found: float, made: float, found_h: float, made_h: float, chance_h: float) -> bool:
+    """Do the coherent checks at lag/2 (found_h of made_h, chance_h each) succeed about as often
+    as at lag (found of made): binomial LLR of the lag's share (capped at HALF_SHARE_CAP)
+    against chance above HALF_LLR? A true half period repeats as reliably as twice it;
+    another rotor half a period away mostly fails the phase and profile test."""
+    if made <= 0.0 or made_h <= 0.0 or found_h < 1.0:
         return False
-    s0 = min(found[0] / made[0], HALF_SHARE_CAP)
-    llr = _binomial_llr(found[1:], made[1:], np.array([s0]), chance[1:])
+    s0 = min(found / made, HALF_SHARE_CAP)
+    llr = _binomial_llr(np.array([found_h]), np.array([made_h]), np.array([s0]), np.array([chance_h]))
     return bool(llr[0] > HALF_LLR)
 
 def periodicity(series: FlashSeries) -> Periodicity:
@@ -438,8 +467,8 @@ def periodicity(series: FlashSeries) -> Periodicity:
     lag0 = 0.5 * (lags[i0] + lags[i1])
     coh = _coherent(series, times)
     if coh is not None:
-        lag0 = _rerank(coh, times, weight, lags, vote, lag0, n)
-        if lag0 / 2.0 >= lags[0] and _half_is_period(coh, times, weight, lag0, n):
+        lag0, half = _rerank(coh, times, weight, lags, vote, lag0, n)
+        if half:
             lag0 /= 2.0  # once: the event vote errs by one missed flash between two
     else:
         lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
