@@ -245,7 +245,7 @@ def _peak_positions(profiles: np.ndarray) -> np.ndarray:
         c = idx[rows]
         a, b, d = (np.log(np.maximum(profiles[rows, c + off].astype(np.float64), 1e-300)) for off in (-1, 0, 1))
         den = a - 2.0 * b + d
-        shift = np.clip(0.5 * (a - d) / np.where(den < 0, den, -1.0), -0.5, 0.5)
+        shift = np.minimum(np.maximum(0.5 * (a - d) / np.where(den < 0, den, -1.0), -0.5), 0.5)
         out[rows] = np.where(den < 0, c + shift, c)
     return out
 
@@ -282,8 +282,8 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     found_n = found.sum(axis=(0, 2)).astype(float)
     valid_n = valid.sum(axis=(0, 2)).astype(float)
     tol = tol[0, :, 0]
-    chance = np.clip(1.0 - np.exp(-(k - 1) / n * 2.0 * tol * share_compat), 1e-3, 0.999)
-    share = np.clip(found_w / np.maximum(valid_w, 1e-12), 1e-9, 1.0 - 1e-9)
+    chance = np.minimum(np.maximum(1.0 - np.exp(-(k - 1) / n * 2.0 * tol * share_compat), 1e-3), 0.999)
+    share = np.minimum(np.maximum(found_w / np.maximum(valid_w, 1e-12), 1e-9), 1.0 - 1e-9)
     llr = found_w * np.log(share / chance) + (valid_w - found_w) * np.log((1.0 - share) / (1.0 - chance))
     # x share: at the true period all rotors' checks succeed, at an inter-rotor lag only some
     return np.where(share > chance, llr * share, 0.0), found_n, valid_n
@@ -309,7 +309,8 @@ def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
     if series.rate_hz * dec * FLASH_LOBE_S > 1.0:
         return None  # flashes span several chirps: the energy events already find them
     field = series.field[:n * dec]
-    rows = np.clip(np.rint(times).astype(int), 0, n - 1) * dec
+    ti = np.minimum(np.maximum(np.rint(times).astype(int), 0), n - 1)
+    rows = ti * dec
     if dec > 1:
         block = field.reshape(n, dec, -1)[rows // dec]
         rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=2), axis=1)
@@ -331,7 +332,6 @@ def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
     hit = coherent & (power > np.float32(COHERENT_LEVEL / 0.455) * np.maximum(median, np.float32(1e-30)))
     counts = np.zeros((times.size, n + 1), np.int32)
     np.cumsum(hit, axis=1, out=counts[:, 1:])
-    ti = np.clip(np.rint(times).astype(int), 0, n - 1)
     ev = np.arange(times.size)
     lo, hi = np.maximum(ti - 2, 0), np.minimum(ti + 3, n)
     own_hits = float((counts[ev, hi] - counts[ev, lo]).sum())  # each event's own flash +-2
@@ -452,8 +452,8 @@ def periodicity(series: FlashSeries) -> Periodicity:
     lag_max = min(n * (1.0 - MIN_OVERLAP), series.rate_hz / FLASH_RATE_MIN_HZ)
     if k < 2 or lag_max <= lag_min:
         return Periodicity(Estimate(0.0, 0.0), 0.0, int(k), np.zeros(0), 0.0, par_db)
-    strength = e[np.clip(np.round(times).astype(int), 0, n - 1)] / max(series.threshold, 1e-300)
-    weight = np.clip(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT, 1.0)
+    strength = e[np.minimum(np.maximum(np.round(times).astype(int), 0), n - 1)] / max(series.threshold, 1e-300)
+    weight = np.minimum(np.maximum(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT), 1.0)
     lags = np.arange(math.ceil(lag_min), math.floor(lag_max) + 1, dtype=float)
     vote, found_n, valid_n = _votes(times, pos, weight, lags, n, series.drift_bins_per_sample,
                                     series.per_bin.shape[1])
