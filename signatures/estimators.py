@@ -233,7 +233,8 @@ def flash_events(series: FlashSeries, radius: int,
 
 
 def _peak_positions(profiles: np.ndarray) -> np.ndarray:
-    """`_peak_position` of each row of (k, bins) profiles."""
+    """Per row of (k, bins) energy profiles: the log-parabolic peak position (bins), the
+    argmax where it sits at the edge or the parabola does not open downwards."""
     k = profiles.shape[0]
     out = np.argmax(profiles, axis=1).astype(np.float64) if k else np.zeros(0)
     if k == 0 or profiles.shape[1] < 3:
@@ -248,15 +249,6 @@ def _peak_positions(profiles: np.ndarray) -> np.ndarray:
         shift = np.minimum(np.maximum(0.5 * (a - d) / np.where(den < 0, den, -1.0), -0.5), 0.5)
         out[rows] = np.where(den < 0, c + shift, c)
     return out
-
-
-def _peak_position(profile: np.ndarray) -> float:
-    k = int(np.argmax(profile))
-    if k == 0 or k == profile.size - 1:
-        return float(k)
-    a, b, c = (math.log(max(float(v), 1e-300)) for v in profile[k - 1:k + 2])
-    den = a - 2.0 * b + c
-    return float(k + max(-0.5, min(0.5, 0.5 * (a - c) / den))) if den < 0 else float(k)
 
 
 def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndarray, n: int,
