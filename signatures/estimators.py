@@ -83,7 +83,7 @@ SKIRT_DB = -13.0
 BLADES_ASSUMED = 2
 #: Coherent partner check: a partner is found where the target bins' power along the
 #: event's range profile and in phase with it (1 degree of freedom) exceeds this many
-#: noise levels (false-hit share ~1 %, measured per series as the chance share).
+#: noise levels (noise alone: ~2.5 % of samples; the chance share is measured per series).
 COHERENT_LEVEL = 5.0
 #: The best RERANK_N candidate lags of the event vote are re-scored by
 #: vote + RERANK_WEIGHT x share x coherent log-likelihood ratio.
@@ -292,8 +292,9 @@ class _Coherent:
 def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
     """Per event and series sample: is there a flash with the event's range profile and
     carrier phase (up to a sign)? The power of the target bins projected on the event's own
-    complex profile, real part only (in phase), over its median-based noise level, above
-    COHERENT_LEVEL (max over a decimation block)."""
+    complex profile, real part only (in phase), above COHERENT_LEVEL x its median-based noise
+    level and holding at least COHERENT_SHARE of the bins' power (best chirp of a decimation
+    block). None where the field is missing or the PRI is shorter than FLASH_LOBE_S."""
     n = series.energy.size
     dec = max(1, series.decimation)
     if series.field is None or times.size == 0 or series.field.shape[0] < n * dec:
