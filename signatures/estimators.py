@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from signatures.radar import RadarConfig
+from signatures.stats import median
 
 #: Search range of the blade-flash rate (Hz): rotor rates 15-250 Hz with 2 blades.
 FLASH_RATE_MIN_HZ = 30.0
@@ -159,8 +160,8 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
 
 
 def _noise_level(e: np.ndarray) -> float:
-    med = float(np.median(e))
-    return med + NOISE_MADS * 1.4826 * float(np.median(np.abs(e - med)))
+    med = float(median(e))
+    return med + NOISE_MADS * 1.4826 * float(median(np.abs(e - med)))
 
 
 def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.ndarray:

@@ -90,3 +90,23 @@ def test_batch_mode_with_claims_csv(setup, capsys) -> None:
     ids = [r["audit_id"] for r in results]
     assert len(set(ids)) == len(ids) == 4
     assert main(["--db", db, "audit", "verify"]) == 0
+
+
+HEAVY = ("sklearn", "torch", "scipy", "matplotlib", "sqlalchemy", "alembic", "onnxruntime", "numpy.ma")
+
+
+@pytest.mark.parametrize("serial,radar_modules", [(M300, True), ("1581BUNKNOWN0001", False)])
+def test_cold_check_imports_only_what_it_needs(setup, serial: str, radar_modules: bool) -> None:
+    """A check process never imports the heavy stacks (PERF-NOTES: they are the CLI's latency);
+    a registry-only rejection does not even import the radar modules."""
+    import subprocess
+    import sys
+
+    _, db, files = setup
+    code = ("import sys; from authn.cli import main; code = main(sys.argv[1:]); "
+            f"print('IMPORTS', code, sorted(m for m in sys.modules if m in {HEAVY!r} or m.split('.')[0] in {HEAVY!r}), "
+            "'signatures.features' in sys.modules, 'signatures.inference' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", code, "--db", db, "check", str(files["genuine"]), "--serial",
+                           serial, "--json"], capture_output=True, text=True, timeout=120)
+    line = next((x for x in proc.stdout.splitlines() if x.startswith("IMPORTS ")), proc.stdout[-300:] + proc.stderr)
+    assert line == f"IMPORTS {0 if radar_modules else 1} [] {radar_modules} {radar_modules}"
