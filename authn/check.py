@@ -165,7 +165,7 @@ class Checker:
                                  "radial_velocity_mps": None, "gated": gate is not None, "used_cnn": False}
         if detected:
             with timer.stage("classify"):
-                pred = classifier.predict(feats.as_array(), feats.rd_patch)
+                pred = classifier.predict(feats.as_array(), lambda: feats.rd_patch)  # patch only if the CNN runs
             radar.update(model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
                          range_m=round(float(feats.range_m), 3),
                          radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),

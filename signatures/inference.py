@@ -12,6 +12,7 @@ rejection (physical consistency with the predicted profile, see `signatures.open
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -188,14 +189,17 @@ class Classifier:
         logits = self._model("cnn").run(["logits"], {"rd": x})[0].astype(np.float64)
         return _calibrate(np.exp(logits - logits.max(axis=1, keepdims=True)), 1.0)
 
-    def cascade_proba(self, X: np.ndarray, rd: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """Ensemble, averaged with the CNN where the ensemble's top probability < threshold."""
+    def cascade_proba(self, X: np.ndarray, rd: np.ndarray | Callable[[], np.ndarray] | None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """Ensemble, averaged with the CNN where the ensemble's top probability < threshold.
+        `rd`: the patches, or a callable giving them, called only if some row needs the CNN."""
         p = self.ensemble_proba(X)
         used = np.zeros(len(p), dtype=bool)
         if self.has_cnn and rd is not None and self.cascade_threshold > 0:
             used = p.max(axis=1) < self.cascade_threshold
             if used.any():
-                rd = np.asarray(rd).reshape(len(p), *np.asarray(rd).shape[-2:])
+                rd = np.asarray(rd() if callable(rd) else rd)
+                rd = rd.reshape(len(p), *rd.shape[-2:])
                 p[used] = 0.5 * (p[used] + self.cnn_proba(rd[used]))
         return p, used
 
@@ -208,10 +212,12 @@ class Classifier:
         return self.openset.unknown(self._x(X), pred, mode)
 
     # --- one return -----------------------------------------------------------------
-    def predict(self, features: np.ndarray, rd_patch: np.ndarray | None = None) -> Prediction:
-        """Classify one return from its feature vector (and RD patch for the cascade)."""
+    def predict(self, features: np.ndarray,
+                rd_patch: np.ndarray | Callable[[], np.ndarray] | None = None) -> Prediction:
+        """Classify one return from its feature vector (and RD patch for the cascade; a callable
+        is only called when the cascade runs the CNN)."""
         X = self._x(features)
-        p, used = self.cascade_proba(X, None if rd_patch is None else np.asarray(rd_patch)[None])
+        p, used = self.cascade_proba(X, rd_patch)
         p = p[0]
         k = int(np.argmax(p))
         pk = np.array([k])

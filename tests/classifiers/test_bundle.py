@@ -88,6 +88,13 @@ def test_cascade_runs_cnn_only_below_threshold(tiny_bundle: Path) -> None:
         np.testing.assert_allclose(p[used], 0.5 * (p_ens[used] + clf.cnn_proba(rd[used])), rtol=1e-5)
         _, none_used = clf.cascade_proba(X, None)  # no RD patch: ensemble alone
         assert not none_used.any()
+        calls = []
+        p_lazy, _ = clf.cascade_proba(X, lambda: calls.append(1) or rd)  # patches built only when needed
+        np.testing.assert_allclose(p_lazy, p)
+        assert calls == ([1] if used.any() else [])
+        clf.cascade_threshold = 0.0
+        clf.cascade_proba(X, lambda: calls.append(2) or rd)
+        assert 2 not in calls
     finally:
         clf.cascade_threshold = saved
 

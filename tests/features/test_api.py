@@ -73,3 +73,10 @@ def test_quick_tier_computes_its_subset_exactly(returns):
         full, quick = extract(rec).as_array(), extract(rec, quick=True)
         np.testing.assert_array_equal(quick.as_array()[idx], full[idx])
         assert not quick.as_array()[rest].any() and not quick.rd_patch.any()
+
+
+def test_cnn_patch_is_built_on_first_use(returns):
+    res = extract(returns["m300_moving"])
+    assert "rd_patch" not in res.__dict__  # not computed by extract
+    patch = res.rd_patch
+    assert res.rd_patch is patch  # computed once
