@@ -52,6 +52,10 @@ def features_half(rec, expected_range_m: float | None = None):
     return extract(_head(rec, 2), expected_range_m)
 
 
+def features_third(rec, expected_range_m: float | None = None):
+    return extract(_head(rec, 3), expected_range_m)
+
+
 def features_quarter(rec, expected_range_m: float | None = None):
     return extract(_head(rec, 4), expected_range_m)
 
@@ -70,6 +74,7 @@ RETRAINED = (
     ("gated + RF retrained (reference)", extract, FEATURE_NAMES, extract),
     ("gated, quick tier (paper's 11 + gate physics) + RF", features_quick, QUICK_FEATURES, extract),
     ("gated, first 1/2 of the dwell + RF", features_half, FEATURE_NAMES, features_half),
+    ("gated, first 1/3 of the dwell + RF", features_third, FEATURE_NAMES, features_third),
     ("gated, first 1/4 of the dwell + RF", features_quarter, FEATURE_NAMES, features_quarter),
     ("gated, first 1/4 of the dwell, quick tier + RF", features_quarter_quick, QUICK_FEATURES,
      features_quarter_quick),
