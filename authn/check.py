@@ -135,13 +135,18 @@ def _cm(x: float) -> int:
 
 
 class Checker:
-    """Loads the policy once (and the classifier on first radar use); checks many files."""
+    """Loads once what every check needs (policy, database, file reader; the classifier on
+    first radar use); checks many files."""
 
     def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None) -> None:
+        import h5py  # noqa: F401  every check opens an HDF5 file: load the library at start-up
+
         from registry.dbapi import Database
+        from signatures.recording import read_recording
 
         self.policy = PolicyEngine.load(policy_path)
         self.db = Database(db_url)
+        self._read = read_recording
 
     # --- stages -------------------------------------------------------------------
 
@@ -200,12 +205,10 @@ class Checker:
     # --- one check ------------------------------------------------------------------
     def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
         """Decide one file (no audit write); raises package errors on bad input."""
-        from signatures.recording import read_recording
-
         path = Path(path)
         timer = _Timer()
         with timer.stage("read"):
-            rec = read_recording(path)
+            rec = self._read(path)
             digest = _file_sha256(path)
         return self.evaluate_recording(rec, serial, str(path), digest, timer)
 

@@ -30,13 +30,14 @@ def _fft_flops(n: int, count: int) -> float:
     return 5.0 * n * math.log2(max(n, 2)) * count
 
 
-def fft_floor(preset: str, gate_bins: int = 5, repeats: int = 50) -> dict[str, float]:
+def fft_floor(preset: str, gate_bins: int = 5, repeats: int = 50, dwell_divisor: int = 1) -> dict[str, float]:
     """The FFTs one gated check needs (range FFT of the cube, Doppler FFT of the gate, STFT of
-    the gate), their flop count, and numpy's time for exactly those transforms."""
+    the gate), their flop count, and numpy's time for exactly those transforms; of the first
+    1/`dwell_divisor` of the dwell when a configuration uses only that."""
     from signatures import timefreq as tf
 
     pre = get_preset(preset)
-    n, k = pre.n_chirps, pre.n_samples
+    n, k = max(1, pre.n_chirps // dwell_divisor), pre.n_samples
     win, hop = tf.stft_params(pre.config, n)
     frames = (n - win) // hop + 1
     flops = _fft_flops(k, n) + _fft_flops(n, gate_bins) + _fft_flops(win, frames * gate_bins)

@@ -61,6 +61,8 @@ def bench(
         progress.update(task, description="timing stages")
         stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in preset}
         floor = {p: perf.fft_floor(p) for p in preset}
+        dwell_floors = {p: {f"1/{d}": perf.fft_floor(p, dwell_divisor=d)["fft_ms"] for d in (2, 3, 4)}
+                        for p in preset}
         progress.update(task, description="run time against error")
         grid = {p: pareto.run(p, per_class=4 if quick else 25, seed=seed, n_train=300 if quick else 3000)
                 for p in preset}
@@ -72,7 +74,10 @@ def bench(
         for p, pts in grid.items():
             pareto.plot(pts, (0.0, 10.0, 20.0), plot_dir / f"error-vs-time-{p}.png")
     report = {"decisions": summarise(rows), "latency_ms": lat, "stages": stages, "fft_floor": floor,
+              "fft_floor_of_dwell_part_ms": dwell_floors,
               "pareto": {p: [pt.__dict__ for pt in pts] for p, pts in grid.items()},
+              "near_fft_floor": {p: [q.name for q in pareto.near_floor(pts, floor[p]["fft_ms"])]
+                                 for p, pts in grid.items()},
               "imports_ms": imports, "throughput_per_s": tput, "n_per_category": n, "seed": seed}
     if as_json:
         typer.echo(json.dumps(report, indent=2))
@@ -113,13 +118,19 @@ def bench(
         console.print(f"  throughput: {tp['1_worker']:.0f} returns/s with 1 worker, "
                       f"{tp['2_worker']:.0f} with 2 workers")
     for p, pts in grid.items():
+        fl = floor[p]["fft_ms"]
         t = Table(title=f"{p}: run time against error (same held-out returns; * = Pareto front)")
-        for col in ("configuration", "ms/return", "F1 0 dB", "F1 10 dB", "F1 20 dB", "FAR", "front"):
+        for col in ("configuration", "ms/return", "x FFT floor", "F1 0 dB", "F1 10 dB", "F1 20 dB", "FAR", "front"):
             t.add_column(col, justify="right")
         for pt in pts:
-            t.add_row(pt.name, f"{pt.ms_per_return:.2f}", *(f"{pt.f1_by_snr[s]:.3f}" for s in (0.0, 10.0, 20.0)),
-                      f"{pt.far:.3f}", "*" if pt.pareto else "")
+            t.add_row(pt.name, f"{pt.ms_per_return:.2f}", f"{pt.ms_per_return / fl:.1f}",
+                      *(f"{pt.f1_by_snr[s]:.3f}" for s in (0.0, 10.0, 20.0)), f"{pt.far:.3f}", "*" if pt.pareto else "")
         console.print(t)
+        near = pareto.near_floor(pts, fl)
+        console.print(f"  front points within 3x of the FFT floor ({fl:.2f} ms) with macro F1 >= 0.95 at 10 dB: "
+                      + (", ".join(f"{q.name} ({q.ms_per_return / fl:.1f}x)" for q in near) or "none"))
+        console.print("  FFT floor of just the first part of the dwell (what those configurations transform): "
+                      + ", ".join(f"{k} {v:.2f} ms" for k, v in dwell_floors[p].items()))
     t = Table(title="cold-start imports (fresh interpreter each, ms)")
     t.add_column("import")
     t.add_column("ms", justify="right")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from authn.bench import CATEGORIES, EXPECTED, run_decisions, summarise
-from authn.pareto import Point, _mark_front
+from authn.pareto import Point, _mark_front, near_floor
 
 
 def test_decision_rows_cover_every_category() -> None:
@@ -22,6 +22,15 @@ def test_pareto_front_marks_only_undominated_points() -> None:
            Point("dominated", 6.0, {0.0: 0.9, 10.0: 0.9}, 0.0)]
     _mark_front(pts, snrs)
     assert [p.pareto for p in pts] == [True, True, False]
+
+
+def test_near_floor_needs_the_front_the_time_and_the_accuracy() -> None:
+    snrs = (0.0, 10.0)
+    pts = [Point("fast-bad", 1.0, {0.0: 0.5, 10.0: 0.6}, 0.0), Point("mid-good", 2.5, {0.0: 0.9, 10.0: 0.96}, 0.0),
+           Point("slow-best", 5.0, {0.0: 0.99, 10.0: 1.0}, 0.0), Point("dominated", 2.9, {0.0: 0.8, 10.0: 0.95}, 0.0)]
+    _mark_front(pts, snrs)
+    assert [p.name for p in near_floor(pts, floor_ms=1.0)] == ["mid-good"]  # 5.0 ms is over 3x; 1.0 ms too weak
+    assert [p.name for p in near_floor(pts, floor_ms=2.0)] == ["mid-good", "slow-best"]
 
 
 def test_cold_times_run_real_processes(tmp_path) -> None:
