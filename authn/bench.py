@@ -154,7 +154,7 @@ def _run_ms(args: list[str]) -> float:
     return (time.perf_counter() - t0) * 1e3
 
 
-def cold_times(path: Path, serial: str, db_url: str, repeats: int = 5) -> dict[str, float]:
+def cold_times(path: Path, serial: str, db_url: str, repeats: int = 11) -> dict[str, float]:
     """Fresh processes, interleaved so they share the machine's state: `python -c 'import numpy'`,
     a whole `authn check` (genuine claim, radar run) and a registry-only rejection (unregistered
     serial), medians; plus each check's own time in a fresh process after start-up (imports of
@@ -176,7 +176,7 @@ def cold_times(path: Path, serial: str, db_url: str, repeats: int = 5) -> dict[s
     return med
 
 
-def latency(preset: str, n_batch: int, seed: int, repeats: int = 5) -> dict[str, float]:
+def latency(preset: str, n_batch: int, seed: int, repeats: int = 11) -> dict[str, float]:
     """Cold processes (see `cold_times`) and one check inside batch mode (models loaded once),
     genuine claims."""
     from authn.check import Checker
