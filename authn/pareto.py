@@ -121,56 +121,87 @@ def _classify(clf, mode: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     return lambda X, rd: clf.member_proba(mode, X)
 
 
+def _extract_full(rec, expected_range_m: float | None = None):
+    from signatures.features import extract_iq
+
+    return extract_iq(rec.iq, rec.config, full_cube=True)
+
+
+#: Feature modes of the shipped-bundle configurations: (featurizer, uses the known range)
+_MODES = {
+    "gated": (extract, True),
+    "detect": (extract, False),
+    "full": (_extract_full, False),
+    "gated64": (lambda rec, gate: extract(rec, gate, float64=True), True),
+}
+
+
+def _interleaved(fns: dict[str, Callable[[int], object]], n: int) -> tuple[dict[str, list], dict[str, float]]:
+    """Run every function on item i in turn, i = 0..n-1, starting with a different one each
+    time: all configurations are timed under the same machine conditions (this machine is
+    shared and drifts by tens of percent over minutes). Returns outputs and median ms."""
+    keys = list(fns)
+    out: dict[str, list] = {k: [] for k in keys}
+    times: dict[str, list[float]] = {k: [] for k in keys}
+    for i in range(n):
+        for k in keys[i % len(keys):] + keys[:i % len(keys)]:
+            t0 = time.perf_counter()
+            out[k].append(fns[k](i))
+            times[k].append((time.perf_counter() - t0) * 1e3)
+    return out, {k: statistics.median(v) for k, v in times.items()}
+
+
 def run(preset: str, snrs: tuple[float, ...] = (0.0, 10.0, 20.0), per_class: int = 20, seed: int = 5,
         progress: Callable[[int], None] | None = None, n_train: int = 3000) -> list[Point]:
-    """The grid on one held-out set; `n_train` returns train each retrained RF (0: none)."""
+    """The grid on one held-out set; `n_train` returns train each retrained RF (0: none).
+
+    Feature extraction and classification are timed interleaved across configurations."""
     from signatures.evaluate import metrics
     from signatures.inference import load_classifier
 
     clf = load_classifier(preset)
     data = list(_scenes(preset, snrs, per_class, seed))
-    feats: dict[str, list] = {}
-    ftime: dict[str, float] = {}
-    for mode in ("gated", "detect", "full", "gated64"):
-        rows, times = [], []
-        for _, label, rec, truth in data:
-            gate = _gate_of(label, rec, truth)
-            t0 = time.perf_counter()
-            fr = extract(rec, expected_range_m=gate if mode in ("gated", "gated64") else None,
-                         float64=mode == "gated64")
-            if mode == "full":
-                from signatures.features import extract_iq
-
-                t0 = time.perf_counter()
-                fr = extract_iq(rec.iq, rec.config, full_cube=True)
-            times.append((time.perf_counter() - t0) * 1e3)
-            rows.append(fr)
-            if progress:
-                progress(1)
-        feats[mode], ftime[mode] = rows, statistics.median(times)
     labels = np.array([label for _, label, _, _ in data])
     snr_of = np.array([snr for snr, _, _, _ in data])
-    points = []
+    gates = [_gate_of(label, rec, truth) for _, label, rec, truth in data]
+    retrained = _retrain(clf, preset, n_train) if n_train else []
+    featurizers = {m: (fn, use_gate) for m, (fn, use_gate) in _MODES.items()}
+    featurizers |= {name: (fn, True) for name, fn, _, _ in retrained}
+
+    def featurize(key: str) -> Callable[[int], object]:
+        fn, use_gate = featurizers[key]
+
+        def one(i: int) -> object:
+            if progress and key == next(iter(featurizers)):
+                progress(1)
+            return fn(data[i][2], gates[i] if use_gate else None)
+        return one
+
+    feats, ftime = _interleaved({k: featurize(k) for k in featurizers}, len(data))
+    predictors: dict[str, tuple[Callable[[np.ndarray, np.ndarray], np.ndarray], np.ndarray, np.ndarray, list]] = {}
     for name, fmode, cmode in CONFIGS:
         if cmode in ("cnn", "cascade-always") and not clf.has_cnn:
             continue
-        X = np.stack([f.as_array() for f in feats[fmode]])
-        rd = np.stack([f.rd_patch for f in feats[fmode]])
-        predict = _classify(clf, cmode)
-        times = []
-        for i in range(min(len(X), 200)):
-            t0 = time.perf_counter()
-            predict(X[i:i + 1], rd[i:i + 1])
-            times.append((time.perf_counter() - t0) * 1e3)
+        rows = feats[fmode]
+        predictors[name] = (_classify(clf, cmode), np.stack([f.as_array() for f in rows]),
+                            np.stack([f.rd_patch for f in rows]), rows)
+    for name, _, cols, forest in retrained:
+        rows = feats[name]
+        predictors[name] = (lambda X, rd, forest=forest: forest.proba(X),
+                            np.stack([r.as_array() for r in rows])[:, cols], np.zeros((len(rows), 1)), rows)
+    n_timed = min(len(data), 200)
+    _, ctime = _interleaved({k: (lambda i, p=p: p[0](p[1][i:i + 1], p[2][i:i + 1])) for k, p in predictors.items()},
+                            n_timed)
+    mode_of = {name: fmode for name, fmode, _ in CONFIGS} | {name: name for name, _, _, _ in retrained}
+    points = []
+    for name, (predict, X, rd, rows) in predictors.items():
         p = predict(X, rd)
-        detected = np.array([f.detected for f in feats[fmode]])
+        detected = np.array([f.detected for f in rows])
         pred = np.where(detected, np.array(clf.classes)[np.argmax(p, axis=1)], "none")
         f1 = {float(s): metrics(labels[snr_of == s], pred[snr_of == s], p.max(axis=1)[snr_of == s],
                                 clf.classes)["macro_f1"] for s in snrs}
         far = metrics(labels, pred, p.max(axis=1), clf.classes)["false_alarm_rate"]
-        points.append(Point(name, ftime[fmode] + statistics.median(times), f1, far))
-    if n_train:
-        points += _retrained(clf, preset, data, snrs, n_train, metrics)
+        points.append(Point(name, ftime[mode_of[name]] + ctime[name], f1, far))
     _mark_front(points, snrs)
     return points
 
@@ -180,8 +211,9 @@ def _gate_of(label: str, rec, truth) -> float | None:
     return truth.range_m if label != "none" and lo <= truth.range_m < hi else None
 
 
-def _retrained(clf, preset: str, data: list, snrs: tuple[float, ...], n_train: int, metrics) -> list[Point]:
-    """RF per RETRAINED configuration: trained on the bundle's spec, timed and scored on `data`."""
+def _retrain(clf, preset: str, n_train: int) -> list[tuple[str, Callable, list[int], object]]:
+    """(name, featurizer, feature columns, forest) per RETRAINED configuration: an RF trained
+    on the bundle's training spec (its first `n_train` returns, same seed)."""
     from signatures.classifiers import forest_arrays, make_rf
     from signatures.dataset import DatasetSpec, generate
     from signatures.inference import ForestArrays
@@ -191,37 +223,17 @@ def _retrained(clf, preset: str, data: list, snrs: tuple[float, ...], n_train: i
     profiles = tuple(UavProfile.model_validate(p) for p in clf.card["profiles"])
     seed = int(clf.card["training"]["seed"])
     spec = DatasetSpec(split="train", n=n_train, preset=preset, profiles=profiles, seed=seed)
-    labels = np.array([label for _, label, _, _ in data])
-    snr_of = np.array([snr for snr, _, _, _ in data])
     index = {c: i for i, c in enumerate(clf.classes)}
-    points = []
+    out = []
     with tempfile.TemporaryDirectory() as tmp:
-        for name, featurize, names, train_featurize in RETRAINED:
+        for k, (name, featurize, names, train_featurize) in enumerate(RETRAINED):
             train = generate(spec, train_featurize, workers=2)
             cols = [FEATURE_NAMES.index(n) for n in names if n not in GEOMETRY_FEATURES + LEVEL_FEATURES]
             rf = make_rf(seed).fit(train.X[:, cols], np.array([index[c] for c in train.y]))
-            path = Path(tmp) / "rf.npz"
+            path = Path(tmp) / f"rf{k}.npz"
             np.savez(path, **forest_arrays(rf, len(clf.classes)))
-            forest = ForestArrays(path)
-            rows, ftimes = [], []
-            for _, label, rec, truth in data:
-                t0 = time.perf_counter()
-                rows.append(featurize(rec, _gate_of(label, rec, truth)))
-                ftimes.append((time.perf_counter() - t0) * 1e3)
-            X = np.stack([r.as_array() for r in rows])[:, cols]
-            ctimes = []
-            for i in range(min(len(X), 200)):
-                t0 = time.perf_counter()
-                forest.proba(X[i:i + 1])
-                ctimes.append((time.perf_counter() - t0) * 1e3)
-            p = forest.proba(X)
-            detected = np.array([r.detected for r in rows])
-            pred = np.where(detected, np.array(clf.classes)[np.argmax(p, axis=1)], "none")
-            f1 = {float(s): metrics(labels[snr_of == s], pred[snr_of == s], p.max(axis=1)[snr_of == s],
-                                    clf.classes)["macro_f1"] for s in snrs}
-            far = metrics(labels, pred, p.max(axis=1), clf.classes)["false_alarm_rate"]
-            points.append(Point(name, statistics.median(ftimes) + statistics.median(ctimes), f1, far))
-    return points
+            out.append((name, featurize, cols, ForestArrays(path)))
+    return out
 
 
 def _mark_front(points: list[Point], snrs: tuple[float, ...]) -> None:

@@ -52,3 +52,18 @@ def test_cold_times_run_real_processes(tmp_path) -> None:
     t = cold_times(write_recording(rec, tmp_path / "r.h5"), bench_serial("m300"), db, repeats=1)
     assert all(v > 0 and np.isfinite(v) for v in t.values())
     assert t["cold_vs_import_numpy"] == t["cold_process_ms"] / t["import_numpy_ms"]
+
+
+def test_pareto_grid_runs_every_configuration_on_one_set() -> None:
+    """A tiny grid: every configuration (shipped bundle and retrained RFs) gets a positive
+    time, scores in [0, 1] and the front is not empty."""
+    from authn.pareto import CONFIGS, RETRAINED, run
+
+    pts = run("paper", snrs=(20.0,), per_class=1, seed=3, n_train=60)
+    names = [p.name for p in pts]
+    assert set(names) >= {name for name, _, cmode in CONFIGS if cmode not in ("cnn", "cascade-always")}
+    assert set(names) >= {r[0] for r in RETRAINED}
+    assert all(p.ms_per_return > 0 and 0.0 <= p.f1_by_snr[20.0] <= 1.0 and 0.0 <= p.far <= 1.0 for p in pts)
+    assert any(p.pareto for p in pts)
+    default = next(p for p in pts if p.name.endswith("(default)"))
+    assert default.f1_by_snr[20.0] >= 0.8  # 5 returns at 20 dB: the shipped ensemble gets (almost) all
