@@ -12,7 +12,6 @@ the full features.
 
 from __future__ import annotations
 
-import dataclasses
 import statistics
 import tempfile
 import time
@@ -22,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from authn.feature_variants import (features_half, features_quarter, features_quarter_quick, features_quick,
+                                    features_third)
 from signatures.features import FEATURE_NAMES, QUICK_FEATURES, extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
@@ -41,31 +42,6 @@ CONFIGS = (
     ("full cube + ensemble", "full", "ensemble"),
     ("gated, float64 features + ensemble", "gated64", "ensemble"),
 )
-
-
-def _head(rec, divisor: int):
-    """The recording's first 1/divisor of the dwell."""
-    return dataclasses.replace(rec, iq=rec.iq[: max(1, rec.iq.shape[0] // divisor)])
-
-
-def features_half(rec, expected_range_m: float | None = None):
-    return extract(_head(rec, 2), expected_range_m)
-
-
-def features_third(rec, expected_range_m: float | None = None):
-    return extract(_head(rec, 3), expected_range_m)
-
-
-def features_quarter(rec, expected_range_m: float | None = None):
-    return extract(_head(rec, 4), expected_range_m)
-
-
-def features_quarter_quick(rec, expected_range_m: float | None = None):
-    return extract(_head(rec, 4), expected_range_m, quick=True)
-
-
-def features_quick(rec, expected_range_m: float | None = None):
-    return extract(rec, expected_range_m, quick=True)
 
 
 #: (name, featurizer, feature names the RF sees, featurizer of the training set). The quick tier
@@ -252,25 +228,38 @@ def near_floor(points: list[Point], floor_ms: float, factor: float = 3.0, snr: f
             and p.f1_by_snr.get(snr, 0.0) >= min_f1]
 
 
-def plot(points: list[Point], snrs: tuple[float, ...], path) -> None:
+def plot(points: list[Point], snrs: tuple[float, ...], path, floor_ms: float | None = None) -> None:
+    """Error against time, one numbered marker per configuration (mean error over `snrs`, with
+    the per-SNR errors as faint marks), the Pareto front as a line, the FFT floor and 3x it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, (ax, legend_ax) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [3, 1.7]})
+    mean_err = [1.0 - float(np.mean([p.f1_by_snr[s] for s in snrs])) for p in points]
     for s, marker in zip(snrs, "o^sDv"):
-        xs = [p.ms_per_return for p in points]
-        ys = [1.0 - p.f1_by_snr[s] for p in points]
-        ax.scatter(xs, ys, marker=marker, label=f"{s:g} dB")
-    for p in points:
-        ax.annotate(p.name + (" *" if p.pareto else ""), (p.ms_per_return, 1.0 - np.mean(list(p.f1_by_snr.values()))),
-                    fontsize=7, alpha=0.8)
+        ax.scatter([p.ms_per_return for p in points], [1.0 - p.f1_by_snr[s] for p in points], marker=marker,
+                   s=14, alpha=0.35, label=f"{s:g} dB")
+    colours = ["tab:red" if p.pareto else "black" for p in points]
+    ax.scatter([p.ms_per_return for p in points], mean_err, c=colours, s=36, zorder=3, label="mean")
+    for k, (p, e) in enumerate(zip(points, mean_err), start=1):
+        ax.annotate(str(k), (p.ms_per_return, e), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    front = sorted((p.ms_per_return, e) for p, e in zip(points, mean_err) if p.pareto)
+    if front:
+        ax.step(*zip(*front), where="post", color="tab:red", lw=1, alpha=0.7)
+    if floor_ms:
+        for x, text in ((floor_ms, "FFT floor"), (3 * floor_ms, "3x floor")):
+            ax.axvline(x, color="grey", ls="--", lw=0.8)
+            ax.text(x, ax.get_ylim()[1], " " + text, rotation=90, va="top", fontsize=7, color="grey")
     ax.set_xscale("log")
     ax.set_xlabel("time per return, ms (features + classifier, median)")
     ax.set_ylabel("error = 1 - macro F1")
-    ax.set_title("run time against error (* = Pareto front on mean error)")
-    ax.legend(title="SNR")
+    ax.set_title("run time against error (red = Pareto front on mean error)")
+    ax.legend(title="SNR", fontsize=8)
+    legend_ax.axis("off")
+    lines = [f"{k:2d}  {p.name}{' *' if p.pareto else ''}" for k, p in enumerate(points, start=1)]
+    legend_ax.text(0.0, 1.0, "\n".join(lines), va="top", fontsize=8, family="monospace")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

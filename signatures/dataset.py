@@ -197,10 +197,11 @@ def default_featurizer() -> Featurizer:
 
 
 #: Modules whose source the samples depend on (besides the featurizer's own module): a change to
-#: any of them (an estimator fix that forgot to bump FEATURE_VERSION) regenerates cached datasets.
+#: any of them (an estimator fix that forgot to bump FEATURE_VERSION, or a featurizer elsewhere,
+#: like the benchmark's dwell variants, that calls `extract`) regenerates cached datasets.
 SOURCE_MODULES = ("signatures.simulate", "signatures.scene", "signatures.radar", "signatures.recording",
-                  "signatures.profiles", "signatures.estimators", "signatures.timefreq", "signatures.rd",
-                  "signatures.fft")
+                  "signatures.profiles", "signatures.features", "signatures.estimators", "signatures.timefreq",
+                  "signatures.rd", "signatures.fft")
 
 
 def _source_digest(module: str) -> str:

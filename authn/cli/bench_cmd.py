@@ -73,7 +73,7 @@ def bench(
     if plot_dir is not None:
         plot_dir.mkdir(parents=True, exist_ok=True)
         for p, pts in grid.items():
-            pareto.plot(pts, (0.0, 10.0, 20.0), plot_dir / f"error-vs-time-{p}.png")
+            pareto.plot(pts, (0.0, 10.0, 20.0), plot_dir / f"error-vs-time-{p}.png", floor[p]["fft_ms"])
     report = {"decisions": summarise(rows), "latency_ms": lat, "stages": stages, "fft_floor": floor,
               "fft_floor_of_dwell_part_ms": dwell_floors,
               "pareto": {p: [pt.__dict__ for pt in pts] for p, pts in grid.items()},

@@ -1,0 +1,37 @@
+"""Feature variants the run-time-against-error grid retrains a classifier on: a shorter dwell
+(the first 1/2, 1/3 or 1/4 of the chirps) and the quick tier.
+
+Kept apart from `authn.pareto` because the dataset cache key digests the featurizer's module
+source: editing the benchmark's reporting must not regenerate these training sets.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from signatures.features import extract
+
+
+def _head(rec, divisor: int):
+    """The recording's first 1/divisor of the dwell."""
+    return dataclasses.replace(rec, iq=rec.iq[: max(1, rec.iq.shape[0] // divisor)])
+
+
+def features_half(rec, expected_range_m: float | None = None):
+    return extract(_head(rec, 2), expected_range_m)
+
+
+def features_third(rec, expected_range_m: float | None = None):
+    return extract(_head(rec, 3), expected_range_m)
+
+
+def features_quarter(rec, expected_range_m: float | None = None):
+    return extract(_head(rec, 4), expected_range_m)
+
+
+def features_quarter_quick(rec, expected_range_m: float | None = None):
+    return extract(_head(rec, 4), expected_range_m, quick=True)
+
+
+def features_quick(rec, expected_range_m: float | None = None):
+    return extract(rec, expected_range_m, quick=True)
