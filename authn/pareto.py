@@ -144,11 +144,13 @@ def run(preset: str, snrs: tuple[float, ...] = (0.0, 10.0, 20.0), per_class: int
     featurizers = {m: (fn, use_gate) for m, (fn, use_gate) in _MODES.items()}
     featurizers |= {name: (fn, True) for name, fn, _, _ in retrained}
 
+    first = next(iter(featurizers))
+
     def featurize(key: str) -> Callable[[int], object]:
         fn, use_gate = featurizers[key]
 
         def one(i: int) -> object:
-            if progress and key == next(iter(featurizers)):
+            if progress and key == first:  # one tick per return
                 progress(1)
             return fn(data[i][2], gates[i] if use_gate else None)
         return one
