@@ -67,3 +67,19 @@ def test_pareto_grid_runs_every_configuration_on_one_set() -> None:
     assert any(p.pareto for p in pts)
     default = next(p for p in pts if p.name.endswith("(default)"))
     assert default.f1_by_snr[20.0] >= 0.8  # 5 returns at 20 dB: the shipped ensemble gets (almost) all
+
+
+def test_bench_quick_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkeypatch) -> None:
+    """`authn bench --quick` end to end (latency skipped: it spawns processes): the JSON report has
+    every section, and the error-versus-time PNG is written."""
+    import json
+
+    from authn.cli import main
+
+    monkeypatch.setenv("AUTHN_CACHE_DIR", str(tmp_path / "cache"))
+    assert main(["bench", "--quick", "--no-latency", "--json", "--plot", str(tmp_path / "fig")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc) >= {"decisions", "stages", "fft_floor", "pareto", "near_fft_floor", "throughput_per_s"}
+    assert doc["decisions"]["paper"]["unregistered"]["radar_skipped_rate"] == 1.0
+    assert {p["name"] for p in doc["pareto"]["paper"]} >= {"gated + ensemble (default)", "full cube + ensemble"}
+    assert (tmp_path / "fig" / "error-vs-time-paper.png").stat().st_size > 10_000
