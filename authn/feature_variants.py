@@ -11,6 +11,10 @@ import dataclasses
 
 from signatures.features import extract
 
+#: The dwell fractions the grid tries (1/2, 1/3, 1/4 of the chirps); the benchmark also reports
+#: the FFT floor of each.
+DWELL_DIVISORS = (2, 3, 4)
+
 
 def _head(rec, divisor: int):
     """The recording's first 1/divisor of the dwell."""

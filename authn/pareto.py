@@ -65,6 +65,10 @@ class Point:
     far: float
     pareto: bool = False
 
+    def mean_error(self, snrs: tuple[float, ...]) -> float:
+        """1 - macro F1, averaged over `snrs` (the error axis of the front and the plot)."""
+        return 1.0 - float(np.mean([self.f1_by_snr[s] for s in snrs]))
+
 
 def _scenes(preset: str, snrs: tuple[float, ...], per_class: int, seed: int):
     rng = np.random.default_rng([seed, 9001])
@@ -216,7 +220,7 @@ def _retrain(clf, preset: str, n_train: int) -> list[tuple[str, Callable, list[i
 
 def _mark_front(points: list[Point], snrs: tuple[float, ...]) -> None:
     """Pareto-optimal in (time, mean error over SNRs): nothing is both faster and at least as good."""
-    err = {p.name: 1.0 - float(np.mean([p.f1_by_snr[s] for s in snrs])) for p in points}
+    err = {p.name: p.mean_error(snrs) for p in points}
     for p in points:
         p.pareto = not any(q is not p and q.ms_per_return <= p.ms_per_return and err[q.name] <= err[p.name]
                            and (q.ms_per_return < p.ms_per_return or err[q.name] < err[p.name]) for q in points)
@@ -239,7 +243,7 @@ def plot(points: list[Point], snrs: tuple[float, ...], path, floor_ms: float | N
     import matplotlib.pyplot as plt
 
     fig, (ax, legend_ax) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [3, 1.7]})
-    mean_err = [1.0 - float(np.mean([p.f1_by_snr[s] for s in snrs])) for p in points]
+    mean_err = [p.mean_error(snrs) for p in points]
     for s, marker in zip(snrs, "o^sDv"):
         ax.scatter([p.ms_per_return for p in points], [1.0 - p.f1_by_snr[s] for p in points], marker=marker,
                    s=14, alpha=0.35, label=f"{s:g} dB")

@@ -53,6 +53,7 @@ def bench(
         _stress(tuple(preset), quick, as_json)
         return
     from authn import pareto, perf
+    from authn.feature_variants import DWELL_DIVISORS
 
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n)
@@ -62,7 +63,7 @@ def bench(
         progress.update(task, description="timing stages")
         stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in preset}
         floor = {p: perf.fft_floor(p) for p in preset}
-        dwell_floors = {p: {f"1/{d}": perf.fft_floor(p, dwell_divisor=d)["fft_ms"] for d in (2, 3, 4)}
+        dwell_floors = {p: {f"1/{d}": perf.fft_floor(p, dwell_divisor=d)["fft_ms"] for d in DWELL_DIVISORS}
                         for p in preset}
         progress.update(task, description="run time against error")
         grid = {p: pareto.run(p, per_class=4 if quick else 25, seed=seed, n_train=300 if quick else 3000)
@@ -70,6 +71,7 @@ def bench(
         progress.update(task, description="timing imports and throughput")
         imports = perf.import_costs(1 if quick else 3)
         tput = {p: perf.throughput(p, 20 if quick else 100, seed) for p in preset}
+    near = {p: pareto.near_floor(pts, floor[p]["fft_ms"]) for p, pts in grid.items()}
     if plot_dir is not None:
         plot_dir.mkdir(parents=True, exist_ok=True)
         for p, pts in grid.items():
@@ -77,8 +79,7 @@ def bench(
     report = {"decisions": summarise(rows), "latency_ms": lat, "stages": stages, "fft_floor": floor,
               "fft_floor_of_dwell_part_ms": dwell_floors,
               "pareto": {p: [pt.__dict__ for pt in pts] for p, pts in grid.items()},
-              "near_fft_floor": {p: [q.name for q in pareto.near_floor(pts, floor[p]["fft_ms"])]
-                                 for p, pts in grid.items()},
+              "near_fft_floor": {p: [q.name for q in pts] for p, pts in near.items()},
               "imports_ms": imports, "throughput_per_s": tput, "n_per_category": n, "seed": seed}
     if as_json:
         typer.echo(json.dumps(report, indent=2))
@@ -127,9 +128,8 @@ def bench(
             t.add_row(pt.name, f"{pt.ms_per_return:.2f}", f"{pt.ms_per_return / fl:.1f}",
                       *(f"{pt.f1_by_snr[s]:.3f}" for s in (0.0, 10.0, 20.0)), f"{pt.far:.3f}", "*" if pt.pareto else "")
         console.print(t)
-        near = pareto.near_floor(pts, fl)
         console.print(f"  front points within 3x of the FFT floor ({fl:.2f} ms) with macro F1 >= 0.95 at 10 dB: "
-                      + (", ".join(f"{q.name} ({q.ms_per_return / fl:.1f}x)" for q in near) or "none"))
+                      + (", ".join(f"{q.name} ({q.ms_per_return / fl:.1f}x)" for q in near[p]) or "none"))
         console.print("  FFT floor of just the first part of the dwell (what those configurations transform): "
                       + ", ".join(f"{k} {v:.2f} ms" for k, v in dwell_floors[p].items()))
     t = Table(title="cold-start imports (fresh interpreter each, ms)")
