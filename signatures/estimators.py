@@ -6,8 +6,10 @@ flashes at 2 f_rot (2 blades assumed, SPEC section 4). The flash is an impulse
 in slow time whatever the Doppler does, so timing survives blade-tip aliasing.
 
 Pipeline: demodulate the target bins by the body Doppler, subtract a short
-moving average (removes body, hubs and clutter: everything slow), sum |.|^2
-over the bins -> flash-energy series e[n]; keep what stands out of the noise;
+moving average (removes body, hubs and clutter: everything slow), pass the bins
+through whitened matched filters for a point scatterer at fractional range
+positions (a broadside blade sits at its hub's range) and keep the best
+position's energy -> flash-energy series e[n]; keep what stands out of the noise;
 find flash events (local maxima) and their range positions; score each
 candidate period L by how consistently the events repeat at +-L: every event
 whose partner window lies inside the dwell checks for a same-place event there,
@@ -20,11 +22,20 @@ sampled once per 44 us PRI varies by up to ~20 dB with where it falls between
 chirps, and energy-weighted autocorrelations then lock onto the few strongest
 flashes of different rotors (inter-rotor lags).
 
+Matched filter: the Hann-windowed range bins of a point scatterer have a known
+complex profile for each fractional position, and the window correlates the noise
+of neighbouring bins (-2/3 between adjacent ones). Summing |.|^2 over three bins
+adds three bins of (correlated) noise to one scatterer's energy; the whitened
+matched filter for the scatterer's position keeps all of that energy against one
+complex degree of freedom of noise, and the maximum over positions 1/4 bin apart
+loses little of it. In `paper` at 0 dB this alone raised the share of returns
+with the flash rate within 5 % from 94.7 % to 95.6 % (3,000 returns).
+
 Coherent partner checks: the flashes of one rotor come from the same hub, so they
-share its complex range profile and, a period later, its carrier phase up to the
+share its range position and, a period later, its carrier phase up to the
 sign of the sinc (the body Doppler is removed; wobble moves the hub little within a
-period). Projecting the target bins on an event's own profile and keeping the part
-in phase with it finds that rotor's weaker flashes below the energy threshold, while
+period). The event's matched-filter output, kept in phase with it, finds that
+rotor's weaker flashes below the energy threshold, while
 another rotor's flash (another hub range, a random phase) mostly fails it. These
 checks re-rank the best candidate periods of the event vote and decide whether half
 the chosen period is the period (in `paper` a flash one period later is often sampled
@@ -35,6 +46,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -82,6 +94,9 @@ EVENT_RADIUS = 2
 SKIRT_REACH = 12
 SKIRT_DB = -13.0
 BLADES_ASSUMED = 2
+#: Matched-filter positions: every POSITION_STEP_BINS from a quarter bin before the first
+#: target bin to a quarter bin after the last (hubs lie within about a bin of the body).
+POSITION_STEP_BINS = 0.25
 #: Coherent partner check: a partner is found where the target bins' power along the
 #: event's range profile and in phase with it (1 degree of freedom) exceeds this many
 #: noise levels (noise alone: ~2.5 % of samples; the chance share is measured per series).
@@ -120,16 +135,19 @@ class FlashSeries:
     radius: int  # samples either side a flash can spread over
     drift_bins_per_sample: float  # body range migration (bins per series sample)
     threshold: float = 0.0  # detection level subtracted from the energy (median + NOISE_MADS MAD)
-    field: np.ndarray | None = None  # complex64 (chirps, bins): high-passed, body-demodulated bins
+    field: np.ndarray | None = None  # complex (chirps, positions): matched-filter outputs of the
+    # high-passed, body-demodulated bins (noise: unit variance per position)
     decimation: int = 1  # chirps per series sample
 
 
 def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
-                 range_bin_m: float) -> FlashSeries:
-    """Energy of the fast-varying part of the target bins per (decimated) chirp.
+                 range_bin_m: float, n_fft: int) -> FlashSeries:
+    """Matched-filter energy of the fast-varying part of the target bins per (decimated) chirp.
 
-    `slow` is (chirps x bins), complex, not windowed. Returns the energy above a
-    robust noise level (median + NOISE_MADS MAD), clipped at 0.
+    `slow` is (chirps x bins): adjacent bins of a Hann-windowed `n_fft`-point range
+    FFT, not windowed in slow time. The energy is the best position's (summed over a
+    decimation block); the series is that energy above a robust noise level (median +
+    NOISE_MADS MAD), clipped at 0.
     """
     n = slow.shape[0]
     t = np.arange(n)
@@ -148,15 +166,40 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     else:
         z = z0 - z0.mean(axis=0, keepdims=True)
     eb = (z.real ** 2 + z.imag ** 2).astype(np.float64)
+    y = z @ matched_filters(z.shape[1], n_fft).conj().astype(z.dtype)  # (chirps, positions)
+    ey = (y.real ** 2 + y.imag ** 2).astype(np.float64)
     dec = max(1, int(config.prf_hz // SERIES_RATE_HZ))
     m = (n // dec) * dec
     if m >= dec:
         eb = eb[:m].reshape(-1, dec, eb.shape[1]).sum(axis=1)
-    e = eb.sum(axis=1)
+        ey = ey[:m].reshape(-1, dec, ey.shape[1]).sum(axis=1)
+    e = ey.max(axis=1)
     level = _noise_level(e)
     above = np.maximum(e - level, 0.0)
     drift = body_hz * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
-    return FlashSeries(above, eb, config.prf_hz / dec, EVENT_RADIUS, drift, level, z, dec)
+    return FlashSeries(above, eb, config.prf_hz / dec, EVENT_RADIUS, drift, level, y, dec)
+
+
+@lru_cache(maxsize=16)
+def matched_filters(n_bins: int, n_fft: int) -> np.ndarray:
+    """Whitened matched filters (complex128, n_bins x positions) for a point scatterer seen
+    in `n_bins` adjacent bins of a periodic-Hann `n_fft`-point FFT, at positions every
+    POSITION_STEP_BINS (module docstring). Filter h = C^-1 s / sqrt(s^H C^-1 s) for the
+    scatterer's bin response s and the window's noise covariance C, so that |h^H z|^2 is
+    the scatterer's energy and white input noise gives unit variance at every position.
+    Cached, read-only."""
+    k = np.arange(n_fft)
+    w = np.ones(n_fft) if n_fft == 1 else 1.0 - np.cos(2.0 * math.pi * k / n_fft)
+    bins = np.arange(n_bins)
+    positions = np.arange(-0.25, n_bins - 0.75 + 1e-9, POSITION_STEP_BINS)
+    # bin b of a tone at (fractional) bin p: sum_k w[k] exp(-2j pi (b - p) k / n_fft)
+    response = np.exp(-2j * math.pi * (bins[:, None, None] - positions[None, :, None])
+                      * k[None, None, :] / n_fft) @ w
+    cov = np.exp(-2j * math.pi * (bins[:, None, None] - bins[None, :, None]) * k / n_fft) @ (w * w)
+    h = np.linalg.solve(cov, response)
+    h /= np.sqrt(np.maximum(np.real(np.sum(response.conj() * h, axis=0)), 1e-300))[None, :]
+    h.setflags(write=False)
+    return h
 
 
 def _noise_level(e: np.ndarray) -> float:
@@ -291,11 +334,12 @@ class _Coherent:
 
 
 def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
-    """Per event and series sample: is there a flash with the event's range profile and
-    carrier phase (up to a sign)? The power of the target bins projected on the event's own
-    complex profile, real part only (in phase), above COHERENT_LEVEL x its median-based noise
-    level and holding at least COHERENT_SHARE of the bins' power (best chirp of a decimation
-    block). None where the field is missing or the PRI is shorter than FLASH_LOBE_S."""
+    """Per event and series sample: is there a flash at the event's range position and with
+    its carrier phase (up to a sign)? The matched-filter output at the event's best position,
+    real part relative to the event's phase only (in phase), squared, above COHERENT_LEVEL x
+    its median-based noise level and holding at least COHERENT_SHARE of the best position's
+    energy at that chirp (best chirp of a decimation block). None where the field is missing
+    or the PRI is shorter than FLASH_LOBE_S."""
     n = series.energy.size
     dec = max(1, series.decimation)
     if series.field is None or times.size == 0 or series.field.shape[0] < n * dec:
@@ -308,11 +352,12 @@ def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
     if dec > 1:
         block = field.reshape(n, dec, -1)[rows // dec]
         rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=2), axis=1)
-    u = field[rows]
-    norm = np.sqrt((u.real ** 2 + u.imag ** 2).sum(axis=1, keepdims=True))
-    u = u / np.maximum(norm, np.float32(1e-30))
-    power = np.square((u.conj() @ field.T).real)  # (k, n * dec), float32
-    total = (field.real ** 2 + field.imag ** 2).sum(axis=1)  # (n * dec,)
+    energy = field.real ** 2 + field.imag ** 2  # (n * dec, positions)
+    at = np.argmax(energy[rows], axis=1)  # each event's best position
+    own = field[rows, at]
+    phase = own / np.maximum(np.abs(own), 1e-30)
+    power = np.square((field[:, at] * phase.conj()[None, :]).real.T)  # (k, n * dec)
+    total = energy.max(axis=1)  # (n * dec,)
     coherent = power >= np.float32(COHERENT_SHARE) * total[None, :]
     if dec > 1:
         coherent = coherent.reshape(-1, n, dec)

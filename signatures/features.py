@@ -283,7 +283,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
         feats = Features(**{n: values.get(n, 0.0) for n in FEATURE_NAMES})
         return FeatureResult(det.detected, feats, _no_patch, gate)
     centre_cols = slice(max(0, det.peak_bin - 1 - gate[0]), min(gate[1] - gate[0], det.peak_bin + 2 - gate[0]))
-    series = est.flash_series(slow[:, centre_cols], config, body_hz, bin_m)
+    series = est.flash_series(slow[:, centre_cols], config, body_hz, bin_m, n_bins)
     per = est.periodicity(series)
     rotors = est.rotor_count(per)
     flash = per.flash_rate

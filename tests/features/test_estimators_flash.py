@@ -1,32 +1,58 @@
-"""Blade-flash estimator: the coherent partner checks (signatures.estimators)."""
+"""Blade-flash estimator: matched filters and coherent partner checks (signatures.estimators)."""
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
 
 from signatures import estimators as est
+from signatures import rd
 from signatures.radar import get_preset
 
-PROFILE = np.array([0.5, 1.0, 0.6 - 0.2j], dtype=np.complex64)  # a hub's complex range profile
+N_FFT = 80  # fast-time samples per chirp (the paper preset's)
+HUB_BIN = 40.3  # the flashing hub's range, in bins
+BINS = slice(39, 42)  # the three target bins around it
 
 
 def _slow(n: int, flashes: list[tuple[int, float, float]], seed: int = 0) -> np.ndarray:
-    """Unit complex noise per bin plus flashes (chirp, amplitude, phase) with PROFILE."""
+    """Hann-windowed range bins 39-41 of complex white noise (unit power per fast-time sample)
+    plus flashes (chirp, amplitude, phase) of a point scatterer at HUB_BIN. Amplitude 1 puts
+    the scatterer's energy at the noise level of one bin."""
     rng = np.random.default_rng(seed)
-    z = ((rng.standard_normal((n, 3)) + 1j * rng.standard_normal((n, 3))) / np.sqrt(2)).astype(np.complex64)
+    iq = (rng.standard_normal((n, N_FFT)) + 1j * rng.standard_normal((n, N_FFT))) / math.sqrt(2.0)
+    k = np.arange(N_FFT)
+    # unit-mean Hann: one bin's noise power is 1.5 N, a tone of amplitude a peaks near a N
+    tone = np.exp(2j * math.pi * HUB_BIN * k / N_FFT) * math.sqrt(1.5 * N_FFT) / N_FFT
     for t, amp, phase in flashes:
-        z[t] += np.complex64(amp * np.exp(1j * phase)) * PROFILE
-    return z
+        iq[t] += amp * np.exp(1j * phase) * tone
+    return rd.range_fft(iq.astype(np.complex64), suppress_clutter=False)[:, BINS]
+
+
+def test_matched_filters_give_unit_noise_and_the_scatterer_energy():
+    h = est.matched_filters(3, N_FFT)
+    noise = _slow(20_000, [])
+    power = np.abs(noise @ h.conj()) ** 2
+    assert np.allclose(power.mean(axis=0), 1.0, atol=0.05)  # unit noise at every position
+    k = np.arange(N_FFT)
+    for position in np.arange(39.0, 41.01, 0.1):
+        tone = np.exp(2j * math.pi * position * k / N_FFT)[None, :].astype(np.complex64)
+        bins = rd.range_fft(tone, suppress_clutter=False)[:, BINS]
+        out = np.abs(bins @ h.conj())[0] ** 2
+        best = float(est.POSITION_STEP_BINS * int(np.argmax(out)) - 0.25 + 39.0)
+        assert abs(best - position) <= est.POSITION_STEP_BINS + 1e-9
+        # a unit tone's energy is N against unit noise; three Hann bins keep 80 % of it when
+        # centred (all N bins would undo the window) and at least 63 % between grid positions
+        assert 0.63 * N_FFT <= out.max() <= 0.8 * N_FFT * (1.0 + 1e-4)
 
 
 def test_coherent_checks_only_where_a_flash_fits_in_one_pri():
     paper, wide = get_preset("paper"), get_preset("wide")
-    s = est.flash_series(_slow(paper.n_chirps, [(100, 30.0, 0.3)]), paper.config, 0.0, 1.0)
+    s = est.flash_series(_slow(paper.n_chirps, [(100, 30.0, 0.3)]), paper.config, 0.0, 1.0, N_FFT)
     times, _ = est.flash_events(s, s.radius)
     assert times.size >= 1 and est._coherent(s, times) is not None
-    s = est.flash_series(_slow(wide.n_chirps, [(1000, 30.0, 0.3)]), wide.config, 0.0, 1.0)
+    s = est.flash_series(_slow(wide.n_chirps, [(1000, 30.0, 0.3)]), wide.config, 0.0, 1.0, N_FFT)
     times, _ = est.flash_events(s, s.radius)
     assert times.size >= 1 and est._coherent(s, times) is None  # 6.25 us PRI: flashes span chirps
 
@@ -36,7 +62,7 @@ def test_coherent_hit_needs_the_same_profile_and_phase_up_to_sign():
     # strong flash at 100; a weak same-hub flash one "period" later (sign flipped: sinc sidelobe);
     # an equally weak flash in quadrature at 400 (another rotor's random phase)
     flashes = [(100, 30.0, 0.3), (295, 4.0, 0.3 + np.pi), (400, 4.0, 0.3 + np.pi / 2)]
-    s = est.flash_series(_slow(paper.n_chirps, flashes, seed=1), paper.config, 0.0, 1.0)
+    s = est.flash_series(_slow(paper.n_chirps, flashes, seed=1), paper.config, 0.0, 1.0, N_FFT)
     times = np.array([100.0])
     coh = est._coherent(s, times)
     assert coh is not None and coh.share < 0.05
@@ -52,7 +78,7 @@ def test_periodicity_of_noise_and_of_nothing_is_quiet():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         for slow in (_slow(paper.n_chirps, [], seed=2), np.zeros((paper.n_chirps, 3), np.complex64)):
-            per = est.periodicity(est.flash_series(slow, paper.config, 0.0, 1.0))
+            per = est.periodicity(est.flash_series(slow, paper.config, 0.0, 1.0, N_FFT))
             assert np.isfinite(per.flash_rate.value) and np.isfinite(per.flash_rate.std)
 
 
@@ -67,7 +93,7 @@ def test_alternate_flashes_missed_still_give_the_period():
             t = t0 + 195 * m
             if t < paper.n_chirps:
                 flashes.append((t, 25.0 if m % 2 == 0 else 2.2, phase + np.pi * (m % 2)))
-    s = est.flash_series(_slow(paper.n_chirps, flashes, seed=4), paper.config, 0.0, 1.0)
+    s = est.flash_series(_slow(paper.n_chirps, flashes, seed=4), paper.config, 0.0, 1.0, N_FFT)
     per = est.periodicity(s)
     period = s.rate_hz / per.flash_rate.value
     assert abs(period - 195.0) <= 2.0
