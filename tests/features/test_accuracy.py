@@ -17,9 +17,8 @@ def test_estimators_on_grid(preset, snr_db):
     assert row.detected == 1.0
     assert row.range_ok == 1.0
     assert row.velocity_ok >= 29 / 30
-    # Target: flash / rotor rate within 5 % for >= 95 % of returns at SNR >= 0 dB. Met by
-    # `wide` and by `paper` at 10-20 dB; NOT met by `paper` at 0 dB (92-96 % over 100 returns,
-    # seeds 0-2; 27/30 on this grid; README "Estimator accuracy"): this asserts the measured
-    # level, not the target.
-    floor = 0.85 if (preset == "paper" and snr_db < 20) else 0.95
+    # Target: flash / rotor rate within 5 % for >= 95 % of returns at SNR >= 0 dB. `paper` at
+    # 0 dB meets it over 1,000 returns (95.6 %, README "Estimator accuracy") but 30 returns
+    # cannot show a 95 % level (28/30 here): this asserts the measured level on this grid.
+    floor = 0.9 if (preset == "paper" and snr_db < 20) else 0.95
     assert row.flash_ok >= floor and row.rotor_ok >= floor
