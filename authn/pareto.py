@@ -259,6 +259,10 @@ def plot(points: list[Point], snrs: tuple[float, ...], path, floor_ms: float | N
             ax.axvline(x, color="grey", ls="--", lw=0.8)
             ax.text(x, ax.get_ylim()[1], " " + text, rotation=90, va="top", fontsize=7, color="grey")
     ax.set_xscale("log")
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # 0.2, 1, 10: not 2x10^-1
+    ax.xaxis.set_minor_formatter(NullFormatter())  # minor labels collide on a short log axis
     ax.set_xlabel("time per return, ms (features + classifier, median)")
     ax.set_ylabel("error = 1 - macro F1")
     ax.set_title("run time against error (red = Pareto front on mean error)")
