@@ -52,6 +52,7 @@ from functools import lru_cache
 import numpy as np
 
 from signatures.radar import RadarConfig
+from signatures.rd import hann
 from signatures.stats import median
 
 #: Search range of the blade-flash rate (Hz): rotor rates 15-250 Hz with 2 blades.
@@ -190,7 +191,7 @@ def matched_filters(n_bins: int, n_fft: int) -> np.ndarray:
     the scatterer's energy and white input noise gives unit variance at every position.
     Cached, read-only."""
     k = np.arange(n_fft)
-    w = np.ones(n_fft) if n_fft == 1 else 1.0 - np.cos(2.0 * math.pi * k / n_fft)
+    w = hann(n_fft)  # the range FFT's own window
     bins = np.arange(n_bins)
     positions = np.arange(-0.25, n_bins - 0.75 + 1e-9, POSITION_STEP_BINS)
     # bin b of a tone at (fractional) bin p: sum_k w[k] exp(-2j pi (b - p) k / n_fft)
