@@ -1,5 +1,9 @@
-"""Errors of the registry layer that are the caller's fault (exit code 2)."""
+"""Errors of the registry layer: the caller's fault (exit code 2) or the database's (exit code 3)."""
 
 
 class RegistryError(ValueError):
     """Bad input to the registry or the Remote ID codec: a one-line message."""
+
+
+class DatabaseFault(RuntimeError):
+    """The database cannot serve us (unopenable, read-only, locked, lost): a system error, not bad input."""
