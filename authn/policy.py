@@ -63,14 +63,18 @@ class PolicyEngine:
     @classmethod
     def load(cls, path: str | Path | None = None) -> "PolicyEngine":
         """The shipped default policy, or a file that replaces it (validated against the schema)."""
-        schema_text = _shipped("schema.cedarschema")
         if path is None:
-            text, source = _shipped("default.cedar"), "default"
-        else:
-            try:
-                text, source = Path(path).read_text(), str(path)
-            except (OSError, UnicodeDecodeError) as exc:
-                raise PolicyError(f"{path}: cannot read policy file ({exc})") from None
+            return cls.from_text(_shipped("default.cedar"), "default")
+        try:
+            text = Path(path).read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise PolicyError(f"{path}: cannot read policy file ({exc})") from None
+        return cls.from_text(text, str(path))
+
+    @classmethod
+    def from_text(cls, text: str, source: str = "text") -> "PolicyEngine":
+        """A policy set from its text (a file's, or one kept in the audit log for replay)."""
+        schema_text = _shipped("schema.cedarschema")
         result = cedarpy.validate_policies(text, schema_text)
         if not result.validation_passed:
             first = result.errors[0] if result.errors else "invalid policy"
