@@ -15,13 +15,13 @@ import re
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 from authn.audit import NewEntry, append
-from authn.errors import AuthnError
+from authn.errors import EXIT_BAD_INPUT, AuthnError, exit_code_for, one_line, system_fault_types
 from authn.kinematics import DeclaredState, expected_from_radar, residuals, sanity
 from authn.policy import PolicyEngine
 
@@ -56,16 +56,47 @@ class Outcome:
     policy_sha256: str
     model_card_sha256: str | None
     file_sha256: str
+    #: Cedar's evaluation errors (a non-empty list means the claim was rejected with `policy-error`)
+    policy_errors: list[str] = field(default_factory=list)
+    #: the exact Cedar request (serial, principal, resource, context): `authn audit replay` re-runs it
+    policy_input: dict[str, Any] = field(default_factory=dict)
     audit_id: int | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return dict(self.__dict__)
+        doc = dict(self.__dict__)
+        doc.pop("policy_input")
+        return doc
 
     def audit_payload(self) -> dict[str, Any]:
-        doc = self.to_json()
+        doc = dict(self.__dict__)
         doc.pop("audit_id")
         doc.pop("timings_ms")
         return doc
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A check that ended without a decision: bad input (exit 2) or a system fault (exit 3)."""
+
+    file: str
+    serial: str | None
+    error: str
+    exit_code: int = EXIT_BAD_INPUT
+
+    @classmethod
+    def of(cls, file: str, serial: str | None, exc: BaseException) -> "Failure":
+        code = exit_code_for(exc)
+        text = one_line(exc) if code == EXIT_BAD_INPUT or isinstance(exc, system_fault_types()) \
+            else f"internal error: {type(exc).__name__}: {one_line(exc)}"
+        return cls(file, serial, text, code)
+
+    def entry(self, policy_sha256: str | None) -> NewEntry:
+        kind = "bad-input" if self.exit_code == EXIT_BAD_INPUT else "system"
+        payload = {"file": self.file, "error": self.error, "error_kind": kind, "policy_sha256": policy_sha256}
+        return NewEntry("error", self.serial, None, payload)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"file": self.file, "error": self.error, "exit_code": self.exit_code}
 
 
 class _Timer:
@@ -250,18 +281,14 @@ class Checker:
             remote_id={"messages": claim.n_messages, "ua_type": claim.ua_type,
                        "issues": context["remote_id_issues"]},
             skipped=skipped, timings_ms=timer.ms, policy_sha256=self.policy.sha256, model_card_sha256=card,
-            file_sha256=digest)
+            file_sha256=digest, policy_errors=result.errors,
+            policy_input={"serial": claim.serial, "principal": principal, "resource": resource, "context": context})
 
-    def record(self, outcomes: Sequence[Outcome | tuple[str, str | None, str]]) -> list[int]:
-        """Append decisions and error entries ((file, serial, error) tuples) in one transaction."""
-        entries = []
-        for o in outcomes:
-            if isinstance(o, Outcome):
-                entries.append(NewEntry("decision", o.claim["serial"], o.decision, o.audit_payload()))
-            else:
-                file, serial, error = o
-                entries.append(NewEntry("error", serial, None, {"file": file, "error": error,
-                                                                "policy_sha256": self.policy.sha256}))
+    def record(self, outcomes: Sequence[Outcome | Failure]) -> list[int]:
+        """Append decisions and failed checks in one transaction; raises DatabaseFault if it
+        does not commit (the caller then prints no decision)."""
+        entries = [NewEntry("decision", o.claim["serial"], o.decision, o.audit_payload()) if isinstance(o, Outcome)
+                   else o.entry(self.policy.sha256) for o in outcomes]
         t0 = time.perf_counter()
         written = append(self.db, entries)
         ms = round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)

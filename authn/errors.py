@@ -18,6 +18,10 @@ class SystemFault(RuntimeError):
     """Something we depend on failed (database, policy engine, models, keys): exit code 3."""
 
 
+class Interrupted(SystemFault):
+    """SIGINT or SIGTERM arrived: the command stops with exit code 3 (what it printed is audited)."""
+
+
 def bad_input_types() -> tuple[type[BaseException], ...]:
     """Every package's root error for bad input: reported in one line with exit code 2."""
     from registry.errors import RegistryError

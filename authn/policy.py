@@ -23,10 +23,12 @@ from typing import Any
 
 import cedarpy
 
-from authn.errors import AuthnError
+from authn.errors import AuthnError, SystemFault
 
 ACTION = {"type": "Action", "id": "authenticate"}
 SITE_ID = "site"
+#: Reason reported when a policy's condition raised an evaluation error (the claim is rejected).
+POLICY_ERROR = "policy-error"
 
 
 class PolicyError(AuthnError):
@@ -114,26 +116,46 @@ class PolicyEngine:
         ids = diag.id_annotations_by_reason
         return sorted(ids.get(r, r) for r in diag.reasons if self.effects.get(r) == effect)
 
+    def _authorize(self, serial: str, principal: dict[str, Any], resource: dict[str, Any],
+                   context: dict[str, Any]) -> Any:
+        """One Cedar request; an exception from the engine itself is a system fault (exit 3)."""
+        try:
+            return cedarpy.is_authorized(self._request(serial, context), self.policy_set,
+                                         self._entities(serial, principal, resource), schema=self.schema)
+        except Exception as exc:  # noqa: BLE001 - cedarpy raises plain exceptions of several kinds
+            raise SystemFault(f"policy engine: {_one_line(exc)}") from None
+
+    def _rejected_on_error(self, result: Any) -> PolicyResult | None:
+        """Cedar skips a policy whose condition errors, so an erroring forbid would let the claim
+        through: any evaluation error rejects with `policy-error` (fail closed)."""
+        errors = [_one_line(e) for e in result.diagnostics.errors]
+        if not errors:
+            return None
+        return PolicyResult("reject", [POLICY_ERROR, *self._reasons(result.diagnostics, "forbid")], errors)
+
     def decide(self, serial: str, principal: dict[str, Any], resource: dict[str, Any],
                context: dict[str, Any]) -> PolicyResult:
         """The complete decision over all the evidence gathered."""
-        result = cedarpy.is_authorized(self._request(serial, context), self.policy_set,
-                                       self._entities(serial, principal, resource), schema=self.schema)
-        errors = [_one_line(e) for e in result.diagnostics.errors]
+        result = self._authorize(serial, principal, resource, context)
+        failed = self._rejected_on_error(result)
+        if failed is not None:
+            return failed
         if result.allowed:
-            return PolicyResult("accept", self._reasons(result.diagnostics, "permit"), errors)
-        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid") or ["default-deny"], errors)
+            return PolicyResult("accept", self._reasons(result.diagnostics, "permit"))
+        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid") or ["default-deny"])
 
     def decide_without_evidence(self, serial: str, principal: dict[str, Any], resource: dict[str, Any],
                                 context: dict[str, Any]) -> PolicyResult | None:
         """The decision with the radar not run (`context` says so), when it is final: a deny by a
-        policy that reads no context (registry facts alone). Else None: the radar is needed."""
-        result = cedarpy.is_authorized(self._request(serial, context), self.policy_set,
-                                       self._entities(serial, principal, resource), schema=self.schema)
+        policy that reads no context (registry facts alone), or an evaluation error (the claim is
+        rejected whatever the radar adds). Else None: the radar is needed."""
+        result = self._authorize(serial, principal, resource, context)
+        failed = self._rejected_on_error(result)
+        if failed is not None:
+            return failed
         if result.allowed or not set(result.diagnostics.reasons) & self.context_free_forbids:
             return None
-        errors = [_one_line(e) for e in result.diagnostics.errors]
-        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid"), errors)
+        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid"))
 
 
 def _reads_context(node: Any) -> bool:

@@ -21,7 +21,7 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, DBAPIError
 from sqlalchemy.orm import Session, sessionmaker
 
-from registry.errors import RegistryError
+from registry.errors import DatabaseFault, RegistryError
 from registry.urls import resolve_url
 
 _PG_LOCK_KEY = 0x61757468_6E726567  # "authnreg": one advisory lock for migrations
@@ -56,7 +56,7 @@ def create_db_engine(url: str | None = None) -> Engine:
         try:
             Path(parsed.database).expanduser().parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise RegistryError(f"cannot create the database directory: {exc.strerror}") from None
+            raise DatabaseFault(f"cannot create the database directory: {exc.strerror}") from None
     try:
         engine = create_engine(parsed, pool_pre_ping=parsed.get_backend_name() != "sqlite")
     except (ArgumentError, ImportError) as exc:
@@ -121,7 +121,9 @@ def upgrade(engine: Engine) -> None:
         else:
             _upgrade_locked(engine)
     except DBAPIError as exc:
-        raise RegistryError(f"database {engine.url.render_as_string()}: {_one_line(exc)}") from None
+        raise DatabaseFault(f"database {engine.url.render_as_string()}: {_one_line(exc)}") from None
+    except TimeoutError as exc:  # filelock.Timeout: another process holds the migration lock
+        raise DatabaseFault(f"database {engine.url.render_as_string()}: migration lock busy ({exc})") from None
 
 
 def _upgrade_locked(engine: Engine) -> None:
@@ -145,7 +147,7 @@ def get_engine(url: str | None = None) -> Engine:
                 with engine.connect() as conn:
                     current = _is_current(conn)
             except DBAPIError as exc:
-                raise RegistryError(
+                raise DatabaseFault(
                     f"cannot open database {engine.url.render_as_string()}: {_one_line(exc)}"
                 ) from None
             if not current:

@@ -15,13 +15,16 @@ import sqlite3
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 from datetime import datetime, timezone
 from typing import Any
 from urllib.parse import parse_qsl, unquote, urlsplit
 
-from registry.errors import RegistryError
+from registry.errors import DatabaseFault, RegistryError
 from registry.urls import resolve_url
 
+#: Seconds a writer waits for another's lock before the check fails as a system error (exit 3).
+LOCK_TIMEOUT_S = 30.0
 _NAMED = re.compile(r"(?<!:):([A-Za-z_]\w*)")
 SQLITE_TIME = "%Y-%m-%d %H:%M:%S.%f"  # what SQLAlchemy's DateTime stores in SQLite
 
@@ -36,6 +39,11 @@ class IdentityFacts:
     status: str
     valid_from: datetime
     valid_until: datetime | None
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__
 
 
 def _sqlite_path(url: str) -> str:
@@ -77,17 +85,37 @@ class Database:
     # --- connection -------------------------------------------------------------------
     def _open(self) -> Any:
         if self.dialect == "sqlite":
-            conn = sqlite3.connect(_sqlite_path(self.url), timeout=30.0, isolation_level=None)
-            conn.execute("PRAGMA foreign_keys = ON")
+            path = _sqlite_path(self.url)
+            try:
+                Path(path).expanduser().parent.mkdir(parents=True, exist_ok=True)  # first use on a fresh machine
+                conn = sqlite3.connect(path, timeout=LOCK_TIMEOUT_S, isolation_level=None)
+                conn.execute("PRAGMA foreign_keys = ON")
+            except (sqlite3.Error, OSError) as exc:
+                raise DatabaseFault(f"cannot open database {path}: {_first_line(exc)}") from None
             return conn
         try:
             import psycopg
         except ImportError as exc:  # pragma: no cover - psycopg is a dependency
-            raise RegistryError(f"PostgreSQL needs psycopg: {exc}") from None
+            raise DatabaseFault(f"PostgreSQL needs psycopg: {exc}") from None
         try:
-            return psycopg.connect(**_pg_kwargs(self.url), autocommit=True)
+            return psycopg.connect(**{"connect_timeout": 10, **_pg_kwargs(self.url)}, autocommit=True)
         except psycopg.Error as exc:
-            raise RegistryError(f"cannot open database: {str(exc).strip().splitlines()[0]}") from None
+            raise DatabaseFault(f"cannot open database: {_first_line(exc)}") from None
+
+    def _driver_errors(self) -> tuple[type[BaseException], ...]:
+        if self.dialect == "sqlite":
+            return (sqlite3.Error,)
+        import psycopg
+
+        return (psycopg.Error,)
+
+    @contextmanager
+    def _faults(self, what: str) -> Iterator[None]:
+        """Driver errors (locked, read-only, lost connection) become one-line system faults."""
+        try:
+            yield
+        except self._driver_errors() as exc:
+            raise DatabaseFault(f"database {what} failed: {_first_line(exc)}") from None
 
     def _current(self, conn: Any) -> bool:
         import migrations
@@ -130,28 +158,37 @@ class Database:
 
     def fetch(self, sql: str, params: dict[str, Any] | None = None) -> list[tuple]:
         """Rows of one query (named `:param` placeholders on both backends)."""
-        return self._fetch(self.connection(), sql, params or {})
+        conn = self.connection()
+        with self._faults("read"):
+            return self._fetch(conn, sql, params or {})
 
     @contextmanager
     def write(self) -> Iterator["Database"]:
-        """One write transaction (SQLite: BEGIN IMMEDIATE, so writers queue instead of failing)."""
+        """One write transaction (SQLite: BEGIN IMMEDIATE, so writers queue instead of failing).
+
+        Driver errors inside it (a lock held past LOCK_TIMEOUT_S, a read-only file, a lost
+        server) roll back and surface as DatabaseFault; nothing of the transaction is kept."""
         conn = self.connection()
         if self.dialect == "sqlite":
-            conn.execute("BEGIN IMMEDIATE")
+            with self._faults("write"):
+                conn.execute("BEGIN IMMEDIATE")
             try:
-                yield self
-                conn.execute("COMMIT")
+                with self._faults("write"):
+                    yield self
+                    conn.execute("COMMIT")
             except BaseException:
-                conn.execute("ROLLBACK")
+                if conn.in_transaction:
+                    conn.execute("ROLLBACK")
                 raise
             return
-        with conn.transaction():
+        with self._faults("write"), conn.transaction():
             yield self
 
     def execute(self, sql: str, params: dict[str, Any] | None = None) -> None:
         cur = self.connection().cursor()
         try:
-            cur.execute(self._sql(sql), params or {})
+            with self._faults("write"):
+                cur.execute(self._sql(sql), params or {})
         finally:
             cur.close()
 

@@ -8,7 +8,10 @@ single `authn check` start fast.
 from __future__ import annotations
 
 import os
+import signal
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 # pydantic looks up plugins through importlib.metadata on its first model (~15 ms of a
 # cold check); we use none. Set the variable yourself to re-enable them.
@@ -17,7 +20,7 @@ from dataclasses import dataclass
 
 import typer
 
-from authn.errors import bad_input_types
+from authn.errors import EXIT_BAD_INPUT, Interrupted, bad_input_types, exit_code_for, one_line, system_fault_types
 
 app = typer.Typer(
     name="authn",
@@ -49,16 +52,53 @@ def _global_options(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI and return the exit code (tests call this directly)."""
+    """Run the CLI and return the exit code (tests call this directly).
+
+    Every exception ends here as one line on stderr: bad input exits 2, anything else
+    (database, policy engine, models, an unexpected bug) exits 3. Never a traceback.
+    """
     try:
-        app(args=argv, prog_name="authn")
+        with _signals_as_errors():
+            app(args=argv, prog_name="authn")
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
-    except bad_input_types() as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except Exception as exc:  # noqa: BLE001 - the one place every error becomes an exit code
+        code = exit_code_for(exc)
+        prefix = "error" if code == EXIT_BAD_INPUT or isinstance(exc, system_fault_types()) else "internal error"
+        print(f"{prefix}: {_describe(exc)}", file=sys.stderr)
+        return code
     return 0
+
+
+@contextmanager
+def _signals_as_errors() -> Iterator[None]:
+    """SIGINT/SIGTERM raise `Interrupted` (exit 3, one line) instead of click's "Aborted!" with
+    exit 1, which would read as a reject. Only the main thread can install handlers."""
+    def handler(signum: int, _frame: object) -> None:
+        raise Interrupted(f"interrupted by {signal.Signals(signum).name}")
+
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[sig] = signal.signal(sig, handler)
+        except ValueError:
+            break
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def _describe(exc: BaseException) -> str:
+    """One line; SQLAlchemy wraps driver errors with the SQL and a link: keep the driver's message."""
+    orig = getattr(exc, "orig", None)
+    if orig is not None:
+        return f"database: {one_line(orig)}"
+    text = one_line(exc)
+    known = isinstance(exc, bad_input_types() + system_fault_types())
+    return text if known else f"{type(exc).__name__}: {text}"
 
 
 def run() -> None:

@@ -4,14 +4,21 @@ from __future__ import annotations
 
 import csv
 import json
+import signal
 import sys
+import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 
 from authn.cli import app
+from authn.errors import Interrupted
 
-BATCH_WRITE = 200  # audit entries per transaction in batch mode
+#: Batch mode commits the audit at least this often (entries, seconds), then prints what it
+#: committed: a crash or kill loses at most the unprinted tail, never a printed decision.
+COMMIT_EVERY_ENTRIES = 50
+COMMIT_EVERY_S = 0.5
 
 
 def _files(paths: list[Path]) -> list[Path]:
@@ -87,24 +94,26 @@ def check(
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
-    Exit code 0 accept, 1 reject, 2 bad input (one line on stderr; the failed
-    check is still recorded in the audit log). With several files or a
-    directory, checks them in one process (models load once) with a progress
-    bar and a summary table; the exit code is the worst one.
+    Exit code 0 accept, 1 reject, 2 bad input, 3 system error (database, policy
+    engine, models); errors are one line on stderr and every failed check is
+    still recorded in the audit log. A decision is printed only after its audit
+    entry committed. With several files or a directory, checks them in one
+    process (models load once) with a progress bar: each file's decision or
+    error is audited as the batch goes (a bad or crashing file does not stop
+    it; SIGINT/SIGTERM stop it after committing what was decided), and the
+    exit code is the worst one (3 > 2 > 1 > 0).
 
     Example: authn check flight.h5 --serial 1581BDEM00000002 --json
     """
-    from authn.check import Checker
-    from authn.errors import bad_input_types
+    from authn.check import Checker, Failure
 
     state = ctx.obj
-    bad = bad_input_types()
     try:
         checker = Checker(state.db_url, policy)
         paths = _files(files)
         mapping = _claims(claims) if claims else {}
-    except bad as exc:
-        _record_failure(state.db_url, [(str(f), serial, str(exc)) for f in files])
+    except Exception as exc:
+        _record_failure(state.db_url, [Failure.of(str(f), serial, exc) for f in files])
         raise
     if len(paths) == 1:
         _single(checker, paths[0], mapping.get(paths[0].name, mapping.get(str(paths[0]), serial)), as_json)
@@ -112,23 +121,31 @@ def check(
     _batch(checker, paths, mapping, serial, as_json)
 
 
-def _record_failure(db_url, rows) -> None:
-    """Best effort: a check that could not even start is an audit error entry too."""
-    from authn.audit import NewEntry, append
+def _record_failure(db_url, failures) -> None:
+    """A check that could not even start is an audit error entry too. If the audit itself is
+    what failed, the original error is the one reported (exit code by its kind)."""
+    from authn.audit import append
     from registry.dbapi import Database
 
-    append(Database(db_url), [NewEntry("error", serial, None, {"file": f, "error": err}) for f, serial, err in rows])
+    try:
+        append(Database(db_url), [f.entry(None) for f in failures])
+    except Exception:  # noqa: BLE001 - the caller re-raises the error that stopped the check
+        pass
 
 
 def _single(checker, path: Path, serial: str | None, as_json: bool) -> None:
-    from authn.errors import bad_input_types
+    from authn.check import Failure
+    from authn.errors import EXIT_BAD_INPUT, SystemFault
 
     try:
         outcome = checker.evaluate(path, serial)
-    except bad_input_types() as exc:
-        checker.record([(str(path), serial, str(exc))])
-        raise
-    checker.record([outcome])
+    except Exception as exc:
+        failure = Failure.of(str(path), serial, exc)
+        checker.record([failure])  # a database fault here is reported instead (exit 3)
+        if failure.exit_code == EXIT_BAD_INPUT:
+            raise
+        raise SystemFault(f"{path}: {failure.error}") from None
+    checker.record([outcome])  # raises if the entry did not commit: then nothing is printed
     if as_json:
         typer.echo(json.dumps(outcome.to_json(), indent=2))
     else:
@@ -136,54 +153,124 @@ def _single(checker, path: Path, serial: str | None, as_json: bool) -> None:
     raise typer.Exit(0 if outcome.decision == "accept" else 1)
 
 
+class _AuditedPrinter:
+    """Commits results to the audit in small transactions and prints each only after its commit."""
+
+    def __init__(self, checker, emit) -> None:
+        self.checker, self.emit = checker, emit
+        self.pending: list = []
+        self.last_commit = time.monotonic()
+
+    def add(self, item) -> None:
+        self.pending.append(item)
+        if len(self.pending) >= COMMIT_EVERY_ENTRIES or time.monotonic() - self.last_commit >= COMMIT_EVERY_S:
+            self.commit()
+
+    def commit(self) -> None:
+        if self.pending:
+            self.checker.record(self.pending)
+            for item in self.pending:
+                self.emit(item)
+            self.pending = []
+        self.last_commit = time.monotonic()
+
+
+@contextmanager
+def _stop_signals():
+    """The first SIGINT/SIGTERM sets a flag the batch loop reads between files; a second one
+    raises at once. Handlers are restored on exit (only the main thread can install them)."""
+    stop: list[int] = []
+
+    def handler(signum, _frame) -> None:
+        if stop:
+            raise Interrupted(f"interrupted by {signal.Signals(signum).name}")
+        stop.append(signum)
+
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[sig] = signal.signal(sig, handler)
+        except ValueError:  # not the main thread
+            break
+    try:
+        yield stop
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
 def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | None, as_json: bool) -> None:
     from rich.console import Console
     from rich.progress import Progress
-    from rich.table import Table
 
-    from authn.errors import bad_input_types
+    from authn.check import Failure
+    from authn.errors import EXIT_SYSTEM, SystemFault, system_fault_types
 
-    bad = bad_input_types()
     results: list = []
-    pending: list = []
-    with Progress(transient=True, disable=as_json and not sys.stderr.isatty()) as progress:
+    out = sys.stdout
+    first = [True]
+
+    def emit(item) -> None:
+        results.append(item)
+        if as_json:  # a JSON array streamed as it is committed
+            out.write(("[\n" if first[0] else ",\n") + json.dumps(item.to_json(), indent=2))
+            out.flush()
+            first[0] = False
+
+    printer = _AuditedPrinter(checker, emit)
+    with _stop_signals() as stop, Progress(transient=True, disable=as_json and not sys.stderr.isatty()) as progress:
         task = progress.add_task(f"checking {len(paths)} returns", total=len(paths))
         for p in paths:
+            if stop:
+                break
             claim = mapping.get(p.name, mapping.get(str(p), serial))
             try:
                 item = checker.evaluate(p, claim)
-            except bad as exc:
-                item = (str(p), claim, str(exc))
-            results.append(item)
-            pending.append(item)
-            if len(pending) >= BATCH_WRITE:
-                checker.record(pending)
-                pending = []
+            except system_fault_types() as exc:  # the database or policy engine: the batch cannot go on
+                printer.add(Failure.of(str(p), claim, exc))
+                printer.commit()
+                raise
+            except Exception as exc:  # noqa: BLE001 - one bad or crashing file must not stop the batch
+                item = Failure.of(str(p), claim, exc)
+            printer.add(item)
             progress.advance(task)
-        if pending:
-            checker.record(pending)
-    errors = [r for r in results if isinstance(r, tuple)]
-    outcomes = [r for r in results if not isinstance(r, tuple)]
+        printer.commit()
     if as_json:
-        typer.echo(json.dumps([o.to_json() if not isinstance(o, tuple) else
-                               {"file": o[0], "error": o[2]} for o in results], indent=2))
+        out.write(("[" if first[0] else "\n") + "]\n")
     else:
-        table = Table(title=f"{len(paths)} returns: {sum(o.decision == 'accept' for o in outcomes)} accepted, "
-                            f"{sum(o.decision == 'reject' for o in outcomes)} rejected, {len(errors)} bad input")
-        for col in ("file", "serial", "decision"):
-            table.add_column(col, overflow="fold")
-        table.add_column("reasons", overflow="fold")
-        table.add_column("radar")
-        table.add_column("ms", justify="right")
-        for r in results:
-            if isinstance(r, tuple):
-                table.add_row(Path(r[0]).name, r[1] or "", "[yellow]error[/]", r[2], "", "")
-                continue
-            radar = r.radar["model"] if r.radar else "skipped"
-            colour = "green" if r.decision == "accept" else "red"
-            table.add_row(Path(r.file).name, r.claim["serial"], f"[{colour}]{r.decision}[/]", ", ".join(r.reasons),
-                          radar, f"{sum(r.timings_ms.values()):.1f}")
-        Console().print(table)
-    for f, _, err in errors:
-        print(f"error: {f}: {err}", file=sys.stderr)
-    raise typer.Exit(2 if errors else (1 if any(o.decision == "reject" for o in outcomes) else 0))
+        _print_summary(results, len(paths))
+    failures = [r for r in results if isinstance(r, Failure)]
+    for f in failures:
+        print(f"error: {f.file}: {f.error}", file=sys.stderr)
+    if stop:
+        raise SystemFault(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
+                          "returns; every printed result is in the audit log")
+    codes = [f.exit_code for f in failures] + [0 if o.decision == "accept" else 1
+                                               for o in results if not isinstance(o, Failure)]
+    raise typer.Exit(max(codes, default=0) if EXIT_SYSTEM not in codes else EXIT_SYSTEM)
+
+
+def _print_summary(results: list, total: int) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from authn.check import Failure
+
+    outcomes = [r for r in results if not isinstance(r, Failure)]
+    failures = [r for r in results if isinstance(r, Failure)]
+    table = Table(title=f"{total} returns: {sum(o.decision == 'accept' for o in outcomes)} accepted, "
+                        f"{sum(o.decision == 'reject' for o in outcomes)} rejected, {len(failures)} errors")
+    for col in ("file", "serial", "decision"):
+        table.add_column(col, overflow="fold")
+    table.add_column("reasons", overflow="fold")
+    table.add_column("radar")
+    table.add_column("ms", justify="right")
+    for r in results:
+        if isinstance(r, Failure):
+            table.add_row(Path(r.file).name, r.serial or "", "[yellow]error[/]", r.error, "", "")
+            continue
+        radar = r.radar["model"] if r.radar else "skipped"
+        colour = "green" if r.decision == "accept" else "red"
+        table.add_row(Path(r.file).name, r.claim["serial"], f"[{colour}]{r.decision}[/]", ", ".join(r.reasons),
+                      radar, f"{sum(r.timings_ms.values()):.1f}")
+    Console().print(table)
