@@ -1,16 +1,52 @@
-"""Registry queries: model profiles and identities, single and bulk (CSV).
+"""Registry queries: model profiles and identities, single and bulk (JSON and CSV).
 
 Functions take a Session and never commit: the caller's `session_scope` makes
 each command one transaction, so a failed bulk import writes nothing.
 Everything is validated before anything is written.
+
+Bulk formats
+------------
+JSON (`authn-registry/1`, the default and the lossless one)::
+
+    {"format": "authn-registry/1",
+     "exported_at": "2026-01-01T00:00:00+00:00",
+     "profiles":   [{"slug": "x8", "name": "Octo X8", "rotors": 8, "arms": 4,
+                     "blades_per_rotor": 2, "blade_length_m": 0.38,
+                     "rotor_rate_hz": 45.0, "propeller_distance_m": 1.2}, ...],
+     "identities": [{"serial": "1581F5FJD12345678901", "id_type": "serial",
+                     "model": "x8", "operator_id": null,
+                     "public_key": "<64 hex digits> or null",
+                     "status": "active" | "revoked",
+                     "valid_from": "...", "valid_until": "..." | null,
+                     "notes": "..." | null,
+                     "created_at": "...", "updated_at": "..."}, ...]}
+
+Public keys are lower-case hex (the 32 raw Ed25519 bytes, as `registry show
+--json` prints them); times are ISO 8601 with offset, written in UTC (naive
+times are read as UTC). The export holds every model profile of the registry,
+shipped ones included: import adds the missing ones, accepts one identical to a
+registered profile and refuses one that differs (profiles are never changed
+silently). `created_at`/`updated_at` are exported and restored: they are part
+of the record, not bookkeeping of one database -- `updated_at` of a revoked
+identity is when it was revoked, and a restore from backup must not make every
+identity look registered today. They are optional on import (default: now).
+
+CSV (`serial,id_type,model,operator_id,valid_from,valid_until,notes,status,
+public_key`; header row required, only serial and model must be filled) is the
+hand-edited bulk-onboarding format. Files without the last two columns (the
+old format) still import (status active, no key). CSV carries no model
+profiles and no created_at/updated_at: use JSON for a backup or a migration.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
+import re
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from sqlalchemy import select
@@ -22,8 +58,15 @@ from registry.models import Identity, ModelProfile, utcnow
 from registry.serials import validate_uas_id
 from signatures.profiles import UavProfile
 
-CSV_COLUMNS = ("serial", "id_type", "model", "operator_id", "valid_from", "valid_until", "notes")
+#: CSV columns in export order; the last two are new, files without them still import.
+CSV_COLUMNS = ("serial", "id_type", "model", "operator_id", "valid_from", "valid_until", "notes",
+               "status", "public_key")
+#: The `format` tag of a JSON registry document.
+REGISTRY_FORMAT = "authn-registry/1"
+NOTES_MAX = 2000
 IdType = Literal["serial", "caa_registration", "utm_uuid", "specific_session"]
+Status = Literal["active", "revoked"]
+_HEX_KEY = re.compile(r"^[0-9a-fA-F]{64}$")
 
 
 def describe_validation_error(exc: ValidationError) -> str:
@@ -34,8 +77,27 @@ def describe_validation_error(exc: ValidationError) -> str:
     return f"{loc}: {msg}" if loc else msg
 
 
+def _iso_time(value: Any) -> Any:
+    """ISO 8601 text -> datetime ('' -> None); numbers are refused, not read as epoch seconds."""
+    if isinstance(value, str):
+        text = value.strip()
+        if not text:
+            return None
+        try:
+            return datetime.fromisoformat(text.replace("Z", "+00:00"))
+        except ValueError:
+            raise ValueError(f"{value!r} is not an ISO 8601 date/time") from None
+    if value is None or isinstance(value, datetime):
+        return value
+    raise ValueError(f"{value!r} is not an ISO 8601 date/time string")
+
+
 class NewIdentity(BaseModel):
-    """A validated identity to register (CLI flags or one CSV row)."""
+    """A validated identity to register (CLI flags, one CSV row or one JSON record).
+
+    `status`, `created_at` and `updated_at` are for restoring an export; a new
+    registration leaves them at their defaults (active, now).
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -44,11 +106,31 @@ class NewIdentity(BaseModel):
     model: str = Field(min_length=1, max_length=32)
     operator_id: str | None = Field(default=None, max_length=20, pattern=r"^[\x20-\x7e]+$")
     public_key: bytes | None = Field(default=None, min_length=32, max_length=32)
+    status: Status = "active"
     valid_from: datetime | None = None
     valid_until: datetime | None = None
-    notes: str | None = Field(default=None, max_length=2000)
+    notes: str | None = Field(default=None, max_length=NOTES_MAX)
+    created_at: datetime | None = None
+    updated_at: datetime | None = None
 
-    @field_validator("valid_from", "valid_until")
+    @field_validator("public_key", mode="before")
+    @classmethod
+    def _hex_key(cls, v: Any) -> Any:
+        if isinstance(v, str):  # text input (JSON, CSV) is hex; bytes come from key files
+            v = v.strip()
+            if not v:
+                return None
+            if not _HEX_KEY.match(v):
+                raise ValueError("expected 64 hex digits (a 32-byte Ed25519 public key)")
+            return bytes.fromhex(v)
+        return v
+
+    @field_validator("valid_from", "valid_until", "created_at", "updated_at", mode="before")
+    @classmethod
+    def _parse_time(cls, v: Any) -> Any:
+        return _iso_time(v)
+
+    @field_validator("valid_from", "valid_until", "created_at", "updated_at")
     @classmethod
     def _aware(cls, v: datetime | None) -> datetime | None:
         if v is not None and v.tzinfo is None:
@@ -61,6 +143,8 @@ class NewIdentity(BaseModel):
         start = self.valid_from or utcnow()
         if self.valid_until is not None and self.valid_until <= start:
             raise ValueError("valid_until must be after valid_from")
+        if self.created_at and self.updated_at and self.updated_at < self.created_at:
+            raise ValueError("updated_at must not be before created_at")
         return self
 
 
@@ -75,7 +159,7 @@ class IdentityRecord(BaseModel):
     model: str
     profile: UavProfile
     public_key: bytes | None
-    status: Literal["active", "revoked"]
+    status: Status
     valid_from: datetime
     valid_until: datetime | None
     created_at: datetime
@@ -123,9 +207,12 @@ def list_profiles(session: Session) -> list[UavProfile]:
     return [_profile(r) for r in session.scalars(select(ModelProfile).order_by(ModelProfile.slug))]
 
 
-def get_profile(session: Session, slug: str) -> UavProfile | None:
-    row = session.get(ModelProfile, slug)
-    return _profile(row) if row else None
+def custom_profiles(session: Session) -> list[UavProfile]:
+    """Profiles that are not one of the shipped ones (what a CSV export cannot carry)."""
+    from signatures.profiles import shipped_profiles
+
+    shipped = shipped_profiles()
+    return [p for p in list_profiles(session) if shipped.get(p.slug) != p]
 
 
 def register_profile(session: Session, profile: UavProfile) -> UavProfile:
@@ -143,10 +230,11 @@ def _known_models(session: Session) -> set[str]:
 
 
 def _row(new: NewIdentity, now: datetime) -> Identity:
+    created = new.created_at or (min(now, new.updated_at) if new.updated_at else now)
     return Identity(serial=new.serial, id_type=new.id_type, operator_id=new.operator_id,
-                    model_slug=new.model, public_key=new.public_key, status="active",
+                    model_slug=new.model, public_key=new.public_key, status=new.status,
                     valid_from=new.valid_from or now, valid_until=new.valid_until,
-                    created_at=now, updated_at=now, notes=new.notes)
+                    created_at=created, updated_at=new.updated_at or created, notes=new.notes)
 
 
 def register_identity(session: Session, new: NewIdentity) -> IdentityRecord:
@@ -184,83 +272,277 @@ def revoke_identity(session: Session, serial: str, reason: str | None = None) ->
         raise RegistryError(f"serial {serial}: not registered")
     if row.status == "revoked":
         raise RegistryError(f"serial {row.serial}: already revoked")
+    notes = row.notes
+    if reason:
+        notes = (f"{notes}\n" if notes else "") + f"revoked: {reason}"
+        if len(notes) > NOTES_MAX:  # an export of it would not import again
+            raise RegistryError(f"serial {row.serial}: --reason would make the notes longer "
+                                f"than {NOTES_MAX} characters")
     row.status = "revoked"
     row.updated_at = utcnow()
-    if reason:
-        row.notes = f"{row.notes}\n" if row.notes else ""
-        row.notes += f"revoked: {reason}"
+    row.notes = notes
     _flush(session, f"serial {row.serial}")
     return _record(row)
 
 
-# ------------------------------------------------------------------ CSV
-def _parse_time(text: str, column: str) -> datetime | None:
-    text = text.strip()
-    if not text:
-        return None
-    try:
-        return datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        raise ValueError(f"{column}: {text!r} is not an ISO 8601 date/time") from None
+# ------------------------------------------------------------------ bulk import
+@dataclass
+class RegistryImport:
+    """A validated import file: (label, item) pairs, the label naming the record in errors."""
+
+    format: Literal["json", "csv"]
+    profiles: list[tuple[str, UavProfile]] = field(default_factory=list)
+    identities: list[tuple[str, NewIdentity]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class ImportResult:
+    identities: int
+    profiles_added: int
+    profiles_existing: int
+
+
+def _check_unique_serials(items: list[tuple[str, NewIdentity]]) -> None:
+    seen: dict[str, str] = {}
+    for label, new in items:
+        if new.serial in seen:
+            raise RegistryError(f"{label}: serial {new.serial} repeats {seen[new.serial]}")
+        seen[new.serial] = label
+
+
+def _csv_header_error(shown: list[str]) -> RegistryError | None:
+    names = [n.lower() for n in shown]
+    if not any(names):
+        return RegistryError("CSV line 1 is empty: the first line must name the columns "
+                             f"(serial,model and optionally {','.join(CSV_COLUMNS[1:])})")
+    unknown = [n for n in names if n not in CSV_COLUMNS]
+    missing = [c for c in ("serial", "model") if c not in names]
+    if unknown and missing:  # most likely a data row: never read it as a header and go on
+        return RegistryError(
+            f"CSV line 1 ({','.join(shown)[:60]}) is not a header row: the first line must name the "
+            f"columns, e.g. serial,id_type,model (all: {','.join(CSV_COLUMNS)})")
+    if unknown:
+        return RegistryError(f"CSV header: unknown column {unknown[0]!r} "
+                             f"(columns: {','.join(CSV_COLUMNS)})")
+    if missing:
+        return RegistryError(f"CSV header {','.join(shown)}: missing column(s) {','.join(missing)}")
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        return RegistryError(f"CSV header: column {repeated[0]!r} appears twice")
+    return None
 
 
 def parse_csv(text: str) -> list[NewIdentity]:
-    """Validate every row of an import file; any bad row raises (with its line number)."""
-    reader = csv.DictReader(io.StringIO(text))
-    header = tuple(h.strip() for h in reader.fieldnames or ())
-    missing = [c for c in ("serial", "model") if c not in header]
-    unknown = [c for c in header if c not in CSV_COLUMNS]
-    if missing or unknown:
-        raise RegistryError(f"CSV header {','.join(header) or '(empty)'}: "
-                            f"expected columns {','.join(CSV_COLUMNS)}")
-    rows, seen = [], {}
-    for line, raw in enumerate(reader, start=2):
-        if None in raw:
-            raise RegistryError(f"line {line}: more fields than columns")
-        cells = {k.strip(): (v or "").strip() for k, v in raw.items()}
-        try:
-            new = NewIdentity(
-                serial=cells["serial"], id_type=cells.get("id_type") or "serial",
-                model=cells["model"], operator_id=cells.get("operator_id") or None,
-                valid_from=_parse_time(cells.get("valid_from", ""), "valid_from"),
-                valid_until=_parse_time(cells.get("valid_until", ""), "valid_until"),
-                notes=cells.get("notes") or None)
-        except ValidationError as exc:
-            raise RegistryError(f"line {line}: {describe_validation_error(exc)}") from None
-        except (RegistryError, ValueError) as exc:
-            raise RegistryError(f"line {line}: {exc}") from None
-        if new.serial in seen:
-            raise RegistryError(f"line {line}: serial {new.serial} repeats line {seen[new.serial]}")
-        seen[new.serial] = line
-        rows.append(new)
+    """Validate every row of a CSV import file; any bad row raises (with its line number)."""
+    return [new for _, new in _parse_csv(text)]
+
+
+def _parse_csv(text: str) -> list[tuple[str, NewIdentity]]:
+    text = text.lstrip("\ufeff")
+    if not text.strip():
+        raise RegistryError("CSV file is empty: the first line must name the columns "
+                            "(serial,model at least)")
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = next(reader)
+        err = _csv_header_error([h.strip() for h in header])
+        if err:
+            raise err
+        names = [h.strip().lower() for h in header]  # column names are case-insensitive
+        rows: list[tuple[str, NewIdentity]] = []
+        prev_end = reader.line_num
+        for raw in reader:
+            start, prev_end = prev_end + 1, reader.line_num
+            label = f"line {start}"
+            if not raw or not any(c.strip() for c in raw):
+                continue  # blank line
+            if len(raw) > len(names):
+                raise RegistryError(f"{label}: more fields than columns")
+            cells = dict(zip(names, (c.strip() for c in raw)))
+            try:
+                new = NewIdentity(
+                    serial=cells.get("serial", ""), id_type=cells.get("id_type") or "serial",
+                    model=cells.get("model", ""), operator_id=cells.get("operator_id") or None,
+                    public_key=cells.get("public_key") or None,
+                    status=cells.get("status") or "active",
+                    valid_from=cells.get("valid_from") or None,
+                    valid_until=cells.get("valid_until") or None,
+                    notes=cells.get("notes") or None)
+            except ValidationError as exc:
+                raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
+            except (RegistryError, ValueError) as exc:
+                raise RegistryError(f"{label}: {exc}") from None
+            rows.append((label, new))
+    except csv.Error as exc:
+        raise RegistryError(f"line {reader.line_num}: not valid CSV ({exc})") from None
+    _check_unique_serials(rows)
     return rows
+
+
+class _Document(BaseModel):
+    """The top level of a JSON registry document; records are validated one by one."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    format: str
+    exported_at: datetime | None = None
+    profiles: list[dict[str, Any]] = []
+    identities: list[dict[str, Any]] = []
+
+
+def _record_label(kind: str, i: int, raw: dict[str, Any], key: str) -> str:
+    name = raw.get(key)
+    return f"{kind}[{i}] ({key} {name})" if isinstance(name, str) and name else f"{kind}[{i}]"
+
+
+def parse_json(text: str) -> RegistryImport:
+    """Validate a JSON registry document (see the module docstring); any bad record raises."""
+    try:
+        data = json.loads(text.lstrip("\ufeff"))
+    except json.JSONDecodeError as exc:
+        raise RegistryError(f"not JSON ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(data, dict):
+        raise RegistryError(f"expected a JSON object with format {REGISTRY_FORMAT!r}, "
+                            "profiles and identities")
+    if data.get("format") != REGISTRY_FORMAT:
+        raise RegistryError(f"format: expected {REGISTRY_FORMAT!r}, found {data.get('format')!r}")
+    try:
+        doc = _Document.model_validate(data)
+    except ValidationError as exc:
+        raise RegistryError(describe_validation_error(exc)) from None
+    out = RegistryImport(format="json")
+    seen_slugs: dict[str, str] = {}
+    for i, raw in enumerate(doc.profiles):
+        label = _record_label("profiles", i, raw, "slug")
+        try:
+            p = UavProfile.model_validate(raw)
+        except ValidationError as exc:
+            raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
+        if p.slug in seen_slugs:
+            raise RegistryError(f"{label}: slug {p.slug!r} repeats {seen_slugs[p.slug]}")
+        seen_slugs[p.slug] = label
+        out.profiles.append((label, p))
+    for i, raw in enumerate(doc.identities):
+        label = _record_label("identities", i, raw, "serial")
+        try:
+            new = NewIdentity.model_validate(raw)
+        except ValidationError as exc:
+            raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
+        except (RegistryError, ValueError) as exc:
+            raise RegistryError(f"{label}: {exc}") from None
+        out.identities.append((label, new))
+    _check_unique_serials(out.identities)
+    return out
+
+
+def sniff_format(text: str) -> Literal["json", "csv"]:
+    """JSON if the text starts (after a BOM and blanks) with '{' or '[', else CSV."""
+    return "json" if text.lstrip("\ufeff \t\r\n")[:1] in ("{", "[") else "csv"
+
+
+def parse_import(text: str, fmt: str = "auto") -> RegistryImport:
+    """Validate an import file in `fmt` (json, csv, or auto: sniffed from the content)."""
+    if fmt == "auto":
+        fmt = sniff_format(text)
+    if fmt == "json":
+        return parse_json(text)
+    if fmt == "csv":
+        return RegistryImport(format="csv", identities=_parse_csv(text))
+    raise RegistryError(f"--format {fmt!r}: expected auto, json or csv")
+
+
+def _profile_difference(a: UavProfile, b: UavProfile) -> str:
+    for name, value in a.model_dump().items():
+        other = getattr(b, name)
+        if value != other:
+            return f"{name} {value!r} in the file, {other!r} registered"
+    return "identical"
+
+
+def import_records(session: Session, data: RegistryImport) -> ImportResult:
+    """Write a validated import in the caller's single transaction, or nothing.
+
+    Profiles: missing ones are added, identical registered ones accepted,
+    conflicting ones refused. Identities: every model must be registered or in
+    the file; no serial may be registered already. Status and timestamps are
+    kept as given (a revoked identity stays revoked).
+    """
+    registered = {p.slug: p for p in list_profiles(session)}
+    added, existing = [], 0
+    for label, p in data.profiles:
+        have = registered.get(p.slug)
+        if have is None:
+            added.append(p)
+        elif have == p:
+            existing += 1
+        else:
+            raise RegistryError(f"{label}: conflicts with the registered model {p.slug!r} "
+                                f"({_profile_difference(p, have)}); profiles are never changed by import")
+    models = set(registered) | {p.slug for p in added}
+    for label, new in data.identities:
+        if new.model not in models:
+            hint = "" if data.format == "json" else " (CSV carries no profiles: import a JSON export)"
+            raise RegistryError(f"{label}: unknown model {new.model!r}{hint}")
+    serials = [new.serial for _, new in data.identities]
+    taken: set[str] = set()
+    for i in range(0, len(serials), 500):  # stay below the bind-parameter limits
+        taken |= set(session.scalars(select(Identity.serial).where(
+            Identity.serial.in_(serials[i:i + 500]))))
+    if taken:
+        raise RegistryError(f"serial {sorted(taken)[0]}: already registered "
+                            f"({len(taken)} of the file's serials are)")
+    session.add_all(ModelProfile(**p.model_dump()) for p in added)
+    _flush(session, "import (profiles)")
+    now = utcnow()
+    session.add_all(_row(new, now) for _, new in data.identities)
+    _flush(session, "import")
+    return ImportResult(identities=len(data.identities), profiles_added=len(added),
+                        profiles_existing=existing)
 
 
 def import_csv(session: Session, text: str) -> int:
     """Register every row of a CSV file in the caller's single transaction, or none."""
-    rows = parse_csv(text)
-    models = _known_models(session)
-    for line, new in enumerate(rows, start=2):
-        if new.model not in models:
-            raise RegistryError(f"line {line}: unknown model {new.model!r}")
-    existing = set(session.scalars(select(Identity.serial).where(
-        Identity.serial.in_([r.serial for r in rows]))))
-    if existing:
-        raise RegistryError(f"serial {sorted(existing)[0]}: already registered "
-                            f"({len(existing)} of the file's serials are)")
-    now = utcnow()
-    session.add_all(_row(r, now) for r in rows)
-    _flush(session, "import")
-    return len(rows)
+    return import_records(session, parse_import(text, "csv")).identities
+
+
+def import_json(session: Session, text: str) -> ImportResult:
+    """Restore a JSON registry document in the caller's single transaction, or nothing."""
+    return import_records(session, parse_json(text))
+
+
+# ------------------------------------------------------------------ export
+def _iso(t: datetime | None) -> str | None:
+    return t.astimezone(timezone.utc).isoformat() if t is not None else None
+
+
+def export_document(session: Session) -> dict[str, Any]:
+    """Every profile and every identity, every field: what `import_json` restores."""
+    return {
+        "format": REGISTRY_FORMAT,
+        "exported_at": _iso(utcnow()),
+        "profiles": [p.model_dump() for p in list_profiles(session)],
+        "identities": [{
+            "serial": r.serial, "id_type": r.id_type, "model": r.model,
+            "operator_id": r.operator_id,
+            "public_key": r.public_key.hex() if r.public_key is not None else None,
+            "status": r.status, "valid_from": _iso(r.valid_from), "valid_until": _iso(r.valid_until),
+            "notes": r.notes, "created_at": _iso(r.created_at), "updated_at": _iso(r.updated_at),
+        } for r in list_identities(session)],
+    }
+
+
+def export_json(session: Session) -> str:
+    """The JSON registry document as UTF-8 text (non-ASCII kept readable)."""
+    return json.dumps(export_document(session), indent=2, ensure_ascii=False) + "\n"
 
 
 def export_csv(session: Session) -> str:
-    """All identities in the import format (public keys are not part of it)."""
+    """All identities in the CSV import format (no profiles, no created_at/updated_at)."""
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
     for r in list_identities(session):
         w.writerow([r.serial, r.id_type, r.model, r.operator_id or "",
-                    r.valid_from.isoformat(), r.valid_until.isoformat() if r.valid_until else "",
-                    r.notes or ""])
+                    _iso(r.valid_from), _iso(r.valid_until) or "", r.notes or "",
+                    r.status, r.public_key.hex() if r.public_key is not None else ""])
     return out.getvalue()

@@ -215,53 +215,107 @@ def revoke_cmd(
     typer.echo(f"revoked {rec.serial}")
 
 
+_CSV_COLUMNS_HELP = "serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key"
+
+
 @registry_app.command("import")
 def import_cmd(
     ctx: typer.Context,
-    file: Path = typer.Argument(..., help="CSV: serial,id_type,model,operator_id,valid_from,valid_until,notes"),
+    file: Path = typer.Argument(..., help="A JSON export (authn-registry/1) or a CSV file; - for stdin."),
+    fmt: str = typer.Option("auto", "--format", help="auto (JSON if the file starts with '{', else CSV), json or csv."),
 ) -> None:
-    """Register every row of a CSV file in one transaction: all rows or none.
+    """Restore a JSON export or register every row of a CSV file: all or nothing, one transaction.
 
-    Columns: serial,id_type,model,operator_id,valid_from,valid_until,notes
+    JSON is what `authn registry export` writes: model profiles and identities
+    with every field (status, public key, timestamps). Missing profiles are
+    added, identical registered ones accepted, conflicting ones refused.
+    Revoked identities stay revoked.
+
+    CSV columns: serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key
     (header row required; only serial and model must be filled; id_type
-    defaults to serial; times are ISO 8601, naive = UTC). Use - for stdin.
+    defaults to serial, status to active; public_key is 64 hex digits; times
+    are ISO 8601, naive = UTC; files without status/public_key still import).
+    CSV carries no model profiles: a custom model must be registered first,
+    or use a JSON export.
+
+    Example: authn registry import registry.json
 
     Example: authn registry import fleet.csv
     """
     from registry.db import session_scope
     from registry.errors import RegistryError
-    from registry.store import import_csv, parse_csv
+    from registry.store import import_records, parse_import
 
+    if fmt not in ("auto", "json", "csv"):
+        raise RegistryError(f"--format {fmt!r}: expected auto, json or csv")
     try:
-        text = sys.stdin.read() if str(file) == "-" else file.read_text(encoding="utf-8-sig")
+        if str(file) == "-":
+            text = sys.stdin.read()
+        else:
+            text = file.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise RegistryError(f"{file}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
-    parse_csv(text)  # validate before touching the database
+    try:
+        data = parse_import(text, fmt)  # validate everything before touching the database
+    except RegistryError as exc:
+        raise RegistryError(f"{file}: {exc}") from None
     with session_scope(ctx.obj.db_url) as session:
-        n = import_csv(session, text)
-    typer.echo(f"imported {n} identities from {file}")
+        try:
+            result = import_records(session, data)
+        except RegistryError as exc:
+            raise RegistryError(f"{file}: {exc}") from None
+    msg = f"imported {result.identities} identities from {file}"
+    if data.format == "json":
+        msg += (f" ({result.profiles_added} new model profiles, "
+                f"{result.profiles_existing} already registered)")
+    typer.echo(msg)
 
 
 @registry_app.command("export")
 def export_cmd(
     ctx: typer.Context,
     out: Optional[Path] = typer.Option(None, "--out", help="Write here instead of stdout."),
+    fmt: Optional[str] = typer.Option(None, "--format", help="json (default; csv when --out ends in .csv) or csv."),
 ) -> None:
-    """Write all identities as CSV in the import format.
+    """Write the registry: JSON (lossless, default) or CSV.
 
-    Example: authn registry export --out fleet.csv
+    JSON ({"format": "authn-registry/1", "profiles": [...], "identities": [...]})
+    holds every model profile and every identity field: status, public key
+    (hex), validity, notes, created_at/updated_at. `authn registry import`
+    restores it into another database exactly.
+
+    CSV (serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key)
+    is for spreadsheets and bulk onboarding: it carries NO model profiles and no
+    created_at/updated_at, so identities of a custom model do not import into a
+    fresh registry from it; use JSON for backups and migrations.
+
+    Example: authn registry export --out registry.json
+
+    Example: authn registry export --format csv --out fleet.csv
     """
     from registry.db import session_scope
     from registry.errors import RegistryError
-    from registry.store import export_csv
+    from registry.store import custom_profiles, export_csv, export_json
 
+    if fmt is None:
+        fmt = "csv" if out is not None and out.suffix.lower() == ".csv" else "json"
+    if fmt not in ("json", "csv"):
+        raise RegistryError(f"--format {fmt!r}: expected json or csv")
     with session_scope(ctx.obj.db_url) as session:
-        text = export_csv(session)
+        if fmt == "json":
+            text = export_json(session)
+        else:
+            text = export_csv(session)
+            custom = [p.slug for p in custom_profiles(session)]
+    if fmt == "csv" and custom:
+        typer.echo(f"warning: CSV carries no model profiles; custom model(s) {', '.join(custom)} "
+                   "must be registered before this file imports elsewhere (use --format json)",
+                   err=True)
     if out is None:
         typer.echo(text, nl=False)
         return
     try:
-        out.write_text(text)
+        out.write_text(text, encoding="utf-8")
     except OSError as exc:
         raise RegistryError(f"{out}: cannot write ({exc.strerror})") from None
 

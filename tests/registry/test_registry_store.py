@@ -144,9 +144,9 @@ def test_import_export_round_trip(db_url):
     assert rec.id_type == "caa_registration" and rec.notes == "note, with comma"
     assert rec.valid_from == datetime(2024, 6, 1, tzinfo=timezone.utc)
     lines = out.splitlines()
-    assert lines[0] == "serial,id_type,model,operator_id,valid_from,valid_until,notes"
-    assert lines[1].startswith("1581F5FJD12345678901,serial,m300,OP-1,2024-01-01T00:00:00+00:00,"
-                               "2030-01-01T00:00:00+00:00,first")
+    assert lines[0] == "serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key"
+    assert lines[1] == ("1581F5FJD12345678901,serial,m300,OP-1,2024-01-01T00:00:00+00:00,"
+                        "2030-01-01T00:00:00+00:00,first,active,")
     assert len(lines) == 4
 
 
