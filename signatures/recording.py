@@ -2,13 +2,23 @@
 
 Reading validates everything before trusting it and checks the IQ shape before
 loading it, so a hostile header cannot make us allocate an unbounded array.
+Every failure of a read is a one-line `RecordingError` (exit code 2): only
+regular files are opened, only data stored in the file itself are read (no
+links, external storage or virtual datasets: the audit's file hash then covers
+all the IQ and nothing can block on a FIFO), and any h5py / numpy / zipfile / OS
+exception raised on the read path is converted.
 """
 
 from __future__ import annotations
 
 import io
+import lzma
 import math
+import os
+import stat
+import struct
 import zipfile
+import zlib
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -24,6 +34,23 @@ FORMAT_TAG = "uav-radar-return/1"
 RID_MESSAGE_BYTES = 25
 #: Largest IQ cube read by default (2**25 cells = 256 MiB as complex64).
 MAX_IQ_CELLS = 2**25
+#: Largest IQ cube in bytes (the cell limit as complex128): checked from the header, before
+#: anything is allocated, so a caller raising max_cells still has a memory bound.
+MAX_IQ_BYTES = 2**29
+#: Largest file opened at all (checked with stat before opening): bounds the work of a read.
+MAX_FILE_BYTES = 2**30
+#: Most Remote ID messages per recording (a dwell lasts seconds; 100 000 is generous).
+MAX_RID_MESSAGES = 100_000
+#: Largest attribute member of an .npz (the `simulation` JSON is ~1 KB): bounds what a
+#: hostile .npy header can make us allocate for a scalar.
+MAX_NPZ_ATTR_BYTES = 2**20
+#: Earliest accepted start_time. Nothing of this format predates it, and it keeps the
+#: pipeline's datetime arithmetic far from year 1 (OverflowError).
+EARLIEST_START = datetime(2000, 1, 1, tzinfo=timezone.utc)
+#: How far past the reader's clock a start_time may lie (radar/host clock skew); later
+#: dates are bad input, which also keeps year-9999 arithmetic from overflowing.
+MAX_FUTURE_SKEW = timedelta(minutes=5)
+#: The IQ element types (either byte order; converted to native on read).
 IQ_DTYPES = (np.dtype(np.complex64), np.dtype(np.complex128))
 
 _CONFIG_ATTRS = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz")
@@ -70,6 +97,15 @@ class Recording:
 # --- validation shared by both containers ----------------------------------------
 
 
+def _show(value: Any, limit: int = 60) -> str:
+    """repr of a file's value for a one-line message: whitespace folded, length capped."""
+    try:
+        text = " ".join(repr(value).split())
+    except Exception:  # noqa: BLE001  a hostile object's repr must not hide the real error
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _scalar(attrs: dict[str, Any], name: str) -> Any:
     if name not in attrs:
         raise RecordingError(f"missing attribute '{name}'")
@@ -78,18 +114,27 @@ def _scalar(attrs: dict[str, Any], name: str) -> Any:
         if value.size != 1:
             raise RecordingError(f"attribute '{name}': expected a scalar, got shape {value.shape}")
         value = value.reshape(()).item()
+    elif isinstance(value, np.generic):
+        value = value.item()
     if isinstance(value, bytes):
         value = value.decode("utf-8", "replace")
     return value
 
 
 def _float_attr(attrs: dict[str, Any], name: str, default: float | None = None) -> float:
+    """A real, finite number. Complex values are refused (float() would drop the imaginary
+    part silently), as are bools, strings and anything else."""
     if default is not None and name not in attrs:
         return default
     value = _scalar(attrs, name)
-    if isinstance(value, (bool, str)) or not isinstance(value, (int, float, np.number)):
-        raise RecordingError(f"attribute '{name}': expected a number, got {value!r}")
-    value = float(value)
+    if isinstance(value, (np.floating, np.integer)):  # float128 and the like: .item() keeps them
+        value = value.item() if isinstance(value, np.integer) else float(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise RecordingError(f"attribute '{name}': expected a real number, got {_show(value)}")
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond float range
+        raise RecordingError(f"attribute '{name}': number out of range") from None
     if not math.isfinite(value):
         raise RecordingError(f"attribute '{name}': must be finite, got {value}")
     return value
@@ -101,13 +146,35 @@ def _pydantic_error(exc: ValidationError) -> RecordingError:
     msg = err["msg"].removeprefix("Value error, ")
     if not err["loc"]:
         return RecordingError(f"attribute 'pri_s': {msg}")
-    return RecordingError(f"attribute '{err['loc'][0]}': {msg} (got {err.get('input')!r})")
+    return RecordingError(f"attribute '{err['loc'][0]}': {msg} (got {_show(err.get('input'))})")
+
+
+def _start_time(attrs: dict[str, Any]) -> datetime:
+    """ISO 8601 with an offset, between EARLIEST_START and now + MAX_FUTURE_SKEW (UTC out)."""
+    start = _scalar(attrs, "start_time")
+    if not isinstance(start, str):
+        raise RecordingError(f"attribute 'start_time': expected an ISO 8601 string, got {_show(start)}")
+    try:
+        when = datetime.fromisoformat(start.replace("Z", "+00:00"))
+    except ValueError:
+        raise RecordingError(f"attribute 'start_time': not ISO 8601: {_show(start)}") from None
+    if when.tzinfo is None or when.utcoffset() is None:
+        raise RecordingError(f"attribute 'start_time': needs a UTC offset: {_show(start)}")
+    try:
+        when = when.astimezone(timezone.utc)
+    except (OverflowError, ValueError):  # year 1 with a positive offset, year 9999 with a negative one
+        when = None
+    latest = datetime.now(timezone.utc) + MAX_FUTURE_SKEW
+    if when is None or not EARLIEST_START <= when <= latest:
+        raise RecordingError(f"attribute 'start_time': {_show(start)} is outside "
+                             f"{EARLIEST_START:%Y-%m-%d} .. now + {MAX_FUTURE_SKEW.seconds // 60} min")
+    return when
 
 
 def _metadata(attrs: dict[str, Any]) -> tuple[RadarConfig, RadarSite, datetime]:
     tag = _scalar(attrs, "format")
     if tag != FORMAT_TAG:
-        raise RecordingError(f"attribute 'format': expected {FORMAT_TAG!r}, got {tag!r}")
+        raise RecordingError(f"attribute 'format': expected {FORMAT_TAG!r}, got {_show(tag)}")
     values = {n: _float_attr(attrs, n) for n in _CONFIG_ATTRS}
     values["range_offset_m"] = _float_attr(attrs, "range_offset_m", default=0.0)
     try:
@@ -121,28 +188,47 @@ def _metadata(attrs: dict[str, Any]) -> tuple[RadarConfig, RadarSite, datetime]:
     except ValidationError as exc:
         err = exc.errors()[0]
         raise RecordingError(f"attribute 'radar_{err['loc'][0]}': {err['msg']}") from None
-    start = _scalar(attrs, "start_time")
-    if not isinstance(start, str):
-        raise RecordingError(f"attribute 'start_time': expected an ISO 8601 string, got {start!r}")
-    try:
-        when = datetime.fromisoformat(start.replace("Z", "+00:00"))
-    except ValueError:
-        raise RecordingError(f"attribute 'start_time': not ISO 8601: {start!r}") from None
-    if when.tzinfo is None:
-        raise RecordingError(f"attribute 'start_time': needs a UTC offset: {start!r}")
-    return config, site, when.astimezone(timezone.utc)
+    return config, site, _start_time(attrs)
 
 
-def _check_iq_header(shape: tuple[int, ...], dtype: np.dtype, max_cells: int) -> None:
+def _check_iq_header(shape: tuple[int, ...] | None, dtype: np.dtype, max_cells: int,
+                     max_bytes: int = MAX_IQ_BYTES) -> None:
+    """Shape, element type and size from the header alone (nothing allocated yet)."""
+    if shape is None:
+        raise RecordingError("dataset '/iq': null dataspace (no data)")
     if len(shape) != 2:
         raise RecordingError(f"dataset '/iq': expected 2-D (n_chirps, n_samples), got shape {shape}")
     if shape[0] < 1 or shape[1] < 1:
         raise RecordingError(f"dataset '/iq': empty shape {shape}")
-    if dtype not in IQ_DTYPES:
+    if dtype.kind != "c" or dtype.itemsize not in (8, 16):
         raise RecordingError(f"dataset '/iq': expected complex64 or complex128, got {dtype}")
     if shape[0] * shape[1] > max_cells:
         raise RecordingError(
             f"dataset '/iq': {shape[0]}x{shape[1]} cells exceed the limit of {max_cells}")
+    if shape[0] * shape[1] * dtype.itemsize > max_bytes:
+        raise RecordingError(f"dataset '/iq': {shape[0] * shape[1] * dtype.itemsize} bytes exceed "
+                             f"the limit of {max_bytes}")
+
+
+def _check_rid_header(name: str, shape: tuple[int, ...] | None, dtype: np.dtype) -> None:
+    """/remote_id: (n, 25) uint8; /remote_id_time_s: (n,) real numbers; n <= MAX_RID_MESSAGES."""
+    if shape is None:
+        raise RecordingError(f"dataset '/{name}': null dataspace (no data)")
+    if name == "remote_id":
+        if len(shape) != 2 or shape[1] != RID_MESSAGE_BYTES or shape[0] > MAX_RID_MESSAGES:
+            raise RecordingError(f"dataset '/remote_id': expected shape (n, 25), got {shape}")
+        if dtype.kind != "u" or dtype.itemsize != 1:
+            raise RecordingError(f"dataset '/remote_id': expected uint8, got {dtype}")
+    else:
+        if len(shape) != 1 or shape[0] > MAX_RID_MESSAGES:
+            raise RecordingError(f"dataset '/remote_id_time_s': expected shape (n,), got {shape}")
+        if dtype.kind not in "fiu" or dtype.itemsize > 16:
+            raise RecordingError(f"dataset '/remote_id_time_s': expected real numbers, got {dtype}")
+
+
+def _native(a: np.ndarray) -> np.ndarray:
+    """The array in native byte order (big-endian files are valid data)."""
+    return a if a.dtype.isnative else a.astype(a.dtype.newbyteorder("="))
 
 
 def _check_iq_values(iq: np.ndarray) -> None:
@@ -168,46 +254,6 @@ def _check_rid(rid: np.ndarray | None, times: np.ndarray | None) -> None:
             raise RecordingError("dataset '/remote_id_time_s': non-finite values")
 
 
-# --- HDF5 ------------------------------------------------------------------------
-
-
-def _read_h5(path: Path, max_cells: int) -> Recording:
-    import h5py
-
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise RecordingError(f"{path}: not a readable HDF5 file (truncated or corrupt)") from None
-    with f:
-        attrs = dict(f.attrs)
-        config, site, when = _metadata(attrs)
-        if "iq" not in f or not isinstance(f["iq"], h5py.Dataset):
-            raise RecordingError("missing dataset '/iq'")
-        ds = f["iq"]
-        _check_iq_header(tuple(ds.shape), ds.dtype, max_cells)
-        rid = times = None
-        try:
-            iq = np.empty(ds.shape, ds.dtype)
-            ds.read_direct(iq)  # ~0.1 ms against ~0.3 ms for ds[()] on a paper cube
-            if "remote_id" in f:
-                r = f["remote_id"]
-                if r.ndim != 2 or r.shape[1] != RID_MESSAGE_BYTES or r.shape[0] > 100_000:
-                    raise RecordingError(
-                        f"dataset '/remote_id': expected shape (n, 25), got {r.shape}")
-                rid = r[()]
-            if "remote_id_time_s" in f:
-                t = f["remote_id_time_s"]
-                if t.ndim != 1 or t.shape[0] > 100_000:
-                    raise RecordingError(
-                        f"dataset '/remote_id_time_s': expected shape (n,), got {t.shape}")
-                times = np.asarray(t[()], dtype=np.float64)
-        except (OSError, KeyError):
-            raise RecordingError(f"{path}: data cannot be read (truncated or corrupt)") from None
-    _check_iq_values(iq)
-    _check_rid(rid, times)
-    return Recording(config, site, when, iq, rid, times, _simulation_attr(attrs))
-
-
 def _simulation_attr(attrs: dict[str, Any]) -> str | None:
     if "simulation" not in attrs:
         return None
@@ -215,6 +261,111 @@ def _simulation_attr(attrs: dict[str, Any]) -> str | None:
     if not isinstance(value, str):
         raise RecordingError("attribute 'simulation': expected a JSON string")
     return value
+
+
+#: Every attribute the format defines; others are ignored (never even read).
+_ATTR_NAMES = ("format", *_CONFIG_ATTRS, "range_offset_m", *_SITE_ATTRS, "start_time", "simulation")
+
+#: What h5py, numpy, zipfile and the OS raise on corrupt, truncated or hostile files
+#: (bit flips in HDF5 metadata give RuntimeError/ValueError/KeyError/TypeError/OSError;
+#: encrypted or unknown-method zip members RuntimeError/NotImplementedError).
+_READ_ERRORS = (OSError, ValueError, KeyError, IndexError, TypeError, RuntimeError, OverflowError,
+                NotImplementedError, EOFError, MemoryError, AttributeError, zipfile.BadZipFile,
+                struct.error, zlib.error, lzma.LZMAError)
+
+
+def _reason(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    text = text if len(text) <= 80 else text[:77] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+# --- HDF5 ------------------------------------------------------------------------
+
+
+def _h5_attrs(f: Any) -> dict[str, Any]:
+    """The format's attributes only: an extra attribute of an opaque or corrupt type is
+    never touched, a defined one that cannot be read is named."""
+    out: dict[str, Any] = {}
+    attrs = f.attrs
+    for name in _ATTR_NAMES:
+        try:
+            if name in attrs:
+                out[name] = attrs[name]
+        except _READ_ERRORS as exc:
+            raise RecordingError(f"attribute '{name}': unreadable ({_reason(exc)})") from None
+    return out
+
+
+def _h5_dataset(f: Any, name: str, required: bool = False) -> Any:
+    """The dataset `/name` if it is stored in this file: a hard link to a dataset with
+    contiguous or chunked storage. Soft and external links, external raw storage and
+    virtual datasets point elsewhere (another file, a FIFO): refused, so nothing can
+    block and the file's hash covers all the data."""
+    import h5py
+
+    try:
+        link = f.get(name, getlink=True)
+        if link is None:
+            if required:
+                raise RecordingError(f"missing dataset '/{name}'")
+            return None
+        if not isinstance(link, h5py.HardLink):
+            kind = ("a soft link" if isinstance(link, h5py.SoftLink) else
+                    "an external link" if isinstance(link, h5py.ExternalLink) else "not a hard link")
+            raise RecordingError(f"dataset '/{name}': is {kind}; only data stored in the file are read")
+        ds = f.get(name)
+        if not isinstance(ds, h5py.Dataset):
+            raise RecordingError(f"dataset '/{name}': expected a dataset, got {type(ds).__name__}")
+        if ds.is_virtual:
+            raise RecordingError(f"dataset '/{name}': virtual datasets are refused")
+        if ds.external is not None:
+            raise RecordingError(f"dataset '/{name}': external raw storage is refused")
+    except _READ_ERRORS as exc:
+        raise RecordingError(f"dataset '/{name}': unreadable ({_reason(exc)})") from None
+    return ds
+
+
+def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
+    import h5py
+
+    try:
+        f = h5py.File(path, "r")
+    except _READ_ERRORS:
+        raise RecordingError(f"{path}: not a readable HDF5 file (truncated or corrupt)") from None
+    with f:
+        attrs = _h5_attrs(f)
+        config, site, when = _metadata(attrs)
+        simulation = _simulation_attr(attrs)
+        ds = _h5_dataset(f, "iq", required=True)
+        r = _h5_dataset(f, "remote_id")
+        t = _h5_dataset(f, "remote_id_time_s")
+        try:
+            _check_iq_header(ds.shape, ds.dtype, max_cells, max_bytes)
+            for name, d in (("remote_id", r), ("remote_id_time_s", t)):
+                if d is not None:
+                    _check_rid_header(name, d.shape, d.dtype)
+        except (TypeError, ValueError, KeyError) as exc:  # a type h5py cannot map to numpy
+            if isinstance(exc, RecordingError):
+                raise
+            raise RecordingError(f"{path}: unsupported datatype ({_reason(exc)})") from None
+        name = "iq"
+        try:
+            iq = np.empty(ds.shape, ds.dtype.newbyteorder("="))
+            ds.read_direct(iq)  # ~0.1 ms against ~0.3 ms for ds[()] on a paper cube; HDF5 byte-swaps
+            rid = times = None
+            if r is not None:
+                name = "remote_id"
+                rid = np.asarray(r[()], dtype=np.uint8)
+            if t is not None:
+                name = "remote_id_time_s"
+                times = np.asarray(t[()]).astype(np.float64)
+        except _READ_ERRORS as exc:
+            raise RecordingError(f"{path}: dataset '/{name}' cannot be read (truncated or corrupt; "
+                                 f"{_reason(exc)})") from None
+    _check_iq_values(iq)
+    _check_rid(rid, times)
+    return Recording(config, site, when, iq, rid, times, simulation)
 
 
 def _attrs_of(rec: Recording) -> dict[str, Any]:
@@ -244,41 +395,64 @@ def _write_h5(rec: Recording, path: Path) -> None:
 
 # --- NPZ -------------------------------------------------------------------------
 
+_NPY_VERSIONS = ((1, 0), (2, 0), (3, 0))
 
-def _npz_header(zf: zipfile.ZipFile, name: str) -> tuple[tuple[int, ...], np.dtype]:
-    with zf.open(name) as fh:
+
+def _npz_member(zf: zipfile.ZipFile, member: str, check: Any) -> np.ndarray:
+    """One .npy member: its header is read and `check(shape, dtype)` run before any data
+    are allocated; object (pickled) arrays are refused."""
+    with zf.open(member) as fh:
         version = np.lib.format.read_magic(fh)
+        if version not in _NPY_VERSIONS:
+            raise ValueError(f"unsupported .npy version {version}")
         reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
                   else np.lib.format.read_array_header_2_0)
-        shape, _fortran, dtype = reader(fh)
-    return shape, dtype
+        shape, fortran, dtype = reader(fh)
+        shape = tuple(shape)
+        check(shape, dtype)
+        if dtype.hasobject:
+            raise RecordingError(f"member '{member}': object arrays (pickles) are not read")
+        buf = bytearray(math.prod(shape) * dtype.itemsize)  # bounded by check
+        if fh.readinto(buf) != len(buf):
+            raise EOFError("member shorter than its header says")
+    return np.frombuffer(buf, dtype).reshape(shape, order="F" if fortran else "C")
 
 
-def _read_npz(path: Path, max_cells: int) -> Recording:
+def _attr_member_check(name: str) -> Any:
+    def check(shape: tuple[int, ...], dtype: np.dtype) -> None:
+        if math.prod(shape) * dtype.itemsize > MAX_NPZ_ATTR_BYTES:
+            raise RecordingError(f"attribute '{name}': {shape} {dtype} exceeds {MAX_NPZ_ATTR_BYTES} bytes")
+    return check
+
+
+def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
+    name = "iq"
     try:
-        zf = zipfile.ZipFile(path)
-        members = {n.removesuffix(".npy"): n for n in zf.namelist()}
-        if "iq" not in members:
-            raise RecordingError("missing dataset '/iq'")
-        shape, dtype = _npz_header(zf, members["iq"])
-        _check_iq_header(tuple(shape), dtype, max_cells)
-        for name in ("remote_id", "remote_id_time_s"):
-            if name in members:
-                s, _ = _npz_header(zf, members[name])
-                if len(s) < 1 or s[0] > 100_000 or math.prod(s) > 100_000 * RID_MESSAGE_BYTES:
-                    raise RecordingError(f"dataset '/{name}': unexpected shape {s}")
-        data = np.load(path, allow_pickle=False)
-        attrs = {k: data[k] for k in members if k not in ("iq", "remote_id", "remote_id_time_s")}
-        config, site, when = _metadata(attrs)
-        simulation = _simulation_attr(attrs)
-        iq = data["iq"]
-        rid = data["remote_id"] if "remote_id" in members else None
-        times = (np.asarray(data["remote_id_time_s"], dtype=np.float64)
-                 if "remote_id_time_s" in members else None)
+        with zipfile.ZipFile(path) as zf:
+            members = {n.removesuffix(".npy"): n for n in zf.namelist()}
+            if "iq" not in members:
+                raise RecordingError("missing dataset '/iq'")
+            iq = _npz_member(zf, members["iq"],
+                             lambda s, d: _check_iq_header(s, d, max_cells, max_bytes))
+            attrs = {}
+            for name in _ATTR_NAMES:
+                if name in members:
+                    attrs[name] = _npz_member(zf, members[name], _attr_member_check(name))
+            config, site, when = _metadata(attrs)
+            simulation = _simulation_attr(attrs)
+            data: dict[str, np.ndarray | None] = {"remote_id": None, "remote_id_time_s": None}
+            for name in data:
+                if name in members:
+                    data[name] = _npz_member(zf, members[name],
+                                             lambda s, d, n=name: _check_rid_header(n, s, d))
     except RecordingError:
         raise
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError):
-        raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt)") from None
+    except _READ_ERRORS as exc:
+        raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt; member "
+                             f"'{name}': {_reason(exc)})") from None
+    iq = _native(iq)
+    rid = None if data["remote_id"] is None else np.asarray(data["remote_id"], dtype=np.uint8)
+    times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
     _check_iq_values(iq)
     _check_rid(rid, times)
     return Recording(config, site, when, iq, rid, times, simulation)
@@ -299,27 +473,65 @@ def _write_npz(rec: Recording, path: Path) -> None:
 # --- public API ------------------------------------------------------------------
 
 _HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
+_O_NONBLOCK = getattr(os, "O_NONBLOCK", 0)
 
 
-def read_recording(path: str | Path, max_cells: int = MAX_IQ_CELLS) -> Recording:
-    """Read and validate a recorded return (.h5/.hdf5 or .npz; sniffed by content)."""
+def _sniff(path: Path, max_file_bytes: int) -> bytes:
+    """First 8 bytes of a regular file no larger than max_file_bytes.
+
+    stat before open: a FIFO, device or directory is refused (opening a FIFO blocks until
+    a writer appears); the open itself is non-blocking and re-checked with fstat, so a
+    file swapped for a FIFO in between cannot hang us either.
+    """
+    try:
+        st = os.stat(path)
+        if stat.S_ISREG(st.st_mode):
+            fd = os.open(path, os.O_RDONLY | _O_NONBLOCK)
+            try:
+                st = os.fstat(fd)
+                head = os.read(fd, 8) if stat.S_ISREG(st.st_mode) else b""
+            finally:
+                os.close(fd)
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise RecordingError(f"{path}: cannot open ({getattr(exc, 'strerror', None) or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise RecordingError(f"{path}: is a directory, not a recorded-return file")
+    if not stat.S_ISREG(st.st_mode):
+        raise RecordingError(f"{path}: not a regular file (FIFO, socket or device); only regular "
+                             f"files are read")
+    if st.st_size > max_file_bytes:
+        raise RecordingError(f"{path}: {st.st_size} bytes exceed the limit of {max_file_bytes}")
+    return head
+
+
+def read_recording(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
+                   max_bytes: int = MAX_IQ_BYTES, max_file_bytes: int = MAX_FILE_BYTES) -> Recording:
+    """Read and validate a recorded return (.h5/.hdf5 or .npz; sniffed by content).
+
+    Bad input of any kind raises RecordingError with one line naming the field.
+    """
     path = Path(path)
     try:
-        with path.open("rb") as fh:
-            head = fh.read(8)
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot open ({exc.strerror})") from None
-    if head.startswith(b"PK"):
-        return _read_npz(path, max_cells)
-    if head == _HDF5_MAGIC or path.suffix.lower() in (".h5", ".hdf5"):
-        return _read_h5(path, max_cells)
+        head = _sniff(path, max_file_bytes)
+        if head.startswith(b"PK"):
+            return _read_npz(path, max_cells, max_bytes)
+        if head == _HDF5_MAGIC or path.suffix.lower() in (".h5", ".hdf5"):
+            return _read_h5(path, max_cells, max_bytes)
+    except RecordingError as exc:
+        text = str(exc)
+        if "\n" in text or "\r" in text:  # a path or value with a line break: keep one line
+            raise RecordingError(" ".join(text.split())) from None
+        raise
+    except _READ_ERRORS as exc:  # last resort: nothing on the read path escapes unconverted
+        raise RecordingError(f"{path}: unreadable ({_reason(exc)})") from None
     raise RecordingError(f"{path}: neither HDF5 nor .npz")
 
 
 def write_recording(rec: Recording, path: str | Path) -> Path:
     """Write a recorded return; the suffix (.npz or anything else = HDF5) picks the container."""
     path = Path(path)
-    _check_iq_header(tuple(rec.iq.shape), rec.iq.dtype, max(MAX_IQ_CELLS, rec.iq.size))
+    _check_iq_header(tuple(rec.iq.shape), rec.iq.dtype, max(MAX_IQ_CELLS, rec.iq.size),
+                     max(MAX_IQ_BYTES, rec.iq.nbytes))
     _check_iq_values(rec.iq)
     _check_rid(rec.remote_id, rec.remote_id_time_s)
     path.parent.mkdir(parents=True, exist_ok=True)
