@@ -15,6 +15,7 @@ import pytest
 from authn.cli import main
 from registry.db import dispose_engines, session_scope
 from registry.errors import RegistryError
+from registry.models import Identity, ModelProfile
 from registry.store import (
     NewIdentity,
     export_csv,
@@ -145,6 +146,10 @@ def test_json_document_shape(new_db):
     assert set(rec) == {"serial", "id_type", "model", "operator_id", "public_key", "status",
                         "valid_from", "valid_until", "notes", "created_at", "updated_at"}
     assert rec["valid_from"] == "2024-01-01T06:30:15.123456+00:00"
+    # a column added to the schema later must be added to the export too
+    columns = {c.name for c in Identity.__table__.columns} - {"id", "model_slug"} | {"model"}
+    assert set(rec) == columns
+    assert set(doc["profiles"][0]) == {c.name for c in ModelProfile.__table__.columns}
 
 
 def test_csv_round_trip_keeps_status_and_key(new_db):
