@@ -41,12 +41,20 @@ def _claims(path: Path) -> dict[str, str]:
     from authn.errors import AuthnError
 
     try:
-        rows = list(csv.DictReader(path.read_text().splitlines()))
+        reader = csv.DictReader(path.read_text().splitlines())
+        header = {h.strip() for h in reader.fieldnames or ()}
+        rows = list(reader)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise AuthnError(f"{path}: cannot read claims CSV ({exc})") from None
-    if rows and not {"file", "serial"} <= set(rows[0]):
-        raise AuthnError(f"{path}: claims CSV needs the columns file,serial")
-    return {r["file"].strip(): r["serial"].strip() for r in rows if r.get("file") and r.get("serial")}
+    if not {"file", "serial"} <= header:
+        raise AuthnError(f"{path}: claims CSV needs a header row naming the columns file,serial")
+    claims: dict[str, str] = {}
+    for line, row in enumerate(rows, start=2):
+        file, claimed = (row.get("file") or "").strip(), (row.get("serial") or "").strip()
+        if not file or not claimed:
+            raise AuthnError(f"{path}: line {line}: needs both a file and a serial")
+        claims[file] = claimed
+    return claims
 
 
 def _print_outcome(o) -> None:

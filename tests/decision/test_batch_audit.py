@@ -183,3 +183,14 @@ def test_sigterm_mid_batch_commits_prints_and_exits_3(archive: Path, db: str) ->
     assert len(entries) == len(results)  # everything committed was printed and vice versa
     assert err.decode().strip().splitlines()[-1].startswith("error: interrupted by SIGTERM")
     assert main(["--db", db, "audit", "verify"]) == 0
+
+
+@pytest.mark.parametrize("text", ["r000.h5,1581BDEM00000002\n", "file,serial\nr000.h5,\n", ""])
+def test_claims_csv_without_header_or_with_holes_is_refused(archive: Path, db: str, tmp_path: Path, text: str,
+                                                            capsys) -> None:
+    claims = tmp_path / "claims.csv"
+    claims.write_text(text)
+    capsys.readouterr()
+    assert main(["--db", db, "check", str(archive), "--claims", str(claims)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "claims" in err and err.count("\n") == 1
