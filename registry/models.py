@@ -138,8 +138,34 @@ class AuditLog(Base):
     payload: Mapped[str] = mapped_column(Text)
     prev_hash: Mapped[str] = mapped_column(CHAR(64))
     entry_hash: Mapped[str] = mapped_column(CHAR(64), unique=True)
+    leaf_hash: Mapped[str | None] = mapped_column(CHAR(64))  # RFC 9162 leaf hash (revision 0002)
 
     __table_args__ = (
         CheckConstraint("kind IN ('decision', 'error')", name="kind_enum"),
         CheckConstraint("decision IS NULL OR decision IN ('accept', 'reject')", name="decision_enum"),
     )
+
+
+class AuditPolicy(Base):
+    """Each distinct Cedar policy text a decision was made under, once, by SHA-256 (for replay)."""
+
+    __tablename__ = "audit_policies"
+
+    sha256: Mapped[str] = mapped_column(CHAR(64), primary_key=True)
+    text: Mapped[str] = mapped_column(Text)
+    first_seen: Mapped[datetime] = mapped_column(UtcDateTime)
+
+
+class AuditTreeHead(Base):
+    """Signed tree heads of the audit log's Merkle tree (RFC 9162), with the frontier that lets
+    the next checkpoint continue without rehashing the whole log. Written by authn.audit."""
+
+    __tablename__ = "audit_tree_heads"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    tree_size: Mapped[int] = mapped_column(BigInteger, index=True)
+    timestamp_ms: Mapped[int] = mapped_column(BigInteger)
+    root_hash: Mapped[str] = mapped_column(CHAR(64))
+    log_key_id: Mapped[str] = mapped_column(CHAR(64))
+    signature: Mapped[str] = mapped_column(Text)
+    frontier: Mapped[str] = mapped_column(Text)  # JSON list of hex subtree roots, largest first

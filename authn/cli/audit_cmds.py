@@ -1,8 +1,14 @@
-"""`authn audit ...`: read and verify the hash-chained audit log."""
+"""`authn audit ...`: read, verify, checkpoint and prove the tamper-evident audit log.
+
+Exit codes: 0 ok, 1 the log (or a proof, or a replay) does not hold, 2 bad input
+(unreadable or malformed STH/proof/key file), 3 system fault (log key, database).
+"""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -10,8 +16,36 @@ import typer
 
 from authn.cli import CliState, app
 
+LOG_KEY_HELP = "Ed25519 log key (PEM; default $AUTHN_LOG_KEY, else audit-log-key.pem in the user data dir)."
+STH_LOG_HELP = "JSON-lines file of automatic signed tree heads (default $AUTHN_AUDIT_STH_LOG, else beside the key)."
+
 audit_app = typer.Typer(help="Read and verify the tamper-evident audit log.", no_args_is_help=True)
 app.add_typer(audit_app, name="audit")
+
+
+@contextmanager
+def _faults() -> Iterator[None]:
+    """System faults (log key, database) as one line and exit code 3, never a traceback."""
+    from authn.errors import EXIT_SYSTEM, one_line, system_fault_types
+
+    try:
+        yield
+    except system_fault_types() as exc:
+        typer.echo(f"error: {one_line(exc)}", err=True)
+        raise typer.Exit(EXIT_SYSTEM) from None
+
+
+def _write(text: str, out: Path | None) -> None:
+    from authn.errors import AuthnError
+
+    if out is None:
+        typer.echo(text, nl=False)
+        return
+    try:
+        out.write_text(text)
+    except OSError as exc:
+        raise AuthnError(f"{out}: cannot write ({exc.strerror})") from None
+    typer.echo(f"wrote {out}", err=True)
 
 
 def _entry_json(e) -> dict:
@@ -35,7 +69,7 @@ def _since(text: str | None) -> datetime | None:
 def list_cmd(
     ctx: typer.Context,
     since: str | None = typer.Option(None, "--since", help="Only entries at or after this ISO 8601 time (UTC)."),
-    decision: str | None = typer.Option(None, "--decision", help="accept or reject."),
+    decision: str | None = typer.Option(None, "--decision", help="accept, reject, or error (error entries)."),
     serial: str | None = typer.Option(None, "--serial", help="Only this claimed serial."),
     limit: int | None = typer.Option(None, "--limit", min=1, help="At most this many entries."),
     as_json: bool = typer.Option(False, "--json", help="JSON array instead of a table."),
@@ -48,11 +82,13 @@ def list_cmd(
     from authn.errors import AuthnError
     from registry.dbapi import Database
 
-    if decision not in (None, "accept", "reject"):
-        raise AuthnError(f"--decision: must be accept or reject, got {decision!r}")
+    if decision not in (None, "accept", "reject", "error"):
+        raise AuthnError(f"--decision: must be accept, reject or error, got {decision!r}")
     state: CliState = ctx.obj
-    entries = list_entries(Database(state.db_url), since=_since(since), decision=decision, serial=serial,
-                           limit=limit)
+    kind = "error" if decision == "error" else None
+    with _faults():
+        entries = list_entries(Database(state.db_url), since=_since(since),
+                               decision=None if kind else decision, kind=kind, serial=serial, limit=limit)
     if as_json:
         typer.echo(json.dumps([_entry_json(e) for e in entries], indent=2))
         return
@@ -79,61 +115,218 @@ def show_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry numb
     from authn.errors import AuthnError
     from registry.dbapi import Database
 
-    entry = get_entry(Database(ctx.obj.db_url), seq)
+    with _faults():
+        entry = get_entry(Database(ctx.obj.db_url), seq)
     if entry is None:
         raise AuthnError(f"no audit entry {seq}")
     typer.echo(json.dumps(_entry_json(entry), indent=2))
 
 
+
+
+def _public_key(public_key: Path | None, log_key: Path | None, *, required: bool) -> object | None:
+    """--public-key, else the public half of the log key file (None if absent and not required)."""
+    from authn.logkey import LogKey, key_path, load_public_key
+
+    if public_key is not None:
+        return load_public_key(public_key)
+    if not required and not key_path(log_key).exists():
+        return None
+    return LogKey.load(log_key, create=False).public_key
+
+
 @audit_app.command("verify")
 def verify_cmd(
     ctx: typer.Context,
-    against: Path | None = typer.Option(None, "--against", help="Checkpoint file from `authn audit export --checkpoint`."),
+    against: Path | None = typer.Option(None, "--against", help="A signed tree head file (`authn audit checkpoint`)."),
+    log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
+    public_key: Path | None = typer.Option(None, "--public-key", help="Check STH signatures with this PEM public key."),
+    sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
 ) -> None:
-    """Recompute the hash chain and report the first bad entry (exit 1 when broken).
+    """Recompute the hash chain and the Merkle tree; check the log against signed tree heads.
 
-    With --against CHECKPOINT it also detects truncation and rewritten history.
+    Without --against it uses every STH found in the STH log file and in the database
+    (and names the newest). With one, the log must hold at least its tree_size entries
+    and a consistency proof must show the signed log is a prefix of today's: truncation,
+    rewrites, deletions and reordering before the STH's size are reported. Exit 1 names
+    the first bad entry.
 
-    Example: authn audit verify --against audit-checkpoint.json
+    Example: authn audit verify --against sth.json
     """
-    from authn.audit import Checkpoint, verify
-    from authn.errors import AuthnError
+    from authn.audit import KnownHead, known_heads, newest, verify
+    from authn.logkey import SignedTreeHead
     from registry.dbapi import Database
 
-    cp = None
-    if against is not None:
-        try:
-            cp = Checkpoint.from_json(against.read_text())
-        except OSError as exc:
-            raise AuthnError(f"{against}: cannot read checkpoint ({exc.strerror})") from None
-    report = verify(Database(ctx.obj.db_url), cp)
-    if report.ok:
-        typer.echo(f"ok: {report.size} entries, head {report.head}")
+    sth = SignedTreeHead.read(against) if against is not None else None
+    with _faults():
+        db = Database(ctx.obj.db_url)
+        if sth is not None:
+            heads = [KnownHead(sth, f"--against {against}")]
+            key = _public_key(public_key, log_key, required=True)
+        else:
+            heads = known_heads(db, sth_log=sth_log, log_key=log_key)
+            key = _public_key(public_key, log_key, required=bool(heads))
+            forged = [h for h in heads if not h.sth.verify_signature(key)]
+            if forged:
+                h = min(forged, key=lambda h: h.sth.tree_size)
+                typer.echo(f"BROKEN: tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
+                           "(forged or altered)", err=True)
+                raise typer.Exit(1)
+        report = verify(db, heads, public_key=key)
+    if not report.ok:
+        typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
+        raise typer.Exit(1)
+    line = f"ok: {report.size} entries, chain head {report.head[:16]}, tree root {report.root[:16]}"
+    best = newest(heads)
+    if best is None:
+        line += "; no signed tree head found (truncation cannot be detected; run `authn audit checkpoint`)"
+    else:
+        line += (f"; consistent with the newest signed tree head (size {best.sth.tree_size}, {best.source})"
+                 + (f" and {len(heads) - 1} older" if len(heads) > 1 else ""))
+        if report.unsigned:
+            line += f"; {report.unsigned} newer entries not yet signed"
+    typer.echo(line)
+
+
+@audit_app.command("checkpoint")
+def checkpoint_cmd(
+    ctx: typer.Context,
+    out: Path | None = typer.Option(None, "--out", help="Write the STH to this file instead of stdout."),
+    log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
+    sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
+) -> None:
+    """Verify the log, then sign its tree head (authn-sth/1 JSON) to keep elsewhere.
+
+    The STH is also stored in the database and appended to the STH log file.
+
+    Example: authn audit checkpoint --out /mnt/witness/sth-$(date +%F).json
+    """
+    from authn.audit import checkpoint, verify
+    from registry.dbapi import Database
+
+    with _faults():
+        db = Database(ctx.obj.db_url)
+        report = verify(db)
+        if not report.ok:
+            typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
+            raise typer.Exit(1)
+        sth = checkpoint(db, log_key=log_key, sth_log=sth_log)
+    _write(sth.to_json() + "\n", out)
+
+
+@audit_app.command("public-key")
+def public_key_cmd(
+    out: Path | None = typer.Option(None, "--out", help="Write the PEM to this file instead of stdout."),
+    log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
+) -> None:
+    """Print the log's Ed25519 public key (PEM) and its key id, for verifiers (created on first use).
+
+    Example: authn audit public-key --out authn-log.pub
+    """
+    from authn.logkey import LogKey
+
+    with _faults():
+        key = LogKey.load(log_key)
+    _write(key.public_pem(), out)
+    typer.echo(f"log_key_id {key.key_id}", err=True)
+
+
+@audit_app.command("prove")
+def prove_cmd(
+    ctx: typer.Context,
+    seq: int = typer.Argument(..., help="Entry number (seq)."),
+    sth_file: Path | None = typer.Option(None, "--sth", help="Prove against this STH (default: the newest covering N)."),
+    out: Path | None = typer.Option(None, "--out", help="Write the proof to this file instead of stdout."),
+    log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
+    sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
+) -> None:
+    """A self-contained inclusion proof of entry N: the entry, its audit path, the STH.
+
+    A third party checks it with `authn audit verify-proof PROOF --public-key KEY`.
+
+    Example: authn audit prove 42 --out entry-42.proof.json
+    """
+    from authn.audit import prove
+    from authn.errors import AuthnError
+    from authn.logkey import SignedTreeHead
+    from registry.dbapi import Database
+
+    sth = SignedTreeHead.read(sth_file) if sth_file is not None else None
+    with _faults():
+        if sth is not None and not sth.verify_signature(_public_key(None, log_key, required=True)):
+            raise AuthnError(f"{sth_file}: not signed by the log key")
+        doc = prove(Database(ctx.obj.db_url), seq, sth, log_key=log_key, sth_log=sth_log)
+    _write(json.dumps(doc, indent=2, sort_keys=True) + "\n", out)
+
+
+@audit_app.command("verify-proof")
+def verify_proof_cmd(
+    proof: Path = typer.Argument(..., help="Proof file from `authn audit prove`."),
+    public_key: Path = typer.Option(..., "--public-key", help="The log's public key (`authn audit public-key`)."),
+) -> None:
+    """Check an inclusion proof with only the log's public key (no database). Exit 1 if it fails.
+
+    Example: authn audit verify-proof entry-42.proof.json --public-key authn-log.pub
+    """
+    from authn.audit import verify_proof
+    from authn.errors import AuthnError
+    from authn.logkey import load_public_key
+
+    key = load_public_key(public_key)
+    try:
+        doc = json.loads(proof.read_bytes().decode("utf-8"))
+    except OSError as exc:
+        raise AuthnError(f"{proof}: cannot read proof ({exc.strerror})") from None
+    except (UnicodeDecodeError, ValueError):
+        raise AuthnError(f"{proof}: not a JSON proof document") from None
+    try:
+        line = verify_proof(doc, key)
+    except AuthnError as exc:
+        typer.echo(f"FAILED: {exc}", err=True)
+        raise typer.Exit(1) from None
+    typer.echo(line)
+
+
+@audit_app.command("replay")
+def replay_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry number (seq).")) -> None:
+    """Re-decide entry N with the recorded policy text and inputs; exit 0 same, 1 different.
+
+    Entries without recorded policy inputs (older ones, errors): "not replayable", exit 2.
+
+    Example: authn audit replay 42
+    """
+    from authn.audit import replay
+    from registry.dbapi import Database
+
+    with _faults():
+        r = replay(Database(ctx.obj.db_url), seq)
+    rec = f"{r.recorded[0]} [{', '.join(r.recorded[1])}]"
+    now = f"{r.replayed[0]} [{', '.join(r.replayed[1])}]"
+    if r.same:
+        typer.echo(f"same: entry {seq} replays to {now} under policy {r.policy_sha256[:16]}")
         return
-    typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
+    typer.echo(f"DIFFERENT: entry {seq} recorded {rec}, replays to {now} under policy {r.policy_sha256[:16]}")
     raise typer.Exit(1)
 
 
 @audit_app.command("export")
 def export_cmd(
     ctx: typer.Context,
-    checkpoint_only: bool = typer.Option(False, "--checkpoint", help="Write only the head hash and size."),
+    checkpoint_only: bool = typer.Option(False, "--checkpoint", help="Write a signed tree head instead (as `checkpoint`)."),
     out: Path | None = typer.Option(None, "--out", help="Write to this file instead of stdout."),
+    log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
 ) -> None:
-    """Export the log as JSON lines, or a checkpoint (head hash + size) to keep elsewhere.
+    """Export the log as JSON lines, or a signed tree head to keep elsewhere.
 
-    Example: authn audit export --checkpoint --out audit-checkpoint.json
+    Example: authn audit export --out audit.jsonl
     """
     from authn.audit import checkpoint, list_entries
     from registry.dbapi import Database
 
-    db = Database(ctx.obj.db_url)
-    if checkpoint_only:
-        text = checkpoint(db).to_json() + "\n"
-    else:
-        text = "".join(json.dumps(_entry_json(e), sort_keys=True) + "\n" for e in list_entries(db))
-    if out is None:
-        typer.echo(text, nl=False)
-    else:
-        out.write_text(text)
-        typer.echo(f"wrote {out}")
+    with _faults():
+        db = Database(ctx.obj.db_url)
+        if checkpoint_only:
+            text = checkpoint(db, log_key=log_key).to_json() + "\n"
+        else:
+            text = "".join(json.dumps(_entry_json(e), sort_keys=True) + "\n" for e in list_entries(db))
+    _write(text, out)

@@ -1,0 +1,133 @@
+"""Audit log as a Merkle tree: per-entry leaf hashes, signed tree heads, recorded policies.
+
+Existing entries keep their rows and chain; the migration computes each one's RFC 9162
+leaf hash (SHA-256(0x00 || the canonical entry bytes that the chain hash already covers))
+so that they become the first leaves of the tree. audit_log's UPDATE trigger is dropped
+for the backfill and recreated in the same transaction. The new tables are append-only
+by trigger, like audit_log.
+
+Revision ID: 0002
+Revises: 0001
+Create Date: 2026-11-23
+"""
+
+import hashlib
+import json
+from datetime import datetime, timezone
+
+import sqlalchemy as sa
+from alembic import op
+
+from registry.models import UtcDateTime
+
+revision = "0002"
+down_revision = "0001"
+branch_labels = None
+depends_on = None
+
+_NEW_TABLES = ("audit_policies", "audit_tree_heads")
+
+
+def _sqlite_triggers(table: str) -> list[str]:
+    return [f"CREATE TRIGGER {table}_no_update BEFORE UPDATE ON {table} "
+            f"BEGIN SELECT RAISE(ABORT, '{table} is append-only'); END",
+            f"CREATE TRIGGER {table}_no_delete BEFORE DELETE ON {table} "
+            f"BEGIN SELECT RAISE(ABORT, '{table} is append-only'); END"]
+
+
+def _pg_triggers(table: str) -> list[str]:
+    # audit_log_append_only() (revision 0001) raises 'audit_log is append-only'; one per table here
+    fn = f"{table}_append_only"
+    return [f"CREATE FUNCTION {fn}() RETURNS trigger LANGUAGE plpgsql AS $$ "
+            f"BEGIN RAISE EXCEPTION '{table} is append-only'; END; $$",
+            f"CREATE TRIGGER {table}_no_update BEFORE UPDATE ON {table} FOR EACH ROW EXECUTE FUNCTION {fn}()",
+            f"CREATE TRIGGER {table}_no_delete BEFORE DELETE ON {table} FOR EACH ROW EXECUTE FUNCTION {fn}()",
+            f"CREATE TRIGGER {table}_no_truncate BEFORE TRUNCATE ON {table} "
+            f"FOR EACH STATEMENT EXECUTE FUNCTION {fn}()"]
+
+
+def _iso(value) -> str:
+    """created_at exactly as revision 0001's writer hashed it (frozen here)."""
+    if isinstance(value, str):
+        value = datetime.fromisoformat(value)
+    value = value.replace(tzinfo=timezone.utc) if value.tzinfo is None else value.astimezone(timezone.utc)
+    return value.isoformat(timespec="microseconds")
+
+
+def _leaf_hash(seq, created_at, kind, serial, decision, payload, prev_hash) -> str:
+    body = json.dumps({"seq": int(seq), "created_at": _iso(created_at), "kind": kind, "serial": serial,
+                       "decision": decision, "payload": payload, "prev_hash": prev_hash},
+                      sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    return hashlib.sha256(b"\x00" + body.encode("utf-8")).hexdigest()
+
+
+def upgrade() -> None:
+    bind = op.get_bind()
+    dialect = bind.dialect.name
+    op.add_column("audit_log", sa.Column("leaf_hash", sa.CHAR(64), nullable=True))
+    op.create_table(
+        "audit_policies",
+        sa.Column("sha256", sa.CHAR(64), nullable=False),
+        sa.Column("text", sa.Text(), nullable=False),
+        sa.Column("first_seen", UtcDateTime(), nullable=False),
+        sa.PrimaryKeyConstraint("sha256", name=op.f("pk_audit_policies")),
+    )
+    op.create_table(
+        "audit_tree_heads",
+        sa.Column("id", sa.Integer(), autoincrement=True, nullable=False),
+        sa.Column("tree_size", sa.BigInteger(), nullable=False),
+        sa.Column("timestamp_ms", sa.BigInteger(), nullable=False),
+        sa.Column("root_hash", sa.CHAR(64), nullable=False),
+        sa.Column("log_key_id", sa.CHAR(64), nullable=False),
+        sa.Column("signature", sa.Text(), nullable=False),
+        sa.Column("frontier", sa.Text(), nullable=False),
+        sa.PrimaryKeyConstraint("id", name=op.f("pk_audit_tree_heads")),
+    )
+    op.create_index(op.f("ix_audit_tree_heads_tree_size"), "audit_tree_heads", ["tree_size"])
+
+    # backfill leaf hashes of the entries written before this revision
+    if dialect == "postgresql":
+        op.execute("DROP TRIGGER audit_log_no_update ON audit_log")
+    elif dialect == "sqlite":
+        op.execute("DROP TRIGGER audit_log_no_update")
+    last = None
+    while True:
+        rows = bind.execute(sa.text(
+            "SELECT id, seq, created_at, kind, serial, decision, payload, prev_hash FROM audit_log "
+            + ("" if last is None else "WHERE id > :last ") + "ORDER BY id LIMIT 5000"),
+            {} if last is None else {"last": last}).all()
+        if not rows:
+            break
+        bind.execute(sa.text("UPDATE audit_log SET leaf_hash = :h WHERE id = :id"),
+                     [{"id": r[0], "h": _leaf_hash(*r[1:])} for r in rows])
+        last = rows[-1][0]
+    if dialect == "postgresql":
+        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
+                   "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()")
+    elif dialect == "sqlite":
+        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
+                   "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END")
+    for table in _NEW_TABLES:
+        for ddl in _pg_triggers(table) if dialect == "postgresql" else _sqlite_triggers(table) \
+                if dialect == "sqlite" else []:
+            op.execute(ddl)
+
+
+def downgrade() -> None:
+    dialect = op.get_bind().dialect.name
+    op.drop_index(op.f("ix_audit_tree_heads_tree_size"), table_name="audit_tree_heads")
+    op.drop_table("audit_tree_heads")
+    op.drop_table("audit_policies")
+    if dialect == "postgresql":
+        for table in _NEW_TABLES:
+            op.execute(f"DROP FUNCTION IF EXISTS {table}_append_only()")
+        op.execute("DROP TRIGGER audit_log_no_update ON audit_log")
+    elif dialect == "sqlite":
+        op.execute("DROP TRIGGER audit_log_no_update")
+    op.execute("ALTER TABLE audit_log DROP COLUMN leaf_hash")  # in place: keeps the other triggers
+    if dialect == "postgresql":
+        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
+                   "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()")
+    elif dialect == "sqlite":
+        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
+                   "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END")

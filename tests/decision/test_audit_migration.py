@@ -1,0 +1,75 @@
+"""Revision 0002 keeps every entry written at revision 0001 and makes them the tree's first leaves."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import pytest
+from sqlalchemy import text
+
+from authn import merkle
+from authn.audit import NewEntry, append, list_entries, prove, verify, verify_proof
+from authn.logkey import LogKey
+from registry.db import alembic_config, create_db_engine, dispose_engines
+from registry.dbapi import Database
+
+
+@pytest.fixture(autouse=True)
+def _env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("AUTHN_LOG_KEY", str(tmp_path / "keys" / "log.pem"))
+    monkeypatch.setenv("AUTHN_AUDIT_STH_LOG", str(tmp_path / "keys" / "sth.jsonl"))
+
+
+def _old_body(seq, created: datetime, kind, serial, decision, payload, prev) -> bytes:
+    """Revision 0001's chain input, written out here so that this test does not use today's code."""
+    return json.dumps({"seq": seq, "created_at": created.isoformat(timespec="microseconds"), "kind": kind,
+                       "serial": serial, "decision": decision, "payload": payload, "prev_hash": prev},
+                      sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode()
+
+
+def test_upgrade_from_0001_keeps_entries_as_leaves(db_url: str) -> None:
+    from alembic import command
+
+    engine = create_db_engine(db_url)
+    with engine.begin() as conn:
+        command.upgrade(alembic_config(conn), "0001")
+    t0 = datetime(2026, 1, 2, 3, 4, 5, 678901, tzinfo=timezone.utc)
+    prev, bodies = "0" * 64, []
+    with engine.begin() as conn:
+        for seq in range(1, 8):
+            created = t0 + timedelta(seconds=seq)
+            kind, decision = ("error", None) if seq == 4 else ("decision", "accept" if seq % 2 else "reject")
+            payload = json.dumps({"reasons": ["r"], "n": seq}, sort_keys=True, separators=(",", ":"))
+            body = _old_body(seq, created, kind, f"S{seq}", decision, payload, prev)
+            digest = hashlib.sha256(body).hexdigest()
+            stored = created.replace(tzinfo=None) if engine.dialect.name == "sqlite" else created
+            if engine.dialect.name == "sqlite":
+                stored = stored.strftime("%Y-%m-%d %H:%M:%S.%f")
+            conn.execute(text("INSERT INTO audit_log (seq, created_at, kind, serial, decision, payload, prev_hash, "
+                              "entry_hash) VALUES (:s, :c, :k, :se, :d, :p, :pr, :e)"),
+                         {"s": seq, "c": stored, "k": kind, "se": f"S{seq}", "d": decision, "p": payload,
+                          "pr": prev, "e": digest})
+            bodies.append(body)
+            prev = digest
+    engine.dispose()
+    dispose_engines()
+
+    db = Database(db_url)  # not at head: migrates
+    entries = list_entries(db)
+    assert [e.leaf_hash for e in entries] == [merkle.leaf_hash(b).hex() for b in bodies]
+    assert verify(db).ok
+    append(db, [NewEntry("decision", "NEW", "accept", {"reasons": []})])
+    report = verify(db)
+    assert report.ok and report.size == 8
+    assert report.root == merkle.root_hash([merkle.leaf_hash(b) for b in bodies] + [
+        bytes.fromhex(list_entries(db)[-1].leaf_hash)]).hex()
+    doc = prove(db, 2)
+    assert verify_proof(doc, LogKey.load().public_key).startswith("ok")
+    for stmt in ("UPDATE audit_log SET decision = 'accept' WHERE seq = 2", "DELETE FROM audit_log WHERE seq = 1"):
+        with pytest.raises(Exception, match="append-only"):
+            with db.write():
+                db.execute(stmt)
+    db.close()
