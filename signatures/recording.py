@@ -110,6 +110,8 @@ def _scalar(attrs: dict[str, Any], name: str) -> Any:
     if name not in attrs:
         raise RecordingError(f"missing attribute '{name}'")
     value = attrs[name]
+    if isinstance(value, (np.ndarray, np.generic)) and value.dtype.kind == "V":
+        raise RecordingError(f"attribute '{name}': opaque or compound type {value.dtype}")
     if isinstance(value, np.ndarray):
         if value.size != 1:
             raise RecordingError(f"attribute '{name}': expected a scalar, got shape {value.shape}")
@@ -316,11 +318,14 @@ def _h5_dataset(f: Any, name: str, required: bool = False) -> Any:
             raise RecordingError(f"dataset '/{name}': is {kind}; only data stored in the file are read")
         ds = f.get(name)
         if not isinstance(ds, h5py.Dataset):
-            raise RecordingError(f"dataset '/{name}': expected a dataset, got {type(ds).__name__}")
+            got = "an object that cannot be opened" if ds is None else type(ds).__name__
+            raise RecordingError(f"dataset '/{name}': expected a dataset, got {got}")
         if ds.is_virtual:
             raise RecordingError(f"dataset '/{name}': virtual datasets are refused")
         if ds.external is not None:
             raise RecordingError(f"dataset '/{name}': external raw storage is refused")
+    except RecordingError:
+        raise
     except _READ_ERRORS as exc:
         raise RecordingError(f"dataset '/{name}': unreadable ({_reason(exc)})") from None
     return ds
@@ -448,8 +453,8 @@ def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
     except RecordingError:
         raise
     except _READ_ERRORS as exc:
-        raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt; member "
-                             f"'{name}': {_reason(exc)})") from None
+        raise RecordingError(f"{path}: not a readable .npz file (truncated, corrupt or unsupported; "
+                             f"member '{name}': {_reason(exc)})") from None
     iq = _native(iq)
     rid = None if data["remote_id"] is None else np.asarray(data["remote_id"], dtype=np.uint8)
     times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
