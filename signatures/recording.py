@@ -453,7 +453,7 @@ def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
     except RecordingError:
         raise
     except _READ_ERRORS as exc:
-        raise RecordingError(f"{path}: not a readable .npz file (truncated, corrupt or unsupported; "
+        raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt; "
                              f"member '{name}': {_reason(exc)})") from None
     iq = _native(iq)
     rid = None if data["remote_id"] is None else np.asarray(data["remote_id"], dtype=np.uint8)
