@@ -11,6 +11,8 @@ message packs. Link types: 105 (802.11), 127 (radiotap), 251 (BLE LL),
 from __future__ import annotations
 
 import hashlib
+import os
+import stat
 import struct
 from collections.abc import Iterator
 from datetime import datetime, timedelta, timezone
@@ -54,9 +56,18 @@ class CapturedMessage(BaseModel):
 
 
 # ------------------------------------------------------------------ containers
-def _ts(ticks: int, per_second: int) -> datetime:
+def _ts(ticks: int, per_second: int, n: int) -> datetime:
+    """Capture time of packet n from ticks since 1970 at per_second ticks per second.
+
+    A time past year 9999 (a corrupt or hostile 64-bit pcapng timestamp; datetime cannot
+    hold it) raises CaptureError naming the packet, like any other corrupt record: a
+    capture whose clock cannot be trusted is refused, not decoded with a guessed time.
+    """
     sec, frac = divmod(ticks, per_second)
-    return _EPOCH + timedelta(seconds=sec, microseconds=frac * 1_000_000 // per_second)
+    try:
+        return _EPOCH + timedelta(seconds=sec, microseconds=frac * 1_000_000 // per_second)
+    except OverflowError:
+        raise CaptureError(f"packet {n}: timestamp out of range ({ticks} ticks at {per_second}/s)") from None
 
 
 def _pcap_packets(data: bytes) -> Iterator[tuple[datetime | None, int, bytes]]:
@@ -76,7 +87,7 @@ def _pcap_packets(data: bytes) -> Iterator[tuple[datetime | None, int, bytes]]:
         sec, frac, incl, _ = rec.unpack_from(data, off)
         if frac >= per_second or off + 16 + incl > len(data):
             raise CaptureError(f"packet {n}: corrupt record (length {incl})")
-        yield _ts(sec * per_second + frac, per_second), linktype, data[off + 16:off + 16 + incl]
+        yield _ts(sec * per_second + frac, per_second, n), linktype, data[off + 16:off + 16 + incl]
         off += 16 + incl
 
 
@@ -114,7 +125,7 @@ def _tsresol(options: bytes, endian: str) -> int:
         code, length = struct.unpack_from(endian + "HH", options, off)
         if code == 0:
             break
-        if code == 9 and length >= 1:
+        if code == 9 and length >= 1 and off + 4 < len(options):
             v = options[off + 4]
             return 2 ** (v & 0x7F) if v & 0x80 else 10 ** v
         off += 4 + (length + 3) // 4 * 4
@@ -137,7 +148,7 @@ def _pcapng_packet(btype, body, endian, ifaces, n) -> tuple[datetime | None, int
         raise CaptureError(f"packet {n}: corrupt packet block") from None
     if len(pkt) != cap:
         raise CaptureError(f"packet {n}: captured length {cap} exceeds its block")
-    return _ts((hi << 32) | lo, per_second), linktype, pkt
+    return _ts((hi << 32) | lo, per_second, n), linktype, pkt
 
 
 def packets(data: bytes) -> Iterator[tuple[datetime | None, int, bytes]]:
@@ -283,30 +294,53 @@ def _odid(counter_and_msg: bytes) -> tuple[int, bytes]:
     return counter, msg[:MESSAGE_SIZE]
 
 
+def _guarded(found: Iterator[tuple[datetime | None, int, bytes]]) -> Iterator[tuple[datetime | None, int, bytes]]:
+    """The container parser's packets; anything it raises on a malformed file that is not
+    already a CaptureError (struct.error, IndexError, ValueError, OverflowError) becomes one."""
+    n = 0
+    while True:
+        n += 1
+        try:
+            item = next(found)
+        except StopIteration:
+            return
+        except CaptureError:
+            raise
+        except (struct.error, IndexError, ValueError, OverflowError, KeyError) as exc:
+            raise CaptureError(f"packet {n}: malformed container ({type(exc).__name__})") from None
+        yield item
+
+
 def extract(data: bytes) -> list[CapturedMessage]:
     """Every Open Drone ID payload in the bytes of a pcap/pcapng file, in capture order."""
     out = []
-    for frame_no, (ts, linktype, pkt) in enumerate(packets(data), start=1):
+    for frame_no, (ts, linktype, pkt) in enumerate(_guarded(packets(data)), start=1):
         try:
             for transport, payload in _payloads(linktype, pkt):
                 counter, raw = _odid(payload)
                 out.append(CapturedMessage(frame=frame_no, captured_at=ts, transport=transport,
                                            counter=counter, message=decode(raw)))
-        except (struct.error, IndexError):
-            raise CaptureError(f"packet {frame_no}: malformed frame") from None
         except CaptureError:
             raise
         except RemoteIdError as exc:
             raise CaptureError(f"packet {frame_no}: {exc}") from None
+        except (struct.error, IndexError, ValueError, OverflowError):
+            raise CaptureError(f"packet {frame_no}: malformed frame") from None
     return out
 
 
 def read_capture(path: str | Path) -> list[CapturedMessage]:
-    """`extract` of a file; unreadable or malformed files raise CaptureError."""
+    """`extract` of a file; unreadable or malformed files raise CaptureError.
+
+    Only regular files are read (stat first): a FIFO or device would block or never end.
+    """
     try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
-        raise CaptureError(f"{path}: cannot read ({exc.strerror})") from None
+        regular = stat.S_ISREG(os.stat(path).st_mode)
+        data = Path(path).read_bytes() if regular else b""
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise CaptureError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    if not regular:
+        raise CaptureError(f"{path}: not a regular file (directory, FIFO, socket or device)")
     try:
         return extract(data)
     except CaptureError as exc:
