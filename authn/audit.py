@@ -23,9 +23,16 @@ newest one, or T seconds passed (checked at append time; nothing runs in between
 It continues the tree from the newest head's stored frontier (<= 64 subtree roots) over
 the stored leaf hashes added since, so a checkpoint costs O(K) hashes, not O(n). The STH
 goes into `audit_tree_heads` and, after commit, as one JSON line into the STH log file
-(AUTHN_AUDIT_STH_LOG, default beside the log key; see authn.logkey). The file outside the
-database is what lets `verify` notice a truncated log. What no STH covers yet (at most K
-entries / T seconds) is protected by the unkeyed chain only.
+(AUTHN_AUDIT_STH_LOG, default beside the log key; see authn.logkey).
+
+Every commit also signs the head of the whole log and writes it, after commit, to the
+latest-head file beside the STH log (one small file per database, replaced, never
+regressing): so the newest signed head always covers every committed entry, and a tail
+deleted, an entry forged or rewritten after the last periodic STH is caught too. Before
+signing, `append` checks that the log extends that latest head (same root at its size)
+and refuses to append to a log that does not (SystemFault, exit 3). The files outside the
+database are what make truncation and rewrites detectable: keep copies where the
+database's administrators cannot write.
 
 Policies: `append(..., policy_text=...)` stores the Cedar text once per SHA-256 in
 `audit_policies` in the same transaction, so `replay` can re-decide an entry later.
@@ -46,15 +53,15 @@ from urllib.parse import urlsplit, urlunsplit
 
 from authn import merkle
 from authn.errors import AuthnError, SystemFault
-from authn.logkey import LogKey, SignedTreeHead, append_sth_log, canonical_json, key_path, read_sth_log, \
-    sth_log_path
+from authn.logkey import LogKey, SignedTreeHead, append_sth_log, canonical_json, key_path, latest_head_path, \
+    read_latest_head, read_sth_log, sth_log_path, write_latest_head
 from registry.dbapi import Database
 
 GENESIS = "0" * 64
 _PG_AUDIT_LOCK = 0x61756469_746C6F67  # "auditlog"
 ENV_EVERY = "AUTHN_AUDIT_CHECKPOINT_EVERY"
 ENV_SECONDS = "AUTHN_AUDIT_CHECKPOINT_SECONDS"
-DEFAULT_EVERY, DEFAULT_SECONDS = 1000, 300.0
+DEFAULT_EVERY, DEFAULT_SECONDS = 256, 300.0
 PROOF_FORMAT = "authn-inclusion-proof/1"
 PAGE = 5000
 
@@ -177,6 +184,9 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
     seconds = _env_number(ENV_SECONDS, DEFAULT_SECONDS, float)
     out: list[Entry] = []
     sth: SignedTreeHead | None = None
+    due = False
+    label = db_label(db)
+    latest_file = latest_head_path(sth_log_path(sth_log, log_key), label)
     known: set[str] = db.__dict__.setdefault("_audit_policies_known", set())
     with db.write():
         if db.dialect == "postgresql":
@@ -201,46 +211,105 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
             out.append(Entry(seq, now, e.kind, e.serial, e.decision, payload, prev, digest, leaf))
             prev = digest
         if out:
-            sth = _checkpoint_if_due(db, seq, every, seconds, log_key)
+            sth, due = _sign_head(db, seq - len(out), seq, every, seconds, log_key, latest_file)
     if policy_sha is not None:
         known.add(policy_sha)
     if sth is not None:
-        append_sth_log(sth_log_path(sth_log, log_key), sth, db_label(db))
+        write_latest_head(latest_file, sth, label)
+        if due:
+            append_sth_log(sth_log_path(sth_log, log_key), sth, label)
     return out
 
 
 def _newest_head(db: Database) -> tuple[int, int, str] | None:
-    rows = db.fetch("SELECT tree_size, timestamp_ms, frontier FROM audit_tree_heads "
+    """The newest periodic head: the one whose stored frontier the next head continues from."""
+    rows = db.fetch("SELECT tree_size, timestamp_ms, frontier FROM audit_tree_heads WHERE frontier IS NOT NULL "
                     "ORDER BY tree_size DESC, id DESC LIMIT 1")
     return (int(rows[0][0]), int(rows[0][1]), str(rows[0][2])) if rows else None
 
 
-def _checkpoint_if_due(db: Database, size: int, every: int, seconds: float,
-                       log_key: str | Path | None) -> SignedTreeHead | None:
-    """Inside append's transaction: sign the head of `size` entries if K / T says so."""
+_HEAD_COLUMNS = "tree_size, timestamp_ms, root_hash, log_key_id, signature"
+
+
+def _head_of(row: tuple) -> SignedTreeHead:
+    n, ts, root, kid, sig = row
+    return SignedTreeHead.from_dict({"format": "authn-sth/1", "tree_size": int(n), "timestamp": int(ts),
+                                     "root_hash": root, "log_key_id": kid, "signature": sig})
+
+
+def _newest_signed(db: Database) -> SignedTreeHead | None:
+    """The newest head of any kind in the database (every append transaction stores one)."""
+    rows = db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads ORDER BY tree_size DESC, id DESC LIMIT 1")
+    if not rows:
+        return None
+    try:
+        return _head_of(rows[0])
+    except AuthnError:
+        raise SystemFault("audit log: the newest signed head in the database is malformed; "
+                          "run `authn audit verify`") from None
+
+
+def _sign_head(db: Database, size_before: int, size: int, every: int, seconds: float,
+               log_key: str | Path | None, latest_file: Path) -> tuple[SignedTreeHead, bool]:
+    """Inside append's transaction: sign the head of all `size` entries (every commit), and
+    say whether it is also due for the table and the STH log (K entries / T seconds).
+
+    Before signing, the log must extend the latest head signed for it (the latest-head
+    file): the same root at that size. A log that was truncated, or rewritten after that
+    head, is refused here (SystemFault, the transaction rolls back): the log never signs
+    over tampering, and no decision is added to a tampered log."""
+    key = _log_key(log_key)
+    latest = read_latest_head(latest_file)
+    if latest is not None and not latest.verify_signature(key.public_key):
+        raise SystemFault(f"{latest_file}: the latest signed head is not signed by this log's key")
+    if latest is not None and latest.tree_size > size:
+        raise SystemFault(f"audit log truncated: {size} entries, but the latest signed head has "
+                          f"{latest.tree_size}; run `authn audit verify`")
+    signed = _newest_signed(db)
+    if signed is not None and not signed.verify_signature(key.public_key):
+        raise SystemFault("audit log: the newest signed head in the database is not signed by this log's key; "
+                          "run `authn audit verify`")
+    if signed is not None and signed.tree_size != size_before:
+        what = ("truncated" if signed.tree_size > size_before else
+                f"entries {signed.tree_size + 1}..{size_before} carry no signed head (written outside authn?)")
+        raise SystemFault(f"audit log {what}; run `authn audit verify`")
     now_ms = int(time.time() * 1000)
     newest = _newest_head(db)
     base_size, base_ms, frontier_json = newest if newest else (0, 0, "[]")
-    if size - base_size < every and now_ms - base_ms < seconds * 1000:
-        return None
     try:
         frontier = merkle.Frontier(base_size, [bytes.fromhex(h) for h in json.loads(frontier_json)])
     except (ValueError, TypeError):
         frontier = merkle.Frontier()  # unreadable frontier: rebuild from the leaves
+    if frontier.size > size:
+        raise SystemFault(f"audit log truncated: {size} entries, but a signed head in the database has "
+                          f"{frontier.size}; run `authn audit verify`")
     leaves = db.fetch("SELECT leaf_hash FROM audit_log WHERE seq > :a ORDER BY seq", {"a": frontier.size})
     if len(leaves) != size - frontier.size or any(h is None for (h,) in leaves):
-        return None  # a damaged log is verify's to report; never sign it, never fail the append
+        raise SystemFault("audit log damaged (entries or leaf hashes missing); run `authn audit verify`")
+    check_at = latest.tree_size if latest is not None and latest.tree_size >= frontier.size else None
     for (h,) in leaves:
+        if frontier.size == check_at:
+            _same_root(frontier, latest)
         frontier.push(bytes.fromhex(h))
-    return _store_head(db, frontier, _log_key(log_key), now_ms)
-
-
-def _store_head(db: Database, frontier: merkle.Frontier, key: LogKey, now_ms: int) -> SignedTreeHead:
+    if frontier.size == check_at:
+        _same_root(frontier, latest)
     sth = key.sign_tree_head(frontier.size, frontier.root(), now_ms)
+    due = size - base_size >= every or now_ms - base_ms >= seconds * 1000
+    _store_head(db, frontier if due else None, sth)
+    return sth, due
+
+
+def _same_root(frontier: merkle.Frontier, latest: SignedTreeHead) -> None:
+    if frontier.root() != latest.root:
+        raise SystemFault(f"audit log entries 1..{latest.tree_size} differ from the latest signed head "
+                          "(rewritten, deleted or reordered); run `authn audit verify`")
+
+
+def _store_head(db: Database, frontier: merkle.Frontier | None, sth: SignedTreeHead) -> SignedTreeHead:
     db.execute("INSERT INTO audit_tree_heads (tree_size, timestamp_ms, root_hash, log_key_id, signature, frontier) "
                "VALUES (:n, :t, :r, :k, :s, :f)",
                {"n": sth.tree_size, "t": sth.timestamp, "r": sth.root_hash, "k": sth.log_key_id,
-                "s": sth.signature, "f": json.dumps([h.hex() for h in frontier.hashes])})
+                "s": sth.signature, "f": None if frontier is None else json.dumps([h.hex() for h in frontier.hashes])})
     return sth
 
 
@@ -301,8 +370,15 @@ def known_heads(db: Database, *, sth_log: str | Path | None = None, log_key: str
     for owner, sth in read_sth_log(path):
         if owner == label:
             out.append(KnownHead(sth, f"file {path}"))
-    for n, ts, root, kid, sig in db.fetch("SELECT tree_size, timestamp_ms, root_hash, log_key_id, signature "
-                                          "FROM audit_tree_heads ORDER BY id"):
+    latest_file = latest_head_path(path, label)
+    latest = read_latest_head(latest_file)
+    if latest is not None:
+        out.append(KnownHead(latest, f"file {latest_file}"))
+    newest_row = db.fetch("SELECT id FROM audit_tree_heads ORDER BY tree_size DESC, id DESC LIMIT 1")
+    newest_id = newest_row[0][0] if newest_row else None
+    for n, ts, root, kid, sig in db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads "
+                                          "WHERE frontier IS NOT NULL OR id = :newest ORDER BY id",
+                                          {"newest": newest_id if newest_id is not None else -1}):
         try:
             sth = SignedTreeHead.from_dict({"format": "authn-sth/1", "tree_size": int(n), "timestamp": int(ts),
                                             "root_hash": root, "log_key_id": kid, "signature": sig})
@@ -336,7 +412,7 @@ def _when(ms: int) -> str:
 
 
 def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | KnownHead] | None = None, *,
-           public_key: Any = None) -> VerifyReport:
+           public_key: Any = None, require_signed_to_end: bool = False) -> VerifyReport:
     """Recompute the chain, every leaf hash and the Merkle root in one streaming pass.
 
     With STHs (`against`): each must carry a valid signature by `public_key` (else
@@ -401,6 +477,10 @@ def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | Kno
                                 "(rewritten, deleted, inserted or reordered)")
         checked.append(label)
         covered = max(covered, m)
+    if require_signed_to_end and heads and covered < size:  # every commit signs: a gap is a forged append
+        return VerifyReport(False, size, prev, root.hex(), covered + 1,
+                            f"entries {covered + 1}..{size} are covered by no signed tree head "
+                            "(appended outside authn?)", checked)
     return VerifyReport(True, size, prev, root.hex(), checked=checked, unsigned=size - covered if heads else size)
 
 
@@ -422,7 +502,7 @@ def checkpoint(db: Database, *, log_key: str | Path | None = None,
             frontier.push(h)
         if frontier.root().hex() != report.root:
             raise AuthnError("audit log changed during the checkpoint; run it again")
-        sth = _store_head(db, frontier, key, int(time.time() * 1000))
+        sth = _store_head(db, frontier, key.sign_tree_head(frontier.size, frontier.root(), int(time.time() * 1000)))
     append_sth_log(sth_log_path(sth_log, log_key), sth, db_label(db))
     return sth
 

@@ -290,7 +290,7 @@ class Checker:
         entries = [NewEntry("decision", o.claim["serial"], o.decision, o.audit_payload()) if isinstance(o, Outcome)
                    else o.entry(self.policy.sha256) for o in outcomes]
         t0 = time.perf_counter()
-        written = append(self.db, entries)
+        written = append(self.db, entries, policy_text=self.policy.text)
         ms = round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)
         ids = [e.seq for e in written]
         for o, seq in zip(outcomes, ids):

@@ -278,3 +278,48 @@ def append_sth_log(path: Path, sth: SignedTreeHead, db_label: str) -> None:
             os.close(fd)
     except OSError as exc:
         raise SystemFault(f"{path}: cannot append to the STH log ({exc.strerror})") from None
+
+
+def latest_head_path(sth_log: Path, db_label: str) -> Path:
+    """The newest signed head of one database: a small file beside the STH log (one per
+    database, named by a digest of its label, so several databases can share the folder)."""
+    return sth_log.with_name(f"{sth_log.stem}-latest-{hashlib.sha256(db_label.encode()).hexdigest()[:16]}.json")
+
+
+def read_latest_head(path: Path) -> SignedTreeHead | None:
+    """The head in a latest-head file (None when there is none yet); a file that does not
+    parse is a system fault: someone damaged the log's external state."""
+    try:
+        text = path.read_bytes()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise SystemFault(f"{path}: cannot read the latest signed head ({exc.strerror})") from None
+    try:
+        doc = json.loads(text.decode("utf-8"))
+        return SignedTreeHead.from_dict({k: v for k, v in doc.items() if k != "db"})
+    except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
+        raise SystemFault(f"{path}: the latest signed head is not an authn-sth/1 document") from None
+
+
+def write_latest_head(path: Path, sth: SignedTreeHead, db_label: str) -> None:
+    """Replace the latest-head file with `sth` unless it already holds a larger tree: an
+    exclusive flock orders concurrent writers, and write-then-rename keeps the file whole."""
+    import fcntl
+
+    data = (canonical_json({**sth.to_dict(), "db": db_label}) + "\n").encode()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lock = os.open(str(path) + ".lock", os.O_CREAT | os.O_RDWR, 0o644)
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            current = read_latest_head(path)
+            if current is not None and current.tree_size > sth.tree_size:
+                return
+            tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+            tmp.write_bytes(data)
+            os.replace(tmp, path)
+        finally:
+            os.close(lock)
+    except OSError as exc:
+        raise SystemFault(f"{path}: cannot write the latest signed head ({exc.strerror})") from None

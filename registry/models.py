@@ -157,8 +157,10 @@ class AuditPolicy(Base):
 
 
 class AuditTreeHead(Base):
-    """Signed tree heads of the audit log's Merkle tree (RFC 9162), with the frontier that lets
-    the next checkpoint continue without rehashing the whole log. Written by authn.audit."""
+    """Signed tree heads of the audit log's Merkle tree (RFC 9162): one per append transaction
+    (every entry is covered by a signature), and on the periodic ones (every K entries / T
+    seconds) the frontier that lets the next head continue without rehashing the whole log.
+    Written by authn.audit."""
 
     __tablename__ = "audit_tree_heads"
 
@@ -168,4 +170,4 @@ class AuditTreeHead(Base):
     root_hash: Mapped[str] = mapped_column(CHAR(64))
     log_key_id: Mapped[str] = mapped_column(CHAR(64))
     signature: Mapped[str] = mapped_column(Text)
-    frontier: Mapped[str] = mapped_column(Text)  # JSON list of hex subtree roots, largest first
+    frontier: Mapped[str | None] = mapped_column(Text)  # JSON list of hex subtree roots, largest first

@@ -53,3 +53,13 @@ def session(db_url):
 
     with Session(get_engine(db_url), expire_on_commit=False) as s:
         yield s
+
+
+@pytest.fixture(autouse=True)
+def _audit_log_key(tmp_path_factory, monkeypatch):
+    """The audit log key and its signed-tree-head file live in a per-session temporary
+    directory, never in the user's data directory."""
+    keys = tmp_path_factory.getbasetemp() / "audit-keys"
+    keys.mkdir(exist_ok=True)
+    monkeypatch.setenv("AUTHN_LOG_KEY", str(keys / "audit-log-key.pem"))
+    monkeypatch.setenv("AUTHN_AUDIT_STH_LOG", str(keys / "audit-sth.jsonl"))

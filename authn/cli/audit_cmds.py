@@ -145,8 +145,9 @@ def verify_cmd(
 ) -> None:
     """Recompute the hash chain and the Merkle tree; check the log against signed tree heads.
 
-    Without --against it uses every STH found in the STH log file and in the database
-    (and names the newest). With one, the log must hold at least its tree_size entries
+    Without --against it uses every STH found in the STH log file, the latest-head file
+    and the database (and names the newest); as every append signs the head of the whole
+    log, entries that no signed head covers are reported too (a forged append). With one, the log must hold at least its tree_size entries
     and a consistency proof must show the signed log is a prefix of today's: truncation,
     rewrites, deletions and reordering before the STH's size are reported. Exit 1 names
     the first bad entry.
@@ -172,7 +173,7 @@ def verify_cmd(
                 typer.echo(f"BROKEN: tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
                            "(forged or altered)", err=True)
                 raise typer.Exit(1)
-        report = verify(db, heads, public_key=key)
+        report = verify(db, heads, public_key=key, require_signed_to_end=sth is None)
     if not report.ok:
         typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
         raise typer.Exit(1)

@@ -80,7 +80,7 @@ def upgrade() -> None:
         sa.Column("root_hash", sa.CHAR(64), nullable=False),
         sa.Column("log_key_id", sa.CHAR(64), nullable=False),
         sa.Column("signature", sa.Text(), nullable=False),
-        sa.Column("frontier", sa.Text(), nullable=False),
+        sa.Column("frontier", sa.Text(), nullable=True),  # stored on periodic heads only
         sa.PrimaryKeyConstraint("id", name=op.f("pk_audit_tree_heads")),
     )
     op.create_index(op.f("ix_audit_tree_heads_tree_size"), "audit_tree_heads", ["tree_size"])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from sqlalchemy.exc import DBAPIError
 from authn.audit import (NewEntry, append, checkpoint, get_policy, known_heads, list_entries, prove, replay,
                          verify, verify_proof)
 from authn.cli import main
+from authn.errors import SystemFault
 from authn.logkey import LogKey, SignedTreeHead
 from registry.db import get_engine
 from registry.dbapi import Database
@@ -45,19 +47,19 @@ def _db(url: str):
         db.close()
 
 
-def _drop_triggers(url: str) -> None:
+def _drop_triggers(url: str, table: str = "audit_log") -> None:
     engine = get_engine(url)
     with engine.begin() as conn:
         if engine.dialect.name == "sqlite":
             names = [r[0] for r in conn.exec_driver_sql(
-                "SELECT name FROM sqlite_master WHERE type='trigger' AND tbl_name='audit_log'")]
+                f"SELECT name FROM sqlite_master WHERE type='trigger' AND tbl_name='{table}'")]
             for name in names:
                 conn.exec_driver_sql(f"DROP TRIGGER {name}")
         else:
             names = [r[0] for r in conn.exec_driver_sql(
-                "SELECT tgname FROM pg_trigger WHERE tgrelid = 'audit_log'::regclass AND NOT tgisinternal")]
+                f"SELECT tgname FROM pg_trigger WHERE tgrelid = '{table}'::regclass AND NOT tgisinternal")]
             for name in names:
-                conn.exec_driver_sql(f"DROP TRIGGER {name} ON audit_log")
+                conn.exec_driver_sql(f"DROP TRIGGER {name} ON {table}")
     assert names, "the migration must install append-only triggers"
 
 
@@ -94,8 +96,11 @@ def test_first_append_signs_a_head_inside_and_outside_the_database(db_url: str, 
     _fill(db_url)
     with _db(db_url) as s:
         heads = known_heads(s)
-    assert {h.source.split()[0] for h in heads} == {"file", "database"}
-    assert {h.sth.tree_size for h in heads} == {5}  # the first append was due (no head yet)
+    periodic = [h for h in heads if "-latest-" not in h.source]
+    latest = [h for h in heads if "-latest-" in h.source]
+    assert [(h.source.split()[0], h.sth.tree_size) for h in periodic] == [("file", 5), ("database", 5),
+                                                                          ("database", 6)]
+    assert [h.sth.tree_size for h in latest] == [6]  # every commit signs the head of the whole log
     assert oct(_log_key.stat().st_mode & 0o777) == "0o600"
 
 
@@ -107,8 +112,8 @@ def test_automatic_checkpoints_every_k(db_url: str, monkeypatch: pytest.MonkeyPa
         sizes = sorted({h.sth.tree_size for h in known_heads(s)})
         key = LogKey.load()
         report = verify(s, known_heads(s), public_key=key.public_key)
-    assert sizes == [1, 11, 21, 31]
-    assert report.ok and report.unsigned == 4 and len(report.checked) == 8
+    assert sizes == [1, 11, 21, 31, 35]  # every 10 entries, and the latest head (every commit)
+    assert report.ok and report.unsigned == 0 and len(report.checked) == 10
 
 
 def test_policy_recorded_once_and_added_to_error_entries(db_url: str) -> None:
@@ -155,10 +160,17 @@ def test_checkpoint_detects_truncation_and_rewrite(db_url: str) -> None:
     assert not report.ok and "truncated" in report.problem
     with get_engine(db_url).begin() as conn:
         conn.exec_driver_sql("DELETE FROM audit_log")
+    with pytest.raises(SystemFault, match="truncated"):
+        _fill(db_url)  # the log refuses to grow over a truncated history
+    for latest in Path(os.environ["AUTHN_AUDIT_STH_LOG"]).parent.glob("*-latest-*.json"):
+        latest.unlink()  # an intruder who can also delete the latest-head file ...
+    _drop_triggers(db_url, "audit_tree_heads")
+    with get_engine(db_url).begin() as conn:
+        conn.exec_driver_sql("DELETE FROM audit_tree_heads")  # ... and the heads in the database
     _fill(db_url)
     with _db(db_url) as s:
         assert verify(s).ok
-        report = verify(s, cp, public_key=key.public_key)
+        report = verify(s, cp, public_key=key.public_key)  # ... is still caught by a head kept elsewhere
     assert not report.ok and "differ from what" in report.problem
     assert SignedTreeHead.from_json(cp.to_json()) == cp
 

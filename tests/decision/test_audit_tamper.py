@@ -1,11 +1,9 @@
 """Tampering by someone who can write the database (a DBA dropping the append-only triggers).
 
-Each tamper is done once to entries a signed tree head (STH) covers ("before" the last
-checkpoint) and once to entries after it; `verify` is given that latest STH. Entries no
-STH covers yet are protected by the unkeyed chain only: a tamper that recomputes the
-chain there (forged append, tail deletion, rewrite) cannot be told from honest history,
-which `test_unsigned_tail_is_only_chain_protected` pins down (the window is K entries /
-T seconds, see authn.audit).
+Each tamper is done once to entries the last periodic signed tree head (STH) covers
+("before" the last checkpoint) and once to entries after it; `verify` is given the latest
+signed tree head -- the one every append signs over the whole log and keeps outside the
+database -- and must report every case. Appending to a tampered log is refused.
 """
 
 from __future__ import annotations
@@ -18,6 +16,7 @@ import pytest
 
 from authn import merkle
 from authn.audit import NewEntry, append, checkpoint, entry_bytes, verify
+from authn.errors import SystemFault
 from authn.logkey import LogKey
 from registry.db import get_engine
 from registry.dbapi import Database
@@ -125,46 +124,67 @@ def _delete_recompute(conn, k):
     _rewrite(conn, rows)
 
 
-# name: (tamper, entry "before" (covered by the STH), entry "after" or None when undetectable there)
+# name: (tamper, entry "before" (covered by the periodic STH), entry "after" it)
 TAMPERS = {
     "edit an entry": (_edit, 3, 8),
     "delete a middle entry": (_delete, 3, 8),
-    "delete the tail": (_delete_tail, 5, None),
+    "delete the tail": (_delete_tail, 5, 9),
     "truncate all": (_truncate, 1, 1),
     "reorder two entries": (_reorder, 3, 8),
-    "forged entry, chain recomputed": (_forge_insert, 3, None),
-    "rewrite and recompute the whole chain": (_rewrite_recompute, 2, None),
-    "reorder, chain recomputed": (_reorder_recompute, 2, None),
-    "delete, chain recomputed": (_delete_recompute, 2, None),
+    "forged entry, chain recomputed": (_forge_insert, 3, 11),
+    "rewrite and recompute the whole chain": (_rewrite_recompute, 2, 8),
+    "reorder, chain recomputed": (_reorder_recompute, 2, 8),
+    "delete, chain recomputed": (_delete_recompute, 2, 9),
 }
-CASES = [(name, where) for name in TAMPERS for where in ("before", "after") if
-         TAMPERS[name][1 if where == "before" else 2] is not None]
+CASES = [(name, where) for name in TAMPERS for where in ("before", "after")]
+
+
+def _latest_head(url: str):
+    """The latest signed tree head, as kept outside the database (what a verifier holds)."""
+    from authn.audit import db_label
+    from authn.logkey import latest_head_path, read_latest_head, sth_log_path
+
+    db = Database(url)
+    try:
+        return read_latest_head(latest_head_path(sth_log_path(), db_label(db)))
+    finally:
+        db.close()
 
 
 @pytest.mark.parametrize("name,where", CASES, ids=[f"{n}-{w}" for n, w in CASES])
 def test_tamper_is_detected(db_url: str, name: str, where: str) -> None:
     tamper, before, after = TAMPERS[name]
-    sth, key = _setup(db_url)
+    periodic, key = _setup(db_url)
+    latest = _latest_head(db_url)
+    assert latest.tree_size == SIGNED + 4 > periodic.tree_size
     with get_engine(db_url).begin() as conn:
         tamper(conn, before if where == "before" else after)
     db = Database(db_url)
-    report = verify(db, sth, public_key=key)
+    report = verify(db, [periodic, latest], public_key=key, require_signed_to_end=True)
     db.close()
     assert not report.ok, name
     assert report.first_bad_seq is not None and report.problem
 
 
-@pytest.mark.parametrize("tamper", [_delete_tail, _forge_insert, _rewrite_recompute],
-                         ids=["delete tail", "forged append", "rewrite"])
-def test_unsigned_tail_is_only_chain_protected(db_url: str, tamper) -> None:
-    """Known limit: after the newest STH, a chain-recomputing forger is not detectable."""
-    sth, key = _setup(db_url)
+GROWING_OVER = {"delete the tail": (_delete_tail, 9), "truncate all": (_truncate, 1),
+                "forged append": (_forge_insert, 11), "rewrite after the checkpoint": (_rewrite_recompute, 8)}
+
+
+@pytest.mark.parametrize("name", list(GROWING_OVER))
+def test_append_refuses_to_grow_a_tampered_log(db_url: str, name: str) -> None:
+    """The next decision is not appended over a truncated, extended or rewritten history
+    (the writer checks the stored leaves against its latest signed head; content edits that
+    keep the stored leaf hashes are verify's to find, above)."""
+    tamper, where = GROWING_OVER[name]
+    _setup(db_url)
     with get_engine(db_url).begin() as conn:
-        tamper(conn, {_delete_tail: 9, _forge_insert: 11, _rewrite_recompute: 8}[tamper])
+        tamper(conn, where)
     db = Database(db_url)
-    report = verify(db, sth, public_key=key)
-    db.close()
-    assert report.ok and report.unsigned > 0  # reported as unsigned, not as broken
+    try:
+        with pytest.raises(SystemFault, match="audit log"):
+            append(db, [NewEntry("decision", "NEXT", "reject", {"reasons": ["r"]})])
+    finally:
+        db.close()
 
 
 def test_forged_tree_head_in_the_database_is_reported(db_url: str, tmp_path: Path, capsys) -> None:

@@ -8,6 +8,8 @@ import sys
 
 import pytest
 
+from migrations import HEAD_REVISION
+
 from authn.cli import main
 
 SERIAL = "1581F5FJD12345678901"
@@ -88,7 +90,7 @@ def test_db_upgrade_and_env_var(db_url, tmp_path):
         [sys.executable, "-c", "import sys; from authn.cli import main; sys.exit(main(sys.argv[1:]))",
          "db", "upgrade"], env=env, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
-    assert "at revision 0001" in proc.stdout
+    assert f"at revision {HEAD_REVISION}" in proc.stdout
 
 
 @pytest.mark.parametrize("cmd", [["register"], ["registry", "list"], ["registry", "show"],

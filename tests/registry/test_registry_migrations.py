@@ -6,6 +6,7 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import inspect, text
 
+from migrations import HEAD_REVISION
 from registry.db import create_db_engine, get_engine, upgrade
 from registry.models import Base
 
@@ -30,7 +31,7 @@ def test_upgrade_is_idempotent_and_creates_everything(db_url):
 def test_concurrent_first_use_migrates_once(db_url):
     from registry_workers import first_use, run_in_processes
 
-    assert run_in_processes(first_use, [(db_url,)] * 4) == ["0001"] * 4
+    assert run_in_processes(first_use, [(db_url,)] * 4) == [HEAD_REVISION] * 4
     with get_engine(db_url).connect() as conn:
         assert conn.execute(text("SELECT count(*) FROM model_profiles")).scalar_one() == 3
         assert conn.execute(text("SELECT count(*) FROM alembic_version")).scalar_one() == 1
