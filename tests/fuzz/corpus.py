@@ -209,6 +209,8 @@ def _attribute_cases(b: _Builder) -> None:
     b.h5("attr_simulation", BAD, "simulation_array", _set_attr("simulation", np.array(["{}", "{}"], dtype=object)))
     b.h5("attr_simulation", VALID, "simulation_bytes", _set_attr("simulation", np.bytes_(b"{}")))
     b.h5("attr_simulation", BAD, "simulation_opaque", _set_attr("simulation", _opaque()))
+    b.h5("attr_simulation", BAD, "simulation_not_json", _set_attr("simulation", '{"scene": '))
+    b.h5("attr_simulation", BAD, "simulation_deep_nesting", _set_attr("simulation", "[" * 100_000))
 
 
 def _iq_cases(b: _Builder) -> None:
