@@ -18,7 +18,7 @@ checkpoints never re-serialise the log; verify recomputes and compares them.
 
 Automatic checkpoints: `append` signs a tree head when K entries were added since the
 newest one, or T seconds passed (checked at append time; nothing runs in between):
-    AUTHN_AUDIT_CHECKPOINT_EVERY   K, entries (default 1000; 1 = every append transaction)
+    AUTHN_AUDIT_CHECKPOINT_EVERY   K, entries (default 64)
     AUTHN_AUDIT_CHECKPOINT_SECONDS T, seconds (default 300)
 It continues the tree from the newest head's stored frontier (<= 64 subtree roots) over
 the stored leaf hashes added since, so a checkpoint costs O(K) hashes, not O(n). The STH
@@ -61,7 +61,7 @@ GENESIS = "0" * 64
 _PG_AUDIT_LOCK = 0x61756469_746C6F67  # "auditlog"
 ENV_EVERY = "AUTHN_AUDIT_CHECKPOINT_EVERY"
 ENV_SECONDS = "AUTHN_AUDIT_CHECKPOINT_SECONDS"
-DEFAULT_EVERY, DEFAULT_SECONDS = 256, 300.0
+DEFAULT_EVERY, DEFAULT_SECONDS = 64, 300.0
 PROOF_FORMAT = "authn-inclusion-proof/1"
 PAGE = 5000
 
