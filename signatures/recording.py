@@ -339,6 +339,63 @@ def _h5_dataset(f: Any, name: str, required: bool = False) -> Any:
     return ds
 
 
+_GCOL = b"GCOL\x01\x00\x00\x00"  # global heap collection signature, version 1, reserved
+
+
+def _check_global_heaps(path: Path, iq: Any) -> None:
+    """Refuse a global heap collection that HDF5 would parse forever.
+
+    Variable-length string attributes (format, start_time, simulation) live in global
+    heap collections. HDF5 (2.0.0 included) walks a collection's objects advancing by
+    each object's size; a free-space object of size 0 (a bit flip in the collection size
+    makes the walk run into zeroed space) never advances: an infinite loop in C that no
+    signal interrupts. Found by tests/fuzz/test_reader_properties.py.
+
+    We walk every collection found outside the /iq raw data (the metadata: a few KB, ~10
+    us) the same way first. A contiguous /iq's own bytes are skipped for speed, so a
+    collection deliberately planted inside them is not seen (residual risk; chunked /iq:
+    the whole file is scanned).
+    """
+    try:
+        start, length = iq.id.get_offset(), iq.id.get_storage_size()
+    except _READ_ERRORS:
+        start = length = None
+    fd = os.open(path, os.O_RDONLY | _O_NONBLOCK)
+    try:
+        size = os.fstat(fd).st_size
+        regions = [(0, size)] if start is None or not 0 <= start <= size else [(0, start), (start + length, size)]
+        head = os.pread(fd, 16, 0)
+        # size of lengths: superblock v0/1 byte 14, v2/3 byte 10 (8 in anything h5py writes)
+        at = {0: 14, 1: 14, 2: 10, 3: 10}.get(head[8] if len(head) > 8 else -1)
+        lsize = head[at] if at is not None and at < len(head) and head[at] in (2, 4, 8) else 8
+        for lo, hi in regions:
+            chunk = os.pread(fd, hi - lo, lo) if hi > lo else b""
+            pos = chunk.find(b"GCOL")  # the 4-byte needle: a trailing NUL makes find() 10x slower
+            while pos >= 0:
+                if chunk[pos:pos + 8] == _GCOL:
+                    _walk_collection(path, fd, lo + pos, lsize, size)
+                pos = chunk.find(b"GCOL", pos + 4)
+    finally:
+        os.close(fd)
+
+
+def _walk_collection(path: Path, fd: int, addr: int, lsize: int, file_size: int) -> None:
+    coll = int.from_bytes(os.pread(fd, lsize, addr + 8), "little")
+    if coll < 4096 or addr + coll > file_size:  # HDF5 refuses these itself
+        return
+    data = os.pread(fd, coll, addr)
+    hdr = 8 + lsize  # object header: index(2) refcount(2) reserved(4) size(lsize)
+    p = 8 + lsize
+    while p + hdr <= coll:
+        idx = int.from_bytes(data[p:p + 2], "little")
+        obj = int.from_bytes(data[p + 8:p + 8 + lsize], "little")
+        need = obj if idx == 0 else hdr + (obj + 7) // 8 * 8
+        if need <= 0:
+            raise RecordingError(f"{path}: corrupt HDF5 global heap at byte {addr} "
+                                 f"(an empty free-space object; HDF5 would loop forever)")
+        p += need
+
+
 def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
     import h5py
 
@@ -347,12 +404,13 @@ def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
     except _READ_ERRORS:
         raise RecordingError(f"{path}: not a readable HDF5 file (truncated or corrupt)") from None
     with f:
-        attrs = _h5_attrs(f)
-        config, site, when = _metadata(attrs)
-        simulation = _simulation_attr(attrs)
         ds = _h5_dataset(f, "iq", required=True)
         r = _h5_dataset(f, "remote_id")
         t = _h5_dataset(f, "remote_id_time_s")
+        _check_global_heaps(path, ds)
+        attrs = _h5_attrs(f)
+        config, site, when = _metadata(attrs)
+        simulation = _simulation_attr(attrs)
         try:
             _check_iq_header(ds.shape, ds.dtype, max_cells, max_bytes)
             for name, d in (("remote_id", r), ("remote_id_time_s", t)):

@@ -124,3 +124,33 @@ def test_byte_limits_are_checked_before_reading(corpus) -> None:
     with pytest.raises(RecordingError, match="bytes exceed the limit"):
         read_recording(path, max_file_bytes=1000)
     assert path.stat().st_size < MAX_FILE_BYTES
+
+
+def _heap_damaged(src: Path, dst: Path, how: str) -> Path:
+    """A copy of src whose first global heap collection makes HDF5 2.0 loop forever."""
+    import struct
+
+    data = bytearray(src.read_bytes())
+    gcol = data.find(b"GCOL\x01\x00\x00\x00")
+    assert gcol >= 0
+    if how == "grown":  # the collection size bit-flipped past its end, into zeroed space
+        size = struct.unpack_from("<Q", data, gcol + 8)[0]
+        struct.pack_into("<Q", data, gcol + 8, size | 0x400)
+    else:  # the free-space object's size zeroed
+        p = gcol + 16
+        while struct.unpack_from("<H", data, p)[0] != 0:
+            p += 16 + (struct.unpack_from("<Q", data, p + 8)[0] + 7) // 8 * 8
+        struct.pack_into("<Q", data, p + 8, 0)
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+@pytest.mark.parametrize("how", ["free_space_zero", "grown"])
+def test_global_heap_infinite_loop_is_refused(corpus, tmp_path: Path, how: str) -> None:
+    """Read in a killable child: without the guard, HDF5 spins in C where SIGALRM cannot reach."""
+    from tests.fuzz.helpers import read_in_child
+
+    base = next(c for c in corpus if c.name == "baseline_h5").path
+    path = _heap_damaged(base, tmp_path / f"heap_{how}.h5", how)
+    got, msg = read_in_child(path, 20.0)
+    assert got == BAD and "global heap" in msg and is_one_line(msg), (got, msg)

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from signatures.recording import FORMAT_TAG
-from tests.fuzz.helpers import CASE_SECONDS, check_recording, deadline, is_one_line, read_outcome
+from tests.fuzz.helpers import CASE_SECONDS, is_one_line, read_in_child
 
 EXAMPLES = int(os.environ.get("AUTHN_FUZZ_EXAMPLES", "60"))
 NIGHTLY = EXAMPLES > 1000
@@ -237,14 +237,10 @@ def test_reader_returns_a_recording_or_one_line_error(workdir: Path, drawn) -> N
     path = workdir / "case.h5"
     _write(path, plan, seed)
     _damage(path, plan.damage)
-    with deadline(CASE_SECONDS):
-        got, msg = read_outcome(path)
+    got, msg = read_in_child(path, CASE_SECONDS)  # a child: a loop inside HDF5's C code is killable
     event(f"planned {plan.verdict}, read {got}")
+    assert got in ("valid", "bad"), (got, msg, plan)
     if got == "bad":
         assert is_one_line(msg), msg
-    else:
-        from signatures.recording import read_recording
-
-        check_recording(read_recording(path))
     if plan.verdict != "either":
         assert got == plan.verdict, (plan, msg)
