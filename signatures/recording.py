@@ -340,6 +340,10 @@ def _h5_dataset(f: Any, name: str, required: bool = False) -> Any:
 
 
 _GCOL = b"GCOL\x01\x00\x00\x00"  # global heap collection signature, version 1, reserved
+#: Most global heap collections, and the largest one, that a recording may hold: ours has
+#: one of 4 KiB (three short strings). Bounds the Python walk below on a hostile file.
+MAX_GLOBAL_HEAPS = 64
+MAX_GLOBAL_HEAP_BYTES = 2**20
 
 
 def _check_global_heaps(path: Path, iq: Any) -> None:
@@ -351,8 +355,9 @@ def _check_global_heaps(path: Path, iq: Any) -> None:
     makes the walk run into zeroed space) never advances: an infinite loop in C that no
     signal interrupts. Found by tests/fuzz/test_reader_properties.py.
 
-    We walk every collection found outside the /iq raw data (the metadata: a few KB, ~10
-    us) the same way first. A contiguous /iq's own bytes are skipped for speed, so a
+    We walk every collection found outside the /iq raw data (the metadata: a few KB,
+    ~15 us) the same way first; more than MAX_GLOBAL_HEAPS collections or one larger than
+    MAX_GLOBAL_HEAP_BYTES is refused too (bounds this walk). A contiguous /iq's own bytes are skipped for speed, so a
     collection deliberately planted inside them is not seen (residual risk; chunked /iq:
     the whole file is scanned).
     """
@@ -368,11 +373,16 @@ def _check_global_heaps(path: Path, iq: Any) -> None:
         # size of lengths: superblock v0/1 byte 14, v2/3 byte 10 (8 in anything h5py writes)
         at = {0: 14, 1: 14, 2: 10, 3: 10}.get(head[8] if len(head) > 8 else -1)
         lsize = head[at] if at is not None and at < len(head) and head[at] in (2, 4, 8) else 8
+        found = 0
         for lo, hi in regions:
             chunk = os.pread(fd, hi - lo, lo) if hi > lo else b""
             pos = chunk.find(b"GCOL")  # the 4-byte needle: a trailing NUL makes find() 10x slower
             while pos >= 0:
                 if chunk[pos:pos + 8] == _GCOL:
+                    found += 1
+                    if found > MAX_GLOBAL_HEAPS:
+                        raise RecordingError(f"{path}: more than {MAX_GLOBAL_HEAPS} HDF5 global heap "
+                                             f"collections")
                     _walk_collection(path, fd, lo + pos, lsize, size)
                 pos = chunk.find(b"GCOL", pos + 4)
     finally:
@@ -381,8 +391,11 @@ def _check_global_heaps(path: Path, iq: Any) -> None:
 
 def _walk_collection(path: Path, fd: int, addr: int, lsize: int, file_size: int) -> None:
     coll = int.from_bytes(os.pread(fd, lsize, addr + 8), "little")
-    if coll < 4096 or addr + coll > file_size:  # HDF5 refuses these itself
+    if addr + coll > file_size:  # HDF5 fails to read past the end of the file itself
         return
+    if coll > MAX_GLOBAL_HEAP_BYTES:
+        raise RecordingError(f"{path}: HDF5 global heap of {coll} bytes at byte {addr} exceeds the "
+                             f"limit of {MAX_GLOBAL_HEAP_BYTES}")
     data = os.pread(fd, coll, addr)
     hdr = 8 + lsize  # object header: index(2) refcount(2) reserved(4) size(lsize)
     p = 8 + lsize
