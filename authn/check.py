@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from authn.audit import NewEntry, append
-from authn.errors import EXIT_BAD_INPUT, AuthnError, exit_code_for, one_line, system_fault_types
+from authn.errors import EXIT_BAD_INPUT, AuthnError, AuthnException, exit_code_for, one_line
 from authn.kinematics import DeclaredState, expected_from_radar, residuals, sanity
 from authn.policy import PolicyEngine
 
@@ -85,10 +85,9 @@ class Failure:
 
     @classmethod
     def of(cls, file: str, serial: str | None, exc: BaseException) -> "Failure":
-        code = exit_code_for(exc)
-        text = one_line(exc) if code == EXIT_BAD_INPUT or isinstance(exc, system_fault_types()) \
+        text = one_line(exc) if isinstance(exc, AuthnException) \
             else f"internal error: {type(exc).__name__}: {one_line(exc)}"
-        return cls(file, serial, text, code)
+        return cls(file, serial, text, exit_code_for(exc))
 
     def entry(self, policy_sha256: str | None) -> NewEntry:
         kind = "bad-input" if self.exit_code == EXIT_BAD_INPUT else "system"

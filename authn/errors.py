@@ -1,45 +1,50 @@
 """The product's errors and their exit codes, in one place.
 
 0 accept, 1 reject, 2 bad input (the caller's fault), 3 system error (database, locks,
-models, policy engine, log key). Each package keeps its own root error so that the radar
-and registry layers do not import the decision layer; this module maps them all.
+models, policy engine, log key). Every error the product raises on purpose derives from
+`AuthnException` and carries its exit code; the CLI maps exceptions to exit codes only
+through `exit_code_for`. This module imports nothing, so the radar (`signatures`) and
+registry layers derive their own roots from it without importing the decision layer.
+Rejections are not errors: they are decisions, with the policy ids as reasons.
 """
 
 from __future__ import annotations
 
+__all__ = ["EXIT_ACCEPT", "EXIT_REJECT", "EXIT_BAD_INPUT", "EXIT_SYSTEM", "AuthnException", "BadInput",
+           "SystemFault", "Interrupted", "AuthnError", "exit_code_for", "one_line"]
+
 EXIT_ACCEPT, EXIT_REJECT, EXIT_BAD_INPUT, EXIT_SYSTEM = 0, 1, 2, 3
 
 
-class AuthnError(ValueError):
-    """Bad input to the decision layer: a one-line message, no traceback (exit code 2)."""
+class AuthnException(Exception):
+    """Root of every error the product reports: one line on stderr, never a traceback."""
+
+    exit_code = EXIT_SYSTEM
 
 
-class SystemFault(RuntimeError):
+class BadInput(AuthnException, ValueError):
+    """The caller's fault: a file, message, option, policy or record that is not valid (exit 2)."""
+
+    exit_code = EXIT_BAD_INPUT
+
+
+class SystemFault(AuthnException, RuntimeError):
     """Something we depend on failed (database, policy engine, models, keys): exit code 3."""
+
+    exit_code = EXIT_SYSTEM
 
 
 class Interrupted(SystemFault):
     """SIGINT or SIGTERM arrived: the command stops with exit code 3 (what it printed is audited)."""
 
 
-def bad_input_types() -> tuple[type[BaseException], ...]:
-    """Every package's root error for bad input: reported in one line with exit code 2."""
-    from registry.errors import RegistryError
-    from signatures.errors import SignaturesError
-
-    return (SignaturesError, RegistryError, AuthnError)
-
-
-def system_fault_types() -> tuple[type[BaseException], ...]:
-    """Every package's root error for system faults: reported in one line with exit code 3."""
-    from registry.errors import DatabaseFault
-
-    return (DatabaseFault, SystemFault)
+class AuthnError(BadInput):
+    """Bad input to the decision layer (options, claims, checkpoints, policies)."""
 
 
 def exit_code_for(exc: BaseException) -> int:
-    """2 for bad input, 3 for everything else (an unexpected exception is a system error)."""
-    return EXIT_BAD_INPUT if isinstance(exc, bad_input_types()) else EXIT_SYSTEM
+    """The exit code of an exception: its own for ours, 3 for anything unexpected."""
+    return exc.exit_code if isinstance(exc, AuthnException) else EXIT_SYSTEM
 
 
 def one_line(exc: BaseException) -> str:

@@ -123,11 +123,11 @@ def cases(preset: str, quick: bool) -> Iterator[tuple[str, str, Callable[[], Rec
 def run(presets: tuple[str, ...] = ("paper",), quick: bool = False, db_url: str | None = None) -> StressReport:
     """Run every case through features and a full decision; NaN/Inf files through the file reader."""
     from authn.check import Checker
-    from authn.errors import bad_input_types
+    from authn.errors import BadInput
     from signatures.features import extract
 
     report = StressReport()
-    bad = bad_input_types()
+    bad = BadInput
     with tempfile.TemporaryDirectory() as tmp:
         db = db_url or f"sqlite:///{Path(tmp) / 'stress.sqlite3'}"
         register_identities(db)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import typer
 
-from authn.errors import EXIT_BAD_INPUT, Interrupted, bad_input_types, exit_code_for, one_line, system_fault_types
+from authn.errors import AuthnException, Interrupted, exit_code_for, one_line
 
 app = typer.Typer(
     name="authn",
@@ -64,10 +64,9 @@ def main(argv: list[str] | None = None) -> int:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes an exit code
-        code = exit_code_for(exc)
-        prefix = "error" if code == EXIT_BAD_INPUT or isinstance(exc, system_fault_types()) else "internal error"
+        prefix = "error" if isinstance(exc, AuthnException) else "internal error"
         print(f"{prefix}: {_describe(exc)}", file=sys.stderr)
-        return code
+        return exit_code_for(exc)
     return 0
 
 
@@ -97,8 +96,7 @@ def _describe(exc: BaseException) -> str:
     if orig is not None:
         return f"database: {one_line(orig)}"
     text = one_line(exc)
-    known = isinstance(exc, bad_input_types() + system_fault_types())
-    return text if known else f"{type(exc).__name__}: {text}"
+    return text if isinstance(exc, AuthnException) else f"{type(exc).__name__}: {text}"
 
 
 def run() -> None:

@@ -7,8 +7,6 @@ Exit codes: 0 ok, 1 the log (or a proof, or a replay) does not hold, 2 bad input
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
-from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -21,18 +19,6 @@ STH_LOG_HELP = "JSON-lines file of automatic signed tree heads (default $AUTHN_A
 
 audit_app = typer.Typer(help="Read and verify the tamper-evident audit log.", no_args_is_help=True)
 app.add_typer(audit_app, name="audit")
-
-
-@contextmanager
-def _faults() -> Iterator[None]:
-    """System faults (log key, database) as one line and exit code 3, never a traceback."""
-    from authn.errors import EXIT_SYSTEM, one_line, system_fault_types
-
-    try:
-        yield
-    except system_fault_types() as exc:
-        typer.echo(f"error: {one_line(exc)}", err=True)
-        raise typer.Exit(EXIT_SYSTEM) from None
 
 
 def _write(text: str, out: Path | None) -> None:
@@ -86,9 +72,8 @@ def list_cmd(
         raise AuthnError(f"--decision: must be accept, reject or error, got {decision!r}")
     state: CliState = ctx.obj
     kind = "error" if decision == "error" else None
-    with _faults():
-        entries = list_entries(Database(state.db_url), since=_since(since),
-                               decision=None if kind else decision, kind=kind, serial=serial, limit=limit)
+    entries = list_entries(Database(state.db_url), since=_since(since),
+                           decision=None if kind else decision, kind=kind, serial=serial, limit=limit)
     if as_json:
         typer.echo(json.dumps([_entry_json(e) for e in entries], indent=2))
         return
@@ -115,8 +100,7 @@ def show_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry numb
     from authn.errors import AuthnError
     from registry.dbapi import Database
 
-    with _faults():
-        entry = get_entry(Database(ctx.obj.db_url), seq)
+    entry = get_entry(Database(ctx.obj.db_url), seq)
     if entry is None:
         raise AuthnError(f"no audit entry {seq}")
     typer.echo(json.dumps(_entry_json(entry), indent=2))
@@ -159,21 +143,20 @@ def verify_cmd(
     from registry.dbapi import Database
 
     sth = SignedTreeHead.read(against) if against is not None else None
-    with _faults():
-        db = Database(ctx.obj.db_url)
-        if sth is not None:
-            heads = [KnownHead(sth, f"--against {against}")]
-            key = _public_key(public_key, log_key, required=True)
-        else:
-            heads = known_heads(db, sth_log=sth_log, log_key=log_key)
-            key = _public_key(public_key, log_key, required=bool(heads))
-            forged = [h for h in heads if not h.sth.verify_signature(key)]
-            if forged:
-                h = min(forged, key=lambda h: h.sth.tree_size)
-                typer.echo(f"BROKEN: tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
-                           "(forged or altered)", err=True)
-                raise typer.Exit(1)
-        report = verify(db, heads, public_key=key, require_signed_to_end=sth is None)
+    db = Database(ctx.obj.db_url)
+    if sth is not None:
+        heads = [KnownHead(sth, f"--against {against}")]
+        key = _public_key(public_key, log_key, required=True)
+    else:
+        heads = known_heads(db, sth_log=sth_log, log_key=log_key)
+        key = _public_key(public_key, log_key, required=bool(heads))
+        forged = [h for h in heads if not h.sth.verify_signature(key)]
+        if forged:
+            h = min(forged, key=lambda h: h.sth.tree_size)
+            typer.echo(f"BROKEN: tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
+                       "(forged or altered)", err=True)
+            raise typer.Exit(1)
+    report = verify(db, heads, public_key=key, require_signed_to_end=sth is None)
     if not report.ok:
         typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
         raise typer.Exit(1)
@@ -205,13 +188,12 @@ def checkpoint_cmd(
     from authn.audit import checkpoint, verify
     from registry.dbapi import Database
 
-    with _faults():
-        db = Database(ctx.obj.db_url)
-        report = verify(db)
-        if not report.ok:
-            typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
-            raise typer.Exit(1)
-        sth = checkpoint(db, log_key=log_key, sth_log=sth_log)
+    db = Database(ctx.obj.db_url)
+    report = verify(db)
+    if not report.ok:
+        typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
+        raise typer.Exit(1)
+    sth = checkpoint(db, log_key=log_key, sth_log=sth_log)
     _write(sth.to_json() + "\n", out)
 
 
@@ -226,8 +208,7 @@ def public_key_cmd(
     """
     from authn.logkey import LogKey
 
-    with _faults():
-        key = LogKey.load(log_key)
+    key = LogKey.load(log_key)
     _write(key.public_pem(), out)
     typer.echo(f"log_key_id {key.key_id}", err=True)
 
@@ -253,10 +234,9 @@ def prove_cmd(
     from registry.dbapi import Database
 
     sth = SignedTreeHead.read(sth_file) if sth_file is not None else None
-    with _faults():
-        if sth is not None and not sth.verify_signature(_public_key(None, log_key, required=True)):
-            raise AuthnError(f"{sth_file}: not signed by the log key")
-        doc = prove(Database(ctx.obj.db_url), seq, sth, log_key=log_key, sth_log=sth_log)
+    if sth is not None and not sth.verify_signature(_public_key(None, log_key, required=True)):
+        raise AuthnError(f"{sth_file}: not signed by the log key")
+    doc = prove(Database(ctx.obj.db_url), seq, sth, log_key=log_key, sth_log=sth_log)
     _write(json.dumps(doc, indent=2, sort_keys=True) + "\n", out)
 
 
@@ -299,8 +279,7 @@ def replay_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry nu
     from authn.audit import replay
     from registry.dbapi import Database
 
-    with _faults():
-        r = replay(Database(ctx.obj.db_url), seq)
+    r = replay(Database(ctx.obj.db_url), seq)
     rec = f"{r.recorded[0]} [{', '.join(r.recorded[1])}]"
     now = f"{r.replayed[0]} [{', '.join(r.replayed[1])}]"
     if r.same:
@@ -324,10 +303,9 @@ def export_cmd(
     from authn.audit import checkpoint, list_entries
     from registry.dbapi import Database
 
-    with _faults():
-        db = Database(ctx.obj.db_url)
-        if checkpoint_only:
-            text = checkpoint(db, log_key=log_key).to_json() + "\n"
-        else:
-            text = "".join(json.dumps(_entry_json(e), sort_keys=True) + "\n" for e in list_entries(db))
+    db = Database(ctx.obj.db_url)
+    if checkpoint_only:
+        text = checkpoint(db, log_key=log_key).to_json() + "\n"
+    else:
+        text = "".join(json.dumps(_entry_json(e), sort_keys=True) + "\n" for e in list_entries(db))
     _write(text, out)

@@ -212,7 +212,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     from rich.progress import Progress
 
     from authn.check import Failure
-    from authn.errors import EXIT_SYSTEM, SystemFault, system_fault_types
+    from authn.errors import EXIT_SYSTEM, SystemFault
 
     results: list = []
     out = sys.stdout
@@ -234,7 +234,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
             claim = mapping.get(p.name, mapping.get(str(p), serial))
             try:
                 item = checker.evaluate(p, claim)
-            except system_fault_types() as exc:  # the database or policy engine: the batch cannot go on
+            except SystemFault as exc:  # the database or policy engine: the batch cannot go on
                 printer.add(Failure.of(str(p), claim, exc))
                 printer.commit()
                 raise
