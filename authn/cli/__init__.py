@@ -1,8 +1,10 @@
-"""The `authn` command line: one Typer app, one module per command group.
+"""The `authn` command line: the root Typer app, composed here from one module per command
+or command group (the modules define their commands and sub-apps; nothing registers itself
+on import).
 
-Heavy libraries (scipy, sklearn, torch, matplotlib, sqlalchemy) are imported
-inside the commands that need them, never here, so `authn --help` and a
-single `authn check` start fast.
+Heavy libraries (scipy, sklearn, torch, matplotlib, sqlalchemy) are imported inside the
+commands that need them, never at module level, so `authn --help` and a single
+`authn check` start fast.
 """
 
 from __future__ import annotations
@@ -16,11 +18,14 @@ from contextlib import contextmanager
 # pydantic looks up plugins through importlib.metadata on its first model (~15 ms of a
 # cold check); we use none. Set the variable yourself to re-enable them.
 os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
-from dataclasses import dataclass
 
 import typer
 
+from authn.cli import audit, bench_cmd, check, db, demo, features, inspect, models, plot, registry, rid, simulate
+from authn.cli.state import CliState
 from authn.errors import AuthnException, Interrupted, exit_code_for, one_line
+
+__all__ = ["app", "main", "run"]
 
 app = typer.Typer(
     name="authn",
@@ -31,24 +36,39 @@ app = typer.Typer(
 )
 
 
-@dataclass(frozen=True)
-class CliState:
-    """Options shared by every command (set by the top-level callback)."""
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
 
-    db_url: str | None = None
+        try:
+            typer.echo(f"authn {version('uav-radar-authn')}")
+        except PackageNotFoundError:
+            typer.echo("authn (not installed as a package)")
+        raise typer.Exit(0)
 
 
 @app.callback()
 def _global_options(
     ctx: typer.Context,
-    db: str | None = typer.Option(
+    db_url: str | None = typer.Option(
         None,
         "--db",
         envvar="AUTHN_DATABASE_URL",
         help="SQLAlchemy database URL (default: SQLite file in the user data directory).",
     ),
+    _show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit."),
 ) -> None:
-    ctx.obj = CliState(db_url=db)
+    ctx.obj = CliState(db_url=db_url)
+
+
+for _name, _command in (("check", check.check), ("simulate", simulate.simulate), ("inspect", inspect.inspect_file),
+                        ("register", registry.register_cmd), ("demo", demo.demo), ("plot", plot.plot),
+                        ("bench", bench_cmd.bench)):
+    app.command(_name)(_command)
+for _name, _group in (("registry", registry.registry_app), ("audit", audit.audit_app), ("rid", rid.rid_app),
+                      ("db", db.db_app), ("features", features.features_app), ("models", models.models_app)):
+    app.add_typer(_group, name=_name)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -102,17 +122,3 @@ def _describe(exc: BaseException) -> str:
 def run() -> None:
     """Console-script entry point."""
     sys.exit(main())
-
-
-from authn.cli import inspect_cmd as _inspect_cmd  # noqa: E402,F401  (registers commands)
-from authn.cli import simulate as _simulate  # noqa: E402,F401
-from authn.cli import registry_cmds as _registry_cmds  # noqa: E402,F401
-from authn.cli import rid as _rid  # noqa: E402,F401
-from authn.cli import db as _db  # noqa: E402,F401
-from authn.cli import audit_cmds as _audit_cmds  # noqa: E402,F401
-from authn.cli import check_cmd as _check_cmd  # noqa: E402,F401
-from authn.cli import demo_cmd as _demo_cmd  # noqa: E402,F401
-from authn.cli import models as _models  # noqa: E402,F401
-from authn.cli import bench_cmd as _bench_cmd  # noqa: E402,F401
-from authn.cli import features as _features  # noqa: E402,F401
-from authn.cli import plot as _plot  # noqa: E402,F401

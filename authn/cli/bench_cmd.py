@@ -7,10 +7,10 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 
 
-@app.command()
+
+
 def bench(
     preset: list[str] = typer.Option(["paper", "wide"], "--preset", help="Preset(s) to run (repeatable)."),
     n: int = typer.Option(100, "--n", min=1, help="Scenes per category and preset."),

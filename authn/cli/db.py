@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import typer
 
-from authn.cli import app
 
 db_app = typer.Typer(help="Database schema management.", no_args_is_help=True)
-app.add_typer(db_app, name="db")
 
 
 @db_app.command("upgrade")

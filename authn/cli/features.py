@@ -7,10 +7,8 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 
 features_app = typer.Typer(help="Micro-Doppler features and estimator accuracy.", no_args_is_help=True)
-app.add_typer(features_app, name="features")
 
 
 @features_app.command("show")

@@ -8,11 +8,9 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 
 models_app = typer.Typer(help="Train and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
                          no_args_is_help=True)
-app.add_typer(models_app, name="models")
 
 
 def _profiles(files: list[Path] | None, preset_default: bool = True):  # -> tuple[UavProfile, ...]

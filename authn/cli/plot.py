@@ -6,10 +6,8 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 
 
-@app.command()
 def plot(
     files: list[Path] = typer.Argument(..., help="Recorded returns (.h5/.npz); several = mean views."),
     out: Path = typer.Option(..., "--out", help="Directory for the PNG files."),

@@ -8,10 +8,8 @@ from typing import Optional
 
 import typer
 
-from authn.cli import app
 
 rid_app = typer.Typer(help="Remote ID (ASTM F3411 / Open Drone ID) tools.", no_args_is_help=True)
-app.add_typer(rid_app, name="rid")
 
 
 def _summary(msg) -> str:

@@ -6,7 +6,6 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 
 
 def _scene_for(model: str, profiles_file: Path | None, **kw: object):  # -> Scene
@@ -27,7 +26,6 @@ _OPTION_OF = {"range_m": "range", "radial_speed_mps": "speed", "snr_db": "snr",
               "elevation_deg": "elevation", "clutter_db": "clutter"}
 
 
-@app.command()
 def simulate(
     model: str = typer.Option(..., "--model", help="Profile slug (m600, m300, phantom4, ...), 'bird' or 'none'."),
     range_m: float = typer.Option(..., "--range", help="Slant range at the start of the dwell, metres."),

@@ -7,10 +7,8 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 
 
-@app.command("inspect")
 def inspect_file(
     file: Path = typer.Argument(..., help="Recorded return (.h5 or .npz)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),

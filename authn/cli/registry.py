@@ -10,11 +10,9 @@ from typing import Optional
 
 import typer
 
-from authn.cli import app
 
 registry_app = typer.Typer(help="Inspect and change the registry of authorised UAVs.",
                            no_args_is_help=True)
-app.add_typer(registry_app, name="registry")
 
 _PROFILE_OPTS = ("rotors", "arms", "blades_per_rotor", "blade_length_m", "rotor_rate_hz",
                  "propeller_distance_m")
@@ -48,7 +46,6 @@ def _record_json(rec) -> dict:
     return json.loads(rec.model_dump_json())
 
 
-@app.command("register")
 def register_cmd(
     ctx: typer.Context,
     serial: Optional[str] = typer.Option(None, "--serial", help="Remote ID UAS ID (ANSI/CTA-2063-A serial by default)."),

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 from authn.errors import Interrupted
 
 #: Batch mode commits the audit at least this often (entries, seconds), then prints what it
@@ -91,7 +90,6 @@ def _print_outcome(o) -> None:
     console.print(t)
 
 
-@app.command()
 def check(
     ctx: typer.Context,
     files: list[Path] = typer.Argument(..., help="Recorded returns (.h5/.npz) or directories of them."),

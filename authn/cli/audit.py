@@ -12,13 +12,12 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import CliState, app
+from authn.cli.state import CliState
 
 LOG_KEY_HELP = "Ed25519 log key (PEM; default $AUTHN_LOG_KEY, else audit-log-key.pem in the user data dir)."
 STH_LOG_HELP = "JSON-lines file of automatic signed tree heads (default $AUTHN_AUDIT_STH_LOG, else beside the key)."
 
 audit_app = typer.Typer(help="Read and verify the tamper-evident audit log.", no_args_is_help=True)
-app.add_typer(audit_app, name="audit")
 
 
 def _write(text: str, out: Path | None) -> None:

@@ -7,10 +7,8 @@ from pathlib import Path
 
 import typer
 
-from authn.cli import app
 
 
-@app.command()
 def demo(
     ctx: typer.Context,
     out: Path | None = typer.Option(None, "--out", help="Where to write the simulated returns "
