@@ -11,37 +11,25 @@ the decision always comes from a complete `is_authorized` call over the evidence
 from __future__ import annotations
 
 import hashlib
-import re
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
-from datetime import datetime
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from authn.audit import NewEntry, append
-from authn.errors import EXIT_BAD_INPUT, AuthnError, AuthnException, exit_code_for, one_line
-from authn.kinematics import DeclaredState, expected_from_radar, residuals, sanity
+from authn.errors import EXIT_BAD_INPUT, AuthnException, exit_code_for, one_line
+from authn.evidence import Claim, Evidence, KinematicsEvidence, RadarEvidence, RegistryFacts, read_claim
+from authn.kinematics import expected_from_radar, residuals, sanity
 from authn.policy import PolicyEngine
 
 RADAR_STAGES = ("radar_features", "classify", "kinematics")
-_SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
-
-
-@dataclass
-class Claim:
-    serial: str
-    source: str  # "cli" | "remote_id"
-    rid_serial: str | None = None
-    ua_type: int | None = None
-    state: DeclaredState | None = None
-    n_messages: int = 0
 
 
 @dataclass
 class Outcome:
-    """Everything `authn check --json` prints (SPEC section 6) plus what the audit keeps."""
+    """Everything `authn check --json` prints (README, "authn check --json") plus what the audit keeps."""
 
     file: str
     decision: str
@@ -119,51 +107,6 @@ def _file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def read_claim(rec: Any, serial: str | None) -> Claim:
-    """The claimed serial (--serial wins) and what the Remote ID messages declare."""
-    from registry.remoteid import BasicId, Location, decode_rows, flatten
-
-    msgs = flatten(decode_rows(rec.remote_id)) if rec.remote_id is not None else []
-    basic = next((m for m in msgs if isinstance(m, BasicId) and m.uas_id), None)
-    mid = rec.mid_time
-    states = [s for s in (DeclaredState.from_location(m, rec.start_time) for m in msgs
-                          if isinstance(m, Location)) if s is not None]
-    state = min(states, key=lambda s: abs((s.time - mid).total_seconds()) if s.time else 1e9, default=None)
-    rid_serial = basic.uas_id.strip() if basic else None
-    if serial is None and rid_serial is None:
-        raise AuthnError("no claim: give --serial, or a file whose Remote ID carries a Basic ID serial")
-    if serial is not None and not _SERIAL.fullmatch(serial):
-        raise AuthnError(f"--serial: {serial!r} is not a UAS ID (1-64 printable ASCII characters, no spaces)")
-    return Claim(serial=serial or rid_serial, source="cli" if serial else "remote_id", rid_serial=rid_serial,
-                 ua_type=basic.ua_type if basic else None, state=state, n_messages=len(msgs))
-
-
-def _epoch(when: datetime) -> int:
-    return int(when.timestamp())
-
-
-def registry_facts(identity: Any) -> dict[str, Any]:
-    """The principal's attributes; an unregistered serial is represented too."""
-    if identity is None:
-        return {"registered": False, "status": "unregistered", "model": "", "id_type": "", "valid_from_s": 0}
-    attrs = {"registered": True, "status": identity.status, "model": identity.model,
-             "id_type": identity.id_type, "valid_from_s": _epoch(identity.valid_from)}
-    if identity.valid_until is not None:
-        attrs["valid_until_s"] = _epoch(identity.valid_until)
-    return attrs
-
-
-def _skipped_context(claim: Claim, issues: list[str]) -> dict[str, Any]:
-    return {"claim_source": claim.source, "radar_run": False, "target_detected": False, "radar_model": "",
-            "radar_known": False, "radar_confidence_bp": 0, "has_kinematics": False, "range_residual_cm": 0,
-            "range_tolerance_cm": 0, "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0,
-            "remote_id_present": claim.n_messages > 0, "remote_id_issues": issues}
-
-
-def _cm(x: float) -> int:
-    return int(min(round(x * 100.0), 2**53))
-
-
 class Checker:
     """Loads once what every check needs (policy, database, file reader; the classifier on
     first radar use); checks many files."""
@@ -180,8 +123,7 @@ class Checker:
 
     # --- stages -------------------------------------------------------------------
 
-    def _radar(self, rec: Any, claim: Claim, timer: _Timer) -> tuple[dict[str, Any], dict[str, Any] | None,
-                                                                      dict[str, Any], str]:
+    def _radar(self, rec: Any, claim: Claim, timer: _Timer) -> tuple[RadarEvidence, KinematicsEvidence | None]:
         """Features (gated at the claimed range when it lies in the window), class, kinematics."""
         from signatures.features import extract
         from signatures.inference import classifier_for
@@ -194,43 +136,22 @@ class Checker:
         gate = expected.range_m if expected is not None and lo <= expected.range_m < hi else None
         with timer.stage("radar_features"):
             feats = extract(rec, expected_range_m=gate)
-        detected = bool(feats.detected)
         classifier = classifier_for(rec)
-        radar: dict[str, Any] = {"model": "none", "confidence": None, "known": True, "range_m": None,
-                                 "radial_velocity_mps": None, "gated": gate is not None, "used_cnn": False}
-        if detected:
+        radar = RadarEvidence(gated=gate is not None, model_card_sha256=classifier.card_digest)
+        if feats.detected:
             with timer.stage("classify"):
                 pred = classifier.predict(feats.as_array(), lambda: feats.rd_patch)  # patch only if the CNN runs
-            radar.update(model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
-                         range_m=round(float(feats.range_m), 3),
-                         radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
-                         operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest)
-            detected = pred.label != "none"
-        context = {"radar_run": True, "target_detected": detected, "radar_model": radar["model"],
-                   "radar_known": bool(radar["known"]),
-                   "radar_confidence_bp": int(round((radar["confidence"] or 0.0) * 10000)),
-                   "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
-                   "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0}
-        kin = None
-        if expected is not None and detected:
-            with timer.stage("kinematics"):
-                res = residuals(expected, claim.state, radar["range_m"], radar["radial_velocity_mps"],
-                                rec.config.range_bin_m(rec.n_samples), rec.config.doppler_bin_mps(rec.n_chirps),
-                                rec.config.measured_unambiguous_velocity_mps(rec.n_samples))
-            kin = {"expected_range_m": round(expected.range_m, 3),
-                   "expected_radial_velocity_mps": None if expected.radial_velocity_mps is None
-                   else round(expected.radial_velocity_mps, 4),
-                   "range_residual_m": round(res.range_residual_m, 3), "range_tolerance_m": round(res.range_tolerance_m, 3),
-                   "radial_velocity_residual_mps": None if res.radial_velocity_residual_mps is None
-                   else round(res.radial_velocity_residual_mps, 4),
-                   "radial_velocity_tolerance_mps": None if res.radial_velocity_tolerance_mps is None
-                   else round(res.radial_velocity_tolerance_mps, 4)}
-            context.update(has_kinematics=True, range_residual_cm=_cm(res.range_residual_m),
-                           range_tolerance_cm=_cm(res.range_tolerance_m))
-            if res.radial_velocity_residual_mps is not None:
-                context.update(velocity_residual_cmps=_cm(res.radial_velocity_residual_mps),
-                               velocity_tolerance_cmps=_cm(res.radial_velocity_tolerance_mps))
-        return radar, kin, context, classifier.card_digest
+            radar = replace(radar, model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
+                            range_m=round(float(feats.range_m), 3),
+                            radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
+                            operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest)
+        if expected is None or not radar.detected:
+            return radar, None
+        with timer.stage("kinematics"):
+            res = residuals(expected, claim.state, radar.range_m, radar.radial_velocity_mps,
+                            rec.config.range_bin_m(rec.n_samples), rec.config.doppler_bin_mps(rec.n_chirps),
+                            rec.config.measured_unambiguous_velocity_mps(rec.n_samples))
+        return radar, KinematicsEvidence(expected, res)
 
     # --- one check ------------------------------------------------------------------
     def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
@@ -249,39 +170,28 @@ class Checker:
         with timer.stage("remote_id"):
             claim = read_claim(rec, serial)
         with timer.stage("registry"):
-            identity = self.db.identity(claim.serial)
-            principal = registry_facts(identity)
-        resource = {"time_s": _epoch(rec.start_time), "preset": ""}
+            facts = RegistryFacts.of(self.db.identity(claim.serial))
         mid = rec.mid_time
-        context = _skipped_context(claim, sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
-                                                 mid, None))
+        evidence = Evidence(claim, facts, int(rec.start_time.timestamp()),
+                            sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, mid, None))
         with timer.stage("policy_registry"):
-            result = self.policy.decide_without_evidence(claim.serial, principal, resource, context)
-        radar = kin = card = None
-        skipped = list(RADAR_STAGES)
+            result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
+                                                         evidence.context())
         if result is None:
             from signatures.inference import match_preset
 
-            resource["preset"] = match_preset(rec.config, rec.n_chirps, rec.n_samples)
-            radar, kin, radar_ctx, card = self._radar(rec, claim, timer)
-            context.update(radar_ctx)
-            rotorcraft = radar["model"] not in ("none", "bird", "unknown")
-            context["remote_id_issues"] = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial,
-                                                 mid, rotorcraft)
-            skipped = [s for s in RADAR_STAGES if s not in timer.ms]
+            evidence.preset = match_preset(rec.config, rec.n_chirps, rec.n_samples)
+            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer)
+            evidence.remote_id_issues = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, mid,
+                                               evidence.radar.rotorcraft)
             with timer.stage("policy"):
-                result = self.policy.decide(claim.serial, principal, resource, context)
-        return Outcome(
-            file=file, decision=result.decision, reasons=result.reasons,
-            claim={"serial": claim.serial, "source": claim.source, "remote_id_serial": claim.rid_serial},
-            registry={"registered": principal["registered"], "status": principal["status"],
-                      "model": principal["model"] or None},
-            radar=radar, kinematics=kin,
-            remote_id={"messages": claim.n_messages, "ua_type": claim.ua_type,
-                       "issues": context["remote_id_issues"]},
-            skipped=skipped, timings_ms=timer.ms, policy_sha256=self.policy.sha256, model_card_sha256=card,
-            file_sha256=digest, policy_errors=result.errors,
-            policy_input={"serial": claim.serial, "principal": principal, "resource": resource, "context": context})
+                result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(),
+                                            evidence.context())
+        return Outcome(file=file, decision=result.decision, reasons=result.reasons, **evidence.report(),
+                       skipped=[s for s in RADAR_STAGES if s not in timer.ms], timings_ms=timer.ms,
+                       policy_sha256=self.policy.sha256,
+                       model_card_sha256=evidence.radar.model_card_sha256 if evidence.radar else None,
+                       file_sha256=digest, policy_errors=result.errors, policy_input=evidence.policy_input())
 
     def record(self, outcomes: Sequence[Outcome | Failure]) -> list[int]:
         """Append decisions and failed checks in one transaction; raises DatabaseFault if it

@@ -21,11 +21,15 @@ VERTICAL_ACCURACY_M = {1: 150.0, 2: 45.0, 3: 25.0, 4: 10.0, 5: 3.0, 6: 1.0}
 SPEED_ACCURACY_MPS = {1: 10.0, 2: 3.0, 3: 1.0, 4: 0.3}
 ROTORCRAFT_UA_TYPES = {2, 4}  # helicopter or multirotor; hybrid lift (VTOL)
 
-#: Remote ID sanity limits (documented in the README).
+#: Remote ID sanity limits. They define the *issues* a declaration can have (named strings
+#: the policy sees in `context.remote_id_issues`); what an issue means for the decision is the
+#: policy's (`remote-id-implausible`). The accuracy limits stop a spoofer from widening the
+#: range tolerance at will by declaring a poor accuracy.
 STALE_AFTER_S = 5.0
 MAX_HORIZONTAL_SPEED_MPS = 60.0
 MAX_VERTICAL_SPEED_MPS = 30.0
 MAX_USABLE_POSITION_ACCURACY_M = 30.0
+MAX_USABLE_VERTICAL_ACCURACY_M = 45.0
 
 
 @dataclass(frozen=True)
@@ -132,6 +136,6 @@ def sanity(state: DeclaredState | None, ua_type: int | None, rid_serial: str | N
             or abs(state.speed_vertical_mps or 0.0) > MAX_VERTICAL_SPEED_MPS):
         issues.append("impossible-speed")
     if state.horizontal_accuracy_m is None or state.horizontal_accuracy_m > MAX_USABLE_POSITION_ACCURACY_M \
-            or state.vertical_accuracy_m is None or state.vertical_accuracy_m > 45.0:
+            or state.vertical_accuracy_m is None or state.vertical_accuracy_m > MAX_USABLE_VERTICAL_ACCURACY_M:
         issues.append("poor-position-accuracy")
     return issues

@@ -1,0 +1,207 @@
+"""The evidence of one check, as one typed object.
+
+Built once per check (claim, registry facts, radar, kinematics, Remote ID issues); the
+Cedar request, the JSON output and the audit payload are all derived from it, so each fact
+is named in one place. Cedar wants integers, hence the centimetre and basis-point views.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from authn.errors import AuthnError
+from authn.kinematics import DeclaredState, Expected, Residuals
+
+__all__ = ["Claim", "RegistryFacts", "RadarEvidence", "KinematicsEvidence", "Evidence", "read_claim"]
+
+_SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
+#: Cedar integers are 64-bit; a residual is capped well inside them
+_MAX_CEDAR_CM = 2**53
+
+
+@dataclass(frozen=True)
+class Claim:
+    """Who the drone says it is, and what its Remote ID declares."""
+
+    serial: str
+    source: str  # "cli" | "remote_id"
+    rid_serial: str | None = None
+    ua_type: int | None = None
+    state: DeclaredState | None = None
+    n_messages: int = 0
+
+    def to_json(self) -> dict[str, Any]:
+        return {"serial": self.serial, "source": self.source, "remote_id_serial": self.rid_serial}
+
+
+def read_claim(rec: Any, serial: str | None) -> Claim:
+    """The claimed serial (--serial wins) and what the Remote ID messages declare."""
+    from registry.remoteid import BasicId, Location, decode_rows, flatten
+
+    msgs = flatten(decode_rows(rec.remote_id)) if rec.remote_id is not None else []
+    basic = next((m for m in msgs if isinstance(m, BasicId) and m.uas_id), None)
+    mid = rec.mid_time
+    states = [s for s in (DeclaredState.from_location(m, rec.start_time) for m in msgs
+                          if isinstance(m, Location)) if s is not None]
+    state = min(states, key=lambda s: abs((s.time - mid).total_seconds()) if s.time else 1e9, default=None)
+    rid_serial = basic.uas_id.strip() if basic else None
+    if serial is None and rid_serial is None:
+        raise AuthnError("no claim: give --serial, or a file whose Remote ID carries a Basic ID serial")
+    if serial is not None and not _SERIAL.fullmatch(serial):
+        raise AuthnError(f"--serial: {serial!r} is not a UAS ID (1-64 printable ASCII characters, no spaces)")
+    return Claim(serial=serial or rid_serial, source="cli" if serial else "remote_id", rid_serial=rid_serial,
+                 ua_type=basic.ua_type if basic else None, state=state, n_messages=len(msgs))
+
+
+def _epoch(when: datetime) -> int:
+    return int(when.timestamp())
+
+
+@dataclass(frozen=True)
+class RegistryFacts:
+    """The claimed identity as the registry holds it; an unregistered serial is a fact too."""
+
+    registered: bool = False
+    status: str = "unregistered"
+    model: str = ""
+    id_type: str = ""
+    valid_from: datetime | None = None
+    valid_until: datetime | None = None
+
+    @classmethod
+    def of(cls, identity: Any) -> "RegistryFacts":
+        if identity is None:
+            return cls()
+        return cls(True, identity.status, identity.model, identity.id_type, identity.valid_from,
+                   identity.valid_until)
+
+    def principal(self) -> dict[str, Any]:
+        """Cedar attributes of the principal `Uav::"<serial>"`."""
+        attrs: dict[str, Any] = {"registered": self.registered, "status": self.status, "model": self.model,
+                                 "id_type": self.id_type,
+                                 "valid_from_s": _epoch(self.valid_from) if self.valid_from else 0}
+        if self.valid_until is not None:
+            attrs["valid_until_s"] = _epoch(self.valid_until)
+        return attrs
+
+    def to_json(self) -> dict[str, Any]:
+        return {"registered": self.registered, "status": self.status, "model": self.model or None}
+
+
+@dataclass(frozen=True)
+class RadarEvidence:
+    """What the radar stages found: a target (or none), its class and where it is."""
+
+    gated: bool
+    model: str = "none"
+    confidence: float | None = None
+    known: bool = True
+    range_m: float | None = None
+    radial_velocity_mps: float | None = None
+    used_cnn: bool = False
+    operational_state: str | None = None
+    nearest: str | None = None
+    model_card_sha256: str | None = None
+
+    @property
+    def detected(self) -> bool:
+        return self.model != "none"
+
+    @property
+    def rotorcraft(self) -> bool:
+        return self.model not in ("none", "bird", "unknown")
+
+    def to_json(self) -> dict[str, Any]:
+        doc: dict[str, Any] = {"model": self.model, "confidence": self.confidence, "known": self.known,
+                               "range_m": self.range_m, "radial_velocity_mps": self.radial_velocity_mps,
+                               "gated": self.gated, "used_cnn": self.used_cnn}
+        if self.range_m is not None:  # a classified target
+            doc.update(operational_state=self.operational_state, nearest=self.nearest)
+        return doc
+
+
+def _rounded(x: float | None, digits: int) -> float | None:
+    return None if x is None else round(x, digits)
+
+
+def _cm(x: float) -> int:
+    return int(min(round(x * 100.0), _MAX_CEDAR_CM))
+
+
+@dataclass(frozen=True)
+class KinematicsEvidence:
+    """The declared state against the radar's range and radial velocity."""
+
+    expected: Expected
+    residuals: Residuals
+
+    def context(self) -> dict[str, Any]:
+        res = self.residuals
+        ctx = {"has_kinematics": True, "range_residual_cm": _cm(res.range_residual_m),
+               "range_tolerance_cm": _cm(res.range_tolerance_m)}
+        if res.radial_velocity_residual_mps is not None:
+            ctx.update(velocity_residual_cmps=_cm(res.radial_velocity_residual_mps),
+                       velocity_tolerance_cmps=_cm(res.radial_velocity_tolerance_mps))
+        return ctx
+
+    def to_json(self) -> dict[str, Any]:
+        res = self.residuals
+        return {"expected_range_m": round(self.expected.range_m, 3),
+                "expected_radial_velocity_mps": _rounded(self.expected.radial_velocity_mps, 4),
+                "range_residual_m": round(res.range_residual_m, 3),
+                "range_tolerance_m": round(res.range_tolerance_m, 3),
+                "radial_velocity_residual_mps": _rounded(res.radial_velocity_residual_mps, 4),
+                "radial_velocity_tolerance_mps": _rounded(res.radial_velocity_tolerance_mps, 4)}
+
+
+@dataclass
+class Evidence:
+    """Everything one check gathered; `radar` is None while (or because) the radar did not run."""
+
+    claim: Claim
+    registry: RegistryFacts
+    time_s: int
+    remote_id_issues: list[str]
+    preset: str = ""
+    radar: RadarEvidence | None = None
+    kinematics: KinematicsEvidence | None = None
+
+    # --- the Cedar request -----------------------------------------------------------
+    def principal(self) -> dict[str, Any]:
+        return self.registry.principal()
+
+    def resource(self) -> dict[str, Any]:
+        return {"time_s": self.time_s, "preset": self.preset}
+
+    def context(self) -> dict[str, Any]:
+        radar = self.radar
+        ctx: dict[str, Any] = {
+            "claim_source": self.claim.source, "radar_run": radar is not None,
+            "target_detected": radar is not None and radar.detected,
+            "radar_model": radar.model if radar is not None else "",
+            "radar_known": bool(radar.known) if radar is not None else False,
+            "radar_confidence_bp": int(round((radar.confidence or 0.0) * 10000)) if radar is not None else 0,
+            "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
+            "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0,
+            "remote_id_present": self.claim.n_messages > 0, "remote_id_issues": list(self.remote_id_issues)}
+        if self.kinematics is not None:
+            ctx.update(self.kinematics.context())
+        return ctx
+
+    def policy_input(self) -> dict[str, Any]:
+        """The exact request, as the audit keeps it for `authn audit replay`."""
+        return {"serial": self.claim.serial, "principal": self.principal(), "resource": self.resource(),
+                "context": self.context()}
+
+    # --- the report ------------------------------------------------------------------
+    def report(self) -> dict[str, Any]:
+        """The evidence part of `authn check --json` (and of the audit payload)."""
+        return {"claim": self.claim.to_json(), "registry": self.registry.to_json(),
+                "radar": None if self.radar is None else self.radar.to_json(),
+                "kinematics": None if self.kinematics is None else self.kinematics.to_json(),
+                "remote_id": {"messages": self.claim.n_messages, "ua_type": self.claim.ua_type,
+                              "issues": list(self.remote_id_issues)}}
+
