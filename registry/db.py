@@ -84,10 +84,9 @@ def _is_current(conn: Connection) -> bool:
 
     import migrations
 
-    if not inspect(conn).has_table("alembic_version"):
-        return False
-    rows = conn.execute(text("SELECT version_num FROM alembic_version")).scalars().all()
-    return rows == [migrations.HEAD_REVISION]
+    if not inspect(conn).has_table("alembic_version"):  # a failed SELECT would abort a PostgreSQL transaction
+        return migrations.is_current(None)
+    return migrations.is_current(list(conn.execute(text(migrations.VERSION_QUERY)).all()))
 
 
 def _upgrade_on(conn: Connection) -> None:

@@ -121,10 +121,10 @@ class Database:
         import migrations
 
         try:
-            rows = self._fetch(conn, "SELECT version_num FROM alembic_version", {})
-        except Exception:  # no table yet: a fresh database
-            return False
-        return [r[0] for r in rows] == [migrations.HEAD_REVISION]
+            rows = self._fetch(conn, migrations.VERSION_QUERY, {})
+        except self._driver_errors():  # no version table yet: a fresh database (autocommit: no aborted txn)
+            rows = None
+        return migrations.is_current(rows)
 
     def connection(self) -> Any:
         """The open connection, after making sure the schema is current (migrating once if not)."""
