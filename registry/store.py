@@ -53,6 +53,8 @@ from sqlalchemy import select
 from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.orm import Session
 
+from authn.errors import BadInput
+from authn.parsing import first_error, parse_iso_time
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile, utcnow
 from registry.serials import validate_uas_id
@@ -71,9 +73,7 @@ _HEX_KEY = re.compile(r"^[0-9a-fA-F]{64}$")
 
 def describe_validation_error(exc: ValidationError) -> str:
     """The first error of a pydantic ValidationError as one line (`field: reason`)."""
-    err = exc.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"])
-    msg = err["msg"].removeprefix("Value error, ")
+    loc, msg, _ = first_error(exc)
     return f"{loc}: {msg}" if loc else msg
 
 
@@ -84,8 +84,8 @@ def _iso_time(value: Any) -> Any:
         if not text:
             return None
         try:
-            return datetime.fromisoformat(text.replace("Z", "+00:00"))
-        except ValueError:
+            return parse_iso_time(text, "time")  # naive = UTC
+        except BadInput:
             raise ValueError(f"{value!r} is not an ISO 8601 date/time") from None
     if value is None or isinstance(value, datetime):
         return value

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from authn.parsing import first_error
 from signatures.errors import SignaturesError
 
 #: Classes the radar knows besides UAV profiles (SPEC section 4).
@@ -63,9 +64,8 @@ def parse_profiles(data: object, source: str) -> dict[str, UavProfile]:
         try:
             p = UavProfile.model_validate(entry)
         except ValidationError as exc:
-            err = exc.errors()[0]
-            loc = ".".join(str(x) for x in err["loc"]) or "profile"
-            raise SignaturesError(f"{source}: profiles[{i}].{loc}: {err['msg']}") from None
+            loc, msg, _ = first_error(exc)
+            raise SignaturesError(f"{source}: profiles[{i}].{loc or 'profile'}: {msg}") from None
         if p.slug in out:
             raise SignaturesError(f"{source}: duplicate profile slug {p.slug!r}")
         out[p.slug] = p

@@ -7,12 +7,13 @@ Exit codes: 0 ok, 1 the log (or a proof, or a replay) does not hold, 2 bad input
 from __future__ import annotations
 
 import json
-from datetime import datetime, timezone
+from datetime import datetime
 from pathlib import Path
 
 import typer
 
 from authn.cli.state import CliState
+from authn.parsing import parse_iso_time
 
 LOG_KEY_HELP = "Ed25519 log key (PEM; default $AUTHN_LOG_KEY, else audit-log-key.pem in the user data dir)."
 STH_LOG_HELP = "JSON-lines file of automatic signed tree heads (default $AUTHN_AUDIT_STH_LOG, else beside the key)."
@@ -43,11 +44,7 @@ def _since(text: str | None) -> datetime | None:
 
     if text is None:
         return None
-    try:
-        when = datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        raise AuthnError(f"--since: not an ISO 8601 date/time: {text!r}") from None
-    return when if when.tzinfo else when.replace(tzinfo=timezone.utc)
+    return parse_iso_time(text, "--since", error=AuthnError)
 
 
 @audit_app.command("list")

@@ -10,6 +10,8 @@ from typing import Optional
 
 import typer
 
+from authn.parsing import parse_iso_time
+
 
 registry_app = typer.Typer(help="Inspect and change the registry of authorised UAVs.",
                            no_args_is_help=True)
@@ -23,10 +25,7 @@ def _time(value: Optional[str], option: str) -> Optional[datetime]:
 
     if value is None:
         return None
-    try:
-        return datetime.fromisoformat(value.replace("Z", "+00:00"))
-    except ValueError:
-        raise AuthnError(f"{option}: {value!r} is not an ISO 8601 date/time") from None
+    return parse_iso_time(value, option, error=AuthnError)
 
 
 def _validated(cls, **fields):

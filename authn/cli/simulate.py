@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from authn.parsing import first_error, parse_iso_time
+
 
 
 def _scene_for(model: str, profiles_file: Path | None, **kw: object):  # -> Scene
@@ -73,16 +75,13 @@ def simulate(
         scene = _scene_for(model, profiles, range_m=range_m, radial_speed_mps=speed, snr_db=snr,
                            elevation_deg=elevation, clutter_db=clutter)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = str(err["loc"][0]) if err["loc"] else "model"
-        raise SignaturesError(f"--{_OPTION_OF.get(field, field)}: {err['msg']}") from None
+        loc, msg, _ = first_error(exc)
+        field = loc.split(".")[0] or "model"
+        raise SignaturesError(f"--{_OPTION_OF.get(field, field)}: {msg}") from None
     from datetime import datetime, timezone
 
-    try:
-        start = datetime.now(timezone.utc) if start_time is None else datetime.fromisoformat(start_time)
-    except ValueError:
-        raise SignaturesError(f"--start-time: not ISO 8601: {start_time!r}") from None
-    start = start if start.tzinfo else start.replace(tzinfo=timezone.utc)
+    start = datetime.now(timezone.utc) if start_time is None else \
+        parse_iso_time(start_time, "--start-time", error=SignaturesError)
     broadcast = None
     if rid_serial is not None:
         broadcast = Broadcast(serial=rid_serial, ua_type=rid_ua_type, lat_deg=rid_lat, lon_deg=rid_lon,
@@ -94,8 +93,8 @@ def simulate(
         try:
             return simulate_flight(scene, pre, seed + i, broadcast, azimuth, range_offset, start)
         except ValidationError as exc:
-            err = exc.errors()[0]
-            raise SignaturesError(f"--rid-*: {'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+            loc, msg, _ = first_error(exc)
+            raise SignaturesError(f"--rid-*: {loc}: {msg}") from None
 
     if count == 1 and out.suffix:
         rec, truth = run_simulation(0)

@@ -20,6 +20,7 @@ from decimal import Decimal
 
 from pydantic import BaseModel, ValidationError
 
+from authn.parsing import first_error
 from registry.remoteid.errors import RemoteIdError
 from registry.remoteid.messages import (
     ODID_EPOCH,
@@ -63,9 +64,8 @@ def _build(cls: type[BaseModel], what: str, **fields: object) -> BaseModel:
     try:
         return cls(**fields)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = ".".join(str(p) for p in err["loc"]) or what
-        raise RemoteIdError(f"{what}: {loc}: {err['msg']}") from None
+        loc, msg, _ = first_error(exc)
+        raise RemoteIdError(f"{what}: {loc or what}: {msg}") from None
 
 
 def _text(raw: bytes, what: str) -> str:
