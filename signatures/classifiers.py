@@ -7,7 +7,8 @@ probabilities are calibrated by temperature scaling on held-out validation data
 changing its arg-max). Labels are integer codes into the card's class list, so the
 exported ONNX outputs line up with it column for column.
 
-Inference never imports this module: see `signatures.inference`.
+Inference never imports this module: see `signatures.inference`, which owns what both sides
+share (`MEMBERS`, `calibrate`).
 """
 
 from __future__ import annotations
@@ -24,7 +25,10 @@ from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
-MEMBERS = ("knn", "rf", "svm")
+from signatures.inference import MEMBERS
+
+__all__ = ["calibrated_ensemble", "fit_members", "fit_state_head", "forest_arrays", "knn_arrays", "make_knn",
+           "make_member", "make_rf", "make_svm", "temperature_beta", "vote_weights"]
 
 
 def make_knn() -> Pipeline:
@@ -97,28 +101,26 @@ def calibrated_ensemble(members: dict[str, Pipeline], X_val: np.ndarray, y_val: 
 
 
 def temperature_beta(ensemble: CalibratedClassifierCV) -> float:
-    """The fitted inverse temperature (the only calibration parameter shipped)."""
+    """The fitted inverse temperature (the only calibration parameter shipped; applied by
+    `signatures.inference.calibrate`)."""
     return float(ensemble.calibrated_classifiers_[0].calibrators[0].beta_)
 
 
-def calibrate(avg_proba: np.ndarray, beta: float) -> np.ndarray:
-    """softmax(beta * log p): what `CalibratedClassifierCV(method="temperature")` computes."""
-    z = beta * np.log(avg_proba + 1e-12)
-    z -= z.max(axis=1, keepdims=True)
-    e = np.exp(z)
-    return e / e.sum(axis=1, keepdims=True)
-
-
-def knn_arrays(model: Pipeline, n_classes: int) -> dict[str, np.ndarray]:
+def knn_arrays(model: Pipeline, X_train: np.ndarray, y_train: np.ndarray, n_classes: int) -> dict[str, np.ndarray]:
     """A fitted kNN pipeline as plain arrays (`knn.npz`): scaler, standardised training set, labels, k.
 
+    `X_train`, `y_train`: what the pipeline was fitted on. The reference set is the pipeline's own
+    scaler applied to it (exactly what the neighbour search stores at fit time), through public API.
     skl2onnx's kNN graph costs ~14 ms per return; the same vote in numpy costs tens of
     microseconds (`signatures.inference.KnnArrays`), with no pickle and no scikit-learn.
     """
     scaler, knn = model.steps[0][1], model.steps[-1][1]
+    if len(X_train) != knn.n_samples_fit_ or len(y_train) != len(X_train):
+        raise ValueError(f"the kNN was fitted on {knn.n_samples_fit_} returns, "
+                         f"got {len(X_train)} returns and {len(y_train)} labels")
     return {"mean": scaler.mean_.astype(np.float64), "scale": scaler.scale_.astype(np.float64),
-            "refs": np.asarray(knn._fit_X, dtype=np.float32),
-            "labels": knn.classes_[knn._y].astype(np.int64), "k": np.array(knn.n_neighbors),
+            "refs": np.ascontiguousarray(scaler.transform(X_train), dtype=np.float32),
+            "labels": np.asarray(y_train).astype(np.int64), "k": np.array(knn.n_neighbors),
             "n_classes": np.array(n_classes)}
 
 
@@ -154,5 +156,5 @@ def forest_arrays(model: Pipeline | RandomForestClassifier, n_classes: int) -> d
 
 def fit_state_head(X: np.ndarray, moving: np.ndarray, seed: int) -> Pipeline:
     """Second head: hovering (0) / moving (1), a 50-tree RF on UAV returns only (shipped as
-    `rf_state.npz`; the SVM head it once averaged with needed onnxruntime on every check)."""
+    `rf_state.npz`, evaluated in numpy: a forest alone keeps onnxruntime off every check)."""
     return _fit(make_rf(seed, n_estimators=50), X, moving.astype(np.int64))

@@ -26,6 +26,9 @@ from signatures.dataset import Dataset, DatasetSpec, Featurizer, generate
 from signatures.inference import MEMBERS, Classifier
 from signatures.profiles import NON_UAV_CLASSES, UNKNOWN, UavProfile
 
+__all__ = ["DEFAULT_SNRS", "PAPER_FIGURES", "evaluate", "latency_ms", "metrics", "plot", "predictions",
+           "write_json"]
+
 DEFAULT_SNRS = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 20.0, 30.0)
 PAPER_FIGURES = {"knn": 0.71, "rf": 1.00, "svm": 0.88}  # accuracy, paper section V
 

@@ -28,6 +28,9 @@ from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
 from signatures.stats import median
 
+__all__ = ["FEATURE_NAMES", "FEATURE_VERSION", "GATE_BINS", "PATCH_SHAPE", "QUICK_FEATURES", "FeatureResult",
+           "Features", "extract", "extract_iq"]
+
 FEATURE_VERSION = "1"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
@@ -253,13 +256,16 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
     mu_hz = float(np.sum(rel_hz * q_d))
     std_hz = math.sqrt(max(float(np.sum((rel_hz - mu_hz) ** 2 * q_d)), 0.0))
     par_db = _db(float(d.max()) / max(float(d.mean()), _TINY))
-    md = np.abs(rel_bins) > BODY_BINS
-    md_tot = max(float(d[md].sum()), _TINY)
-    sc = float(np.sum(np.abs(rel_hz[md]) * d[md])) / md_tot
-    sb = math.sqrt(max(float(np.sum((np.abs(rel_hz[md]) - sc) ** 2 * d[md])) / md_tot, 0.0))
+    # spectral centroid / bandwidth of the micro-Doppler alone: |offset from the body line| over
+    # the bins outside the body's +-BODY_BINS, weighted by their power
+    micro = np.abs(rel_bins) > BODY_BINS
+    micro_power = max(float(d[micro].sum()), _TINY)
+    centroid_hz = float(np.sum(np.abs(rel_hz[micro]) * d[micro])) / micro_power
+    bandwidth_hz = math.sqrt(max(float(np.sum((np.abs(rel_hz[micro]) - centroid_hz) ** 2 * d[micro]))
+                                 / micro_power, 0.0))
     peak_db = _db(float(power.max())) + 20.0 * math.log10(2.0) * prep.log2_scale
     n_peaks = _count_peaks(np.roll(d, n_chirps // 2 - body_idx), noise_doppler * (gate[1] - gate[0]))
-    energy_ratio = float(d[~md].sum()) / total
+    energy_ratio = float(d[~micro].sum()) / total
     q = power / np.float32(total)
     with np.errstate(divide="ignore", invalid="ignore"):
         plogp = np.where(q > 0, q * np.log(np.maximum(q, np.float32(_TINY))), np.float32(0.0))
@@ -273,7 +279,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
     values = dict(
         mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
         std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
-        spectral_centroid_hz=sc, spectral_bandwidth_hz=sb, peak_amplitude_db=peak_db,
+        spectral_centroid_hz=centroid_hz, spectral_bandwidth_hz=bandwidth_hz, peak_amplitude_db=peak_db,
         num_peaks=float(n_peaks), energy_ratio=energy_ratio, entropy=entropy,
         range_m=range_mid - velocity * dwell / 2.0, range_std_m=range_std,
         radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,

@@ -8,8 +8,8 @@ complex64 (1.0 ms) is not the transform: it is the kernel zero-filling fresh
 pages for every large temporary (glibc returns >128 KiB blocks to the OS). So
 the default backend is numpy, transforming in complex128 into per-thread
 workspaces that are reused between calls, and handing back complex64. Set
-`AUTHN_FFT=scipy` (or call `set_backend("scipy")`) in long batch jobs where
-scipy is imported anyway: it is ~2x faster on the 8192x64 `wide` cube.
+`AUTHN_FFT=scipy` (read once, at import) in long batch jobs where scipy is
+imported anyway: it is ~2x faster on the 8192x64 `wide` cube.
 """
 
 from __future__ import annotations
@@ -19,25 +19,19 @@ import threading
 
 import numpy as np
 
-from signatures.errors import SignaturesError
+__all__ = ["BACKENDS", "backend", "fft"]
 
 BACKENDS = ("numpy", "scipy")
-_state = {"backend": os.environ.get("AUTHN_FFT", "numpy")}
+#: 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s import); anything else: numpy
+_BACKEND = os.environ.get("AUTHN_FFT", "numpy")
+if _BACKEND not in BACKENDS:
+    _BACKEND = "numpy"
 _local = threading.local()
-
-if _state["backend"] not in BACKENDS:
-    _state["backend"] = "numpy"
 
 
 def backend() -> str:
-    return _state["backend"]
-
-
-def set_backend(name: str) -> None:
-    """Choose 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s import)."""
-    if name not in BACKENDS:
-        raise SignaturesError(f"unknown FFT backend {name!r} (known: {', '.join(BACKENDS)})")
-    _state["backend"] = name
+    """The backend this process uses (from `AUTHN_FFT`)."""
+    return _BACKEND
 
 
 def _workspace(key: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -59,7 +53,7 @@ def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
     `window` broadcasts against `x` (e.g. shape (n,) for the last axis or (n, 1)
     for axis 0). The result is a new array; the workspaces never escape.
     """
-    if _state["backend"] == "scipy":
+    if _BACKEND == "scipy":
         import scipy.fft as sfft
 
         out = np.complex128 if np.asarray(x).dtype == np.complex128 else np.complex64

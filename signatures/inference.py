@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -26,8 +26,23 @@ from signatures.openset import OpenSet
 from signatures.profiles import NON_UAV_CLASSES, UNKNOWN
 from signatures.radar import PRESETS, RadarConfig
 
+__all__ = ["MEMBERS", "Classifier", "ForestArrays", "KnnArrays", "NoModelError", "Prediction", "bundle_dir",
+           "calibrate", "classifier_for", "load_classifier", "match_preset"]
+
+#: The ensemble's members, in the order of the card's `ensemble.weights` (training and inference).
 MEMBERS = ("knn", "rf", "svm")
 _LOADED: dict[str, "Classifier"] = {}
+
+
+def calibrate(avg_proba: np.ndarray, beta: float) -> np.ndarray:
+    """Temperature scaling, softmax(beta * log p): what scikit-learn's
+    `CalibratedClassifierCV(method="temperature")` computes on the averaged vote, so a bundle
+    ships one number (`ensemble.temperature_beta`) instead of a pickled calibrator. The 1e-12
+    keeps a class no member voted for finite (it stays the least likely)."""
+    z = beta * np.log(avg_proba + 1e-12)
+    z -= z.max(axis=1, keepdims=True)
+    e = np.exp(z)
+    return e / e.sum(axis=1, keepdims=True)
 
 
 class NoModelError(SignaturesError):
@@ -45,8 +60,6 @@ class Prediction:
     operational_state: str | None  # "hovering" / "moving" for multirotors, else None
     used_cnn: bool
     nearest: str = ""  # best known class even when the label is "unknown"
-    openset_score: float = 0.0
-    member_labels: dict[str, str] = field(default_factory=dict)
 
 
 class KnnArrays:
@@ -107,39 +120,41 @@ class ForestArrays:
         return self.value[node].mean(axis=1)
 
 
-def _calibrate(p: np.ndarray, beta: float) -> np.ndarray:
-    z = beta * np.log(p + 1e-12)
-    z -= z.max(axis=1, keepdims=True)
-    e = np.exp(z)
-    return e / e.sum(axis=1, keepdims=True)
-
-
 class Classifier:
     """A verified model bundle ready for inference."""
 
     def __init__(self, folder: Path) -> None:
         self.folder = Path(folder)
         self.card, self.card_digest = read_card(self.folder)
-        c = self.card
+        try:
+            self._read(self.card)
+        except KeyError as exc:
+            raise SignaturesError(f"{self.folder}: the model bundle lacks {exc} (a layout this version does "
+                                  "not read: rebuild it with `authn models train`)") from None
+
+    def _read(self, c: dict[str, Any]) -> None:
+        """Everything inference needs from the card and `openset.npz` (current bundle layout only)."""
         self.preset: str = c["preset"]
         self.classes: tuple[str, ...] = tuple(c["classes"])
         self.n_features = len(c["feature_names"])
         names = list(c["feature_names"])
-        self._cols = np.array([names.index(n) for n in c.get("class_features", names)])
+        self._cols = np.array([names.index(n) for n in c["class_features"]])
         self._files = set(c["files"])
         self._loaded: dict[str, Any] = {}  # model files open on first use (a CLI check needs few)
         self.has_cnn = "cnn.onnx" in self._files
         with np.load(self.folder / "openset.npz", allow_pickle=False) as z:
             self.openset = OpenSet.from_arrays({k: z[k] for k in z.files})
-        if self.openset.class_cols is None:  # older bundles: distance on the type features
-            self.openset.class_cols = self._cols
         self.beta = float(c["ensemble"]["temperature_beta"])
-        self.weights = [float(w) for w in c["ensemble"].get("weights", [1.0] * len(MEMBERS))]
-        cas = c.get("cascade") or {}
-        self.cascade_threshold = float(cas.get("threshold", 0.0)) if self.has_cnn else 0.0
-        cnn = c.get("cnn") or {}
-        self._cnn_mean = float(cnn.get("input_mean", 0.0))
-        self._cnn_std = float(cnn.get("input_std", 1.0))
+        self.weights = [float(w) for w in c["ensemble"]["weights"]]
+        if len(self.weights) != len(MEMBERS):
+            raise SignaturesError(f"{self.folder}: the card gives {len(self.weights)} ensemble weights, "
+                                  f"one per member {MEMBERS} expected")
+        self.cascade_threshold = 0.0
+        self._cnn_mean, self._cnn_std = 0.0, 1.0
+        if self.has_cnn:
+            self.cascade_threshold = float(c["cascade"]["threshold"])
+            self._cnn_mean = float(c["cnn"]["input_mean"])
+            self._cnn_std = float(c["cnn"]["input_std"])
         self._uav = np.array([k not in NON_UAV_CLASSES for k in self.classes])
 
     def _model(self, name: str) -> Any:
@@ -179,7 +194,7 @@ class Classifier:
         """Temperature-calibrated weighted mean of the three members."""
         Xf = self._x(X)
         avg = sum(w * self.member_proba(m, Xf) for m, w in zip(MEMBERS, self.weights) if w) / sum(self.weights)
-        return _calibrate(avg.astype(np.float64), self.beta)
+        return calibrate(avg.astype(np.float64), self.beta)
 
     def cnn_proba(self, rd: np.ndarray) -> np.ndarray:
         if not self.has_cnn:
@@ -187,7 +202,7 @@ class Classifier:
         x = (np.asarray(rd, dtype=np.float32) - self._cnn_mean) / self._cnn_std
         x = x.reshape(-1, 1, *x.shape[-2:])
         logits = self._model("cnn").run(["logits"], {"rd": x})[0].astype(np.float64)
-        return _calibrate(np.exp(logits - logits.max(axis=1, keepdims=True)), 1.0)
+        return calibrate(np.exp(logits - logits.max(axis=1, keepdims=True)), 1.0)
 
     def cascade_proba(self, X: np.ndarray, rd: np.ndarray | Callable[[], np.ndarray] | None
                       ) -> tuple[np.ndarray, np.ndarray]:
@@ -222,17 +237,13 @@ class Classifier:
         k = int(np.argmax(p))
         pk = np.array([k])
         known = not bool(self.openset.unknown(X, pk)[0])
-        score = 0.0
-        if self.openset.mode in ("distance", "both"):
-            score = float(self.openset.scores(X, pk)[0])
         label = self.classes[k] if known else UNKNOWN
         state = None
         if label not in NON_UAV_CLASSES:
             state = "moving" if float(self.moving_proba(X)[0]) >= 0.5 else "hovering"
         return Prediction(label=label, confidence=float(p[k]), known=known,
                           probabilities={c: float(v) for c, v in zip(self.classes, p)},
-                          operational_state=state, used_cnn=bool(used[0]), nearest=self.classes[k],
-                          openset_score=score)
+                          operational_state=state, used_cnn=bool(used[0]), nearest=self.classes[k])
 
 
 def bundle_dir(preset: str) -> Path:

@@ -16,6 +16,9 @@ from typing import Any
 
 from signatures.errors import SignaturesError
 
+__all__ = ["CARD_FORMAT", "CARD_NAME", "ModelIntegrityError", "card_bytes", "library_versions", "read_card",
+           "sha256_file", "write_card"]
+
 CARD_NAME = "card.json"
 CARD_FORMAT = "uav-radar-authn/model-bundle/1"
 

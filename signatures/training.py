@@ -12,7 +12,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,13 @@ from signatures.dataset import GENERATOR_VERSION, Dataset, DatasetSpec, Featuriz
 from signatures.modelcard import library_versions, write_card
 from signatures.profiles import UavProfile
 from signatures.radar import get_preset
+
+if TYPE_CHECKING:
+    from signatures.openset import PhysicsCheck
+
+__all__ = ["CASCADE_GRID", "GEOMETRY_FEATURES", "LEVEL_FEATURES", "OPENSET_MODE", "OPENSET_QUANTILE",
+           "PHYSICS_METHOD", "PHYS_MAX_REL_TOL", "PHYS_MIN_FLASH_SCORE", "PHYS_Z", "TrainConfig",
+           "choose_cascade_threshold", "train_bundle"]
 
 #: Open-set threshold: this quantile of known validation returns' manifold distance.
 OPENSET_QUANTILE = 0.995
@@ -33,6 +40,12 @@ OPENSET_MODE = "physics"
 PHYS_Z = 4.0
 PHYS_MAX_REL_TOL = 0.10
 PHYS_MIN_FLASH_SCORE = 1.0
+#: The physical check in one line, for the card.
+PHYSICS_METHOD = ("|flash_rate - F_profile| <= max(z*sqrt(std^2 + (jitter*F)^2), min_rel_tol*F), or within that "
+                  "of an aliased_rate_slips multiple of F when the tips alias; abstains if that tolerance > "
+                  "max_rel_tol*F, no rate or flash_score < min; unaliased tips: tip_speed <= "
+                  "T_profile*(1+3*jitter) + max(z*tip_std + 1 Doppler bin, min_rel_tip_tol*T); "
+                  "UAV predictions only")
 #: Where the target is, not what it is: left out of the type classifiers (kept for the state heads).
 GEOMETRY_FEATURES = ("mean_range_m", "range_m", "mean_doppler_mps", "radial_velocity_mps")
 #: Absolute level (radar calibration x range): would make decisions depend on IQ scaling.
@@ -89,9 +102,9 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     """Build the bundle of `cfg` in folder `out` (replaced); returns its card."""
     from signatures import classifiers as clf
     from signatures.cnn import export_cnn, torch_available, train_cnn
-    from signatures.inference import Classifier
+    from signatures.inference import MEMBERS, Classifier
     from signatures.onnx_export import check_export, sklearn_to_onnx
-    from signatures.openset import fit_openset, physics_check
+    from signatures.openset import MODES, OpenSet, fit_openset, physics_check
     from signatures.scene import Scene
 
     common = dict(preset=cfg.preset, profiles=cfg.profiles, seed=cfg.seed)
@@ -119,7 +132,7 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     try:
         files = []
         # kNN and forests as numpy arrays (classifiers.knn_arrays / forest_arrays), the SVM as ONNX
-        np.savez(tmp / "knn.npz", **clf.knn_arrays(members["knn"], n_cls))
+        np.savez(tmp / "knn.npz", **clf.knn_arrays(members["knn"], Xt, y, n_cls))
         np.savez(tmp / "rf.npz", **clf.forest_arrays(members["rf"], n_cls))
         np.savez(tmp / "rf_state.npz", **clf.forest_arrays(state_head, 2))
         sklearn_to_onnx(members["svm"], n_feat, tmp / "svm.onnx")
@@ -128,8 +141,11 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         pred_val = ensemble.predict(Xv)
         openset = fit_openset(train.X, y, n_cls, val.X, yv, pred_val, cfg.openset_quantile,
                               class_cols=np.array(cols, dtype=np.int64), physics=phys, mode=cfg.openset_mode)
-        np.savez(tmp / "openset.npz", **openset.arrays())
+        np.savez(tmp / "openset.npz", **openset.arrays())  # only the shipped mode's tests
         files.append("openset.npz")
+        # every test, through the same float32 round trip as the shipped file: the card's
+        # validation numbers compare all modes
+        all_tests = OpenSet.from_arrays(openset.arrays(MODES))
         cnn_card = None
         if cfg.cnn and torch_available():
             net, mean, std = train_cnn(train.rd, y, n_cls, cfg.seed, progress=progress)
@@ -160,14 +176,10 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                          "weights": weights,
                          "temperature_beta": round(clf.temperature_beta(ensemble), 9)},
             "open_set": {"mode": cfg.openset_mode,
-                         "physics": {"method": "|flash_rate - F_profile| <= z*sqrt(std^2 + (jitter*F)^2); "
-                                               "abstains if that tolerance > max_rel_tol*F, no rate or "
-                                               "flash_score < min; unaliased tips: tip_speed <= "
-                                               "T_profile*(1+3*jitter) + z*tip_std + 1 Doppler bin; "
-                                               "UAV predictions only",
+                         "physics": {"method": PHYSICS_METHOD,
                                      "z": PHYS_Z, "max_rel_tol": PHYS_MAX_REL_TOL,
                                      "min_flash_score": PHYS_MIN_FLASH_SCORE, "rotor_rate_jitter": jitter,
-                                     "tip_bin_mps": round(tip_bin, 6)},
+                                     "tip_bin_mps": round(tip_bin, 6), **_physics_card(phys)},
                          "distance": {"method": "mean distance to 5 nearest training returns of the predicted "
                                                 "class, standardised type features",
                                       "quantile": cfg.openset_quantile}},
@@ -180,7 +192,7 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         write_card(tmp, card)
         model = Classifier(tmp)
         p_ens = model.ensemble_proba(val.X)
-        metrics = {m: _acc_f1(yv, model.member_proba(m, val.X).argmax(axis=1), n_cls) for m in clf.MEMBERS}
+        metrics = {m: _acc_f1(yv, model.member_proba(m, val.X).argmax(axis=1), n_cls) for m in MEMBERS}
         metrics["ensemble"] = _acc_f1(yv, p_ens.argmax(axis=1), n_cls)
         uav_v = np.isin(val.y, [p.slug for p in cfg.profiles])
         metrics["state_accuracy"] = round(float(np.mean((model.moving_proba(val.X[uav_v]) >= 0.5)
@@ -208,13 +220,13 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                           featurizer, workers=cfg.workers, cache=cache, progress=progress)
             pu = model.ensemble_proba(uk.X).argmax(axis=1)
         for mode in ("physics", "distance", "both"):
-            unk = model.openset.unknown(model._x(val.X), pv, mode)
+            unk = all_tests.unknown(model._x(val.X), pv, mode)
             sys_pred = np.where(unk, -1, pv)
             row = {"known_false_rejection": round(float(unk.mean()), 6),
                    "known_false_rejection_snr_ge_10": round(float(unk[hi].mean()), 6) if hi.any() else None,
                    "system_macro_f1_snr_ge_10": _acc_f1(yv[hi], sys_pred[hi], n_cls)["macro_f1"] if hi.any() else None}
             if uk is not None:
-                uu = model.openset.unknown(model._x(uk.X), pu, mode)
+                uu = all_tests.unknown(model._x(uk.X), pu, mode)
                 uhi = uk.snr_db >= 10
                 row["unknown_rejection"] = round(float(uu.mean()), 6)
                 row["unknown_rejection_snr_ge_10"] = round(float(uu[uhi].mean()), 6) if uhi.any() else None
@@ -232,6 +244,13 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         if tmp.exists():
             shutil.rmtree(tmp)
     return card
+
+
+def _physics_card(phys: PhysicsCheck) -> dict[str, Any]:
+    """The physical check's tolerance floors and aliasing slips for the card (the values
+    `openset.npz` ships and inference applies)."""
+    return {"min_rel_tol": phys.min_rel_tol, "min_rel_tip_tol": phys.min_rel_tip_tol,
+            "aliased_rate_slips": list(phys.rate_slips)}
 
 
 def _command(cfg: TrainConfig) -> str:

@@ -151,3 +151,20 @@ def test_preset_is_matched_from_the_waveform() -> None:
         match_preset(other, pre.n_chirps, pre.n_samples)
     with pytest.raises(NoModelError):
         load_classifier(preset="nope")
+
+
+def test_bundle_of_another_layout_is_refused_not_guessed(tiny_bundle: Path, tmp_path: Path) -> None:
+    """No code default stands in for a value the bundle lacks: an open-set file without its
+    tolerance parameters (an older layout) is refused with a rebuild hint."""
+    from signatures.errors import SignaturesError
+    from signatures.modelcard import write_card
+
+    old = tmp_path / "old"
+    shutil.copytree(tiny_bundle, old)
+    with np.load(old / "openset.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files if not k.startswith("phys_param")}
+    np.savez(old / "openset.npz", **arrays)
+    card = json.loads((old / "card.json").read_text())
+    write_card(old, {**card, "files": list(card["files"])})
+    with pytest.raises(SignaturesError, match="phys_param_names.*authn models train"):
+        Classifier(old)

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from sklearn.base import clone
 
 from signatures import classifiers as clf
+from signatures.inference import MEMBERS, calibrate
 from signatures.openset import fit_openset
 from signatures.training import choose_cascade_threshold
 
@@ -22,7 +24,7 @@ CENTRES = np.array([[0, 0, 0, 0], [3, 0, 0, 0], [0, 3, 0, 0], [0, 0, 3, 0]], dty
 def test_members_follow_the_estimator_contract() -> None:
     X, y = _blobs(400, CENTRES, 0)
     Xt, yt = _blobs(200, CENTRES, 1)
-    for name in clf.MEMBERS:
+    for name in MEMBERS:
         m = clf.make_member(name, seed=0)
         clone(m)  # sklearn convention: unfitted params only
         m.fit(X, y)
@@ -38,7 +40,7 @@ def test_calibration_matches_sklearn() -> None:
     members = clf.fit_members(X, y, seed=0)
     ens = clf.calibrated_ensemble(members, Xv, yv, [1.0, 2.0, 1.0])
     avg = sum(w * m.predict_proba(Xv) for w, m in zip((1, 2, 1), members.values())) / 4
-    np.testing.assert_allclose(clf.calibrate(avg, clf.temperature_beta(ens)), ens.predict_proba(Xv), atol=1e-6)
+    np.testing.assert_allclose(calibrate(avg, clf.temperature_beta(ens)), ens.predict_proba(Xv), atol=1e-6)
 
 
 def test_openset_rejects_an_unseen_cluster_and_keeps_known_ones() -> None:
@@ -65,8 +67,16 @@ def test_numpy_knn_matches_sklearn(tmp_path) -> None:
     X, y = _blobs(400, CENTRES, 0)
     Xt, _ = _blobs(200, CENTRES, 1)
     m = clf._fit(clf.make_knn(), X, y)
-    np.savez(tmp_path / "knn.npz", **clf.knn_arrays(m, 4))
+    arrays = clf.knn_arrays(m, X, y, 4)
+    np.savez(tmp_path / "knn.npz", **arrays)
     np.testing.assert_allclose(KnnArrays(tmp_path / "knn.npz").proba(Xt), m.predict_proba(Xt), atol=1e-6)
+    # the exported references are the points the neighbour search indexed at fit time
+    Zt = m[0].transform(Xt)
+    dist, idx = m[-1].kneighbors(Zt, 5)
+    mine = np.linalg.norm(Zt[:, None, :].astype(np.float64) - arrays["refs"][idx].astype(np.float64), axis=2)
+    np.testing.assert_allclose(mine, dist, rtol=1e-5)
+    with pytest.raises(ValueError, match="fitted on 400"):
+        clf.knn_arrays(m, X[:10], y[:10], 4)
 
 
 def test_physics_check_rejects_wrong_rotor_rates_and_abstains_when_unsure() -> None:
@@ -90,3 +100,33 @@ def test_physics_check_rejects_wrong_rotor_rates_and_abstains_when_unsure() -> N
     # bird / none are classes: never unknown through this check
     bad, checked = chk.verdict(X[:2], np.array([3, 4]))
     assert not bad.any() and not checked.any()
+
+
+def test_openset_ships_only_its_mode_and_every_physics_parameter() -> None:
+    from signatures.errors import SignaturesError
+    from signatures.openset import PHYS_FEATURES, OpenSet, PhysicsCheck, physics_check
+    from signatures.profiles import shipped_profiles
+
+    classes = ("m600", "m300", "phantom4", "bird", "none")
+    chk = physics_check(classes, shipped_profiles(), PHYS_FEATURES, jitter=0.005, tip_bin_mps=0.2)
+    X, y = _blobs(200, CENTRES, 0)
+    model = fit_openset(X, y, 4, X, y, y, quantile=0.99, physics=chk, mode="physics")
+    z = model.arrays()
+    assert not any(k.startswith("ref_") or k in ("mean", "scale", "thresholds") for k in z)
+    names = [str(n) for n in z["phys_param_names"]]
+    assert set(names) == set(PhysicsCheck.SCALARS) >= {"min_rel_tol", "min_rel_tip_tol"}
+    loaded = OpenSet.from_arrays(z)
+    assert all(getattr(loaded.physics, n) == getattr(chk, n) for n in PhysicsCheck.SCALARS)
+    np.testing.assert_array_equal(loaded.physics.flash_hz_, chk.flash_hz_)
+    assert loaded.physics.rate_slips == chk.rate_slips
+    with pytest.raises(SignaturesError, match="no distance test"):
+        loaded.unknown(X, y, mode="distance")
+    # a value the file lacks is an error, never the code default
+    partial = dict(z, phys_param_names=z["phys_param_names"][:-1], phys_param_values=z["phys_param_values"][:-1])
+    with pytest.raises(KeyError, match="tip_bin_mps"):
+        OpenSet.from_arrays(partial)
+    # the file's values win over the defaults
+    tuned = dict(z, phys_param_values=np.where(z["phys_param_names"] == "min_rel_tol", 0.5, z["phys_param_values"]))
+    assert OpenSet.from_arrays(tuned).physics.min_rel_tol == 0.5 != PhysicsCheck().min_rel_tol
+    both = OpenSet.from_arrays(model.arrays(("physics", "distance")))
+    np.testing.assert_array_equal(both.unknown(X, y, "distance"), model.unknown(X, y, "distance"))

@@ -43,3 +43,22 @@ def test_shipped_ensemble_path_needs_no_onnxruntime(preset: str) -> None:
             f"c = load_classifier({preset!r}); c.predict(np.zeros(c.n_features)); "
             "assert 'onnxruntime' not in sys.modules, 'onnxruntime imported'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("preset", ["paper", "wide"])
+def test_shipped_openset_holds_what_inference_reads_and_every_tuned_value(preset: str) -> None:
+    from signatures.openset import PhysicsCheck
+
+    folder = bundle_dir(preset)
+    card = read_card(folder)[0]
+    with np.load(folder / "openset.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    assert str(arrays["mode"]) == card["open_set"]["mode"] == "physics"
+    assert not any(k.startswith("ref_") for k in arrays)  # the distance test is not shipped
+    params = dict(zip((str(n) for n in arrays["phys_param_names"]), arrays["phys_param_values"].tolist()))
+    assert set(params) == set(PhysicsCheck.SCALARS)
+    phys = card["open_set"]["physics"]
+    for name in ("z", "max_rel_tol", "min_flash_score", "min_rel_tol", "min_rel_tip_tol"):
+        assert params[name] == phys[name]
+    assert params["jitter"] == phys["rotor_rate_jitter"] and round(params["tip_bin_mps"], 6) == phys["tip_bin_mps"]
+    assert arrays["phys_rate_slips"].tolist() == phys["aliased_rate_slips"]
