@@ -10,8 +10,11 @@ Why it is built this way:
   datasets with different seeds or splits never share a noise realisation.
 * Generation is chunked (2 worker processes by default); only the feature vectors
   and RD patches are kept, never the IQ cubes.
+* Scenes come from the one scene sampler (`signatures.sampling`), with this module's
+  distribution (`scene_distribution`) and the grid as the position.
 * The result is cached as `.npz` (no pickle) under a key that digests everything the
-  samples depend on, so a retrain does not re-simulate.
+  samples depend on, so a retrain does not re-simulate. The code is not hashed: the key
+  names the featurizer and the explicit feature and simulator versions (`feature_version`).
 """
 
 from __future__ import annotations
@@ -32,9 +35,11 @@ import numpy as np
 from signatures.errors import SignaturesError
 from signatures.profiles import NON_UAV_CLASSES, UavProfile
 from signatures.radar import get_preset
-from signatures.scene import BirdParams, Scene
+from signatures.sampling import SceneDistribution, sample_scene
+from signatures.scene import Scene
 
-#: Bump when the scene sampling changes: cached datasets are then regenerated.
+#: Bump when the scene sampling (`scene_distribution`, `signatures.sampling`) changes: cached datasets
+#: are then regenerated.
 GENERATOR_VERSION = 1
 SPLITS = {"train": 0, "val": 1, "test": 2}
 GRID_STEP_M = 10.0
@@ -117,10 +122,6 @@ class Dataset:
     def __len__(self) -> int:
         return int(self.y.shape[0])
 
-    def subset(self, mask: np.ndarray) -> "Dataset":
-        arrays = {k: getattr(self, k)[mask] for k in _ARRAYS}
-        return Dataset(**arrays, classes=self.classes, feature_names=self.feature_names)
-
     def save(self, path: Path) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
@@ -148,43 +149,35 @@ class Dataset:
 _ARRAYS = ("X", "rd", "y", "moving", "snr_db", "range_m", "speed_mps", "elevation_deg", "feature_ms")
 
 
-def _draw_point(rng: np.random.Generator, spec: DatasetSpec, max_range: float) -> tuple[float, float, float]:
-    """A grid point of the spec's split, inside the radar's range and elevation cover."""
+def _draw_point(rng: np.random.Generator, spec: DatasetSpec, max_range: float) -> tuple[float, float]:
+    """(range_m, elevation_deg) of a grid point of the spec's split, inside the radar's range and
+    elevation cover."""
     n = int(2 * GRID_HALF_M / GRID_STEP_M) + 1
     sin_max = math.sin(math.radians(spec.max_elevation_deg))
     for _ in range(10_000):
         x, y, z = (rng.integers(0, n, 3) * GRID_STEP_M - GRID_HALF_M).tolist()
         r = math.sqrt(x * x + y * y + z * z)
         if MIN_RANGE_M <= r <= max_range and abs(z) <= sin_max * r and block_split(x, y, z) == spec.split:
-            return x, y, z
+            return r, math.degrees(math.asin(z / r))
     raise DatasetError("no grid point satisfies the geometry constraints")  # pragma: no cover
+
+
+def scene_distribution(spec: DatasetSpec) -> SceneDistribution:
+    """The spec's scenes for `signatures.sampling.sample_scene` (the position comes from the grid,
+    see `draw_scene`). The order of draws is the one the shipped models were trained on."""
+    return SceneDistribution(order=("position", "speed", "snr", "clutter"), hover_fraction=HOVER_FRACTION,
+                             birds_hover=False, speeds_mps=MOVING_SPEEDS_MPS, snr_db=spec.snr_db,
+                             clutter_band=(0.0, spec.clutter_fraction), clutter_db=spec.clutter_db,
+                             bird_wing_m=(0.15, 0.6), bird_flap_hz=(2.0, 12.0), bird_flap_amplitude_deg=(20.0, 60.0))
 
 
 def draw_scene(spec: DatasetSpec, index: int) -> tuple[Scene, int]:
     """Scene number `index` of the dataset and its simulator seed (pure function of both)."""
     rng = np.random.default_rng([spec.seed, SPLITS[spec.split], index, GENERATOR_VERSION])
-    classes = spec.classes
-    label = classes[index % len(classes)]
-    x, y, z = _draw_point(rng, spec, get_preset(spec.preset).max_range_m)
-    r = math.sqrt(x * x + y * y + z * z)
-    elev = math.degrees(math.asin(z / r))
-    hover = label != "bird" and rng.random() < HOVER_FRACTION
-    speed = 0.0 if hover else float(rng.choice(MOVING_SPEEDS_MPS)) * float(rng.choice((-1.0, 1.0)))
-    if isinstance(spec.snr_db, tuple):
-        snr = float(rng.uniform(*spec.snr_db))
-    else:
-        snr = float(spec.snr_db)
-    clutter = float(rng.uniform(*spec.clutter_db)) if rng.random() < spec.clutter_fraction else None
-    common = dict(range_m=r, elevation_deg=elev, snr_db=snr, clutter_db=clutter)
-    if label == "none":
-        scene = Scene(kind="none", **common)
-    elif label == "bird":
-        bird = BirdParams(wing_length_m=float(rng.uniform(0.15, 0.6)), flap_rate_hz=float(rng.uniform(2, 12)),
-                          flap_amplitude_deg=float(rng.uniform(20, 60)))
-        scene = Scene(kind="bird", bird=bird, radial_speed_mps=speed, **common)
-    else:
-        profile = next(p for p in spec.profiles if p.slug == label)
-        scene = Scene(kind="uav", profile=profile, radial_speed_mps=speed, **common)
+    label = spec.classes[index % len(spec.classes)]
+    target = label if label in NON_UAV_CLASSES else next(p for p in spec.profiles if p.slug == label)
+    max_range = get_preset(spec.preset).max_range_m
+    scene = sample_scene(rng, target, scene_distribution(spec), position=lambda g: _draw_point(g, spec, max_range))
     sim_seed = int(rng.integers(0, 2**63 - 1))
     return scene, sim_seed
 
@@ -196,33 +189,23 @@ def default_featurizer() -> Featurizer:
     return extract
 
 
-#: Modules whose source the samples depend on (besides the featurizer's own module): a change to
-#: any of them (an estimator fix that forgot to bump FEATURE_VERSION, or a featurizer elsewhere,
-#: like the benchmark's dwell variants, that calls `extract`) regenerates cached datasets.
-SOURCE_MODULES = ("signatures.simulate", "signatures.scene", "signatures.radar", "signatures.recording",
-                  "signatures.profiles", "signatures.features", "signatures.estimators", "signatures.timefreq",
-                  "signatures.rd", "signatures.fft")
-
-
-def _source_digest(module: str) -> str:
-    import importlib.util
-
-    spec = importlib.util.find_spec(module)
-    if spec is None or not spec.origin or not os.path.isfile(spec.origin):
-        return ""
-    return hashlib.sha256(Path(spec.origin).read_bytes()).hexdigest()[:16]
-
-
 def feature_version(featurizer: Featurizer) -> str:
-    """Digest of the featurizer's identity, feature names and the source code of the featurizer's
-    module and of the simulation / signal-processing modules (part of the cache key)."""
+    """The featurizer's part of the cache key: its qualified name, the feature names, the feature
+    and simulator versions (`signatures.features.FEATURE_VERSION`,
+    `signatures.simulate.SIMULATOR_VERSION`) and the featurizer module's own `FEATURE_VERSION`
+    if it has one. No source code is hashed: a change to the numbers of the features or of the
+    simulator must bump those versions (tests/features/test_feature_version.py fails until it does).
+    """
     import importlib
 
+    from signatures import features, simulate
+
     mod = importlib.import_module(featurizer.__module__)
-    names = getattr(mod, "FEATURE_NAMES", ())
-    ver = getattr(mod, "FEATURE_VERSION", "")
-    sources = [_source_digest(m) for m in (featurizer.__module__, *SOURCE_MODULES)]
-    blob = json.dumps([featurizer.__module__, featurizer.__qualname__, list(names), str(ver), sources]).encode()
+    names = getattr(mod, "FEATURE_NAMES", features.FEATURE_NAMES)
+    doc = {"featurizer": f"{featurizer.__module__}.{featurizer.__qualname__}", "feature_names": list(names),
+           "feature_version": features.FEATURE_VERSION, "simulator_version": simulate.SIMULATOR_VERSION,
+           "module_feature_version": str(getattr(mod, "FEATURE_VERSION", ""))}
+    blob = json.dumps(doc, sort_keys=True).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
 
 

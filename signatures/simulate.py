@@ -31,6 +31,7 @@ from signatures.radar import C, Preset, RadarConfig
 from signatures.recording import RadarSite, Recording
 from signatures.scene import BirdParams, Scene
 
+SIMULATOR_VERSION = "1"  # bump when simulate() draws or computes different returns (cached datasets key on it)
 DEFAULT_SITE = RadarSite(lat_deg=52.0, lon_deg=4.4, alt_m=2.0)
 DEFAULT_START = datetime(2026, 1, 1, 12, 0, 0, tzinfo=timezone.utc)
 HUB_TO_BODY_DB = -12.0  # each motor hub, relative to the fuselage point

@@ -42,7 +42,7 @@ def bench(
     from rich.progress import Progress
     from rich.table import Table
 
-    from authn.bench import CATEGORIES, latency, run_decisions, summarise
+    from authn.bench.decisions import CATEGORIES, latency, run_decisions, summarise
     from signatures.radar import get_preset
 
     if quick:
@@ -52,8 +52,8 @@ def bench(
     if stress:
         _stress(tuple(preset), quick, as_json)
         return
-    from authn import pareto, perf
-    from authn.feature_variants import DWELL_DIVISORS
+    from authn.bench import pareto, perf
+    from authn.bench.variants import DWELL_DIVISORS
 
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n)
@@ -144,7 +144,7 @@ def _stress(presets: tuple[str, ...], quick: bool, as_json: bool) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from authn.stress import is_clean, run
+    from authn.bench.stress import is_clean, run
 
     report = run(presets, quick=quick)
     doc = report.as_dict()

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from signatures.dataset import BLOCK_M, Dataset, DatasetError, DatasetSpec, block_split, draw_scene, generate
+from signatures.dataset import (BLOCK_M, Dataset, DatasetError, DatasetSpec, block_split, draw_scene, feature_version,
+                                generate)
 from signatures.profiles import shipped_profiles
 from tests.classifiers.standin import standin_extract
 
@@ -19,6 +20,42 @@ def _spec(split: str = "train", n: int = 60, seed: int = 0, **kw) -> DatasetSpec
     return DatasetSpec(preset="paper", profiles=PROFILES, split=split, n=n, seed=seed, **kw)
 
 
+#: Scenes 0-4, 11 and 13 of `_spec()`: (label, range, elevation, speed, SNR, clutter, simulator seed). The
+#: shipped models were trained on these draws: a change to the sampler must not move them (or must
+#: bump GENERATOR_VERSION and retrain).
+PINNED_SCENES = {
+    0: ("m600", 398.622629, 13.0485991, 0.0, -2.05689879, None, 1249653144719271898),
+    1: ("m300", 1098.99955, 15.3001966, 2.0, 10.7902402, None, 8674433634896469815),
+    2: ("phantom4", 734.370479, -25.8328593, -10.0, 15.7838927, None, 5387735597491253290),
+    3: ("bird", 1163.87285, 22.7456021, 2.0, 18.0202109, None, 8250137298836933865),
+    4: ("none", 1194.06867, 53.5112712, 0.0, 27.9414563, None, 9049679738101778492),
+    11: ("m300", 922.171351, -42.2468603, 0.0, 16.6317351, 5.7529632, 7849704485868173084),
+    13: ("bird", 1142.84732, 55.3365541, 10.0, 27.0751463, 2.09408887, 7373817058141629911),
+}
+
+
+def test_scene_draws_are_pinned() -> None:
+    for i, (label, r, el, v, snr, clutter, seed) in PINNED_SCENES.items():
+        sc, s = draw_scene(_spec(), i)
+        assert (sc.label, sc.radial_speed_mps, s) == (label, v, seed)
+        assert sc.range_m == pytest.approx(r, rel=1e-8) and sc.elevation_deg == pytest.approx(el, rel=1e-8)
+        assert sc.snr_db == pytest.approx(snr, rel=1e-8)
+        assert sc.clutter_db == (None if clutter is None else pytest.approx(clutter, rel=1e-8))
+    bird = draw_scene(_spec(), 3)[0].bird
+    wing_flap = (bird.wing_length_m, bird.flap_rate_hz, bird.flap_amplitude_deg)
+    assert wing_flap == pytest.approx((0.371099, 9.45707, 24.9879), rel=1e-5)
+
+
+def test_cache_key_names_versions_not_source(monkeypatch) -> None:
+    """The featurizer's key part follows its name, FEATURE_VERSION and SIMULATOR_VERSION (no source digest)."""
+    from signatures import features, simulate
+
+    base = feature_version(features.extract)
+    assert feature_version(features.extract) == base and feature_version(standin_extract) != base
+    monkeypatch.setattr(features, "FEATURE_VERSION", features.FEATURE_VERSION + "-next")
+    bumped = feature_version(features.extract)
+    monkeypatch.setattr(simulate, "SIMULATOR_VERSION", simulate.SIMULATOR_VERSION + "-next")
+    assert len({base, bumped, feature_version(features.extract)}) == 3
 
 
 def test_split_is_a_property_of_the_block() -> None:

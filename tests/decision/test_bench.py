@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from authn.bench import CATEGORIES, EXPECTED, run_decisions, summarise
-from authn.pareto import Point, _mark_front, near_floor
+from authn.bench.decisions import CATEGORIES, EXPECTED, run_decisions, summarise
+from authn.bench.pareto import Point, _mark_front, near_floor
 
 
 def test_decision_rows_cover_every_category() -> None:
@@ -38,7 +38,7 @@ def test_cold_times_run_real_processes(tmp_path) -> None:
     first-check script raises), and the ratios are computed from the medians."""
     from datetime import datetime, timezone
 
-    from authn.bench import bench_serial, cold_times, register_identities, random_scene
+    from authn.bench.decisions import bench_serial, cold_times, random_scene, register_identities
     from authn.scenario import Broadcast, simulate_flight
     import numpy as np
     from signatures.radar import get_preset
@@ -57,7 +57,7 @@ def test_cold_times_run_real_processes(tmp_path) -> None:
 def test_pareto_grid_runs_every_configuration_on_one_set() -> None:
     """A tiny grid: every configuration (shipped bundle and retrained RFs) gets a positive
     time, scores in [0, 1] and the front is not empty."""
-    from authn.pareto import CONFIGS, RETRAINED, run
+    from authn.bench.pareto import CONFIGS, RETRAINED, run
 
     pts = run("paper", snrs=(20.0,), per_class=1, seed=3, n_train=60)
     names = [p.name for p in pts]

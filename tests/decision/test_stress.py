@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from authn.stress import run
+from authn.bench.stress import run
 
 
 @pytest.fixture(scope="module")

@@ -16,17 +16,17 @@ import statistics
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from authn.feature_variants import (features_half, features_quarter, features_quarter_quick, features_quick,
-                                    features_third)
+from authn.bench.variants import (features_half, features_quarter, features_quarter_quick, features_quick,
+                                  features_third)
 from signatures.features import FEATURE_NAMES, QUICK_FEATURES, extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import BirdParams, Scene
+from signatures.sampling import SceneDistribution, sample_scene
 from signatures.simulate import simulate
 
 #: (name, feature mode, classifier) ; feature modes: gated at the known range, CFAR-detected, full cube,
@@ -70,23 +70,22 @@ class Point:
         return 1.0 - float(np.mean([self.f1_by_snr[s] for s in snrs]))
 
 
+#: The held-out scenes (SNR fixed per group): 60 m to 1.1 km, 40 % hovering (birds too), clutter
+#: in 40 %; birds with the `BirdParams` default flap amplitude; an empty scene is clutter only.
+HELD_OUT_SCENES = SceneDistribution(order=("range", "speed", "elevation", "snr", "clutter"), range_m=(60.0, 1100.0),
+                                    elevation_deg=(0.0, 40.0), hover_fraction=0.4, speed_mps=(1.0, 15.0),
+                                    clutter_band=(0.6, 1.0), clutter_db=(0.0, 10.0), bird_wing_m=(0.15, 0.5),
+                                    bird_flap_hz=(3.0, 10.0), none_clutter_db=(0.0, 15.0))
+
+
 def _scenes(preset: str, snrs: tuple[float, ...], per_class: int, seed: int):
     rng = np.random.default_rng([seed, 9001])
-    classes = [*shipped_profiles(), "bird", "none"]
+    profiles = shipped_profiles()
     for snr in snrs:
-        for label in classes:
+        dist = replace(HELD_OUT_SCENES, snr_db=snr)
+        for label in [*profiles, "bird", "none"]:
             for _ in range(per_class):
-                r = float(rng.uniform(60.0, 1100.0))
-                v = 0.0 if rng.random() < 0.4 else float(rng.choice([-1, 1]) * rng.uniform(1.0, 15.0))
-                kw = dict(range_m=r, radial_speed_mps=v, elevation_deg=float(rng.uniform(0, 40)), snr_db=snr,
-                          clutter_db=None if rng.random() < 0.6 else float(rng.uniform(0, 10)))
-                if label == "bird":
-                    scene = Scene(kind="bird", bird=BirdParams(wing_length_m=float(rng.uniform(0.15, 0.5)),
-                                                               flap_rate_hz=float(rng.uniform(3, 10))), **kw)
-                elif label == "none":
-                    scene = Scene(kind="none", clutter_db=float(rng.uniform(0, 15)))
-                else:
-                    scene = Scene(profile=shipped_profiles()[label], **kw)
+                scene = sample_scene(rng, profiles.get(label, label), dist)
                 rec, truth = simulate(scene, get_preset(preset), int(rng.integers(2**31)) + 10**9)
                 yield snr, label, rec, truth
 

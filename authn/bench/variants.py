@@ -1,8 +1,8 @@
-"""Feature variants the run-time-against-error grid retrains a classifier on: a shorter dwell
-(the first 1/2, 1/3 or 1/4 of the chirps) and the quick tier.
+"""Feature variants the run-time-against-error grid (`authn.bench.pareto`) retrains a classifier
+on: a shorter dwell (the first 1/2, 1/3 or 1/4 of the chirps) and the quick tier.
 
-Kept apart from `authn.pareto` because the dataset cache key digests the featurizer's module
-source: editing the benchmark's reporting must not regenerate these training sets.
+Each is a named module-level function because the training-set cache key names the featurizer
+(`signatures.dataset.feature_version`): renaming or moving one regenerates its training set.
 """
 
 from __future__ import annotations

@@ -1,0 +1,103 @@
+"""The cache key's versions are kept honest: the features (and the simulator) of fixed, seeded
+scenes are pinned per version.
+
+Cached training sets are keyed on `signatures.features.FEATURE_VERSION` and
+`signatures.simulate.SIMULATOR_VERSION`, not on the source code
+(`signatures.dataset.feature_version`). A change to the numbers without a version bump would
+silently reuse stale cached datasets; these tests fail instead.
+
+Golden values are stored rounded to 4 significant digits and compared with a relative tolerance
+of 1e-3 (float32 against the float64 pipeline differs by ~1e-7 on these scenes), so float noise
+across machines does not trip them, and a failure names the values that moved. (Values rather
+than a digest of the rounded values: a digest flips whenever float noise crosses a rounding
+boundary, and says nothing about what changed.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from signatures.features import FEATURE_NAMES, FEATURE_VERSION, extract
+from signatures.simulate import SIMULATOR_VERSION
+from tests.features.conftest import sim
+
+RTOL = 1e-3
+ATOL = 1e-6  # for values that are 0
+
+#: Fixed scenes (tests/features/conftest.py `sim`: paper preset, 400 m, 10 dB).
+SCENES = {
+    "m300_moving": dict(radial_speed_mps=6.0, seed=1),
+    "m600_hover": dict(model="m600", radial_speed_mps=0.0, seed=2),
+    "bird": dict(kind="bird", model=None, radial_speed_mps=4.0, seed=3),
+}
+
+#: (FEATURE_VERSION, SIMULATOR_VERSION) -> scene -> `extract(rec).as_array()` (FEATURE_NAMES order).
+GOLDEN_FEATURES = {
+    ("1", "1"): {
+        "m300_moving": (400.4, 5.974, 0.592, 2.971, 24.36, 5244, 3185, 90.45, 9, 0.938, 0.286, 400.1, 0.09587, 6,
+                        0.004714, 80.07, 0.1217, 40.03, 0.06086, 6, 1, 16.1, 0, 0, 0, 1, 5.3, 11, 24.71, 0.8517,
+                        38.63, 0.9655, 26.76, 1),
+        "m600_hover": (400, -0.4907, 0.8142, 11.49, 19.12, 5764, 3277, 72.47, 9, 0.2043, 0.8346, 400, 0.1665,
+                       -0.00648, 0.004357, 73.27, 0.1868, 36.64, 0.09338, 6, 0, 22.1, 0, 0, 0, 1, 9, 16, 23.78,
+                       0.7167, 38.63, 1, 18.66, 1),
+        "bird": (400.1, 3.611, 0.5858, 1.234, 23.93, 1324, 1286, 91.53, 2, 0.8774, 0.3345, 400, 0.09339, 3.857,
+                 0.004051, 0, 0, 0, 0, 0, 0, 1.842, 1.476, 0, 0, 0, 0, 1, 27.78, 0.08667, 1506, 0, 27.24, 1),
+    },
+}
+
+SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
+                     "|lag-1 slow-time autocorrelation|", "its phase (rad)", "peak range bin", "peak range power")
+
+#: SIMULATOR_VERSION -> noise ("noiseless" / "10 dB") -> `_simulator_summary` (SIMULATOR_SUMMARY order).
+GOLDEN_SIMULATOR = {
+    "1": {
+        "noiseless": (1.563, 0.9636, 0.8421, 0.7665, 0.6959, 1.169, 0.8213, 0.8531, 40, 5504),
+        "10 dB": (1.674, 1.054, 0.9349, 0.8715, 0.8026, 1.265, 0.8212, 0.8513, 40, 5516),
+    },
+}
+
+
+def _round4(values) -> tuple[float, ...]:
+    return tuple(float(f"{float(v):.4g}") for v in values)
+
+
+def _moved(names, got, want) -> list[str]:
+    got, want = np.asarray(got, dtype=np.float64), np.asarray(want, dtype=np.float64)
+    bad = ~np.isclose(got, want, rtol=RTOL, atol=ATOL)
+    return [f"{n}: {w:.4g} -> {g:.4g}" for n, g, w, b in zip(names, got, want, bad) if b]
+
+
+def _simulator_summary(snr_db: float | None) -> tuple[float, ...]:
+    rec, _ = sim(radial_speed_mps=6.0, snr_db=snr_db, seed=1)
+    iq = rec.iq.astype(np.complex128)
+    blocks = np.mean(np.abs(iq.reshape(6, -1)) ** 2, axis=1)
+    r1 = np.mean(iq[1:] * np.conj(iq[:-1]))
+    profile = np.mean(np.abs(np.fft.fft(iq, axis=1)) ** 2, axis=0)
+    return (*blocks, abs(r1), np.angle(r1), int(np.argmax(profile)), profile.max())
+
+
+def test_simulator_matches_its_version() -> None:
+    got = {"noiseless": _simulator_summary(None), "10 dB": _simulator_summary(10.0)}
+    golden = GOLDEN_SIMULATOR.get(SIMULATOR_VERSION)
+    new = "{\n" + "".join(f"    {k!r}: {_round4(v)},\n" for k, v in got.items()) + "}"
+    assert golden is not None, (f"no golden simulator summary for SIMULATOR_VERSION={SIMULATOR_VERSION!r}: add "
+                                f"GOLDEN_SIMULATOR[{SIMULATOR_VERSION!r}] = {new}")
+    moved = {k: m for k in golden if (m := _moved(SIMULATOR_SUMMARY, got[k], golden[k]))}
+    assert not moved, (
+        f"the simulator's returns of a fixed, seeded scene changed without a version bump: {moved}. "
+        "Bump SIMULATOR_VERSION in signatures/simulate.py (cached training sets are keyed on it) and add "
+        f"GOLDEN_SIMULATOR[<new version>] = {new} here (and the GOLDEN_FEATURES entry the feature test asks for).")
+
+
+def test_features_match_their_version() -> None:
+    got = {name: extract(sim(**kw)[0]).as_array() for name, kw in SCENES.items()}
+    key = (FEATURE_VERSION, SIMULATOR_VERSION)
+    new = "{\n" + "".join(f"    {k!r}: {_round4(v)},\n" for k, v in got.items()) + "}"
+    golden = GOLDEN_FEATURES.get(key)
+    assert golden is not None, f"no golden features for (FEATURE_VERSION, SIMULATOR_VERSION)={key}: add " \
+                               f"GOLDEN_FEATURES[{key}] = {new}"
+    moved = {k: m for k in golden if (m := _moved(FEATURE_NAMES, got[k], golden[k]))}
+    assert not moved, (
+        f"the features of fixed, seeded scenes changed without a version bump: {moved}. Bump FEATURE_VERSION "
+        "in signatures/features.py (or SIMULATOR_VERSION, if test_simulator_matches_its_version fails too): "
+        f"cached training sets are keyed on them. Then add GOLDEN_FEATURES[<new versions>] = {new} here.")
