@@ -300,8 +300,9 @@ def _h5_attrs(f: Any) -> dict[str, Any]:
     attrs = f.attrs
     for name in _ATTR_NAMES:
         try:
-            if name in attrs:
-                out[name] = attrs[name]
+            out[name] = attrs[name]  # no `name in attrs` first: ~3 us per attribute saved
+        except KeyError:
+            continue  # absent: _metadata names it if it is required
         except _READ_ERRORS as exc:
             raise RecordingError(f"attribute '{name}': unreadable ({_reason(exc)})") from None
     return out
