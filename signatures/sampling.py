@@ -48,9 +48,10 @@ STEPS = ("position", "range", "elevation", "speed", "snr", "clutter")
 class SceneDistribution:
     """What `sample_scene` draws from (spans are uniform [low, high)).
 
-    order: the draw steps, in order: "range" and "elevation" (uniform over their spans) or
-        "position" (both at once, from the `position` callable given to `sample_scene`),
-        then "speed", "snr" and "clutter" in any order. Part of the distribution: see the module.
+    order: the draw steps, in the order they are drawn: "range" and "elevation" (uniform over
+        their spans) or "position" (both at once, from the `position` callable given to
+        `sample_scene`), and "speed", "snr", "clutter" (a step left out gives 0 m/s, a noiseless
+        scene, no clutter). Part of the distribution: see the module.
     hover_fraction: probability that the target hovers (radial speed 0).
     birds_hover: False: birds always move (and draw nothing for hovering).
     speed_mps: the moving speed's magnitude, uniform over the span; sign drawn first.
@@ -84,10 +85,13 @@ class SceneDistribution:
         unknown = set(self.order) - set(STEPS)
         if unknown:
             raise ValueError(f"unknown sampling steps {sorted(unknown)} (known: {', '.join(STEPS)})")
-        has_position = "position" in self.order
-        if has_position == ("range" in self.order or "elevation" in self.order):
+        steps = set(self.order)
+        if len(steps) != len(self.order):
+            raise ValueError(f"a step appears twice in {self.order}")
+        spans = steps & {"range", "elevation"}
+        if ("position" in steps) == bool(spans) or len(spans) == 1:
             raise ValueError("order needs either 'position' or both 'range' and 'elevation'")
-        if not has_position and (self.range_m is None or self.elevation_deg is None):
+        if spans and (self.range_m is None or self.elevation_deg is None):
             raise ValueError("'range' and 'elevation' steps need range_m and elevation_deg spans")
         if self.speed_mps is None and self.speeds_mps is None:
             raise ValueError("a distribution needs speed_mps or speeds_mps")

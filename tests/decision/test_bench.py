@@ -16,6 +16,23 @@ def test_decision_rows_cover_every_category() -> None:
     assert set(summarise(rows)["paper"]) == set(CATEGORIES)
 
 
+def test_claim_scenes_are_pinned() -> None:
+    """The benchmark's claim scenes for a seed do not move (published figures were drawn with them)."""
+    import numpy as np
+    import pytest
+
+    from authn.bench.decisions import random_scene
+
+    rng = np.random.default_rng(0)
+    pinned = [("m600", 77.1887409, 32.5308096, 1.57362934, 28.2551115, 14.5899312, 195.704997),
+              ("m300", 62.8480402, 34.2961711, -12.4219498, 10.6717115, 3.51311241, 310.744412),
+              ("phantom4", 89.452458, 4.97133106, -6.9176211, 23.4124883, 12.3077022, 138.12392)]
+    for slug, *want in pinned:
+        sc, az = random_scene(rng, slug, (10.0, 30.0))
+        got = (sc.range_m, sc.elevation_deg, sc.radial_speed_mps, sc.snr_db, sc.clutter_db, az)
+        assert sc.profile.slug == slug and got == pytest.approx(tuple(want), rel=1e-8)
+
+
 def test_pareto_front_marks_only_undominated_points() -> None:
     snrs = (0.0, 10.0)
     pts = [Point("fast-bad", 1.0, {0.0: 0.5, 10.0: 0.6}, 0.0), Point("slow-good", 5.0, {0.0: 0.99, 10.0: 1.0}, 0.0),
