@@ -31,6 +31,8 @@ from signatures.stats import median
 __all__ = ["FEATURE_NAMES", "FEATURE_VERSION", "GATE_BINS", "PATCH_SHAPE", "QUICK_FEATURES", "FeatureResult",
            "Features", "extract", "extract_iq"]
 
+#: Bump when feature values change: training-set caches key on it, and
+#: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
 FEATURE_VERSION = "1"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
