@@ -166,11 +166,6 @@ class IdentityRecord(BaseModel):
     updated_at: datetime
     notes: str | None
 
-    def is_valid_at(self, when: datetime) -> bool:
-        """Active and inside its validity window at `when`."""
-        return (self.status == "active" and self.valid_from <= when
-                and (self.valid_until is None or when < self.valid_until))
-
 
 def _profile(row: ModelProfile) -> UavProfile:
     return UavProfile(slug=row.slug, name=row.name, rotors=row.rotors, arms=row.arms,
