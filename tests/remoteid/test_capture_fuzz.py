@@ -18,9 +18,7 @@ from registry.remoteid import BasicId, encode
 from registry.remoteid.capture import extract, read_capture
 from registry.remoteid.errors import CaptureError
 
-SAMPLES = Path(__file__).resolve().parents[3] / "shared" / "data" / "remoteid-captures"
-if not SAMPLES.is_dir():
-    SAMPLES = Path("/work/shared/data/remoteid-captures")
+SAMPLES = Path(__file__).resolve().parents[1] / "data" / "remoteid-captures"
 MUTATIONS = max(150, int(os.environ.get("AUTHN_FUZZ_EXAMPLES", "0")) // 10)
 
 
@@ -134,7 +132,6 @@ def test_seeded_mutations_of_synthetic_captures() -> None:
     assert not failures, "\n".join(failures)
 
 
-@pytest.mark.skipif(not SAMPLES.is_dir(), reason="sample captures (../shared/data/remoteid-captures) not available")
 @pytest.mark.parametrize("name", ["odid_wifi_bcn_sample.pcap", "odid_wifi_sample.pcap", "odid_bt5_lr_sample.pcapng"])
 def test_seeded_mutations_of_shipped_captures(name: str) -> None:
     failures = _fuzz(name, (SAMPLES / name).read_bytes(), 3)

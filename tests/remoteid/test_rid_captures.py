@@ -1,4 +1,4 @@
-"""Real over-the-air captures (../shared/data/remoteid-captures, see its README)."""
+"""Real over-the-air captures (tests/data/remoteid-captures, see its README for source and licence)."""
 
 from __future__ import annotations
 
@@ -16,10 +16,7 @@ from authn.cli import main
 from registry.remoteid import CaptureError, flatten
 from registry.remoteid.capture import extract, read_capture
 
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "remoteid-captures"
-if not DATA.is_dir():
-    DATA = Path("/work/shared/data/remoteid-captures")
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason="sample captures not available")
+DATA = Path(__file__).resolve().parents[1] / "data" / "remoteid-captures"
 
 
 def _utc(*a) -> datetime:
