@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from authn.parsing import first_error, parse_iso_time
 from signatures.errors import RecordingError
 from signatures.radar import RadarConfig
 
@@ -145,11 +146,10 @@ def _float_attr(attrs: dict[str, Any], name: str, default: float | None = None) 
 
 def _pydantic_error(exc: ValidationError) -> RecordingError:
     """One line naming the attribute (the model-level check is the pri_s >= ramp_s rule)."""
-    err = exc.errors()[0]
-    msg = err["msg"].removeprefix("Value error, ")
-    if not err["loc"]:
+    loc, msg, given = first_error(exc)
+    if not loc:
         return RecordingError(f"attribute 'pri_s': {msg}")
-    return RecordingError(f"attribute '{err['loc'][0]}': {msg} (got {_show(err.get('input'))})")
+    return RecordingError(f"attribute '{loc.split('.')[0]}': {msg} (got {_show(given)})")
 
 
 def _start_time(attrs: dict[str, Any]) -> datetime:
@@ -157,12 +157,7 @@ def _start_time(attrs: dict[str, Any]) -> datetime:
     start = _scalar(attrs, "start_time")
     if not isinstance(start, str):
         raise RecordingError(f"attribute 'start_time': expected an ISO 8601 string, got {_show(start)}")
-    try:
-        when = datetime.fromisoformat(start.replace("Z", "+00:00"))
-    except ValueError:
-        raise RecordingError(f"attribute 'start_time': not ISO 8601: {_show(start)}") from None
-    if when.tzinfo is None or when.utcoffset() is None:
-        raise RecordingError(f"attribute 'start_time': needs a UTC offset: {_show(start)}")
+    when = parse_iso_time(start, "attribute 'start_time'", error=RecordingError, naive_is_utc=False)
     try:
         when = when.astimezone(timezone.utc)
     except (OverflowError, ValueError):  # year 1 with a positive offset, year 9999 with a negative one
@@ -189,8 +184,8 @@ def _metadata(attrs: dict[str, Any]) -> tuple[RadarConfig, RadarSite, datetime]:
         site = RadarSite(lat_deg=site_values["radar_lat_deg"], lon_deg=site_values["radar_lon_deg"],
                          alt_m=site_values["radar_alt_m"])
     except ValidationError as exc:
-        err = exc.errors()[0]
-        raise RecordingError(f"attribute 'radar_{err['loc'][0]}': {err['msg']}") from None
+        loc, msg, _ = first_error(exc)
+        raise RecordingError(f"attribute 'radar_{loc.split('.')[0]}': {msg}") from None
     return config, site, _start_time(attrs)
 
 
