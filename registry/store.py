@@ -390,6 +390,16 @@ def _record_label(kind: str, i: int, raw: dict[str, Any], key: str) -> str:
     return f"{kind}[{i}] ({key} {name})" if isinstance(name, str) and name else f"{kind}[{i}]"
 
 
+def _validated(model: type[BaseModel], raw: Any, label: str) -> Any:
+    """One record of an import file through its pydantic model; errors name the record."""
+    try:
+        return model.model_validate(raw)
+    except ValidationError as exc:
+        raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
+    except (RegistryError, ValueError) as exc:
+        raise RegistryError(f"{label}: {exc}") from None
+
+
 def parse_json(text: str) -> RegistryImport:
     """Validate a JSON registry document (see the module docstring); any bad record raises."""
     try:
@@ -409,22 +419,14 @@ def parse_json(text: str) -> RegistryImport:
     seen_slugs: dict[str, str] = {}
     for i, raw in enumerate(doc.profiles):
         label = _record_label("profiles", i, raw, "slug")
-        try:
-            p = UavProfile.model_validate(raw)
-        except ValidationError as exc:
-            raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
+        p = _validated(UavProfile, raw, label)
         if p.slug in seen_slugs:
             raise RegistryError(f"{label}: slug {p.slug!r} repeats {seen_slugs[p.slug]}")
         seen_slugs[p.slug] = label
         out.profiles.append((label, p))
     for i, raw in enumerate(doc.identities):
         label = _record_label("identities", i, raw, "serial")
-        try:
-            new = NewIdentity.model_validate(raw)
-        except ValidationError as exc:
-            raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
-        except (RegistryError, ValueError) as exc:
-            raise RegistryError(f"{label}: {exc}") from None
+        new = _validated(NewIdentity, raw, label)
         out.identities.append((label, new))
     _check_unique_serials(out.identities)
     return out

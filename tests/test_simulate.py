@@ -1,4 +1,4 @@
-"""Simulator physics against closed-form results (issue 2, "Must show")."""
+"""Simulator physics against closed-form results."""
 
 from __future__ import annotations
 

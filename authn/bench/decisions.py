@@ -1,6 +1,6 @@
 """End-to-end benchmark: decisions on simulated claims over random geometry, and latency.
 
-Categories (SPEC / issue 6): genuine claims, type spoofs between the shipped
+Categories: genuine claims, type spoofs between the shipped
 profiles, position spoofs (Remote ID displaced 100-300 m along the line of sight),
 unregistered and revoked serials. Each scene is a real file checked by the real
 `Checker` against a real (temporary SQLite) registry.

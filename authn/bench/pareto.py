@@ -228,7 +228,7 @@ def _mark_front(points: list[Point], snrs: tuple[float, ...]) -> None:
 def near_floor(points: list[Point], floor_ms: float, factor: float = 3.0, snr: float = 10.0,
                min_f1: float = 0.95) -> list[Point]:
     """Front points within `factor` x the FFT floor's time with macro F1 >= `min_f1` at `snr`
-    (issue 7's target: how close to the physical floor a configuration gets without losing accuracy)."""
+    (how close to the physical floor a configuration gets without losing accuracy)."""
     return [p for p in points if p.pareto and p.ms_per_return <= factor * floor_ms
             and p.f1_by_snr.get(snr, 0.0) >= min_f1]
 

@@ -61,6 +61,16 @@ def _leaf_hash(seq, created_at, kind, serial, decision, payload, prev_hash) -> s
     return hashlib.sha256(b"\x00" + body.encode("utf-8")).hexdigest()
 
 
+def _restore_no_update_trigger(dialect: str) -> None:
+    """Recreate revision 0001's UPDATE trigger, dropped while leaf_hash is written or removed."""
+    if dialect == "postgresql":
+        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
+                   "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()")
+    elif dialect == "sqlite":
+        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
+                   "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END")
+
+
 def upgrade() -> None:
     bind = op.get_bind()
     dialect = bind.dialect.name
@@ -101,12 +111,7 @@ def upgrade() -> None:
         bind.execute(sa.text("UPDATE audit_log SET leaf_hash = :h WHERE id = :id"),
                      [{"id": r[0], "h": _leaf_hash(*r[1:])} for r in rows])
         last = rows[-1][0]
-    if dialect == "postgresql":
-        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-                   "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()")
-    elif dialect == "sqlite":
-        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-                   "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END")
+    _restore_no_update_trigger(dialect)
     for table in _NEW_TABLES:
         for ddl in _pg_triggers(table) if dialect == "postgresql" else _sqlite_triggers(table) \
                 if dialect == "sqlite" else []:
@@ -125,9 +130,4 @@ def downgrade() -> None:
     elif dialect == "sqlite":
         op.execute("DROP TRIGGER audit_log_no_update")
     op.execute("ALTER TABLE audit_log DROP COLUMN leaf_hash")  # in place: keeps the other triggers
-    if dialect == "postgresql":
-        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-                   "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()")
-    elif dialect == "sqlite":
-        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-                   "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END")
+    _restore_no_update_trigger(dialect)

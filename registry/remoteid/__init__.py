@@ -2,6 +2,8 @@
 
 from registry.remoteid.codec import decode, decode_hex, decode_rows, encode, flatten, location_time
 from registry.remoteid.errors import CaptureError, RemoteIdError
+# The message classes are re-exported as the package's public surface (the codec imports the
+# same list for its own use: a deliberate repeat).
 from registry.remoteid.messages import (
     AuthPage,
     AuthPage0,
