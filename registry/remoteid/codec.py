@@ -277,6 +277,43 @@ def decode_rows(rows: Iterable) -> list:
     return out
 
 
+def split_raw(data: bytes | bytearray | memoryview) -> list[bytes]:
+    """The 25-byte wire form of each single message in `data` (one message or a pack).
+
+    Same order as `flatten([decode(data)])`; raises RemoteIdError where `decode` would.
+    """
+    msg = decode(data)
+    data = bytes(data)
+    if isinstance(msg, MessagePack):
+        return [data[i:i + MESSAGE_SIZE] for i in range(3, 3 + MESSAGE_SIZE * len(msg.messages), MESSAGE_SIZE)]
+    return [data]
+
+
+def decode_rows_raw(rows: Iterable) -> list[tuple]:
+    """`flatten(decode_rows(rows))` with each single message paired with its 25 wire bytes.
+
+    The pairs are `(message, raw)`; the signed Remote ID checks (DRIP) need the bytes
+    as sent, not a re-encoding. Raises RemoteIdError exactly where `decode_rows` does.
+    """
+    out = []
+    for i, row in enumerate(rows):
+        try:
+            raw = bytes(bytearray(row))
+        except (TypeError, ValueError):
+            raise RemoteIdError(f"row {i}: not a row of bytes (0..255)") from None
+        if not any(raw):
+            continue
+        try:
+            msg = decode(raw)
+        except RemoteIdError as exc:
+            raise RemoteIdError(f"row {i}: {exc}") from None
+        if isinstance(msg, MessagePack):
+            out.extend(zip(msg.messages, split_raw(raw)))
+        else:
+            out.append((msg, raw))
+    return out
+
+
 def flatten(messages: Iterable) -> list:
     """Single messages, with message packs expanded in place."""
     out = []
