@@ -44,6 +44,8 @@ class Outcome:
     policy_sha256: str
     model_card_sha256: str | None
     file_sha256: str
+    #: DRIP authentication of the Remote ID (status, SAM types, which messages it covers)
+    remote_id_auth: dict[str, Any] = field(default_factory=dict)
     #: Cedar's evaluation errors (a non-empty list means the claim was rejected with `policy-error`)
     policy_errors: list[str] = field(default_factory=list)
     #: the exact Cedar request (serial, principal, resource, context): `authn audit replay` re-runs it

@@ -15,7 +15,7 @@ from typing import Any
 from authn.errors import AuthnError
 from authn.kinematics import DeclaredState, Expected, Residuals
 
-__all__ = ["Claim", "RegistryFacts", "RadarEvidence", "KinematicsEvidence", "Evidence", "read_claim"]
+__all__ = ["Claim", "RegistryFacts", "RemoteIdAuth", "RadarEvidence", "KinematicsEvidence", "Evidence", "read_claim"]
 
 _SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
 #: Cedar integers are 64-bit; a residual is capped well inside them
@@ -70,25 +70,43 @@ class RegistryFacts:
     id_type: str = ""
     valid_from: datetime | None = None
     valid_until: datetime | None = None
+    public_key: bytes | None = None
 
     @classmethod
     def of(cls, identity: Any) -> "RegistryFacts":
         if identity is None:
             return cls()
         return cls(True, identity.status, identity.model, identity.id_type, identity.valid_from,
-                   identity.valid_until)
+                   identity.valid_until, identity.public_key)
 
     def principal(self) -> dict[str, Any]:
         """Cedar attributes of the principal `Uav::"<serial>"`."""
         attrs: dict[str, Any] = {"registered": self.registered, "status": self.status, "model": self.model,
                                  "id_type": self.id_type,
-                                 "valid_from_s": _epoch(self.valid_from) if self.valid_from else 0}
+                                 "valid_from_s": _epoch(self.valid_from) if self.valid_from else 0,
+                                 "has_key": self.public_key is not None}
         if self.valid_until is not None:
             attrs["valid_until_s"] = _epoch(self.valid_until)
         return attrs
 
     def to_json(self) -> dict[str, Any]:
-        return {"registered": self.registered, "status": self.status, "model": self.model or None}
+        return {"registered": self.registered, "status": self.status, "model": self.model or None,
+                "has_key": self.public_key is not None}
+
+
+@dataclass(frozen=True)
+class RemoteIdAuth:
+    """What the DRIP authentication of the Remote ID messages came to (RFC 9575)."""
+
+    status: str = "absent"  # valid | invalid | absent | unknown-key | expired
+    reason: str | None = None
+    sam_types: tuple[str, ...] = ()
+    covered: tuple[int, ...] = ()  # indices (in the decoded message list) that a valid signature covers
+    det: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"status": self.status, "reason": self.reason, "sam_types": list(self.sam_types),
+                "covered_messages": list(self.covered), "det": self.det}
 
 
 @dataclass(frozen=True)
@@ -166,6 +184,7 @@ class Evidence:
     time_s: int
     remote_id_issues: list[str]
     preset: str = ""
+    auth: RemoteIdAuth = RemoteIdAuth()
     radar: RadarEvidence | None = None
     kinematics: KinematicsEvidence | None = None
 
@@ -186,7 +205,8 @@ class Evidence:
             "radar_confidence_bp": int(round((radar.confidence or 0.0) * 10000)) if radar is not None else 0,
             "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
             "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0,
-            "remote_id_present": self.claim.n_messages > 0, "remote_id_issues": list(self.remote_id_issues)}
+            "remote_id_present": self.claim.n_messages > 0, "remote_id_issues": list(self.remote_id_issues),
+            "remote_id_auth": self.auth.status}
         if self.kinematics is not None:
             ctx.update(self.kinematics.context())
         return ctx
@@ -203,5 +223,6 @@ class Evidence:
                 "radar": None if self.radar is None else self.radar.to_json(),
                 "kinematics": None if self.kinematics is None else self.kinematics.to_json(),
                 "remote_id": {"messages": self.claim.n_messages, "ua_type": self.claim.ua_type,
-                              "issues": list(self.remote_id_issues)}}
+                              "issues": list(self.remote_id_issues)},
+                "remote_id_auth": self.auth.to_json()}
 

@@ -4,10 +4,12 @@ The policy text and its schema are parsed and validated once (`PolicyEngine.load
 then every request reuses the parsed handles. Reasons are the `@id` annotations of
 the policies that determined the decision.
 
-Skipping the radar: at load, every `forbid` policy whose conditions never read `context`
-is found from the policy AST. When one of those is satisfied by the registry facts, the
-deny holds whatever evidence the radar could add (forbid overrides permit), so the
-decision over the registry and Remote ID evidence is final. This needs one ordinary
+Skipping the radar: at load, every `forbid` policy whose conditions read no `context`
+attribute the radar can change (only `PRE_RADAR_CONTEXT`: the claim's source, whether
+Remote ID is present, its DRIP authentication) is found from the policy AST. When one of
+those is satisfied before the radar runs, the deny holds whatever evidence the radar
+could add (forbid overrides permit), so the decision over the registry and Remote ID
+evidence is final. This needs one ordinary
 `is_authorized` call; Cedar's partial evaluation, which answers the same question, is an
 experimental cedarpy API (not for final decisions, by its own docs) and took ~0.5 ms.
 """
@@ -27,6 +29,9 @@ from authn.errors import AuthnError, SystemFault
 
 ACTION = {"type": "Action", "id": "authenticate"}
 SITE_ID = "site"
+#: Context attributes known before the radar runs (a forbid reading only these can end a
+#: check early). `remote_id_issues` is not one: the radar adds `not-rotorcraft`.
+PRE_RADAR_CONTEXT = frozenset({"claim_source", "remote_id_present", "remote_id_auth"})
 #: Reason reported when a policy's condition raised an evaluation error (the claim is rejected).
 POLICY_ERROR = "policy-error"
 
@@ -60,7 +65,7 @@ class PolicyEngine:
     policy_set: Any
     schema: Any
     effects: dict[str, str]  # policy id (parser's) -> "permit" | "forbid"
-    context_free_forbids: frozenset[str]  # forbid policies whose conditions never read `context`
+    context_free_forbids: frozenset[str]  # forbids that read no context the radar can change
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> "PolicyEngine":
@@ -89,7 +94,7 @@ class PolicyEngine:
         static = json.loads(cedarpy.policies_to_json_str(text)).get("staticPolicies", {})
         effects = {pid: body["effect"] for pid, body in static.items()}
         context_free = frozenset(pid for pid, body in static.items()
-                                 if body["effect"] == "forbid" and not _reads_context(body))
+                                 if body["effect"] == "forbid" and _context_read(body) <= PRE_RADAR_CONTEXT)
         digest = hashlib.sha256(text.encode()).hexdigest()
         return cls(text=text, sha256=digest, source=source, policy_set=policy_set, schema=schema,
                    effects=effects, context_free_forbids=context_free)
@@ -158,10 +163,17 @@ class PolicyEngine:
         return PolicyResult("reject", self._reasons(result.diagnostics, "forbid"))
 
 
-def _reads_context(node: Any) -> bool:
-    """Whether a policy's JSON AST (Cedar's JSON policy format) mentions the `context` variable."""
+def _context_read(node: Any) -> set[str]:
+    """The `context` attributes a policy's JSON AST (Cedar's JSON policy format) reads;
+    `{"*"}` when it uses `context` as a whole (then nothing can be assumed)."""
     if isinstance(node, dict):
-        return node.get("Var") == "context" or any(_reads_context(v) for v in node.values())
+        for op in (".", "has"):
+            inner = node.get(op)
+            if isinstance(inner, dict) and inner.get("left") == {"Var": "context"}:
+                return {str(inner.get("attr"))}
+        if node.get("Var") == "context":
+            return {"*"}
+        return set().union(*(_context_read(v) for v in node.values()))
     if isinstance(node, list):
-        return any(_reads_context(v) for v in node)
-    return False
+        return set().union(*(_context_read(v) for v in node))
+    return set()

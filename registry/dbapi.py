@@ -39,6 +39,7 @@ class IdentityFacts:
     status: str
     valid_from: datetime
     valid_until: datetime | None
+    public_key: bytes | None = None  # raw Ed25519 host identity (DRIP), when registered with one
 
 
 def _first_line(exc: BaseException) -> str:
@@ -207,9 +208,10 @@ class Database:
 
     # --- the check's one registry read ------------------------------------------------
     def identity(self, serial: str) -> IdentityFacts | None:
-        rows = self.fetch("SELECT serial, id_type, model_slug, status, valid_from, valid_until "
+        rows = self.fetch("SELECT serial, id_type, model_slug, status, valid_from, valid_until, public_key "
                           "FROM identities WHERE serial = :serial", {"serial": serial})
         if not rows:
             return None
-        s, id_type, model, status, vf, vu = rows[0]
-        return IdentityFacts(s, id_type, model, status, self.from_db_time(vf), self.from_db_time(vu))
+        s, id_type, model, status, vf, vu, key = rows[0]
+        return IdentityFacts(s, id_type, model, status, self.from_db_time(vf), self.from_db_time(vu),
+                             bytes(key) if key is not None else None)

@@ -10,11 +10,13 @@ from authn.policy import PolicyEngine, PolicyError
 
 T_NOW = 1_767_268_800  # 2026-01-01T12:00:00Z
 
-ACTIVE = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=T_NOW - 86400)
+ACTIVE = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=T_NOW - 86400,
+              has_key=False)
 SITE = dict(time_s=T_NOW, preset="paper")
 GOOD = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300", radar_known=True,
             radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120, range_tolerance_cm=850,
-            velocity_residual_cmps=40, velocity_tolerance_cmps=170, remote_id_present=True, remote_id_issues=[])
+            velocity_residual_cmps=40, velocity_tolerance_cmps=170, remote_id_present=True, remote_id_issues=[],
+            remote_id_auth="absent")
 #: What the check knows before the radar runs (authn.check._skipped_context).
 NO_RADAR = {**GOOD, "radar_run": False, "target_detected": False, "radar_model": "", "radar_known": False,
             "radar_confidence_bp": 0, "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
@@ -50,6 +52,18 @@ CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
                                   ["radar-type-mismatch", "range-mismatch"]),
     "revoked and expired": (dict(status="revoked", valid_until_s=T_NOW - 5), {}, {}, "reject",
                             ["outside-validity-window", "revoked"]),
+    "signature invalid": ({}, {}, dict(remote_id_auth="invalid"), "reject", ["remote-id-auth-invalid"]),
+    "signature expired": ({}, {}, dict(remote_id_auth="expired"), "reject", ["remote-id-auth-expired"]),
+    "signed, no key registered": ({}, {}, dict(remote_id_auth="valid"), "accept", ["registered-active"]),
+    "unknown key, no key registered": ({}, {}, dict(remote_id_auth="unknown-key"), "accept",
+                                       ["registered-active"]),
+    "key registered, signed": (dict(has_key=True), {}, dict(remote_id_auth="valid"), "accept",
+                               ["registered-active"]),
+    "key registered, unsigned": (dict(has_key=True), {}, {}, "reject", ["remote-id-auth-required"]),
+    "key registered, unknown key": (dict(has_key=True), {}, dict(remote_id_auth="unknown-key"), "reject",
+                                    ["remote-id-auth-required"]),
+    "key registered, forged": (dict(has_key=True), {}, dict(remote_id_auth="invalid"), "reject",
+                               ["remote-id-auth-invalid", "remote-id-auth-required"]),
 }
 
 
@@ -82,14 +96,18 @@ def test_active_identity_needs_the_evidence(engine: PolicyEngine) -> None:
     assert engine.decide_without_evidence("S1", ACTIVE, SITE, NO_RADAR) is None
 
 
-def test_only_forbids_that_never_read_context_are_context_free(tmp_path: Path) -> None:
+def test_only_forbids_that_read_no_radar_context_are_final_early(tmp_path: Path) -> None:
     text = ('@id("ctx")\nforbid (principal, action, resource) when { context.radar_run };\n'
+            '@id("whole")\nforbid (principal, action, resource) when { context == context && principal.model == "x" };\n'
             '@id("reg")\nforbid (principal, action, resource) when { principal.status == "revoked" };\n'
+            '@id("auth")\nforbid (principal, action, resource) when { context.remote_id_auth == "invalid" };\n'
             '@id("ok")\npermit (principal, action, resource);\n')
     f = tmp_path / "p.cedar"
     f.write_text(text)
     custom = PolicyEngine.load(f)
-    assert len(custom.context_free_forbids) == 1
+    assert len(custom.context_free_forbids) == 2  # "reg" and "auth"
+    forged = {**NO_RADAR, "remote_id_auth": "invalid"}
+    assert custom.decide_without_evidence("S1", ACTIVE, SITE, forged).reasons == ["auth"]
     revoked = {**ACTIVE, "status": "revoked"}
     assert custom.decide_without_evidence("S1", revoked, SITE, NO_RADAR).reasons == ["reg"]
     # a satisfied forbid that reads context is not final: the radar must run
