@@ -29,5 +29,15 @@ __all__ = [
     "OperatorId", "RemoteIdError", "SelfId", "System", "decode", "decode_hex",
     "decode_rows", "decode_rows_raw", "encode", "flatten", "location_time", "split_raw",
 ]
-# DRIP authentication lives in registry.remoteid.drip (not imported here: a check that
-# meets no authentication pages does not load it).
+
+# DRIP authentication (registry.remoteid.drip) is loaded on first use of one of its names.
+_DRIP = ("AuthResult", "DripError", "det_from_public_key", "det_to_text", "encode_frame",
+         "encode_link", "encode_manifest", "encode_wrapper", "paginate", "parse_det", "verify")
+
+
+def __getattr__(name: str):
+    if name in _DRIP:
+        from registry.remoteid import drip
+
+        return getattr(drip, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

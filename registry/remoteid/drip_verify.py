@@ -180,7 +180,7 @@ def verify(messages: Iterable, key_for: Callable[[bytes], bytes | None], dwell_t
         return AuthResult("absent")
     try:
         return _verify(items, decoded, key_for, dwell_time, trusted_registry_keys, skew_s)
-    except (DripError, RemoteIdError, ValueError) as exc:  # pragma: no cover - defensive
+    except (DripError, RemoteIdError, ValueError, TypeError) as exc:  # e.g. a dwell time before 2019
         return AuthResult("invalid", reason=str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
 
 
