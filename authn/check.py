@@ -15,12 +15,14 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 from authn.audit import NewEntry, append
 from authn.errors import EXIT_BAD_INPUT, AuthnException, exit_code_for, one_line
-from authn.evidence import Claim, Evidence, KinematicsEvidence, RadarEvidence, RegistryFacts, read_claim
+from authn.evidence import (Claim, Evidence, KinematicsEvidence, RadarEvidence, RegistryFacts, RemoteIdAuth,
+                            authenticate, read_claim)
 from authn.kinematics import expected_from_radar, residuals, sanity
 from authn.policy import PolicyEngine
 
@@ -109,6 +111,18 @@ def _file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _issues(claim: Claim, auth: RemoteIdAuth, mid: datetime, rotorcraft: bool | None) -> list[str]:
+    """Remote ID sanity issues; with a valid signature, a Location message it does not cover
+    is one too (`unsigned-location`: someone may be broadcasting beside the signer)."""
+    from registry.remoteid import Location
+
+    issues = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, mid, rotorcraft)
+    if auth.status == "valid" and any(isinstance(m, Location) and i not in auth.covered
+                                      for i, (m, _) in enumerate(claim.wire)):
+        issues.append("unsigned-location")
+    return issues
+
+
 class Checker:
     """Loads once what every check needs (policy, database, file reader; the classifier on
     first radar use); checks many files."""
@@ -174,8 +188,11 @@ class Checker:
         with timer.stage("registry"):
             facts = RegistryFacts.of(self.db.identity(claim.serial))
         mid = rec.mid_time
-        evidence = Evidence(claim, facts, int(rec.start_time.timestamp()),
-                            sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, mid, None))
+        with timer.stage("remote_id_auth"):
+            auth = authenticate(claim, facts, mid)
+        if auth.status == "valid":  # kinematics from signed Location messages only
+            claim = claim.signed_only(auth.covered, rec.start_time, mid)
+        evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth)
         with timer.stage("policy_registry"):
             result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
                                                          evidence.context())
@@ -184,8 +201,7 @@ class Checker:
 
             evidence.preset = match_preset(rec.config, rec.n_chirps, rec.n_samples)
             evidence.radar, evidence.kinematics = self._radar(rec, claim, timer)
-            evidence.remote_id_issues = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, mid,
-                                               evidence.radar.rotorcraft)
+            evidence.remote_id_issues = _issues(claim, auth, mid, evidence.radar.rotorcraft)
             with timer.stage("policy"):
                 result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(),
                                             evidence.context())

@@ -8,14 +8,15 @@ is named in one place. Cedar wants integers, hence the centimetre and basis-poin
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from typing import Any
 
 from authn.errors import AuthnError
 from authn.kinematics import DeclaredState, Expected, Residuals
 
-__all__ = ["Claim", "RegistryFacts", "RemoteIdAuth", "RadarEvidence", "KinematicsEvidence", "Evidence", "read_claim"]
+__all__ = ["Claim", "RegistryFacts", "RemoteIdAuth", "RadarEvidence", "KinematicsEvidence", "Evidence", "authenticate",
+           "read_claim"]
 
 _SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
 #: Cedar integers are 64-bit; a residual is capped well inside them
@@ -32,28 +33,61 @@ class Claim:
     ua_type: int | None = None
     state: DeclaredState | None = None
     n_messages: int = 0
+    #: every single message as (decoded, its 25 wire bytes): what DRIP verification reads
+    wire: tuple[tuple[Any, bytes], ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         return {"serial": self.serial, "source": self.source, "remote_id_serial": self.rid_serial}
 
+    def signed_only(self, covered: tuple[int, ...], reference: datetime, mid: datetime) -> "Claim":
+        """The same claim with the declared state taken only from Location messages that a
+        verified signature covers (none covered: no declared state, hence no kinematics)."""
+        locations = [self.wire[i][0] for i in covered if i < len(self.wire)]
+        return replace(self, state=_nearest_state(locations, reference, mid))
+
+
+def _nearest_state(messages: list[Any], reference: datetime, mid: datetime) -> DeclaredState | None:
+    """The declared state of the Location message nearest the middle of the dwell."""
+    from registry.remoteid import Location
+
+    states = [s for s in (DeclaredState.from_location(m, reference) for m in messages
+                          if isinstance(m, Location)) if s is not None]
+    return min(states, key=lambda s: abs((s.time - mid).total_seconds()) if s.time else 1e9, default=None)
+
 
 def read_claim(rec: Any, serial: str | None) -> Claim:
     """The claimed serial (--serial wins) and what the Remote ID messages declare."""
-    from registry.remoteid import BasicId, Location, decode_rows, flatten
+    from registry.remoteid import BasicId
+    from registry.remoteid.codec import decode_rows_raw
 
-    msgs = flatten(decode_rows(rec.remote_id)) if rec.remote_id is not None else []
+    wire = tuple(decode_rows_raw(rec.remote_id)) if rec.remote_id is not None else ()
+    msgs = [m for m, _ in wire]
     basic = next((m for m in msgs if isinstance(m, BasicId) and m.uas_id), None)
-    mid = rec.mid_time
-    states = [s for s in (DeclaredState.from_location(m, rec.start_time) for m in msgs
-                          if isinstance(m, Location)) if s is not None]
-    state = min(states, key=lambda s: abs((s.time - mid).total_seconds()) if s.time else 1e9, default=None)
     rid_serial = basic.uas_id.strip() if basic else None
     if serial is None and rid_serial is None:
         raise AuthnError("no claim: give --serial, or a file whose Remote ID carries a Basic ID serial")
     if serial is not None and not _SERIAL.fullmatch(serial):
         raise AuthnError(f"--serial: {serial!r} is not a UAS ID (1-64 printable ASCII characters, no spaces)")
     return Claim(serial=serial or rid_serial, source="cli" if serial else "remote_id", rid_serial=rid_serial,
-                 ua_type=basic.ua_type if basic else None, state=state, n_messages=len(msgs))
+                 ua_type=basic.ua_type if basic else None,
+                 state=_nearest_state(msgs, rec.start_time, rec.mid_time), n_messages=len(msgs), wire=wire)
+
+
+def authenticate(claim: Claim, facts: "RegistryFacts", dwell_time: datetime) -> "RemoteIdAuth":
+    """DRIP verification of the claim's Remote ID against the key the registry holds for the
+    claimed identity (a DET signs only if it is the DET of that key: RFC 9374's binding)."""
+    from registry.remoteid import AuthPage, AuthPage0
+
+    if not any(isinstance(m, (AuthPage0, AuthPage)) for m, _ in claim.wire):
+        return RemoteIdAuth()  # absent: cryptography is not even imported
+    from registry.remoteid.drip import det_matches_key, verify
+
+    def key_for(det: bytes) -> bytes | None:
+        key = facts.public_key
+        return key if key is not None and det_matches_key(det, key) else None
+
+    result = verify(claim.wire, key_for, dwell_time)
+    return RemoteIdAuth(result.status, result.reason, tuple(result.sam_types), tuple(result.covered), result.det)
 
 
 def _epoch(when: datetime) -> int:

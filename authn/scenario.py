@@ -23,11 +23,26 @@ UA_TYPE_MULTIROTOR = 2
 
 
 @dataclass(frozen=True)
+class Signing:
+    """DRIP authentication the drone appends to its Remote ID (RFC 9575), and the ways a
+    spoofer gets it wrong: another key, an old signature replayed, a message changed after
+    signing."""
+
+    private_key: bytes  # raw Ed25519 private key (32 bytes)
+    det: bytes  # the DET the signature names (RFC 9374)
+    sam: str = "wrapper"  # wrapper | manifest | frame
+    window_s: tuple[float, float] = (-60.0, 300.0)  # valid-not-before/after, s from the dwell's start
+    signed_at_offset_s: float = 0.0  # shift the window (a replayed signature: e.g. -86400)
+    tamper_after_signing: bool = False  # move the first Location 50 m after signing it
+
+
+@dataclass(frozen=True)
 class Broadcast:
     """What the drone says about itself; None fields are taken from the truth."""
 
     serial: str
     ua_type: int = UA_TYPE_MULTIROTOR
+    id_type: int = 1  # F3411 UAS ID type: 1 serial number, 4 session ID (a DRIP DET)
     lat_deg: float | None = None
     lon_deg: float | None = None
     alt_m: float | None = None
@@ -36,6 +51,7 @@ class Broadcast:
     vertical_accuracy: int = 5  # < 3 m
     speed_accuracy: int = 3  # < 1 m/s
     messages: int = 3  # Basic ID + this many Location messages, from mid-dwell, 0.33 s apart
+    signing: Signing | None = None
 
 
 def _line_of_sight(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
@@ -52,7 +68,7 @@ def remote_id_rows(rec: Recording, scene: Scene, bc: Broadcast, azimuth_deg: flo
 
     u = _line_of_sight(scene.elevation_deg, azimuth_deg)
     vel = scene.radial_speed_mps * u
-    rows, times = [encode(BasicId(id_type=1, ua_type=bc.ua_type, uas_id=bc.serial))], [0.0]
+    rows, times = [encode(BasicId(id_type=bc.id_type, ua_type=bc.ua_type, uas_id=bc.serial))], [0.0]
     for i in range(bc.messages):
         t = dwell_s / 2 + i / 3.0
         pos = (scene.range_m + bc.offset_along_los_m) * u + vel * t
@@ -75,7 +91,37 @@ def remote_id_rows(rec: Recording, scene: Scene, bc: Broadcast, azimuth_deg: flo
         )
         rows.append(encode(loc))
         times.append(t)
+    if bc.signing is not None:
+        rows, times = _signed(rows, times, bc.signing, rec.start_time, dwell_s)
     return np.frombuffer(b"".join(rows), dtype=np.uint8).reshape(-1, 25).copy(), np.array(times)
+
+
+def _signed(rows: list[bytes], times: list[float], signing: Signing, start: datetime,
+            dwell_s: float) -> tuple[list[bytes], list[float]]:
+    """The messages followed by the Authentication pages of one DRIP SAM over them."""
+    from registry.remoteid import Location, decode, encode
+    from registry.remoteid.drip import FRAME_F3411_MESSAGES, encode_frame, encode_manifest, encode_wrapper, paginate
+
+    shift = timedelta(seconds=signing.signed_at_offset_s)
+    vnb = start + shift + timedelta(seconds=signing.window_s[0])
+    vna = start + shift + timedelta(seconds=signing.window_s[1])
+    subjects = rows[:4]  # a wrapper holds at most 4 messages: the Basic ID and the first Locations
+    if signing.sam == "wrapper":
+        data = encode_wrapper(subjects, signing.det, signing.private_key, vnb, vna)
+    elif signing.sam == "manifest":
+        data = encode_manifest(rows, signing.det, signing.private_key, vnb, vna)
+    elif signing.sam == "frame":
+        data = encode_frame(FRAME_F3411_MESSAGES, b"".join(subjects), signing.det, signing.private_key, vnb, vna)
+    else:
+        raise ValueError(f"unknown DRIP SAM {signing.sam!r}: wrapper, manifest or frame")
+    if signing.tamper_after_signing:
+        first = next(i for i, r in enumerate(rows) if isinstance(decode(r), Location))
+        loc = decode(rows[first])
+        rows = [*rows[:first], encode(loc.model_copy(update={"latitude_deg": loc.latitude_deg + 50.0 / 111_320.0})),
+                *rows[first + 1:]]
+    pages = paginate(data, start + shift)
+    t = dwell_s / 2
+    return rows + list(pages), times + [t] * len(pages)
 
 
 def simulate_flight(scene: Scene, preset: Preset, seed: int | None, broadcast: Broadcast | None = None,

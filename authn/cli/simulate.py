@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import typer
@@ -22,6 +23,27 @@ def _scene_for(model: str, profiles_file: Path | None, **kw: object):  # -> Scen
         known = ", ".join([*profiles, "bird", "none"])
         raise SignaturesError(f"--model: unknown model {model!r} (known: {known})")
     return Scene(kind="uav", profile=profiles[model], **kw)  # type: ignore[arg-type]
+
+
+def _signing(key_file: Path | None, sam: str, det: str | None, age_s: float, tamper: bool):  # -> Signing | None
+    from authn.errors import BadInput
+
+    if key_file is None:
+        if det is not None or age_s or tamper:
+            raise BadInput("--sign-det/--sign-age/--tamper-after-signing need --sign-key")
+        return None
+    if sam not in ("wrapper", "manifest", "frame"):
+        raise BadInput(f"--sam: {sam!r} is not wrapper, manifest or frame")
+    from authn.scenario import Signing
+    from authn.uakeys import load
+    from registry.remoteid.drip import DripError, parse_det
+
+    key = load(key_file)
+    try:
+        named = key.det if det is None else parse_det(det)
+    except DripError as exc:
+        raise BadInput(f"--sign-det: {exc}") from None
+    return Signing(key.private_raw, named, sam, signed_at_offset_s=-age_s, tamper_after_signing=tamper)
 
 
 _OPTION_OF = {"range_m": "range", "radial_speed_mps": "speed", "snr_db": "snr",
@@ -52,14 +74,28 @@ def simulate(
                                      help="Declare a position this many metres beyond the true one along the line of sight."),
     rid_ua_type: int = typer.Option(2, "--rid-ua-type", min=0, max=15,
                                     help="Declared F3411 UA type (2 = helicopter/multirotor)."),
+    rid_id_type: int | None = typer.Option(None, "--rid-id-type", min=0, max=15,
+                                           help="F3411 UAS ID type (default: 4, a session ID, for a DRIP session ID "
+                                                "such as `authn keys generate` prints; else 1, a serial number)."),
     start_time: str | None = typer.Option(None, "--start-time",
                                           help="ISO 8601 UTC time of the first chirp (default: now)."),
+    sign_key: Path | None = typer.Option(None, "--sign-key",
+                                         help="Sign the Remote ID with this key (`authn keys generate`): DRIP, RFC 9575."),
+    sam: str = typer.Option("wrapper", "--sam", help="DRIP authentication: wrapper, manifest or frame."),
+    sign_det: str | None = typer.Option(None, "--sign-det",
+                                        help="Name this DET in the signature instead of the key's own (a forgery)."),
+    sign_age: float = typer.Option(0.0, "--sign-age", min=0.0,
+                                   help="Signature made this many seconds before the dwell (a replay when > 300)."),
+    tamper_after_signing: bool = typer.Option(False, "--tamper-after-signing",
+                                              help="Move the first Location 50 m after signing it (a spoof)."),
 ) -> None:
     """Simulate the radar return of one scene and write it as a recorded-return file.
 
     Example: authn simulate --model m300 --range 500 --speed 5 --snr 10 --out m300.h5
 
     Example (spoofed position): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000002 --rid-offset 300 --out spoof.h5
+
+    Example (signed): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000099 --sign-key ua.pem --out signed.h5
     """
     from pydantic import ValidationError
 
@@ -83,11 +119,15 @@ def simulate(
     start = datetime.now(timezone.utc) if start_time is None else \
         parse_iso_time(start_time, "--start-time", error=SignaturesError)
     broadcast = None
+    signing = _signing(sign_key, sam, sign_det, sign_age, tamper_after_signing)
     if rid_serial is not None:
-        broadcast = Broadcast(serial=rid_serial, ua_type=rid_ua_type, lat_deg=rid_lat, lon_deg=rid_lon,
-                              alt_m=rid_alt, offset_along_los_m=rid_offset)
-    elif any(v is not None for v in (rid_lat, rid_lon, rid_alt)) or rid_offset:
-        raise SignaturesError("--rid-lat/--rid-lon/--rid-alt/--rid-offset need --rid-serial")
+        if rid_id_type is None:
+            rid_id_type = 4 if re.fullmatch(r"01[0-9A-Fa-f]{32}", rid_serial) else 1
+            rid_serial = rid_serial.upper() if rid_id_type == 4 else rid_serial
+        broadcast = Broadcast(serial=rid_serial, ua_type=rid_ua_type, id_type=rid_id_type, lat_deg=rid_lat,
+                              lon_deg=rid_lon, alt_m=rid_alt, offset_along_los_m=rid_offset, signing=signing)
+    elif any(v is not None for v in (rid_lat, rid_lon, rid_alt)) or rid_offset or signing is not None:
+        raise SignaturesError("--rid-lat/--rid-lon/--rid-alt/--rid-offset/--sign-key need --rid-serial")
 
     def run_simulation(i: int):
         try:

@@ -23,6 +23,7 @@ from pydantic import BaseModel, ValidationError
 from authn.parsing import first_error
 from registry.remoteid.errors import RemoteIdError
 from registry.remoteid.messages import (
+    SESSION_ID,
     ODID_EPOCH,
     AuthPage,
     AuthPage0,
@@ -113,8 +114,19 @@ def _enc_time(value: datetime | None) -> int:
 
 # ---------------------------------------------------------------- decode
 def _decode_basic_id(b: bytes, ver: int) -> BasicId:
-    return _build(BasicId, "basic ID", protocol_version=ver, id_type=b[1] >> 4,
-                  ua_type=b[1] & 0xF, uas_id=_text(b[2:22], "basic ID"))
+    id_type = b[1] >> 4
+    return _build(BasicId, "basic ID", protocol_version=ver, id_type=id_type, ua_type=b[1] & 0xF,
+                  uas_id=_session_id(b[2:22]) if id_type == SESSION_ID else _text(b[2:22], "basic ID"))
+
+
+_DRIP_SESSION_BYTES = 17  # session ID type 1 (IETF DRIP) + a 16-byte DET
+
+
+def _session_id(raw: bytes) -> str:
+    """A binary session ID as hex: a DRIP one has a fixed length (its DET may end in zeros),
+    any other is taken up to its NUL padding."""
+    raw = raw[:_DRIP_SESSION_BYTES] if raw[:1] == b"\x01" else raw.rstrip(b"\0")
+    return raw.hex().upper()
 
 
 def _decode_location(b: bytes, ver: int) -> Location:
@@ -373,7 +385,8 @@ def _encode_system(m: System) -> bytes:
 def encode(msg: BaseModel) -> bytes:
     """Typed model -> wire bytes (25, or 3 + 25 n for a message pack)."""
     if isinstance(msg, BasicId):
-        return bytes([_head(msg), msg.id_type << 4 | msg.ua_type]) + _pad(msg.uas_id, 20) + bytes(3)
+        uas_id = bytes.fromhex(msg.uas_id).ljust(20, b"\0") if msg.id_type == SESSION_ID else _pad(msg.uas_id, 20)
+        return bytes([_head(msg), msg.id_type << 4 | msg.ua_type]) + uas_id + bytes(3)
     if isinstance(msg, Location):
         return _encode_location(msg)
     if isinstance(msg, AuthPage0):

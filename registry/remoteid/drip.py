@@ -5,6 +5,7 @@ One import point; the formats are in `drip_formats`, the verification in `drip_v
 
 from registry.remoteid.drip_formats import (
     AUTH_TYPE_SAM,
+    FRAME_F3411_MESSAGES,
     SAM_FRAME,
     SAM_LINK,
     SAM_MANIFEST,
@@ -33,7 +34,7 @@ from registry.remoteid.drip_formats import (
 from registry.remoteid.drip_verify import STATUSES, AuthMessage, AuthResult, reassemble, verify
 
 __all__ = [
-    "AUTH_TYPE_SAM", "AuthMessage", "AuthResult", "DetFields", "DripError", "Link", "SAM_FRAME",
+    "AUTH_TYPE_SAM", "FRAME_F3411_MESSAGES", "AuthMessage", "AuthResult", "DetFields", "DripError", "Link", "SAM_FRAME",
     "SAM_LINK", "SAM_MANIFEST", "SAM_NAMES", "SAM_WRAPPER", "STATUSES", "Signed", "cshake128",
     "det_fields", "det_from_public_key", "det_matches_key", "det_to_text", "encode_frame",
     "encode_link", "encode_manifest", "encode_wrapper", "from_drip_time", "message_hash",

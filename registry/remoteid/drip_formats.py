@@ -51,6 +51,9 @@ AUTH_TYPE_SAM = 0x5
 SAM_LINK, SAM_WRAPPER, SAM_MANIFEST, SAM_FRAME = 0x01, 0x02, 0x03, 0x04
 SAM_NAMES = {SAM_LINK: "link", SAM_WRAPPER: "wrapper", SAM_MANIFEST: "manifest", SAM_FRAME: "frame"}
 
+#: Our Frame type (RFC 9575 leaves 0xC0-0xFF for experimental use): the frame is whole 25-byte
+#: F3411 messages, checked against the messages decoded like a Wrapper's.
+FRAME_F3411_MESSAGES = 0xC0
 DET_SIZE = 16
 SIG_SIZE = 64
 KEY_SIZE = 32
@@ -233,6 +236,13 @@ class Signed:
 
     def wrapped(self) -> list[bytes]:
         return [self.evidence[i:i + 25] for i in range(0, len(self.evidence), 25)]
+
+    def frame_messages(self) -> list[bytes] | None:
+        """The F3411 messages a Frame of type FRAME_F3411_MESSAGES carries (None for others)."""
+        frame_type, frame = self.evidence[:1], self.evidence[1:]
+        if frame_type != bytes([FRAME_F3411_MESSAGES]) or not frame or len(frame) % 25:
+            return None
+        return [frame[i:i + 25] for i in range(0, len(frame), 25)]
 
     def manifest_hashes(self) -> tuple[bytes, bytes, bytes, list[bytes]]:
         """(previous, current, link, message hashes) of a Manifest."""

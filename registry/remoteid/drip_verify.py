@@ -283,8 +283,14 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
                                   reason="DRIP manifest: current manifest hash does not match its evidence")
             for h in s.manifest_hashes()[3]:
                 covered.update(coverable(hashes.get(h, [])))
-        elif s.sam_type == SAM_FRAME:
-            pass
+        elif s.sam_type == SAM_FRAME and (framed := s.frame_messages()) is not None:
+            for k, w in enumerate(framed):
+                idx = subjects.get(w)
+                if not idx:
+                    return AuthResult("invalid", det=s.det.hex(), reason=(
+                        f"DRIP frame: framed message {k + 1} (type 0x{w[0] >> 4:X}) "
+                        "is not among the decoded messages"))
+                covered.update(coverable(idx))
         verified.append(s.name)
         signer_det = signer_det or s.det.hex()
 

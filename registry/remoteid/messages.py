@@ -8,6 +8,8 @@ code as an int so that values reserved today still round-trip.
 
 from __future__ import annotations
 
+import re
+
 from datetime import datetime, timezone
 from typing import Annotated, Literal, Union
 
@@ -40,13 +42,39 @@ class _Message(BaseModel):
     protocol_version: Version = 2
 
 
+#: F3411 UAS ID type 4: a Specific Session ID, binary (first byte: the session ID type; 1 is IETF
+#: DRIP, followed by the 16-byte DET of RFC 9374). Shown as upper-case hex, as the registry keys it.
+SESSION_ID = 4
+_PRINTABLE = re.compile(r"[\x20-\x7e]{0,20}")
+_SESSION_HEX = re.compile(r"(?:[0-9A-F]{2}){1,20}")
+
+
 class BasicId(_Message):
-    """Type 0x0: who the aircraft is (ID type 1 serial, 2 CAA, 3 UTM UUID, 4 session)."""
+    """Type 0x0: who the aircraft is (ID type 1 serial, 2 CAA, 3 UTM UUID, 4 session).
+
+    `uas_id` is the 20-byte field's text (NUL padding removed) for types 0-3, and the
+    session ID as upper-case hex for type 4 (binary on the wire)."""
 
     type: Literal["basic_id"] = "basic_id"
     id_type: Nibble = 1
     ua_type: Nibble = 0
-    uas_id: _ascii(20) = ""
+    uas_id: Annotated[str, Field(max_length=40)] = ""
+
+    @model_validator(mode="after")
+    def _uas_id_form(self) -> "BasicId":
+        if self.id_type == SESSION_ID:
+            if not self.uas_id:
+                return self
+            if not _SESSION_HEX.fullmatch(self.uas_id) or self.uas_id.startswith("00"):
+                raise ValueError("a session ID (ID type 4) is 1-20 bytes as upper-case hex, "
+                                 "the first (its type) not 00")
+            if self.uas_id.startswith("01") and len(self.uas_id) != 34:
+                raise ValueError("a DRIP session ID (type 01) is 17 bytes: 01 and a 16-byte DET")
+            if not self.uas_id.startswith("01") and self.uas_id.endswith("00"):
+                raise ValueError("a session ID cannot end in 00 (the field's padding)")
+        elif not _PRINTABLE.fullmatch(self.uas_id):
+            raise ValueError("a UAS ID is at most 20 printable ASCII characters")
+        return self
 
 
 class Location(_Message):

@@ -194,7 +194,11 @@ def systems(draw):
 
 
 singles = st.one_of(
-    st.builds(BasicId, protocol_version=ver, id_type=nib, ua_type=nib, uas_id=text20),
+    st.builds(BasicId, protocol_version=ver, id_type=nib.filter(lambda t: t != 4), ua_type=nib, uas_id=text20),
+    st.builds(BasicId, protocol_version=ver, id_type=st.just(4), ua_type=nib,
+              uas_id=st.one_of(st.binary(min_size=16, max_size=16).map(lambda det: "01" + det.hex().upper()),
+                               st.binary(min_size=1, max_size=19).filter(lambda b: b[0] > 1 and b[-1] != 0)
+                               .map(lambda b: b.hex().upper()))),
     locations(),
     st.builds(AuthPage0, protocol_version=ver, auth_type=nib, last_page_index=nib,
               length=st.integers(0, 255), timestamp=utc, data=st.binary(min_size=17, max_size=17)),
