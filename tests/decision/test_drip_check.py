@@ -1,0 +1,153 @@
+"""Signed Remote ID (IETF DRIP, RFC 9575) end to end through the real CLI: keys generate ->
+register -> simulate --sign-key -> check; every spoof rejected with its own reason."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from authn.cli import main
+from signatures.recording import read_recording, write_recording
+
+GENUINE, VICTIM = "1581BDEM00000099", "1581BDEM00000098"
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory) -> dict:
+    root = tmp_path_factory.mktemp("drip")
+    db = f"sqlite:///{root / 'r.sqlite3'}"
+    keys = {}
+    for who in ("ua", "victim", "attacker"):
+        assert main(["keys", "generate", "--out", str(root / f"{who}.pem"), "--json"]) == 0
+        keys[who] = root / f"{who}.pem"
+    for serial, who in ((GENUINE, "ua"), (VICTIM, "victim")):
+        assert main(["--db", db, "register", "--serial", serial, "--model", "m300", "--public-key",
+                     str(root / f"{who}.pub.pem"), "--valid-from", "2026-01-01"]) == 0
+    assert main(["--db", db, "register", "--serial", "1581BDEM00000097", "--model", "m300",
+                 "--valid-from", "2026-01-01"]) == 0  # no key: signatures are optional for it
+    return {"root": root, "db": db, "keys": keys}
+
+
+def _fly(world: dict, name: str, serial: str, *sign: str) -> Path:
+    out = world["root"] / f"{name}.h5"
+    assert main(["simulate", "--model", "m300", "--range", "500", "--speed", "3", "--snr", "20",
+                 "--rid-serial", serial, "--out", str(out), *sign]) == 0
+    return out
+
+
+def _check(world: dict, path: Path, capsys) -> tuple[int, dict]:
+    capsys.readouterr()
+    code = main(["--db", world["db"], "check", str(path), "--json"])
+    return code, json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("sam", ["wrapper", "manifest", "frame"])
+def test_genuine_signed_flight_is_accepted(world: dict, sam: str, capsys) -> None:
+    path = _fly(world, f"genuine-{sam}", GENUINE, "--sign-key", str(world["keys"]["ua"]), "--sam", sam)
+    code, out = _check(world, path, capsys)
+    assert (code, out["decision"], out["reasons"]) == (0, "accept", ["registered-active"])
+    auth = out["remote_id_auth"]
+    assert auth["status"] == "valid" and auth["sam_types"] == [sam]
+    assert auth["covered_messages"], "the signature covers the Basic ID and Location messages"
+    assert out["registry"]["has_key"] is True and out["kinematics"] is not None
+
+
+SPOOFS = {
+    # (signing options given the keys, expected status, the reasons that must be there)
+    "same-type impersonation, unsigned": (lambda k: [], "absent", {"remote-id-auth-required"}),
+    "signed with the impersonator's own key": (lambda k: ["--sign-key", str(k["attacker"])], "unknown-key",
+                                              {"remote-id-auth-required"}),
+    "forged: the victim's DET, another key": (lambda k: ["--sign-key", str(k["attacker"]), "--sign-det", "VICTIM"],
+                                              "invalid", {"remote-id-auth-invalid"}),
+    "replayed: signed a day before the dwell": (lambda k: ["--sign-key", str(k["victim"]), "--sign-age", "86400"],
+                                                "expired", {"remote-id-auth-expired"}),
+    "Location tampered after signing (wrapper)": (lambda k: ["--sign-key", str(k["victim"]),
+                                                             "--tamper-after-signing"],
+                                                  "invalid", {"remote-id-auth-invalid"}),
+    "Location tampered after signing (manifest)": (lambda k: ["--sign-key", str(k["victim"]), "--sam", "manifest",
+                                                              "--tamper-after-signing"],
+                                                   "valid", {"remote-id-implausible"}),
+}
+
+
+def _victim_det(world: dict, capsys) -> str:
+    from authn.uakeys import load
+
+    return load(world["keys"]["victim"]).det.hex()
+
+
+@pytest.mark.parametrize("name", list(SPOOFS))
+def test_spoofs_of_a_keyed_identity_are_rejected(world: dict, name: str, capsys) -> None:
+    options, status, reasons = SPOOFS[name]
+    sign = [_victim_det(world, capsys) if o == "VICTIM" else o for o in options(world["keys"])]
+    path = _fly(world, name.replace(" ", "-").replace(":", "").replace(",", ""), VICTIM, *sign)
+    code, out = _check(world, path, capsys)
+    assert code == 1 and out["decision"] == "reject", out["reasons"]
+    assert reasons <= set(out["reasons"]), out["reasons"]
+    assert out["remote_id_auth"]["status"] == status
+    if status == "valid":  # the manifest does not cover the moved Location: not used, and flagged
+        assert "unsigned-location" in out["remote_id"]["issues"]
+        assert 1 not in out["remote_id_auth"]["covered_messages"]
+
+
+def test_drip_session_id_identity(world: dict, capsys, tmp_path: Path) -> None:
+    """A DRIP identity: UAS ID type 4, the session ID (type 01 + the DET) as registry key."""
+    key = tmp_path / "det.pem"
+    capsys.readouterr()
+    assert main(["keys", "generate", "--out", str(key), "--json"]) == 0
+    session = json.loads(capsys.readouterr().out)["session_id"]
+    assert main(["--db", world["db"], "register", "--serial", session, "--id-type", "specific_session",
+                 "--model", "m300", "--public-key", str(tmp_path / "det.pub.pem"), "--valid-from", "2026-01-01"]) == 0
+    path = _fly(world, "det-identity", session, "--sign-key", str(key))
+    code, out = _check(world, path, capsys)
+    assert code == 0 and out["claim"]["serial"] == session and out["remote_id_auth"]["status"] == "valid"
+
+
+def test_identity_without_a_key_accepts_signed_and_unsigned(world: dict, capsys) -> None:
+    for name, sign in (("nokey-unsigned", []), ("nokey-signed", ["--sign-key", str(world["keys"]["ua"])])):
+        code, out = _check(world, _fly(world, name, "1581BDEM00000097", *sign), capsys)
+        assert code == 0, out["reasons"]
+        assert out["remote_id_auth"]["status"] == ("absent" if not sign else "unknown-key")
+
+
+def _with_pages(src: Path, dst: Path, pages: list[bytes]) -> Path:
+    rec = read_recording(src)
+    from dataclasses import replace
+
+    rows = np.concatenate([rec.remote_id, np.frombuffer(b"".join(pages), np.uint8).reshape(-1, 25)])
+    times = np.concatenate([rec.remote_id_time_s, np.full(len(pages), rec.remote_id_time_s[-1])])
+    return write_recording(replace(rec, remote_id=rows, remote_id_time_s=times), dst)
+
+
+@pytest.mark.parametrize("damage", ["impossible length", "missing page"])
+def test_malformed_authentication_pages_are_invalid(world: dict, damage: str, capsys) -> None:
+    from datetime import datetime, timezone
+
+    from registry.remoteid.drip import paginate
+
+    base = _fly(world, "unsigned-base", GENUINE)
+    pages = paginate(bytes(range(1, 60)), datetime.now(timezone.utc))  # 59 bytes: pages 0..2
+    if damage == "impossible length":
+        page0 = bytearray(pages[0])
+        page0[3] = 200  # 200 bytes cannot fit in pages 0..2
+        pages = [bytes(page0), *pages[1:]]
+    else:
+        pages = [pages[0], pages[2]]
+    code, out = _check(world, _with_pages(base, world["root"] / f"pages-{damage[:4]}.h5", pages), capsys)
+    assert code == 1 and "remote-id-auth-invalid" in out["reasons"]
+    assert out["remote_id_auth"]["status"] == "invalid" and out["remote_id_auth"]["reason"]
+
+
+def test_the_audit_keeps_the_authentication(world: dict, capsys) -> None:
+    path = _fly(world, "audited", GENUINE, "--sign-key", str(world["keys"]["ua"]))
+    code, out = _check(world, path, capsys)
+    capsys.readouterr()
+    assert main(["--db", world["db"], "audit", "show", str(out["audit_id"])]) == 0
+    payload = json.loads(capsys.readouterr().out)["payload"]
+    assert payload["remote_id_auth"]["status"] == "valid"
+    assert payload["policy_input"]["context"]["remote_id_auth"] == "valid"
+    assert payload["policy_input"]["principal"]["has_key"] is True
+    assert main(["--db", world["db"], "audit", "replay", str(out["audit_id"])]) == 0
