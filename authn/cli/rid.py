@@ -22,6 +22,9 @@ def decode_cmd(
     messages: Optional[list[str]] = typer.Argument(None, help="Messages as hex (25 bytes, or a message pack)."),
     pcap: Optional[Path] = typer.Option(None, "--pcap", help="pcap/pcapng capture (Wi-Fi beacon/NAN, Bluetooth LE)."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON array."),
+    public_key: Optional[Path] = typer.Option(None, "--public-key",
+                                              help="Verify DRIP authentication pages (RFC 9575) with this Ed25519 key."),
+    at: Optional[str] = typer.Option(None, "--at", help="Time the signatures must be valid at (ISO 8601; default now)."),
 ) -> None:
     """Decode F3411 broadcast messages (all types, protocol versions 0-2).
 
@@ -29,9 +32,14 @@ def decode_cmd(
     and UTC times. With --pcap, every Open Drone ID frame of the capture is
     decoded with its capture time and transport.
 
-    Example: authn rid decode 0012314135383146354650344431323334353637383930414200000000 --json
+    Authentication pages are reassembled and their DRIP structures (RFC 9575: Link,
+    Wrapper, Manifest, Frame) listed; with --public-key the signatures are verified.
+
+    Example: authn rid decode 0012313538314635464a443132333435363738393031000000 --json
 
     Example: authn rid decode --pcap odid_wifi_bcn_sample.pcap
+
+    Example: authn rid decode $(cat pages.hex) --public-key ua.pub.pem
     """
     from registry.remoteid.errors import RemoteIdError
 
@@ -41,17 +49,21 @@ def decode_cmd(
         from registry.remoteid.capture import read_capture
 
         found = read_capture(pcap)
+        wire = [m for c in found for m in _flat(c.message)]  # re-encoded when verified (canonical senders)
         if as_json:
             typer.echo(json.dumps([json.loads(c.model_dump_json()) for c in found], indent=2))
+            _print_auth(wire, public_key, at, as_json=True)
             return
         rows = [(str(c.frame), c.captured_at.isoformat() if c.captured_at else "", c.transport, m)
                 for c in found for m in _flat(c.message)]
     else:
-        from registry.remoteid.codec import decode_hex
+        from registry.remoteid.codec import decode_hex, decode_rows_raw
 
         decoded = [decode_hex(h) for h in messages]
+        wire = decode_rows_raw([bytes.fromhex(h.replace(" ", "")) for h in messages])
         if as_json:
             typer.echo(json.dumps([m.model_dump(mode="json") for m in decoded], indent=2))
+            _print_auth(wire, public_key, at, as_json=True)
             return
         rows = [(str(i), "", "", m) for i, d in enumerate(decoded, 1) for m in _flat(d)]
     from rich.console import Console
@@ -63,6 +75,51 @@ def decode_cmd(
     for frame, ts, transport, m in rows:
         t.add_row(frame, ts, transport, m.type, str(m.protocol_version), _summary(m))
     Console().print(t)
+    _print_auth(wire, public_key, at, as_json=False)
+
+
+def _print_auth(wire: list, public_key: Optional[Path], at: Optional[str], as_json: bool) -> None:
+    """The DRIP authentication of the decoded messages, when they carry authentication pages."""
+    from registry.remoteid import AuthPage, AuthPage0
+
+    messages = [w[0] if isinstance(w, tuple) else w for w in wire]
+    if not any(isinstance(m, (AuthPage0, AuthPage)) for m in messages):
+        if public_key is not None:
+            typer.echo("no authentication pages to verify", err=True)
+        return
+    from datetime import datetime, timezone
+
+    from authn.parsing import parse_iso_time
+    from registry.keys import read_public_key
+    from registry.remoteid.drip import det_matches_key, det_to_text, parse_sam, reassemble, verify
+
+    when = datetime.now(timezone.utc) if at is None else parse_iso_time(at, "--at")
+    lines = []
+    for msg in reassemble(messages):
+        if msg.data is None:
+            lines.append(f"auth type {msg.auth_type}: malformed ({msg.reason})")
+            continue
+        try:
+            sam = parse_sam(msg.data)
+            det = getattr(sam, "det", None) or getattr(sam, "ua_det", None)
+            lines.append(f"auth type {msg.auth_type}: DRIP {sam.name if hasattr(sam, 'name') else 'link'}, "
+                         f"valid {sam.vnb}..{sam.vna} s since 2019, DET {det_to_text(det)}")
+        except ValueError as exc:
+            lines.append(f"auth type {msg.auth_type}: {' '.join(str(exc).split())}")
+    result = None
+    if public_key is not None:
+        key = read_public_key(public_key)
+        result = verify(wire, lambda det: key if det_matches_key(det, key) else None, when)
+    if as_json:
+        typer.echo(json.dumps({"authentication": lines, "verification": result.to_dict() if result else None},
+                              indent=2))
+        return
+    for line in lines:
+        typer.echo(line)
+    if result is not None:
+        typer.echo(f"verification: {result.status}" + (f" ({result.reason})" if result.reason else "")
+                   + (f"; {', '.join(result.sam_types)} covering messages {list(result.covered)}"
+                      if result.status == "valid" else ""))
 
 
 def _flat(msg) -> list:

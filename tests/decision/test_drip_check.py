@@ -151,3 +151,17 @@ def test_the_audit_keeps_the_authentication(world: dict, capsys) -> None:
     assert payload["policy_input"]["context"]["remote_id_auth"] == "valid"
     assert payload["policy_input"]["principal"]["has_key"] is True
     assert main(["--db", world["db"], "audit", "replay", str(out["audit_id"])]) == 0
+
+
+def test_rid_decode_shows_and_verifies_authentication_pages(world: dict, capsys) -> None:
+    path = _fly(world, "decode-me", GENUINE, "--sign-key", str(world["keys"]["ua"]), "--sign-age", "0")
+    rows = [bytes(r).hex() for r in read_recording(path).remote_id]
+    capsys.readouterr()
+    assert main(["rid", "decode", *rows]) == 0
+    out = capsys.readouterr().out
+    assert "DRIP wrapper" in out and "DET 2001:3" in out and "verification" not in out
+    for key, status in (("ua", "valid"), ("attacker", "unknown-key")):
+        assert main(["rid", "decode", *rows, "--public-key", str(world["root"] / f"{key}.pub.pem"), "--json"]) == 0
+        text = capsys.readouterr().out
+        doc = json.loads(text[text.rindex('{\n  "authentication"'):])
+        assert doc["verification"]["status"] == status
