@@ -127,13 +127,15 @@ class Checker:
     """Loads once what every check needs (policy, database, file reader; the classifier on
     first radar use); checks many files."""
 
-    def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None) -> None:
+    def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None,
+                 trusted_registries: dict[bytes, bytes] | None = None) -> None:
         import h5py  # noqa: F401  every check opens an HDF5 file: load the library at start-up
 
         from registry.dbapi import Database
         from signatures.recording import read_recording
 
         self.policy = PolicyEngine.load(policy_path)
+        self.trusted_registries = trusted_registries or {}  # HDA DET -> key whose DRIP Links are believed
         self.db = Database(db_url)
         self._read = read_recording
 
@@ -189,7 +191,7 @@ class Checker:
             facts = RegistryFacts.of(self.db.identity(claim.serial))
         mid = rec.mid_time
         with timer.stage("remote_id_auth"):
-            auth = authenticate(claim, facts, mid)
+            auth = authenticate(claim, facts, mid, self.trusted_registries)
         if auth.status == "valid":  # kinematics from signed Location messages only
             claim = claim.signed_only(auth.covered, rec.start_time, mid)
         evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth)

@@ -73,9 +73,15 @@ def read_claim(rec: Any, serial: str | None) -> Claim:
                  state=_nearest_state(msgs, rec.start_time, rec.mid_time), n_messages=len(msgs), wire=wire)
 
 
-def authenticate(claim: Claim, facts: "RegistryFacts", dwell_time: datetime) -> "RemoteIdAuth":
-    """DRIP verification of the claim's Remote ID against the key the registry holds for the
-    claimed identity (a DET signs only if it is the DET of that key: RFC 9374's binding)."""
+def authenticate(claim: Claim, facts: "RegistryFacts", dwell_time: datetime,
+                 trusted_registries: dict[bytes, bytes] | None = None) -> "RemoteIdAuth":
+    """DRIP verification of the claim's Remote ID.
+
+    The signer's key is the one the registry holds for the claimed identity (a DET signs only
+    if it is the DET of that key: RFC 9374's binding), or one a DRIP Link from a trusted
+    registry (HDA DET -> key) vouches for. A valid signature counts only if its DET is the
+    claimed identity's: the DET of its registered key, or the DET in its DRIP session ID;
+    else the status is `unknown-key` (signed, but by someone else)."""
     from registry.remoteid import AuthPage, AuthPage0
 
     if not any(isinstance(m, (AuthPage0, AuthPage)) for m, _ in claim.wire):
@@ -86,8 +92,22 @@ def authenticate(claim: Claim, facts: "RegistryFacts", dwell_time: datetime) -> 
         key = facts.public_key
         return key if key is not None and det_matches_key(det, key) else None
 
-    result = verify(claim.wire, key_for, dwell_time)
+    result = verify(claim.wire, key_for, dwell_time, trusted_registry_keys=trusted_registries or {})
+    if result.status == "valid" and not _is_claimed(result.det, claim, facts):
+        return RemoteIdAuth("unknown-key", f"signed by DET {result.det}, which is not the claimed identity's",
+                            tuple(result.sam_types), (), result.det)
     return RemoteIdAuth(result.status, result.reason, tuple(result.sam_types), tuple(result.covered), result.det)
+
+
+def _is_claimed(det_hex: str | None, claim: Claim, facts: "RegistryFacts") -> bool:
+    from registry.remoteid.drip import det_matches_key
+
+    if det_hex is None:
+        return False
+    det = bytes.fromhex(det_hex)
+    if facts.public_key is not None and det_matches_key(det, facts.public_key):
+        return True
+    return claim.serial.upper() == ("01" + det_hex).upper()  # a DRIP session ID names its DET
 
 
 def _epoch(when: datetime) -> int:

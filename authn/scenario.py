@@ -34,6 +34,7 @@ class Signing:
     window_s: tuple[float, float] = (-60.0, 300.0)  # valid-not-before/after, s from the dwell's start
     signed_at_offset_s: float = 0.0  # shift the window (a replayed signature: e.g. -86400)
     tamper_after_signing: bool = False  # move the first Location 50 m after signing it
+    link: bytes | None = None  # a DRIP Link (auth data) from the drone's registry, broadcast too
 
 
 @dataclass(frozen=True)
@@ -120,6 +121,8 @@ def _signed(rows: list[bytes], times: list[float], signing: Signing, start: date
         rows = [*rows[:first], encode(loc.model_copy(update={"latitude_deg": loc.latitude_deg + 50.0 / 111_320.0})),
                 *rows[first + 1:]]
     pages = paginate(data, start + shift)
+    if signing.link is not None:  # a different page-0 timestamp keeps the two messages apart
+        pages = paginate(signing.link, start + shift - timedelta(seconds=1)) + pages
     t = dwell_s / 2
     return rows + list(pages), times + [t] * len(pages)
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from authn.errors import BadInput
 
-__all__ = ["DEFAULT_RAA", "DEFAULT_HDA", "UaKey", "generate", "load"]
+__all__ = ["DEFAULT_RAA", "DEFAULT_HDA", "UaKey", "generate", "load", "load_trusted_registries"]
 
 #: The Registered Assigning Authority and HDA put in generated DETs (RFC 9374 HID). RAA
 #: 16376 lies in the range RFC 9374 leaves for experiments; real deployments take theirs
@@ -98,3 +98,31 @@ def load(path: Path, raa: int = DEFAULT_RAA, hda: int = DEFAULT_HDA) -> UaKey:
                                 serialization.NoEncryption())
     public = private.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
     return UaKey(raw, public, _det(public, raa, hda))
+
+
+def load_trusted_registries(path: Path) -> dict[bytes, bytes]:
+    """Registries (HDAs) whose DRIP Links the site trusts: a JSON file
+    `{"registries": [{"det": "<HDA DET, hex or IPv6 text>", "public_key": "<64 hex digits>"}]}`."""
+    import json
+
+    from registry.remoteid.drip import DripError, parse_det
+
+    try:
+        doc = json.loads(Path(path).read_text())
+        entries = doc["registries"]
+        if not isinstance(entries, list):
+            raise TypeError
+    except OSError as exc:
+        raise BadInput(f"{path}: cannot read trusted registries ({exc.strerror})") from None
+    except (ValueError, KeyError, TypeError, AttributeError):
+        raise BadInput(f'{path}: expected {{"registries": [{{"det": ..., "public_key": ...}}]}}') from None
+    out: dict[bytes, bytes] = {}
+    for i, entry in enumerate(entries):
+        try:
+            key = bytes.fromhex(str(entry["public_key"]))
+            if len(key) != 32:
+                raise ValueError
+            out[parse_det(str(entry["det"]))] = key
+        except (KeyError, TypeError, ValueError, DripError):
+            raise BadInput(f"{path}: registries[{i}]: needs a DET and a 32-byte public key (hex)") from None
+    return out

@@ -97,6 +97,8 @@ def check(
     claims: Path | None = typer.Option(None, "--claims", help="CSV file,serial mapping files to claimed serials."),
     policy: Path | None = typer.Option(None, "--policy", help="Cedar policy file replacing the default."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (one object; a list for several files)."),
+    trust_registry: Path | None = typer.Option(None, "--trust-registry",
+                                               help="JSON of registries (HDA DET + key) whose DRIP Links to trust."),
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
@@ -115,7 +117,10 @@ def check(
 
     state = ctx.obj
     try:
-        checker = Checker(state.db_url, policy)
+        from authn.uakeys import load_trusted_registries
+
+        trusted = load_trusted_registries(trust_registry) if trust_registry else None
+        checker = Checker(state.db_url, policy, trusted)
         paths = _files(files)
         mapping = _claims(claims) if claims else {}
     except Exception as exc:
@@ -206,7 +211,6 @@ def _stop_signals():
 
 
 def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | None, as_json: bool) -> None:
-    from rich.console import Console
     from rich.progress import Progress
 
     from authn.check import Failure

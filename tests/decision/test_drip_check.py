@@ -165,3 +165,65 @@ def test_rid_decode_shows_and_verifies_authentication_pages(world: dict, capsys)
         text = capsys.readouterr().out
         doc = json.loads(text[text.rindex('{\n  "authentication"'):])
         assert doc["verification"]["status"] == status
+
+
+def test_a_link_from_a_trusted_registry_delivers_the_key(world: dict, tmp_path: Path, capsys) -> None:
+    """A DRIP identity registered without a key: the drone broadcasts its registry's Link (the
+    HDA's signature over its DET and key) beside its own signature; a site that trusts that
+    registry verifies it, one that does not sees an unknown key."""
+    from datetime import datetime, timedelta, timezone
+
+    from authn.scenario import Broadcast, Signing, simulate_flight
+    from authn.uakeys import generate
+    from registry.remoteid.drip import encode_link
+    from signatures.profiles import shipped_profiles
+    from signatures.radar import get_preset
+    from signatures.scene import Scene
+
+    hda, ua = generate(hda=2), generate()
+    now = datetime.now(timezone.utc)
+    link = encode_link(ua.det, ua.public_raw, hda.det, hda.private_raw, now - timedelta(days=1), now + timedelta(days=1))
+    assert main(["--db", world["db"], "register", "--serial", ua.session_id, "--id-type", "specific_session",
+                 "--model", "m300", "--valid-from", "2026-01-01"]) == 0
+    scene = Scene(profile=shipped_profiles()["m300"], range_m=500.0, radial_speed_mps=3.0, snr_db=20.0)
+    rec, _ = simulate_flight(scene, get_preset("paper"), 3, Broadcast(serial=ua.session_id, id_type=4, signing=Signing(
+        ua.private_raw, ua.det, link=link)), start_time=now)
+    path = write_recording(rec, tmp_path / "linked.h5")
+    trust = tmp_path / "trust.json"
+    trust.write_text(json.dumps({"registries": [{"det": hda.det.hex(), "public_key": hda.public_raw.hex()}]}))
+    for extra, status in (([], "unknown-key"), (["--trust-registry", str(trust)], "valid")):
+        capsys.readouterr()
+        assert main(["--db", world["db"], "check", str(path), "--json", *extra]) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert out["remote_id_auth"]["status"] == status, out["remote_id_auth"]
+    assert out["remote_id_auth"]["sam_types"] == ["link", "wrapper"]
+
+
+def test_a_valid_signature_by_someone_else_does_not_count(world: dict, tmp_path: Path, capsys) -> None:
+    """An impersonator with a genuine Link from a trusted registry signs correctly with its own
+    key, while claiming a serial that is not its own: the signature verifies but is not the
+    claimed identity's, so it counts as an unknown key (and a keyed victim then rejects)."""
+    from datetime import datetime, timedelta, timezone
+
+    from authn.scenario import Broadcast, Signing, simulate_flight
+    from authn.uakeys import generate
+    from registry.remoteid.drip import encode_link
+    from signatures.profiles import shipped_profiles
+    from signatures.radar import get_preset
+    from signatures.scene import Scene
+
+    hda, attacker = generate(hda=3), generate()
+    now = datetime.now(timezone.utc)
+    link = encode_link(attacker.det, attacker.public_raw, hda.det, hda.private_raw, now - timedelta(days=1),
+                       now + timedelta(days=1))
+    trust = tmp_path / "trust.json"
+    trust.write_text(json.dumps({"registries": [{"det": hda.det.hex(), "public_key": hda.public_raw.hex()}]}))
+    scene = Scene(profile=shipped_profiles()["m300"], range_m=500.0, radial_speed_mps=3.0, snr_db=20.0)
+    for serial, code in (("1581BDEM00000097", 0), (VICTIM, 1)):
+        rec, _ = simulate_flight(scene, get_preset("paper"), 4, Broadcast(serial=serial, signing=Signing(
+            attacker.private_raw, attacker.det, link=link)), start_time=now)
+        path = write_recording(rec, tmp_path / f"claims-{serial}.h5")
+        capsys.readouterr()
+        assert main(["--db", world["db"], "check", str(path), "--json", "--trust-registry", str(trust)]) == code
+        out = json.loads(capsys.readouterr().out)
+        assert out["remote_id_auth"]["status"] == "unknown-key" and "not the claimed" in out["remote_id_auth"]["reason"]
