@@ -8,18 +8,20 @@ from pathlib import Path
 import typer
 
 
-
 def demo(
     ctx: typer.Context,
     out: Path | None = typer.Option(None, "--out", help="Where to write the simulated returns "
                                     "(default: a 'demo' folder in the user cache directory)."),
 ) -> None:
-    """Register example UAVs, simulate six scenes, check each and print the decisions.
+    """Register example UAVs, simulate nine scenes, check each and print the decisions.
 
     The scenes: a genuine flight, a spoofed type (a Phantom 4 claiming an M600's
     serial), a position spoofed by 300 m, an unregistered serial, a revoked one and a
-    bird. Uses the default SQLite registry unless --db / AUTHN_DATABASE_URL says otherwise.
-    Exit code 0 when every decision is the expected one.
+    bird; then signed Remote ID (IETF DRIP): an M300 registered with a key signs its
+    broadcast, and another M300 claims that identity unsigned and signed with its own
+    key. The keys are generated on every run; the keyed identity is registered under
+    its DRIP session ID. Uses the default SQLite registry unless --db /
+    AUTHN_DATABASE_URL says otherwise. Exit code 0 when every decision is the expected one.
 
     Example: authn demo
     """
@@ -28,16 +30,17 @@ def demo(
     from rich.table import Table
 
     from authn.check import Checker
-    from authn.demo import register_examples, write_scenes
+    from authn.demo import DemoKeys, claimed_serial, register_examples, write_scenes
 
     t0 = time.perf_counter()
     console = Console()
     out = out or Path(user_cache_dir("authn")) / "demo"
     out.mkdir(parents=True, exist_ok=True)
-    register_examples(ctx.obj.db_url)
-    scenes = write_scenes(out)
+    keys = DemoKeys.generate()
+    register_examples(ctx.obj.db_url, keys)
+    scenes = write_scenes(out, keys=keys)
     checker = Checker(ctx.obj.db_url)
-    outcomes = [checker.evaluate(path, None if sc.broadcast else sc.serial) for sc, path in scenes]
+    outcomes = [checker.evaluate(path, None if sc.broadcast else claimed_serial(sc, keys)) for sc, path in scenes]
     checker.record(outcomes)
     table = Table(title="authn demo: is the drone the radar sees the UAV it claims to be?")
     for col in ("#", "scene", "claimed", "radar sees", "decision"):
