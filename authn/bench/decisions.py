@@ -2,8 +2,12 @@
 
 Categories: genuine claims, type spoofs between the shipped
 profiles, position spoofs (Remote ID displaced 100-300 m along the line of sight),
-unregistered and revoked serials. Each scene is a real file checked by the real
-`Checker` against a real (temporary SQLite) registry.
+unregistered and revoked serials; then signed Remote ID (IETF DRIP, RFC 9575) against
+identities registered with a key: a genuine signed flight, an unsigned claim of a keyed
+identity by a drone of the same type (what the radar cannot see), a forgery (another key
+signing in the victim's DET) and a replay (the victim's own signature, a day old). Each
+scene is a real file checked by the real `Checker` against a real (temporary SQLite)
+registry; the DRIP keys are generated for each run.
 """
 
 from __future__ import annotations
@@ -15,21 +19,33 @@ import tempfile
 import time
 from collections import defaultdict
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from authn.scenario import Broadcast, simulate_flight
+from authn.scenario import Broadcast, Signing, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
 from signatures.sampling import SceneDistribution, sample_scene
 from signatures.scene import Scene
 
-CATEGORIES = ("genuine", "type_spoof", "position_spoof", "unregistered", "revoked")
-EXPECTED = {"genuine": "accept"} | {c: "reject" for c in CATEGORIES[1:]}
+if TYPE_CHECKING:
+    from authn.uakeys import UaKey
+
+DRIP_CATEGORIES = ("drip_genuine", "drip_unsigned", "drip_forged", "drip_replayed")
+CATEGORIES = ("genuine", "type_spoof", "position_spoof", "unregistered", "revoked", *DRIP_CATEGORIES)
+ACCEPTED = ("genuine", "drip_genuine")
+EXPECTED = {c: "accept" if c in ACCEPTED else "reject" for c in CATEGORIES}
+#: the reason each DRIP rejection must carry (the policy's @id)
+DRIP_REASONS = {"drip_unsigned": "remote-id-auth-required", "drip_forged": "remote-id-auth-invalid",
+                "drip_replayed": "remote-id-auth-expired"}
+#: categories whose drone signs its Remote ID (the rest broadcast unsigned)
+SIGNED = ("drip_genuine", "drip_forged", "drip_replayed")
+REPLAY_AGE_S = 86400.0
 VALID_FROM = datetime(2025, 1, 1, tzinfo=timezone.utc)
 UNREGISTERED = "1581BBENCH99999X"
 
@@ -39,7 +55,14 @@ def bench_serial(slug: str, revoked: bool = False) -> str:
         + ("R" if revoked else "A")
 
 
-def register_identities(db_url: str) -> None:
+def keyed_serial(slug: str) -> str:
+    """The serial of `slug`'s identity registered with a DRIP key."""
+    return bench_serial(slug)[:-1] + "K"
+
+
+def register_identities(db_url: str, keys: "dict[str, UaKey] | None" = None) -> None:
+    """An active and a revoked identity per shipped profile; with `keys` (slug -> key) also a
+    keyed one per slug (`keyed_serial`) holding that key's public half."""
     from registry.db import session_scope
     from registry.store import NewIdentity, register_identity, revoke_identity
 
@@ -49,6 +72,18 @@ def register_identities(db_url: str) -> None:
                 register_identity(s, NewIdentity(serial=bench_serial(slug, revoked), model=slug, valid_from=VALID_FROM))
                 if revoked:
                     revoke_identity(s, bench_serial(slug, revoked), "bench")
+        for slug, key in (keys or {}).items():
+            register_identity(s, NewIdentity(serial=keyed_serial(slug), model=slug, public_key=key.public_raw,
+                                             valid_from=VALID_FROM))
+
+
+def drip_broadcast(cat: str, serial: str, offset: float, victim: "UaKey", attacker: "UaKey") -> Broadcast:
+    """The Remote ID of a DRIP category's drone claiming `serial` (registered with `victim`'s key)."""
+    signing = {"drip_genuine": Signing(private_key=victim.private_raw, det=victim.det),
+               "drip_forged": Signing(private_key=attacker.private_raw, det=victim.det),
+               "drip_replayed": Signing(private_key=victim.private_raw, det=victim.det,
+                                        signed_at_offset_s=-REPLAY_AGE_S)}.get(cat)
+    return Broadcast(serial=serial, offset_along_los_m=offset, signing=signing)
 
 
 @dataclass
@@ -60,6 +95,12 @@ class Row:
     radar_skipped: int
     median_ms: float
     wrong_reasons: dict[str, int]  # reasons of the decisions that went the wrong way
+    auth_ms: list[float] = field(default_factory=list)  # each check's remote_id_auth stage (DRIP verification)
+    reason_missing: int = 0  # DRIP rejections without their category's reason (`DRIP_REASONS`)
+
+    @property
+    def median_auth_ms(self) -> float:
+        return statistics.median(self.auth_ms) if self.auth_ms else float("nan")
 
     @property
     def rate(self) -> float:
@@ -82,21 +123,24 @@ def random_scene(rng: np.random.Generator, slug: str, snr_range: tuple[float, fl
 def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[float, float] = (10.0, 30.0),
                   progress: Callable[[int], None] | None = None) -> list[Row]:
     """n scenes per category and preset; returns one row per (preset, category)."""
+    from authn import uakeys
     from authn.check import Checker
 
     slugs = list(shipped_profiles())
+    keys = {slug: uakeys.generate() for slug in slugs}
+    attacker = uakeys.generate()
     rows: list[Row] = []
     with tempfile.TemporaryDirectory() as tmp:
         db = f"sqlite:///{Path(tmp) / 'bench.sqlite3'}"
-        register_identities(db)
+        register_identities(db, keys)
         checker = Checker(db)
         now = datetime.now(timezone.utc)
         for preset in presets:
             pre = get_preset(preset)
             rng = np.random.default_rng([seed, len(preset)])
             for cat in CATEGORIES:
-                correct = skipped = 0
-                times = []
+                correct = skipped = missing = 0
+                times, auth = [], []
                 wrong: dict[str, int] = defaultdict(int)
                 for i in range(n):
                     flies = slugs[i % len(slugs)]
@@ -107,23 +151,28 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                     if cat == "position_spoof":
                         offset = float(rng.choice([-1, 1]) * rng.uniform(100.0, 300.0))
                     serial = {"unregistered": UNREGISTERED, "revoked": bench_serial(claims, True)}.get(
-                        cat, bench_serial(claims))
+                        cat, keyed_serial(claims) if cat in DRIP_CATEGORIES else bench_serial(claims))
                     scene, az = random_scene(rng, flies, snr_range)
                     if offset < 0 and scene.range_m + offset < 30.0:
                         offset = -offset
-                    rec, _ = simulate_flight(scene, pre, int(rng.integers(2**31)), Broadcast(serial=serial,
-                                             offset_along_los_m=offset), azimuth_deg=az, start_time=now)
+                    bc = (drip_broadcast(cat, serial, offset, keys[claims], attacker) if cat in DRIP_CATEGORIES
+                          else Broadcast(serial=serial, offset_along_los_m=offset))
+                    rec, _ = simulate_flight(scene, pre, int(rng.integers(2**31)), bc, azimuth_deg=az,
+                                             start_time=now)
                     path = write_recording(rec, Path(tmp) / "scene.h5")
                     t0 = time.perf_counter()
                     out = checker.evaluate(path)
                     times.append((time.perf_counter() - t0) * 1e3)
+                    auth.append(out.timings_ms["remote_id_auth"])
+                    missing += cat in DRIP_REASONS and DRIP_REASONS[cat] not in out.reasons
                     correct += out.decision == EXPECTED[cat]
                     skipped += out.radar is None
                     if out.decision != EXPECTED[cat]:
                         wrong[",".join(out.reasons)] += 1
                     if progress:
                         progress(1)
-                rows.append(Row(preset, cat, n, correct, skipped, statistics.median(times), dict(wrong)))
+                rows.append(Row(preset, cat, n, correct, skipped, statistics.median(times), dict(wrong), auth,
+                                missing))
     return rows
 
 
@@ -212,5 +261,27 @@ def summarise(rows: list[Row]) -> dict[str, dict[str, dict[str, float]]]:
     out: dict[str, dict[str, dict[str, float]]] = defaultdict(dict)
     for r in rows:
         out[r.preset][r.category] = {"n": r.n, "correct_rate": r.rate, "radar_skipped_rate": r.radar_skipped / r.n,
-                                     "median_check_ms": round(r.median_ms, 2), "wrong_reasons": r.wrong_reasons}
+                                     "median_check_ms": round(r.median_ms, 2), "wrong_reasons": r.wrong_reasons,
+                                     "median_remote_id_auth_ms": round(r.median_auth_ms, 4)}
+        if r.category in DRIP_REASONS:
+            out[r.preset][r.category]["reason_missing"] = r.reason_missing
     return dict(out)
+
+
+def drip_cost(rows: list[Row]) -> dict[str, dict[str, float]]:
+    """Per preset, the check's `remote_id_auth` stage (DRIP verification): median over the
+    genuine signed checks (a valid signature, the cost a signed flight adds), over the forged
+    and replayed ones, and over every unsigned check (finding there is nothing to verify)."""
+    out: dict[str, dict[str, float]] = {}
+    for preset in dict.fromkeys(r.preset for r in rows):
+        pools = {"signed_valid": [r for r in rows if r.category == "drip_genuine"],
+                 "signed_rejected": [r for r in rows if r.category in ("drip_forged", "drip_replayed")],
+                 "unsigned": [r for r in rows if r.category not in SIGNED]}
+        doc: dict[str, float] = {}
+        for name, group in pools.items():
+            times = [t for r in group if r.preset == preset for t in r.auth_ms]
+            doc[f"{name}_ms"] = round(statistics.median(times), 4) if times else float("nan")
+            doc[f"{name}_n"] = len(times)
+        doc["signed_minus_unsigned_ms"] = round(doc["signed_valid_ms"] - doc["unsigned_ms"], 4)
+        out[preset] = doc
+    return out

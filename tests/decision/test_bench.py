@@ -2,18 +2,29 @@
 
 from __future__ import annotations
 
-from authn.bench.decisions import CATEGORIES, EXPECTED, run_decisions, summarise
+from authn.bench.decisions import CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, run_decisions, summarise
 from authn.bench.pareto import Point, _mark_front, near_floor
 
 
 def test_decision_rows_cover_every_category() -> None:
     rows = run_decisions(("paper",), 3, seed=1)
     assert [r.category for r in rows] == list(CATEGORIES)
+    assert CATEGORIES[:5] == ("genuine", "type_spoof", "position_spoof", "unregistered", "revoked")
+    assert [c for c in CATEGORIES if EXPECTED[c] == "accept"] == ["genuine", "drip_genuine"]
     by = {r.category: r for r in rows}
     assert by["unregistered"].radar_skipped == by["revoked"].radar_skipped == 3
-    assert by["genuine"].radar_skipped == 0
+    assert by["genuine"].radar_skipped == by["drip_genuine"].radar_skipped == 0
     assert all(r.correct == r.n for r in rows if EXPECTED[r.category] == "reject")  # spoofs never pass
-    assert set(summarise(rows)["paper"]) == set(CATEGORIES)
+    # DRIP rejections: each with its own reason, decided before the radar
+    assert set(DRIP_REASONS) == {"drip_unsigned", "drip_forged", "drip_replayed"}
+    assert all(by[c].reason_missing == 0 and by[c].radar_skipped == 3 for c in DRIP_REASONS)
+    assert all(len(r.auth_ms) == r.n for r in rows)
+    summary = summarise(rows)["paper"]
+    assert set(summary) == set(CATEGORIES)
+    assert summary["drip_forged"]["reason_missing"] == 0 and "reason_missing" not in summary["genuine"]
+    cost = drip_cost(rows)["paper"]
+    assert (cost["signed_valid_n"], cost["signed_rejected_n"], cost["unsigned_n"]) == (3, 6, 18)
+    assert cost["signed_valid_ms"] > cost["unsigned_ms"] > 0  # verifying costs more than finding nothing to verify
 
 
 def test_claim_scenes_are_pinned() -> None:
@@ -98,5 +109,7 @@ def test_bench_quick_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkey
     doc = json.loads(capsys.readouterr().out)
     assert set(doc) >= {"decisions", "stages", "fft_floor", "pareto", "near_fft_floor", "throughput_per_s"}
     assert doc["decisions"]["paper"]["unregistered"]["radar_skipped_rate"] == 1.0
+    assert doc["decisions"]["paper"]["drip_forged"]["correct_rate"] == 1.0
+    assert doc["drip_verification_ms"]["paper"]["signed_valid_n"] == 12
     assert {p["name"] for p in doc["pareto"]["paper"]} >= {"gated + ensemble (default)", "full cube + ensemble"}
     assert (tmp_path / "fig" / "error-vs-time-paper.png").stat().st_size > 10_000
