@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from datetime import datetime, timedelta, timezone
 from decimal import Decimal
 
@@ -268,13 +268,8 @@ def decode_hex(text: str):
         raise RemoteIdError(f"not hex: {text[:60]!r}") from None
 
 
-def decode_rows(rows: Iterable) -> list:
-    """Decode each row of an (n, 25) uint8 array (or any iterable of byte rows).
-
-    Rows that are all zero are padding and skipped. Used for the Remote ID
-    messages embedded in a recorded return.
-    """
-    out = []
+def _decoded_rows(rows: Iterable) -> Iterator[tuple[bytes, object]]:
+    """(wire bytes, decoded message) of each row; all-zero rows are padding and skipped."""
     for i, row in enumerate(rows):
         try:
             raw = bytes(bytearray(row))
@@ -283,10 +278,18 @@ def decode_rows(rows: Iterable) -> list:
         if not any(raw):
             continue
         try:
-            out.append(decode(raw))
+            yield raw, decode(raw)
         except RemoteIdError as exc:
             raise RemoteIdError(f"row {i}: {exc}") from None
-    return out
+
+
+def decode_rows(rows: Iterable) -> list:
+    """Decode each row of an (n, 25) uint8 array (or any iterable of byte rows).
+
+    Rows that are all zero are padding and skipped. Used for the Remote ID
+    messages embedded in a recorded return.
+    """
+    return [msg for _, msg in _decoded_rows(rows)]
 
 
 def split_raw(data: bytes | bytearray | memoryview) -> list[bytes]:
@@ -307,18 +310,8 @@ def decode_rows_raw(rows: Iterable) -> list[tuple]:
     The pairs are `(message, raw)`; the signed Remote ID checks (DRIP) need the bytes
     as sent, not a re-encoding. Raises RemoteIdError exactly where `decode_rows` does.
     """
-    out = []
-    for i, row in enumerate(rows):
-        try:
-            raw = bytes(bytearray(row))
-        except (TypeError, ValueError):
-            raise RemoteIdError(f"row {i}: not a row of bytes (0..255)") from None
-        if not any(raw):
-            continue
-        try:
-            msg = decode(raw)
-        except RemoteIdError as exc:
-            raise RemoteIdError(f"row {i}: {exc}") from None
+    out: list[tuple] = []
+    for raw, msg in _decoded_rows(rows):
         if isinstance(msg, MessagePack):
             out.extend(zip(msg.messages, split_raw(raw)))
         else:

@@ -3,6 +3,7 @@
 One import point; the formats are in `drip_formats`, the verification in `drip_verify`.
 """
 
+# The public surface, re-exported (tests import the same names: a deliberate repeat).
 from registry.remoteid.drip_formats import (
     AUTH_TYPE_SAM,
     FRAME_F3411_MESSAGES,

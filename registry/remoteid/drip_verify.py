@@ -269,12 +269,14 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
         if not in_window(s):
             expired.append(f"DRIP {s.name} valid {s.vnb}..{s.vna}, dwell time {now} (s since 2019)")
             continue
-        if s.sam_type == SAM_WRAPPER:
-            for k, w in enumerate(s.wrapped()):
+        carried = s.wrapped() if s.sam_type == SAM_WRAPPER else \
+            s.frame_messages() if s.sam_type == SAM_FRAME else None
+        if carried is not None:  # a Wrapper's messages, or a Frame of F3411 messages
+            for k, w in enumerate(carried):
                 idx = subjects.get(w)
                 if not idx:
                     return AuthResult("invalid", det=s.det.hex(), reason=(
-                        f"DRIP wrapper: wrapped message {k + 1} (type 0x{w[0] >> 4:X}) "
+                        f"DRIP {s.name}: signed message {k + 1} (type 0x{w[0] >> 4:X}) "
                         "is not among the decoded messages"))
                 covered.update(coverable(idx))
         elif s.sam_type == SAM_MANIFEST:
@@ -283,14 +285,6 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
                                   reason="DRIP manifest: current manifest hash does not match its evidence")
             for h in s.manifest_hashes()[3]:
                 covered.update(coverable(hashes.get(h, [])))
-        elif s.sam_type == SAM_FRAME and (framed := s.frame_messages()) is not None:
-            for k, w in enumerate(framed):
-                idx = subjects.get(w)
-                if not idx:
-                    return AuthResult("invalid", det=s.det.hex(), reason=(
-                        f"DRIP frame: framed message {k + 1} (type 0x{w[0] >> 4:X}) "
-                        "is not among the decoded messages"))
-                covered.update(coverable(idx))
         verified.append(s.name)
         signer_det = signer_det or s.det.hex()
 
