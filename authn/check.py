@@ -36,6 +36,7 @@ class Outcome:
     file: str
     decision: str
     reasons: list[str]
+    dwell_start: str
     claim: dict[str, Any]
     registry: dict[str, Any]
     radar: dict[str, Any] | None

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, replace
-from datetime import datetime
+from datetime import datetime, timezone
 from typing import Any
 
 from authn.errors import AuthnError
@@ -145,7 +145,9 @@ class RegistryFacts:
 
     def to_json(self) -> dict[str, Any]:
         return {"registered": self.registered, "status": self.status, "model": self.model or None,
-                "has_key": self.public_key is not None}
+                "has_key": self.public_key is not None,
+                "valid_from": self.valid_from.isoformat() if self.valid_from else None,
+                "valid_until": self.valid_until.isoformat() if self.valid_until else None}
 
 
 @dataclass(frozen=True)
@@ -273,7 +275,8 @@ class Evidence:
     # --- the report ------------------------------------------------------------------
     def report(self) -> dict[str, Any]:
         """The evidence part of `authn check --json` (and of the audit payload)."""
-        return {"claim": self.claim.to_json(), "registry": self.registry.to_json(),
+        return {"dwell_start": datetime.fromtimestamp(self.time_s, timezone.utc).isoformat(),
+                "claim": self.claim.to_json(), "registry": self.registry.to_json(),
                 "radar": None if self.radar is None else self.radar.to_json(),
                 "kinematics": None if self.kinematics is None else self.kinematics.to_json(),
                 "remote_id": {"messages": self.claim.n_messages, "ua_type": self.claim.ua_type,

@@ -69,6 +69,9 @@ def _print_outcome(o) -> None:
     t.add_column()
     reg = o.registry
     t.add_row("registry", f"{reg['status']}" + (f", declared {reg['model']}" if reg["model"] else ""))
+    if "outside-validity-window" in o.reasons:
+        t.add_row("validity", f"dwell at {o.dwell_start}; registered valid from {reg['valid_from']}"
+                  + (f" until {reg['valid_until']}" if reg["valid_until"] else ""))
     if o.radar is None:
         t.add_row("radar", "skipped (registry decided)")
     else:

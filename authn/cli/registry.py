@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
-from datetime import datetime
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Optional
 
@@ -26,6 +26,15 @@ def _time(value: Optional[str], option: str) -> Optional[datetime]:
     if value is None:
         return None
     return parse_iso_time(value, option, error=AuthnError)
+
+
+#: `authn register` without --valid-from starts the validity window this long before now: the
+#: common order (record or simulate a flight, then register the drone) must not reject it.
+REGISTRATION_GRACE = timedelta(hours=24)
+
+
+def _default_valid_from() -> datetime:
+    return datetime.now(timezone.utc) - REGISTRATION_GRACE
 
 
 def _validated(cls, **fields):
@@ -52,7 +61,9 @@ def register_cmd(
     id_type: str = typer.Option("serial", "--id-type", help="serial | caa_registration | utm_uuid | specific_session."),
     operator_id: Optional[str] = typer.Option(None, "--operator-id", help="Operator registration ID (max 20 chars)."),
     public_key: Optional[Path] = typer.Option(None, "--public-key", help="Ed25519 public key file: 32 raw bytes, hex or PEM."),
-    valid_from: Optional[str] = typer.Option(None, "--valid-from", help="ISO 8601 start (default: now; naive = UTC)."),
+    valid_from: Optional[str] = typer.Option(None, "--valid-from",
+                                             help="ISO 8601 start (naive = UTC; default: 24 h before now, so that a "
+                                                  "return recorded shortly before registering is inside the window)."),
     valid_until: Optional[str] = typer.Option(None, "--valid-until", help="ISO 8601 end (default: open-ended)."),
     notes: Optional[str] = typer.Option(None, "--notes", help="Free text."),
     model_name: Optional[str] = typer.Option(None, "--model-name", help="New model: display name."),
@@ -95,7 +106,8 @@ def register_cmd(
         new = _validated(
             NewIdentity, serial=serial, id_type=id_type, model=model, operator_id=operator_id,
             public_key=read_public_key(public_key) if public_key else None,
-            valid_from=_time(valid_from, "--valid-from"), valid_until=_time(valid_until, "--valid-until"),
+            valid_from=_time(valid_from, "--valid-from") or _default_valid_from(),
+            valid_until=_time(valid_until, "--valid-until"),
             notes=notes)
     elif new_profile is None:
         raise RegistryError("nothing to register: give --serial (and/or a new model's parameters)")

@@ -18,7 +18,9 @@ def _scene_for(model: str, profiles_file: Path | None, **kw: object):  # -> Scen
 
     if model in ("bird", "none"):
         return Scene(kind=model, **kw)  # type: ignore[arg-type]
-    profiles = load_profiles(profiles_file)
+    profiles = load_profiles()
+    if profiles_file is not None:
+        profiles.update(load_profiles(profiles_file))  # adds to (or overrides) the shipped profiles
     if model not in profiles:
         known = ", ".join([*profiles, "bird", "none"])
         raise SignaturesError(f"--model: unknown model {model!r} (known: {known})")
@@ -63,7 +65,8 @@ def simulate(
     range_offset: float | None = typer.Option(None, "--range-offset",
                                               help="Start of the range gate, m (default: target mid-window)."),
     count: int = typer.Option(1, "--count", min=1, max=1_000_000, help="Number of returns (writes DIR/scene_NNNNNN.h5)."),
-    profiles: Path | None = typer.Option(None, "--profiles", help="JSON file of extra UAV profiles."),
+    profiles: Path | None = typer.Option(None, "--profiles",
+                                         help="JSON file of UAV profiles added to (or overriding) the shipped ones."),
     azimuth: float = typer.Option(0.0, "--azimuth", help="Azimuth of the target from the radar, degrees from north."),
     rid_serial: str | None = typer.Option(None, "--rid-serial",
                                           help="Embed the Remote ID (Basic ID + Location) this drone broadcasts."),
@@ -136,6 +139,8 @@ def simulate(
             loc, msg, _ = first_error(exc)
             raise SignaturesError(f"--rid-*: {loc}: {msg}") from None
 
+    if count > 1 and out.suffix.lower() in (".h5", ".hdf5", ".npz"):
+        raise SignaturesError(f"--out: with --count {count}, give a directory, not the file name {out}")
     if count == 1 and out.suffix:
         rec, truth = run_simulation(0)
         write_recording(rec, out)

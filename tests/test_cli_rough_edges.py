@@ -1,0 +1,56 @@
+"""The front door's rough edges, each with the behaviour a new user expects."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from authn.cli import main
+
+OCTO = {"profiles": [{"slug": "octo-x8", "name": "Octocopter X8", "rotors": 8, "arms": 8, "blades_per_rotor": 2,
+                      "blade_length_m": 0.38, "rotor_rate_hz": 45.0, "propeller_distance_m": 1.0}]}
+
+
+def test_simulate_then_register_then_check_accepts(tmp_path: Path, capsys) -> None:
+    """The order people try first: the recording is older than the registration by the time
+    it takes to type the command; the default validity window starts 24 h back."""
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    flight = tmp_path / "genuine.h5"
+    assert main(["simulate", "--model", "m300", "--range", "500", "--speed", "4", "--rid-serial",
+                 "1581BDEM00000042", "--out", str(flight)]) == 0
+    assert main(["--db", db, "register", "--serial", "1581BDEM00000042", "--model", "m300"]) == 0
+    capsys.readouterr()
+    assert main(["--db", db, "check", str(flight), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["registry"]["valid_from"] < out["dwell_start"]
+
+
+def test_outside_the_window_says_both_times(tmp_path: Path, capsys) -> None:
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    flight = tmp_path / "old.h5"
+    assert main(["simulate", "--model", "m300", "--range", "500", "--rid-serial", "1581BDEM00000042",
+                 "--start-time", "2025-06-01T12:00:00Z", "--out", str(flight)]) == 0
+    assert main(["--db", db, "register", "--serial", "1581BDEM00000042", "--model", "m300"]) == 0
+    capsys.readouterr()
+    assert main(["--db", db, "check", str(flight)]) == 1
+    out = capsys.readouterr().out
+    assert "outside-validity-window" in out and "dwell at 2025-06-01T12:00:00" in out and "valid from" in out
+
+
+def test_count_with_a_file_name_is_refused(tmp_path: Path, capsys) -> None:
+    target = tmp_path / "x.h5"
+    assert main(["simulate", "--model", "m300", "--range", "500", "--count", "3", "--out", str(target)]) == 2
+    assert "give a directory" in capsys.readouterr().err and not target.exists()
+
+
+def test_profiles_file_adds_to_the_shipped_ones(tmp_path: Path) -> None:
+    extra = tmp_path / "my-profiles.json"
+    extra.write_text(json.dumps(OCTO))
+    for model in ("octo-x8", "m300"):
+        assert main(["simulate", "--model", model, "--range", "300", "--profiles", str(extra),
+                     "--out", str(tmp_path / f"{model}.h5")]) == 0
+
+
+def test_version(capsys) -> None:
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.startswith("authn ")
