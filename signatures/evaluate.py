@@ -176,8 +176,9 @@ def plot(report: dict[str, Any], folder: Path) -> list[Path]:
             ax.imshow(mat, cmap="Blues")
             ax.set_xticks(range(len(cm["cols"])), cm["cols"], rotation=45)
             ax.set_yticks(range(len(cm["rows"])), cm["rows"])
+            dark = mat.max() / 2 if mat.size else 0  # white text on the dark half of the colour map
             for (i, j), v in np.ndenumerate(mat):
-                ax.text(j, i, str(v), ha="center", va="center", fontsize=8)
+                ax.text(j, i, str(v), ha="center", va="center", fontsize=8, color="white" if v > dark else "black")
             ax.set_xlabel("predicted")
             ax.set_ylabel("true")
             ax.set_title(f"{m}, {report['preset']}, SNR {s} dB")
