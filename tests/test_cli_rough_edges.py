@@ -54,3 +54,19 @@ def test_profiles_file_adds_to_the_shipped_ones(tmp_path: Path) -> None:
 def test_version(capsys) -> None:
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.startswith("authn ")
+
+
+def test_list_tables_fit_80_columns(tmp_path: Path, capsys, monkeypatch) -> None:
+    """`registry list` and `audit list` stay readable in a standard terminal: no cell of the
+    serial or decision truncated with an ellipsis."""
+    from authn.demo import register_examples
+
+    monkeypatch.setenv("COLUMNS", "80")
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    register_examples(db)
+    assert main(["--db", db, "check", str(tmp_path / "missing.h5"), "--serial", "1581BDEM00000002"]) == 2
+    capsys.readouterr()
+    for command in (["registry", "list"], ["audit", "list"]):
+        assert main(["--db", db, *command]) == 0
+        out = capsys.readouterr().out
+        assert max(len(line) for line in out.splitlines()) <= 80 and "…" not in out, out

@@ -76,13 +76,17 @@ def list_cmd(
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"audit log ({len(entries)} entries)")
-    for col in ("seq", "time (UTC)", "kind", "serial", "decision", "reasons", "hash"):
-        table.add_column(col)
+    table = Table(title=f"audit log ({len(entries)} entries)",
+                  caption="one entry in full, hashes included: `authn audit show SEQ`")
+    table.add_column("seq", justify="right", no_wrap=True)
+    table.add_column("time (UTC)", no_wrap=True)
+    table.add_column("serial", overflow="fold", min_width=16)
+    table.add_column("decision", no_wrap=True)
+    table.add_column("reasons / error", overflow="fold", ratio=1)
     for e in entries:
         reasons = ", ".join(e.payload.get("reasons", [])) if e.kind == "decision" else e.payload.get("error", "")
-        table.add_row(str(e.seq), e.created_at.strftime("%Y-%m-%d %H:%M:%S"), e.kind, e.serial or "",
-                      e.decision or "", reasons, e.entry_hash[:12])
+        table.add_row(str(e.seq), e.created_at.strftime("%Y-%m-%d %H:%M"), e.serial or "",
+                      e.decision or "error", reasons)
     Console().print(table)
 
 

@@ -133,15 +133,14 @@ def register_cmd(
 def _table(records, title: str):
     from rich.table import Table
 
-    t = Table(title=title)
-    t.add_column("serial", no_wrap=True)
-    for col in ("type", "model", "operator", "status", "valid from", "valid until", "key"):
-        t.add_column(col)
+    t = Table(title=title, caption="all fields: `authn registry show SERIAL` or --json")
+    t.add_column("serial", overflow="fold", min_width=16)  # a DRIP session ID is 34 characters
+    for col in ("model", "status", "valid (UTC)"):
+        t.add_column(col, no_wrap=True)
+    t.add_column("key", no_wrap=True)
     for r in records:
-        t.add_row(r.serial, r.id_type, r.model, r.operator_id or "", r.status,
-                  r.valid_from.strftime("%Y-%m-%d %H:%M:%SZ"),
-                  r.valid_until.strftime("%Y-%m-%d %H:%M:%SZ") if r.valid_until else "",
-                  "yes" if r.public_key else "")
+        until = r.valid_until.strftime("%Y-%m-%d") if r.valid_until else ""
+        t.add_row(r.serial, r.model, r.status, f"{r.valid_from:%Y-%m-%d}..{until}", "yes" if r.public_key else "")
     return t
 
 
