@@ -70,3 +70,11 @@ def test_list_tables_fit_80_columns(tmp_path: Path, capsys, monkeypatch) -> None
         assert main(["--db", db, *command]) == 0
         out = capsys.readouterr().out
         assert max(len(line) for line in out.splitlines()) <= 80 and "…" not in out, out
+
+
+def test_db_option_after_the_subcommand(tmp_path: Path, capsys) -> None:
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    assert main(["register", "--serial", "1581BDEM00000042", "--model", "m300", "--db", db]) == 0
+    capsys.readouterr()
+    assert main(["registry", "list", "--json", f"--db={db}"]) == 0
+    assert [r["serial"] for r in json.loads(capsys.readouterr().out)] == ["1581BDEM00000042"]

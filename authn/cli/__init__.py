@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     try:
         with _signals_as_errors():
-            app(args=argv, prog_name="authn")
+            app(args=_global_options_first(sys.argv[1:] if argv is None else list(argv)), prog_name="authn")
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
@@ -89,6 +89,27 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prefix}: {_describe(exc)}", file=sys.stderr)
         return exit_code_for(exc)
     return 0
+
+
+def _global_options_first(argv: list[str]) -> list[str]:
+    """`--db URL` is accepted after the subcommand too (`authn check f.h5 --db URL`): moved to
+    the front, where the root callback reads it. No subcommand has an option of that name."""
+    out, front, i = [], [], 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "--":
+            out.extend(argv[i:])
+            break
+        if arg == "--db" and i + 1 < len(argv):
+            front += argv[i:i + 2]
+            i += 2
+            continue
+        if arg.startswith("--db="):
+            front.append(arg)
+        else:
+            out.append(arg)
+        i += 1
+    return front + out
 
 
 @contextmanager
