@@ -65,7 +65,7 @@ class Base(DeclarativeBase):
 
 
 class ModelProfile(Base):
-    """Declared airframe: the physical parameters of SPEC section 4."""
+    """Declared airframe: its physical parameters (signatures/profiles.py)."""
 
     __tablename__ = "model_profiles"
 

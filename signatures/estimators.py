@@ -2,7 +2,7 @@
 
 Blade flashes: a blade seen broadside returns all its length in phase for ~30 us
 (Chen's sinc); two opposite blades flash together, twice per turn, so one rotor
-flashes at 2 f_rot (2 blades assumed, SPEC section 4). The flash is an impulse
+flashes at 2 f_rot (2 blades assumed, as the shipped profiles have). The flash is an impulse
 in slow time whatever the Doppler does, so timing survives blade-tip aliasing.
 
 Pipeline: demodulate the target bins by the body Doppler, subtract a short

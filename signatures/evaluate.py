@@ -1,4 +1,4 @@
-"""The paper's metrics (SPEC section 7) for a model bundle on fresh test data.
+"""The paper's metrics (accuracy, macro F1, TPC, FAR, delay; docs/classifiers.md) for a model bundle on fresh test data.
 
 Test data comes from the `test` grid blocks with its own seed, one dataset per SNR,
 so nothing here was seen in training or validation. Every model is run through the

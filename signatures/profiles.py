@@ -16,13 +16,13 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from authn.parsing import first_error
 from signatures.errors import SignaturesError
 
-#: Classes the radar knows besides UAV profiles (SPEC section 4).
+#: Classes the radar knows besides UAV profiles.
 NON_UAV_CLASSES = ("bird", "none")
 UNKNOWN = "unknown"
 
 
 class UavProfile(BaseModel):
-    """Physical parameters of a multirotor airframe (SPEC section 4)."""
+    """Physical parameters of a multirotor airframe."""
 
     model_config = ConfigDict(frozen=True, extra="forbid", defer_build=True)
 
@@ -91,5 +91,5 @@ def load_profiles(path: str | Path | None = None) -> dict[str, UavProfile]:
 
 
 def shipped_profiles() -> dict[str, UavProfile]:
-    """The three profiles of SPEC section 4."""
+    """The three shipped profiles (signatures/data/profiles.json)."""
     return load_profiles()

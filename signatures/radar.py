@@ -1,4 +1,4 @@
-"""FMCW radar configuration, the two presets of SPEC section 5 and what they imply.
+"""FMCW radar configuration, the two presets (docs/signal-model.md) and what they imply.
 
 Everything here is closed-form physics: range resolution c/2B, beat frequency
 2*S*R/c, unambiguous velocity lambda*PRF/4 (complex slow-time sampling), Doppler
@@ -17,7 +17,7 @@ C = 299_792_458.0  # speed of light, m/s
 
 
 class RadarConfig(BaseModel):
-    """Waveform of one recorded dwell: the SPEC section 3 radar attributes."""
+    """Waveform of one recorded dwell: the radar attributes of docs/format.md."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 

@@ -1,6 +1,6 @@
 """Range processing of a dechirped cube: scaling, range FFT, CFAR detection, RD map, axes.
 
-Conventions (SPEC section 3): range bin k is `range_offset_m + k * range_bin_m`
+Conventions (docs/format.md): range bin k is `range_offset_m + k * range_bin_m`
 (complex IF samples, beat frequency >= 0, so no fftshift over range); slow-time
 frequency f_D = 2 v / lambda with v > 0 receding, fftshifted so the Doppler axis
 runs from -v_unamb to +v_unamb. Arrays are (n_chirps, n_bins): slow time first.

@@ -1,4 +1,4 @@
-"""Recorded-return files (SPEC section 3): HDF5 or .npz in, typed `Recording` out.
+"""Recorded-return files (docs/format.md): HDF5 or .npz in, typed `Recording` out.
 
 Reading validates everything before trusting it and checks the IQ shape before
 loading it, so a hostile header cannot make us allocate an unbounded array.

@@ -63,7 +63,7 @@ class Scene(BaseModel):
 
     @property
     def label(self) -> str:
-        """Class label of SPEC section 4: the profile slug, 'bird' or 'none'."""
+        """Class label: the profile slug, 'bird' or 'none'."""
         return self.profile.slug if self.profile is not None else self.kind
 
     @property

@@ -1,4 +1,4 @@
-"""Synthesise the dechirped IF cube of a scene (SPEC section 3 signal convention).
+"""Synthesise the dechirped IF cube of a scene (the signal convention of docs/format.md).
 
 Model (V.C. Chen's rotating-blade line integral). Every scatterer i has a
 slow-time complex amplitude a_i[n] that carries its carrier phase

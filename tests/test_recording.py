@@ -1,4 +1,4 @@
-"""Recorded-return files: round trips and every bad-file case (SPEC sections 3 and 8)."""
+"""Recorded-return files: round trips and every bad-file case (docs/format.md)."""
 
 from __future__ import annotations
 

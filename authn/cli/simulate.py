@@ -1,4 +1,4 @@
-"""`authn simulate`: write recorded returns of simulated scenes (SPEC section 6)."""
+"""`authn simulate`: write recorded returns of simulated scenes (docs/signal-model.md)."""
 
 from __future__ import annotations
 

@@ -17,7 +17,7 @@ from signatures.recording import write_recording
 from signatures.scene import Scene
 
 M600, M300 = "1581BDEM00000001", "1581BDEM00000002"
-SPEC_KEYS = {"decision", "reasons", "claim", "registry", "radar", "kinematics", "skipped", "timings_ms", "audit_id"}
+CONTRACT_KEYS = {"decision", "reasons", "claim", "registry", "radar", "kinematics", "skipped", "timings_ms", "audit_id"}
 
 
 def _flight(out: Path, name: str, flies: str, serial: str | None, offset: float = 0.0, **scene) -> Path:
@@ -54,7 +54,7 @@ def test_genuine_claim_is_accepted(setup, capsys) -> None:
     _, db, files = setup
     code, out = _check(db, files["genuine"], capsys)
     assert code == 0 and out["decision"] == "accept" and out["reasons"] == ["registered-active"]
-    assert SPEC_KEYS <= set(out)
+    assert CONTRACT_KEYS <= set(out)
     assert out["claim"]["source"] == "remote_id" and out["registry"]["model"] == "m300"
     assert out["radar"]["model"] == "m300" and out["radar"]["known"] and out["radar"]["gated"]
     assert abs(out["radar"]["range_m"] - 400.0) <= 1.0
