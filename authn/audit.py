@@ -187,13 +187,12 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
     due = False
     label = db_label(db)
     latest_file = latest_head_path(sth_log_path(sth_log, log_key), label)
-    known: set[str] = db.__dict__.setdefault("_audit_policies_known", set())
     with db.write():
         if db.dialect == "postgresql":
             db.execute("SELECT pg_advisory_xact_lock(:k)", {"k": _PG_AUDIT_LOCK})
         head = db.fetch("SELECT seq, entry_hash FROM audit_log ORDER BY seq DESC LIMIT 1")
         seq, prev = (0, GENESIS) if not head else (int(head[0][0]), str(head[0][1]))
-        if policy_sha is not None and policy_sha not in known:
+        if policy_sha is not None:  # once per distinct text: later inserts of it do nothing
             db.execute("INSERT INTO audit_policies (sha256, text, first_seen) VALUES (:s, :t, :f) "
                        "ON CONFLICT (sha256) DO NOTHING",
                        {"s": policy_sha, "t": policy_text, "f": db.to_db_time(datetime.now(timezone.utc))})
@@ -212,8 +211,6 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
             prev = digest
         if out:
             sth, due = _sign_head(db, seq - len(out), seq, every, seconds, log_key, latest_file)
-    if policy_sha is not None:
-        known.add(policy_sha)
     if sth is not None:
         write_latest_head(latest_file, sth, label)
         if due:
@@ -260,13 +257,13 @@ def _sign_head(db: Database, size_before: int, size: int, every: int, seconds: f
     over tampering, and no decision is added to a tampered log."""
     key = _log_key(log_key)
     latest = read_latest_head(latest_file)
-    if latest is not None and not latest.verify_signature(key.public_key):
+    if latest is not None and not key.vouches_for(latest):
         raise SystemFault(f"{latest_file}: the latest signed head is not signed by this log's key")
     if latest is not None and latest.tree_size > size:
         raise SystemFault(f"audit log truncated: {size} entries, but the latest signed head has "
                           f"{latest.tree_size}; run `authn audit verify`")
     signed = _newest_signed(db)
-    if signed is not None and not signed.verify_signature(key.public_key):
+    if signed is not None and not key.vouches_for(signed):
         raise SystemFault("audit log: the newest signed head in the database is not signed by this log's key; "
                           "run `authn audit verify`")
     if signed is not None and signed.tree_size != size_before:

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from authn.audit import NewEntry, append
-from authn.errors import EXIT_BAD_INPUT, AuthnException, exit_code_for, one_line
+from authn.errors import EXIT_BAD_INPUT, describe, exit_code_for
 from authn.evidence import (Claim, Evidence, KinematicsEvidence, RadarEvidence, RegistryFacts, RemoteIdAuth,
                             authenticate, read_claim)
 from authn.kinematics import expected_from_radar, residuals, sanity
@@ -78,9 +78,7 @@ class Failure:
 
     @classmethod
     def of(cls, file: str, serial: str | None, exc: BaseException) -> "Failure":
-        text = one_line(exc) if isinstance(exc, AuthnException) \
-            else f"internal error: {type(exc).__name__}: {one_line(exc)}"
-        return cls(file, serial, text, exit_code_for(exc))
+        return cls(file, serial, describe(exc), exit_code_for(exc))
 
     def entry(self, policy_sha256: str | None) -> NewEntry:
         kind = "bad-input" if self.exit_code == EXIT_BAD_INPUT else "system"

@@ -11,7 +11,7 @@ Rejections are not errors: they are decisions, with the policy ids as reasons.
 from __future__ import annotations
 
 __all__ = ["EXIT_ACCEPT", "EXIT_REJECT", "EXIT_BAD_INPUT", "EXIT_SYSTEM", "AuthnException", "BadInput",
-           "SystemFault", "Interrupted", "AuthnError", "exit_code_for", "one_line"]
+           "SystemFault", "Interrupted", "AuthnError", "describe", "exit_code_for", "one_line"]
 
 EXIT_ACCEPT, EXIT_REJECT, EXIT_BAD_INPUT, EXIT_SYSTEM = 0, 1, 2, 3
 
@@ -51,3 +51,15 @@ def one_line(exc: BaseException) -> str:
     """An exception as one line for stderr and the audit log (never a traceback)."""
     text = " ".join(str(exc).split())
     return text or type(exc).__name__
+
+
+def describe(exc: BaseException) -> str:
+    """An exception as the one line the CLI prints after "error: " and the audit keeps: ours
+    as their message, anything else as "internal error: Type: message" (a driver error that
+    SQLAlchemy wraps with the SQL and a link: the driver's message)."""
+    if isinstance(exc, AuthnException):
+        return one_line(exc)
+    orig = getattr(exc, "orig", None)
+    if orig is not None:
+        return f"internal error: database: {one_line(orig)}"
+    return f"internal error: {type(exc).__name__}: {one_line(exc)}"

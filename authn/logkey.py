@@ -74,6 +74,18 @@ class LogKey:
         self.public_raw = private.public_key().public_bytes(serialization.Encoding.Raw,
                                                             serialization.PublicFormat.Raw)
         self.key_id = key_id(self.public_raw)
+        self._vouched: set[tuple[bytes, str]] = set()  # (signed bytes, signature) made or checked here
+
+    def vouches_for(self, sth: "SignedTreeHead") -> bool:
+        """Whether `sth` carries this key's signature; each signature is checked once per
+        process (an append reads back the heads it signed itself, often the same one twice)."""
+        seen = (sth.signed_bytes(), sth.signature)  # the fields too: a signature moved onto other fields fails
+        if seen in self._vouched:
+            return True
+        if not sth.verify_signature(self.public_key):
+            return False
+        self._vouched.add(seen)
+        return True
 
     @classmethod
     def load(cls, path: str | Path | None = None, *, create: bool = True) -> "LogKey":
@@ -106,9 +118,9 @@ class LogKey:
 
     def sign_tree_head(self, tree_size: int, root_hash: bytes, timestamp_ms: int) -> "SignedTreeHead":
         unsigned = SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, "")
-        sig = self._private.sign(unsigned.signed_bytes())
-        return SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id,
-                              base64.b64encode(sig).decode())
+        sig = base64.b64encode(self._private.sign(unsigned.signed_bytes())).decode()
+        self._vouched.add((unsigned.signed_bytes(), sig))
+        return SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, sig)
 
 
 def _create(p: Path) -> None:

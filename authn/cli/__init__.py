@@ -10,10 +10,7 @@ commands that need them, never at module level, so `authn --help` and a single
 from __future__ import annotations
 
 import os
-import signal
 import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 # pydantic looks up plugins through importlib.metadata on its first model (~15 ms of a
 # cold check); we use none. Set the variable yourself to re-enable them.
@@ -22,8 +19,9 @@ os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 import typer
 
 from authn.cli import audit, bench, check, db, demo, features, inspect, keys, models, plot, registry, rid, simulate
+from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
-from authn.errors import AuthnException, Interrupted, exit_code_for, one_line
+from authn.errors import AuthnException, describe, exit_code_for
 
 __all__ = ["app", "main", "run"]
 
@@ -79,14 +77,13 @@ def main(argv: list[str] | None = None) -> int:
     (database, policy engine, models, an unexpected bug) exits 3. Never a traceback.
     """
     try:
-        with _signals_as_errors():
+        with handled(_raise_interrupted):
             app(args=_global_options_first(sys.argv[1:] if argv is None else list(argv)), prog_name="authn")
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes an exit code
-        prefix = "error" if isinstance(exc, AuthnException) else "internal error"
-        print(f"{prefix}: {_describe(exc)}", file=sys.stderr)
+        print(("error: " if isinstance(exc, AuthnException) else "") + describe(exc), file=sys.stderr)
         return exit_code_for(exc)
     return 0
 
@@ -112,33 +109,8 @@ def _global_options_first(argv: list[str]) -> list[str]:
     return front + out
 
 
-@contextmanager
-def _signals_as_errors() -> Iterator[None]:
-    """SIGINT/SIGTERM raise `Interrupted` (exit 3, one line) instead of click's "Aborted!" with
-    exit 1, which would read as a reject. Only the main thread can install handlers."""
-    def handler(signum: int, _frame: object) -> None:
-        raise Interrupted(f"interrupted by {signal.Signals(signum).name}")
-
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            previous[sig] = signal.signal(sig, handler)
-        except ValueError:
-            break
-    try:
-        yield
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
-
-
-def _describe(exc: BaseException) -> str:
-    """One line; SQLAlchemy wraps driver errors with the SQL and a link: keep the driver's message."""
-    orig = getattr(exc, "orig", None)
-    if orig is not None:
-        return f"database: {one_line(orig)}"
-    text = one_line(exc)
-    return text if isinstance(exc, AuthnException) else f"{type(exc).__name__}: {text}"
+def _raise_interrupted(signum: int, _frame: object) -> None:
+    raise interrupted(signum)
 
 
 def run() -> None:

@@ -7,12 +7,13 @@ import json
 import signal
 import sys
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 
-from authn.errors import Interrupted
+from authn.cli.signals import handled, interrupted
 
 #: Batch mode commits the audit at least this often (entries, seconds), then prints what it
 #: committed: a crash or kill loses at most the unprinted tail, never a printed decision.
@@ -190,27 +191,18 @@ class _AuditedPrinter:
 
 
 @contextmanager
-def _stop_signals():
+def _stop_signals() -> Iterator[list[int]]:
     """The first SIGINT/SIGTERM sets a flag the batch loop reads between files; a second one
-    raises at once. Handlers are restored on exit (only the main thread can install them)."""
+    raises at once."""
     stop: list[int] = []
 
-    def handler(signum, _frame) -> None:
+    def handler(signum: int, _frame: object) -> None:
         if stop:
-            raise Interrupted(f"interrupted by {signal.Signals(signum).name}")
+            raise interrupted(signum)
         stop.append(signum)
 
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            previous[sig] = signal.signal(sig, handler)
-        except ValueError:  # not the main thread
-            break
-    try:
+    with handled(handler):
         yield stop
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
 
 
 def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | None, as_json: bool) -> None:
