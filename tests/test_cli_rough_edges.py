@@ -78,3 +78,27 @@ def test_db_option_after_the_subcommand(tmp_path: Path, capsys) -> None:
     capsys.readouterr()
     assert main(["registry", "list", "--json", f"--db={db}"]) == 0
     assert [r["serial"] for r in json.loads(capsys.readouterr().out)] == ["1581BDEM00000042"]
+
+
+def test_signing_and_trust_options_refuse_bad_input_in_one_line(tmp_path: Path, capsys) -> None:
+    """Each new DRIP option's bad input: exit 2, one `error:` line, no traceback."""
+    key = tmp_path / "ua.pem"
+    assert main(["keys", "generate", "--out", str(key)]) == 0
+    garbage = tmp_path / "garbage.json"
+    garbage.write_text("{not json")
+    flight = ["simulate", "--model", "m300", "--range", "500", "--rid-serial", "1581BDEM00000042",
+              "--out", str(tmp_path / "s.h5")]
+    cases = [
+        ["keys", "generate", "--out", str(key)],  # never overwrites a key
+        ["keys", "generate", "--out", str(tmp_path / "k2.pem"), "--raa", "99999"],
+        [*flight, "--sign-key", str(garbage)],
+        [*flight, "--sign-key", str(key), "--sam", "envelope"],
+        [*flight, "--sign-key", str(key), "--sign-det", "not-a-det"],
+        ["simulate", "--model", "m300", "--range", "500", "--out", str(tmp_path / "t.h5"), "--sign-key", str(key)],
+        ["check", str(tmp_path / "s.h5"), "--serial", "1581BDEM00000042", "--trust-registry", str(garbage)],
+    ]
+    for argv in cases:
+        capsys.readouterr()
+        assert main(["--db", f"sqlite:///{tmp_path / 'r.sqlite3'}", *argv]) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err, (argv, err)
