@@ -32,7 +32,7 @@ from typing import Literal
 import numpy as np
 
 from signatures.profiles import UavProfile
-from signatures.scene import BirdParams, Scene
+from signatures.scene import BirdParams, Nuisance, Scene
 
 Span = tuple[float, float]
 #: Draws (range_m, elevation_deg) from the generator: geometry other than independent uniforms
@@ -64,6 +64,8 @@ class SceneDistribution:
         `BirdParams` default and draws nothing.
     none_clutter_db: if set, an empty ("none") scene is only clutter at this level, at the
         scene's default geometry (the draws of its other steps are made and discarded).
+    nuisance: if set, every UAV and bird scene also gets a random `Nuisance` (domain
+        randomisation), drawn after everything else.
     """
 
     order: tuple[str, ...]
@@ -80,6 +82,7 @@ class SceneDistribution:
     bird_flap_hz: Span = (3.0, 10.0)
     bird_flap_amplitude_deg: Span | None = None
     none_clutter_db: Span | None = None
+    nuisance: NuisanceDistribution | None = None
 
     def __post_init__(self) -> None:
         unknown = set(self.order) - set(STEPS)
@@ -95,6 +98,49 @@ class SceneDistribution:
             raise ValueError("'range' and 'elevation' steps need range_m and elevation_deg spans")
         if self.speed_mps is None and self.speeds_mps is None:
             raise ValueError("a distribution needs speed_mps or speeds_mps")
+
+
+@dataclass(frozen=True)
+class NuisanceDistribution:
+    """Domain randomisation: spans (uniform [low, high)) of what reality varies, drawn per scene.
+
+    The defaults are the training distribution (docs/signal-model.md "Domain randomisation"):
+    rotor rates +-15 % (hover against climb and payload), per-rotor spread up to 3 %, unequal
+    blades, tip scatterers, extra body points, radial acceleration, oscillator phase noise,
+    IQ imbalance, DC offset, ADC resolution, a scanning beam and moving clutter.
+    """
+
+    rotor_rate_scale: Span = (0.85, 1.15)
+    rotor_rate_jitter: Span = (0.005, 0.03)
+    attitude_wobble_deg: Span = (0.5, 5.0)
+    blade_to_body_db: Span = (-18.0, -4.0)
+    blade_rcs_spread: Span = (0.0, 0.3)
+    tip_weight: Span = (0.0, 1.0)
+    body_scatterers: tuple[int, int] = (0, 6)
+    radial_accel_mps2: Span = (-3.0, 3.0)
+    phase_noise_rad: Span = (0.0, 0.02)
+    iq_gain_imbalance: Span = (0.0, 0.05)
+    iq_phase_imbalance_deg: Span = (0.0, 3.0)
+    dc_offset: Span = (0.0, 1.0)
+    adc_bits: tuple[int | None, ...] = (None, 10, 12, 14)
+    beam_taper_db: Span = (0.0, 3.0)
+    clutter_spread_mps: Span = (0.0, 0.5)
+
+
+def sample_nuisance(rng: np.random.Generator, dist: NuisanceDistribution) -> tuple[Nuisance, dict[str, float]]:
+    """One draw of `dist`: the `Nuisance` and the scene fields it also sets (wobble, jitter,
+    blade-to-body ratio)."""
+    u = lambda span: float(rng.uniform(*span))  # noqa: E731
+    nz = Nuisance(rotor_rate_scale=u(dist.rotor_rate_scale), blade_rcs_spread=u(dist.blade_rcs_spread),
+                  tip_weight=u(dist.tip_weight),
+                  body_scatterers=int(rng.integers(dist.body_scatterers[0], dist.body_scatterers[1] + 1)),
+                  radial_accel_mps2=u(dist.radial_accel_mps2), phase_noise_rad=u(dist.phase_noise_rad),
+                  iq_gain_imbalance=u(dist.iq_gain_imbalance), iq_phase_imbalance_deg=u(dist.iq_phase_imbalance_deg),
+                  dc_offset=u(dist.dc_offset), adc_bits=dist.adc_bits[int(rng.integers(len(dist.adc_bits)))],
+                  beam_taper_db=u(dist.beam_taper_db), clutter_spread_mps=u(dist.clutter_spread_mps))
+    scene_fields = dict(rotor_rate_jitter=u(dist.rotor_rate_jitter), attitude_wobble_deg=u(dist.attitude_wobble_deg),
+                        blade_to_body_db=u(dist.blade_to_body_db))
+    return nz, scene_fields
 
 
 def sample_scene(rng: np.random.Generator, target: Target, dist: SceneDistribution,
@@ -137,8 +183,19 @@ def sample_scene(rng: np.random.Generator, target: Target, dist: SceneDistributi
                       flap_rate_hz=float(rng.uniform(*dist.bird_flap_hz)))
         if dist.bird_flap_amplitude_deg is not None:
             params["flap_amplitude_deg"] = float(rng.uniform(*dist.bird_flap_amplitude_deg))
-        return Scene(kind="bird", bird=BirdParams(**params), radial_speed_mps=speed, **common)
-    return Scene(kind="uav", profile=target, radial_speed_mps=speed, **common)
+        return Scene(kind="bird", bird=BirdParams(**params), radial_speed_mps=speed, **common,
+                     **_randomised(rng, dist, bird=True))
+    return Scene(kind="uav", profile=target, radial_speed_mps=speed, **common, **_randomised(rng, dist))
+
+
+def _randomised(rng: np.random.Generator, dist: SceneDistribution, bird: bool = False) -> dict[str, object]:
+    """The scene fields domain randomisation sets (none without `dist.nuisance`)."""
+    if dist.nuisance is None:
+        return {}
+    nz, fields = sample_nuisance(rng, dist.nuisance)
+    if bird:  # a bird has no rotors and its own wing-to-body ratio
+        fields = {"attitude_wobble_deg": fields["attitude_wobble_deg"]}
+    return {"nuisance": nz, **fields}
 
 
 def _snr(rng: np.random.Generator, snr_db: Span | float | None) -> float | None:

@@ -24,6 +24,35 @@ class BirdParams(BaseModel):
     flap_amplitude_deg: float = Field(default=40.0, gt=0, le=80)
 
 
+class Nuisance(BaseModel):
+    """What reality varies and a type label does not fix (docs/signal-model.md "Domain randomisation").
+
+    Every default reproduces the plain simulator exactly, so a scene without a `Nuisance` and a
+    scene with `Nuisance()` render the same cube. Training sets draw these at random so that the
+    classifiers learn what survives them (`signatures.sampling.NuisanceDistribution`).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    # --- the airframe as flown
+    rotor_rate_scale: float = Field(default=1.0, ge=0.5, le=1.5,
+                                    description="mean rotor rate / the profile's nominal (hover vs climb, payload)")
+    blade_rcs_spread: float = Field(default=0.0, ge=0, le=1.0, description="std of per-blade amplitude factors")
+    tip_weight: float = Field(default=0.0, ge=0, le=5.0,
+                              description="an extra point scatterer at each blade tip, relative to the blade")
+    body_scatterers: int = Field(default=0, ge=0, le=12, description="extra body points (arms, gear, payload)")
+    radial_accel_mps2: float = Field(default=0.0, ge=-20, le=20)
+    # --- the radar
+    phase_noise_rad: float = Field(default=0.0, ge=0, le=0.5, description="random-walk phase step per chirp")
+    iq_gain_imbalance: float = Field(default=0.0, ge=0, le=0.3, description="relative Q-channel gain error")
+    iq_phase_imbalance_deg: float = Field(default=0.0, ge=0, le=15)
+    dc_offset: float = Field(default=0.0, ge=0, le=10, description="complex DC, in noise standard deviations")
+    adc_bits: int | None = Field(default=None, ge=4, le=24, description="quantise I and Q (full scale = peak)")
+    beam_taper_db: float = Field(default=0.0, ge=0, le=20,
+                                 description="two-way antenna gain drop at the dwell's edges (scanning beam)")
+    clutter_spread_mps: float = Field(default=0.0, ge=0, le=5, description="intrinsic motion of clutter (foliage)")
+
+
 class Scene(BaseModel):
     """One target (or none) seen by the radar during one dwell.
 
@@ -48,6 +77,7 @@ class Scene(BaseModel):
         default=None, ge=-40, le=20, description="blade/body power; None = -10 dB +- 3 dB random")
     attitude_wobble_deg: float = Field(default=1.0, ge=0, le=20)
     rotor_rate_jitter: float = Field(default=0.005, ge=0, le=0.1, description="std of per-rotor rate offset")
+    nuisance: Nuisance | None = None
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":

@@ -27,9 +27,10 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from signatures.profiles import UavProfile
 from signatures.radar import C, Preset, RadarConfig
 from signatures.recording import RadarSite, Recording
-from signatures.scene import BirdParams, Scene
+from signatures.scene import BirdParams, Nuisance, Scene
 
 SIMULATOR_VERSION = "1"  # bump when simulate() draws or computes different returns (cached datasets key on it)
 DEFAULT_SITE = RadarSite(lat_deg=52.0, lon_deg=4.4, alt_m=2.0)
@@ -73,13 +74,37 @@ class Components:
     clutter: np.ndarray | None
     noise: np.ndarray | None
     truth: Truth
+    #: receiver impairments applied to the sum (None: an ideal receiver) and their seed
+    receiver: Nuisance | None = None
+    receiver_seed: int = 0
+    noise_power: float = 0.0
 
     def total(self, dtype: np.dtype | type = np.complex64) -> np.ndarray:
         parts = [p for p in (self.target, self.clutter, self.noise) if p is not None]
         out = parts[0].astype(dtype, copy=True)
         for p in parts[1:]:
             out += p
+        if self.receiver is not None:
+            out = _impair(out, self.receiver, self.noise_power, np.random.default_rng(self.receiver_seed))
         return out
+
+
+def _impair(cube: np.ndarray, nz: Nuisance, noise_power: float, rng: np.random.Generator) -> np.ndarray:
+    """What a real receiver adds: IQ gain/phase imbalance, a DC offset, ADC quantisation."""
+    out = cube.copy()
+    if nz.iq_gain_imbalance or nz.iq_phase_imbalance_deg:
+        phi = math.radians(nz.iq_phase_imbalance_deg)
+        q = (1.0 + nz.iq_gain_imbalance) * (math.cos(phi) * cube.imag - math.sin(phi) * cube.real)
+        out.imag = q.astype(out.real.dtype)
+    if nz.dc_offset:
+        sigma = math.sqrt(noise_power) if noise_power > 0 else float(np.std(np.abs(out)))
+        out += (nz.dc_offset * sigma * np.exp(1j * rng.uniform(0, 2 * math.pi))).astype(out.dtype)
+    if nz.adc_bits is not None:
+        full = 1.05 * float(max(np.max(np.abs(out.real)), np.max(np.abs(out.imag)), 1e-30))
+        step = 2.0 * full / 2 ** nz.adc_bits
+        out.real = np.round(out.real / step) * step
+        out.imag = np.round(out.imag / step) * step
+    return out
 
 
 def _rotation(yaw: float, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:
@@ -142,30 +167,58 @@ def _uav_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
     # rotors: alternating spin, independent phases, small rate jitter
     jitter = np.clip(rng.normal(0, scene.rotor_rate_jitter, p.rotors), -3 * scene.rotor_rate_jitter,
                      3 * scene.rotor_rate_jitter)
-    rates = p.rotor_rate_hz * (1.0 + jitter)
+    nz = scene.nuisance
+    rates = p.rotor_rate_hz * (nz.rotor_rate_scale if nz else 1.0) * (1.0 + jitter)
     spin = np.where(np.arange(p.rotors) % 2 == 0, 1.0, -1.0)
     phase0 = rng.uniform(0, 2 * math.pi, p.rotors)
     blade_off = 2 * math.pi * np.arange(p.blades_per_rotor) / p.blades_per_rotor
     theta = (phase0[None, :, None] + spin[None, :, None] * 2 * math.pi * rates[None, :, None] * t[:, None, None]
              + blade_off[None, None, :])  # (n, r, b)
     dir_proj = w[:, None, None, 0] * np.cos(theta) + w[:, None, None, 1] * np.sin(theta)
-    blades = _line_integral(hub_proj[:, :, None], dir_proj, p.blade_length_m, wavelength).sum(axis=2)
+    per_blade = _line_integral(hub_proj[:, :, None], dir_proj, p.blade_length_m, wavelength)  # (n, r, b)
     k = 4.0 * math.pi / wavelength
     hub_pts = np.exp(1j * np.mod(k * hub_proj, 2 * math.pi))  # motor hubs as points
     body = np.ones((t.size, 1), dtype=np.complex128)  # fuselage at the body centre
     # power bookkeeping: blades relative to body (fuselage + hubs)
     ratio_db = scene.blade_to_body_db if scene.blade_to_body_db is not None else rng.uniform(-13.0, -7.0)
+    if nz is not None:  # drawn last: a scene without nuisance draws exactly what it always drew
+        per_blade, body = _nuisance_scatterers(nz, p, per_blade, hub_proj, dir_proj, w, k, rng)
+    blades = per_blade.sum(axis=2)
     hub_amp = 10 ** (HUB_TO_BODY_DB / 20)
-    body_part = np.concatenate([body, hub_amp * hub_pts], axis=1)
+    body_part = np.concatenate([body.sum(axis=1, keepdims=True), hub_amp * hub_pts], axis=1)
     p_body = float(np.mean(np.abs(body_part.sum(axis=1)) ** 2))
     p_blades = float(np.mean(np.abs(blades.sum(axis=1)) ** 2))
     blade_gain = math.sqrt(p_body / max(p_blades, 1e-300) * 10 ** (ratio_db / 10))
-    amps = np.concatenate([body, hub_amp * hub_pts + blade_gain * blades], axis=1)
+    amps = np.concatenate([body.sum(axis=1, keepdims=True), hub_amp * hub_pts + blade_gain * blades], axis=1)
     offsets = np.concatenate([[0.0], hub_proj.mean(axis=0)])
     truth = Truth(label=p.slug, range_m=scene.range_m, radial_speed_mps=scene.radial_speed_mps,
                   elevation_deg=scene.elevation_deg, rotor_rates_hz=tuple(float(r) for r in rates),
                   blades_per_rotor=p.blades_per_rotor, blade_length_m=p.blade_length_m)
     return amps, offsets, truth
+
+
+def _nuisance_scatterers(nz: Nuisance, p: UavProfile, per_blade: np.ndarray, hub_proj: np.ndarray,
+                         dir_proj: np.ndarray, w: np.ndarray, k: float, rng: np.random.Generator
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Unequal blades, blade-tip scatterers and extra body points (arms, gear, payload).
+
+    Returns the per-blade amplitudes (n, r, b) and the body's points (n, 1 + m), the fuselage
+    first. The body points sit within the propeller circle and move with the attitude."""
+    r, b = per_blade.shape[1:]
+    if nz.blade_rcs_spread:
+        per_blade = per_blade * np.clip(1.0 + nz.blade_rcs_spread * rng.standard_normal((r, b)), 0.1, None)
+    if nz.tip_weight:
+        tip = hub_proj[:, :, None] + p.blade_length_m * dir_proj
+        per_blade = per_blade + nz.tip_weight * p.blade_length_m * np.exp(1j * np.mod(k * tip, 2 * math.pi))
+    body = np.ones((w.shape[0], 1), dtype=np.complex128)
+    if nz.body_scatterers:
+        m = nz.body_scatterers
+        radius = 0.5 * p.propeller_distance_m * np.sqrt(rng.uniform(0, 1, m))
+        angle = rng.uniform(0, 2 * math.pi, m)
+        pts = np.stack([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-0.15, 0.05, m)], axis=1)
+        amp = rng.rayleigh(0.35, m) * np.exp(1j * rng.uniform(0, 2 * math.pi, m))
+        body = np.concatenate([body, amp[None, :] * np.exp(1j * np.mod(k * (w @ pts.T), 2 * math.pi))], axis=1)
+    return per_blade, body
 
 
 def _bird_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
@@ -210,17 +263,27 @@ def _target_cube(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: in
         return None, Truth(label="none", range_m=0.0, radial_speed_mps=0.0, elevation_deg=0.0)
     maker = _uav_amplitudes if scene.kind == "uav" else _bird_amplitudes
     amps, offsets, truth = maker(scene, t, lam, rng)
+    nz = scene.nuisance
+    accel = nz.radial_accel_mps2 if nz else 0.0
     # bulk translation: carrier phase in float64, wrapped, then everything in complex64
-    bulk = np.mod(4.0 * math.pi / lam * (scene.range_m + scene.radial_speed_mps * t), 2 * math.pi)
-    amps = (amps * np.exp(1j * bulk)[:, None]).astype(np.complex64)
+    bulk = np.mod(4.0 * math.pi / lam * (scene.range_m + scene.radial_speed_mps * t + 0.5 * accel * t * t),
+                  2 * math.pi)
+    if nz is not None and nz.phase_noise_rad:  # oscillator phase wander over the dwell
+        bulk = bulk + np.cumsum(rng.normal(0.0, nz.phase_noise_rad, t.size))
+    amps = amps * np.exp(1j * bulk)[:, None]
+    if nz is not None and nz.beam_taper_db:  # a scanning beam: two-way gain falls off to the edges
+        u = (t - t.mean()) / max(float(t.mean()), 1e-12)
+        amps = amps * (10.0 ** (-nz.beam_taper_db * u * u / 20.0))[:, None]
+    amps = amps.astype(np.complex64)
     kappa = 2.0 * math.pi * 2.0 * config.slope_hz_per_s / C  # beat phase per metre per second
     tk = (np.arange(n_samples) / config.sample_rate_hz).astype(np.float32)
     g = _cos_sin(np.float32(kappa) * offsets.astype(np.float32)[:, None] * tk[None, :])  # (m, k)
-    if scene.radial_speed_mps == 0.0:
+    if scene.radial_speed_mps == 0.0 and accel == 0.0:
         beat = _cos_sin(np.float32(kappa * (scene.range_m - config.range_offset_m)) * tk)
         cube = amps @ (g * beat[None, :])
     else:
-        rel = (scene.range_m - config.range_offset_m + scene.radial_speed_mps * t).astype(np.float32)
+        rel = (scene.range_m - config.range_offset_m + scene.radial_speed_mps * t
+               + 0.5 * accel * t * t).astype(np.float32)
         cube = (amps @ g) * _cos_sin(np.float32(kappa) * rel[:, None] * tk[None, :])
     power = float(np.vdot(cube, cube).real) / cube.size
     cube *= np.float32(1.0 / math.sqrt(max(power, 1e-30)))  # target power per IF sample = 1
@@ -228,8 +291,9 @@ def _target_cube(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: in
 
 
 def _clutter_cube(config: RadarConfig, n_chirps: int, n_samples: int, power: float,
-                  rng: np.random.Generator) -> np.ndarray:
-    """Stationary ground clutter: a scatterer in every range bin plus a few strong discretes."""
+                  rng: np.random.Generator, spread_mps: float = 0.0) -> np.ndarray:
+    """Ground clutter: a scatterer in every range bin plus a few strong discretes; with
+    `spread_mps` the diffuse part also moves (foliage: a Gaussian Doppler spectrum of that std)."""
     lo, hi = config.range_window_m
     bins = config.range_bin_m(n_samples)
     ranges = lo + (np.arange(n_samples) + rng.uniform(-0.5, 0.5, n_samples)) * bins
@@ -242,7 +306,18 @@ def _clutter_cube(config: RadarConfig, n_chirps: int, n_samples: int, power: flo
     tk = np.arange(n_samples) / config.sample_rate_hz
     profile = (amps[None, :] @ np.exp(1j * kappa * np.outer(ranges - lo, tk))).ravel()
     profile *= math.sqrt(power / max(float(np.mean(np.abs(profile) ** 2)), 1e-300))
-    return np.broadcast_to(profile.astype(np.complex64), (n_chirps, n_samples)).copy()
+    static = np.broadcast_to(profile.astype(np.complex64), (n_chirps, n_samples)).copy()
+    if not spread_mps:
+        return static
+    # half the diffuse power moves: each bin's amplitude is Gaussian-filtered noise in slow time
+    sigma_hz = 2.0 * spread_mps / config.wavelength_m
+    f = np.fft.fftfreq(n_chirps, config.pri_s)
+    shaped = np.fft.ifft(np.fft.fft(rng.standard_normal((n_chirps, n_samples))
+                                    + 1j * rng.standard_normal((n_chirps, n_samples)), axis=0)
+                         * np.exp(-0.25 * (f / sigma_hz) ** 2)[:, None], axis=0)
+    moving = shaped @ np.exp(1j * kappa * np.outer(ranges[:n_samples] - lo, tk))
+    moving *= math.sqrt(0.5 * power / max(float(np.mean(np.abs(moving) ** 2)), 1e-300))
+    return (static + moving).astype(np.complex64)
 
 
 def _noise_cube(n_chirps: int, n_samples: int, power: float, rng: np.random.Generator) -> np.ndarray:
@@ -261,10 +336,15 @@ def render(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: int,
     noise_power = 1.0 if scene.kind == "none" else (
         None if scene.snr_db is None else 10 ** (-scene.snr_db / 10))
     clutter = None
+    nz = scene.nuisance
     if scene.clutter_db is not None and noise_power is not None:
-        clutter = _clutter_cube(config, n_chirps, n_samples, noise_power * 10 ** (scene.clutter_db / 10), rng)
+        clutter = _clutter_cube(config, n_chirps, n_samples, noise_power * 10 ** (scene.clutter_db / 10), rng,
+                                nz.clutter_spread_mps if nz else 0.0)
     noise = None if noise_power is None else _noise_cube(n_chirps, n_samples, noise_power, rng)
-    return Components(target, clutter, noise, truth)
+    if nz is None:
+        return Components(target, clutter, noise, truth)
+    return Components(target, clutter, noise, truth, receiver=nz, receiver_seed=int(rng.integers(0, 2**63 - 1)),
+                      noise_power=noise_power or 0.0)
 
 
 def centred_offset(preset: Preset, range_m: float, radial_speed_mps: float = 0.0) -> float:
