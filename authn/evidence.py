@@ -21,6 +21,8 @@ __all__ = ["Claim", "RegistryFacts", "RemoteIdAuth", "RadarEvidence", "Kinematic
 _SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
 #: Cedar integers are 64-bit; a residual is capped well inside them
 _MAX_CEDAR_CM = 2**53
+#: What the JSON says where a CW recording (docs/format.md, `domain`) left the range unmeasured
+RANGE_NOT_MEASURED = "not measured: CW recording"
 
 
 @dataclass(frozen=True)
@@ -192,7 +194,7 @@ class RadarEvidence:
         doc: dict[str, Any] = {"model": self.model, "confidence": self.confidence, "known": self.known,
                                "range_m": self.range_m, "radial_velocity_mps": self.radial_velocity_mps,
                                "gated": self.gated, "used_cnn": self.used_cnn}
-        if self.range_m is not None:  # a classified target
+        if self.confidence is not None:  # a classified target
             doc.update(operational_state=self.operational_state, nearest=self.nearest)
         return doc
 
@@ -211,11 +213,14 @@ class KinematicsEvidence:
 
     expected: Expected
     residuals: Residuals
+    #: False for a CW recording: the range residual is not computed (only the velocity's is)
+    range_measured: bool = True
 
     def context(self) -> dict[str, Any]:
         res = self.residuals
-        ctx = {"has_kinematics": True, "range_residual_cm": _cm(res.range_residual_m),
-               "range_tolerance_cm": _cm(res.range_tolerance_m)}
+        ctx: dict[str, Any] = {"has_kinematics": True}
+        if self.range_measured:
+            ctx.update(range_residual_cm=_cm(res.range_residual_m), range_tolerance_cm=_cm(res.range_tolerance_m))
         if res.radial_velocity_residual_mps is not None:
             ctx.update(velocity_residual_cmps=_cm(res.radial_velocity_residual_mps),
                        velocity_tolerance_cmps=_cm(res.radial_velocity_tolerance_mps))
@@ -223,12 +228,16 @@ class KinematicsEvidence:
 
     def to_json(self) -> dict[str, Any]:
         res = self.residuals
-        return {"expected_range_m": round(self.expected.range_m, 3),
-                "expected_radial_velocity_mps": _rounded(self.expected.radial_velocity_mps, 4),
-                "range_residual_m": round(res.range_residual_m, 3),
-                "range_tolerance_m": round(res.range_tolerance_m, 3),
-                "radial_velocity_residual_mps": _rounded(res.radial_velocity_residual_mps, 4),
-                "radial_velocity_tolerance_mps": _rounded(res.radial_velocity_tolerance_mps, 4)}
+        doc: dict[str, Any] = {
+            "expected_range_m": round(self.expected.range_m, 3),
+            "expected_radial_velocity_mps": _rounded(self.expected.radial_velocity_mps, 4),
+            "range_residual_m": round(res.range_residual_m, 3) if self.range_measured else None,
+            "range_tolerance_m": round(res.range_tolerance_m, 3) if self.range_measured else None,
+            "radial_velocity_residual_mps": _rounded(res.radial_velocity_residual_mps, 4),
+            "radial_velocity_tolerance_mps": _rounded(res.radial_velocity_tolerance_mps, 4)}
+        if not self.range_measured:
+            doc["range_evidence"] = RANGE_NOT_MEASURED
+        return doc
 
 
 @dataclass
@@ -243,6 +252,8 @@ class Evidence:
     auth: RemoteIdAuth = RemoteIdAuth()
     radar: RadarEvidence | None = None
     kinematics: KinematicsEvidence | None = None
+    #: False when the recording cannot measure range (a CW radar): no range evidence at all
+    range_measured: bool = True
 
     # --- the Cedar request -----------------------------------------------------------
     def principal(self) -> dict[str, Any]:
@@ -262,7 +273,7 @@ class Evidence:
             "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
             "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0,
             "remote_id_present": self.claim.n_messages > 0, "remote_id_issues": list(self.remote_id_issues),
-            "remote_id_auth": self.auth.status}
+            "remote_id_auth": self.auth.status, "range_measured": self.range_measured}
         if self.kinematics is not None:
             ctx.update(self.kinematics.context())
         return ctx
@@ -277,9 +288,15 @@ class Evidence:
         """The evidence part of `authn check --json` (and of the audit payload)."""
         return {"dwell_start": datetime.fromtimestamp(self.time_s, timezone.utc).isoformat(),
                 "claim": self.claim.to_json(), "registry": self.registry.to_json(),
-                "radar": None if self.radar is None else self.radar.to_json(),
+                "radar": None if self.radar is None else self._radar_json(self.radar),
                 "kinematics": None if self.kinematics is None else self.kinematics.to_json(),
                 "remote_id": {"messages": self.claim.n_messages, "ua_type": self.claim.ua_type,
                               "issues": list(self.remote_id_issues)},
                 "remote_id_auth": self.auth.to_json()}
+
+    def _radar_json(self, radar: RadarEvidence) -> dict[str, Any]:
+        doc = radar.to_json()
+        if not self.range_measured:
+            doc["range_evidence"] = RANGE_NOT_MEASURED
+        return doc
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import astuple, dataclass, field, fields
+from dataclasses import astuple, dataclass, field, fields, replace
 from functools import cached_property
 
 import numpy as np
@@ -26,6 +26,7 @@ from signatures import rd
 from signatures import timefreq as tf
 from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
+from signatures.recording import DOMAINS
 from signatures.stats import median
 
 __all__ = ["FEATURE_NAMES", "FEATURE_VERSION", "GATE_BINS", "PATCH_SHAPE", "QUICK_FEATURES", "FeatureResult",
@@ -137,12 +138,13 @@ def extract(recording, expected_range_m: float | None = None, gate_bins: int = G
             clutter_suppression: bool = True, quick: bool = False, float64: bool = False) -> FeatureResult:
     """Features of a `Recording` (see `extract_iq`)."""
     return extract_iq(recording.iq, recording.config, expected_range_m, gate_bins, clutter_suppression,
-                      quick=quick, float64=float64)
+                      quick=quick, float64=float64, domain=recording.domain)
 
 
 def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | None = None,
                gate_bins: int = GATE_BINS, clutter_suppression: bool = True,
-               full_cube: bool = False, quick: bool = False, float64: bool = False) -> FeatureResult:
+               full_cube: bool = False, quick: bool = False, float64: bool = False,
+               domain: str = "if") -> FeatureResult:
     """Features of a bare cube (chirps x samples, any numeric dtype).
 
     `expected_range_m` (range at the dwell, e.g. from Remote ID) centres the gate
@@ -153,9 +155,19 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
     configuration of the run-time-versus-error benchmark); the others are 0 and the
     patch is empty. `float64=True` runs every array stage in float64/complex128: the
     reference the float32 default is measured against (`authn bench --stress`).
+
+    `domain` (docs/format.md) says what the cube already is: `range` and `cw` cubes are
+    range spectra, so no range FFT runs (clutter suppression still removes the slow-time
+    mean of every bin); a `cw` cube's one bin is the gate (no CFAR over range: the Doppler
+    bins are the reference cells, `_cw_detection`), takes no `expected_range_m` and gives
+    range features of 0 (docs/features.md).
     """
     if gate_bins < 1:
         raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
+    if domain not in DOMAINS:
+        raise SignaturesError(f"unknown domain {domain!r} (known: {', '.join(DOMAINS)})")
+    if domain == "cw" and expected_range_m is not None:
+        raise SignaturesError("a CW recording measures no range: an expected range cannot gate it")
     prep = rd.prepare(iq, float64)
     n_chirps, n_bins = prep.iq.shape
     bin_m = config.range_bin_m(n_bins)
@@ -169,26 +181,63 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
         within = (max(0, k - gate_bins // 2), min(n_bins, k + gate_bins // 2 + 1))
     if prep.all_zero:
         return _empty(config, n_chirps, n_bins, within)
-    spectrum = rd.range_fft(prep.iq, clutter_suppression)
+    spectrum = _range_spectrum(prep.iq, clutter_suppression, domain)
     profile = rd.range_profile(spectrum)
-    looks = max(1, n_chirps - 1) if clutter_suppression else n_chirps
-    det = rd.detect(profile, looks, within=within)
-    gate = _window(det.peak_bin, gate_bins, n_bins)
+    if domain == "cw":
+        gate = (0, 1)
+    else:
+        looks = max(1, n_chirps - 1) if clutter_suppression else n_chirps
+        det = rd.detect(profile, looks, within=within)
+        gate = _window(det.peak_bin, gate_bins, n_bins)
     if full_cube:  # what an ungated implementation computes before looking at the target
         rd.rd_map(spectrum, config)
         tf.spectrogram(spectrum, config, *tf.stft_params(config, n_chirps))
     slow = spectrum[:, gate[0]:gate[1]]
     dop = rd.doppler_spectrum(slow)
     power = _power(dop)
-    raw_power, stationary = _unsuppressed(prep.iq, dop, power, gate) if clutter_suppression else (power, 0.0)
+    raw_power, stationary = (_unsuppressed(prep.iq, dop, power, gate, domain) if clutter_suppression
+                             else (power, 0.0))
+    if domain == "cw":
+        noise_doppler = max(float(median(power[:, 0])), _TINY)
+        det = _cw_detection(power[:, 0], float(profile[0]), noise_doppler)
+        return _without_range(_features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
+                                         noise_doppler, clutter_suppression, stationary, quick))
     noise_bin = float(median(profile))  # mean noise power per chirp in one range bin
     noise_doppler = max(noise_bin * n_chirps * float(np.mean(rd.hann(n_chirps) ** 2)), _TINY)
     return _features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
                      noise_doppler, clutter_suppression, stationary, quick)
 
 
+def _range_spectrum(iq: np.ndarray, suppress_clutter: bool, domain: str) -> np.ndarray:
+    """The cube as range bins: the range FFT of IF (`rd.range_fft`); a `range` or `cw` cube
+    already is one, so only its slow-time mean is removed when clutter is suppressed (what
+    `rd.range_fft` removes before its FFT, removed after it: the same, by linearity)."""
+    if domain == "if":
+        return rd.range_fft(iq, suppress_clutter)
+    return iq - iq.mean(axis=0, keepdims=True) if suppress_clutter else iq
+
+
+def _cw_detection(line_power: np.ndarray, mean_power: float, noise_doppler: float) -> rd.Detection:
+    """CW: one channel, so no range cells to run CFAR over. The Doppler bins are the
+    reference cells instead: detected when the strongest Doppler line exceeds their median
+    by the median-CFAR factor of one look at `rd.CFAR_PFA`. SNR: mean power per pulse over
+    the median Doppler bin's noise per pulse (an overestimate of the noise, hence an
+    underestimate of the SNR, when micro-Doppler fills most of the band)."""
+    n = line_power.size
+    factor = rd._cfar_factor(1, n, rd.CFAR_PFA)
+    detected = float(line_power.max()) > noise_doppler * factor
+    noise_pulse = noise_doppler / (n * float(np.mean(rd.hann(n) ** 2)))
+    return rd.Detection(detected, 0, 0.0, rd._db(mean_power / noise_pulse), int(detected))
+
+
+def _without_range(result: FeatureResult) -> FeatureResult:
+    """A CW recording's range features are not measured: 0 by definition (docs/features.md)."""
+    feats = replace(result.features, mean_range_m=0.0, std_range_m=0.0, range_m=0.0, range_std_m=0.0)
+    return replace(result, features=feats)
+
+
 def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
-                  gate: tuple[int, int]) -> tuple[np.ndarray, float]:
+                  gate: tuple[int, int], domain: str = "if") -> tuple[np.ndarray, float]:
     """Doppler power of the gate before mean removal, and the stationary excess power.
 
     The removed mean mu (per range bin) adds mu * FFT(window) to the spectrum: for
@@ -197,7 +246,7 @@ def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
     |mu|^2): the zero-Doppler line power beyond the window's typical clutter.
     """
     n = iq.shape[0]
-    mu = rd.range_fft(iq.mean(axis=0, keepdims=True), suppress_clutter=False)[0]
+    mu = _range_spectrum(iq.mean(axis=0, keepdims=True), False, domain)[0]
     mu2 = mu.real ** 2 + mu.imag ** 2
     excess = float(np.sum(np.maximum(mu2[gate[0]:gate[1]] - median(mu2), 0.0))) * n * n
     mu = mu[gate[0]:gate[1]]

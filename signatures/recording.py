@@ -33,6 +33,12 @@ from signatures.errors import RecordingError
 from signatures.radar import RadarConfig
 
 FORMAT_TAG = "uav-radar-return/1"
+#: The tag of files whose `domain` is not `if` (docs/format.md, "Versions"): a reader of
+#: version 1 refuses them instead of reading range-compressed or CW samples as dechirped IF.
+FORMAT_TAG_DOMAINS = "uav-radar-return/2"
+#: What `/iq` holds (attribute `domain`): dechirped IF (chirps x fast-time samples, the
+#: default), range-compressed slow time (pulses x range bins) or CW Doppler IQ (pulses x 1).
+DOMAINS = ("if", "range", "cw")
 RID_MESSAGE_BYTES = 25
 #: Largest IQ cube read by default (2**25 cells = 256 MiB as complex64).
 MAX_IQ_CELLS = 2**25
@@ -81,6 +87,8 @@ class Recording:
     remote_id_time_s: np.ndarray | None = None
     #: JSON of the simulated scene and its ground truth (attribute `simulation`); None for real data
     simulation: str | None = None
+    #: what `iq` holds, one of DOMAINS (attribute `domain`; absent = "if")
+    domain: str = "if"
 
     @property
     def n_chirps(self) -> int:
@@ -169,10 +177,29 @@ def _start_time(attrs: dict[str, Any]) -> datetime:
     return when
 
 
-def _metadata(attrs: dict[str, Any]) -> tuple[RadarConfig, RadarSite, datetime]:
+def _domain(attrs: dict[str, Any]) -> str:
+    """The `domain` attribute (absent = "if"); version 1 files predate the other domains."""
     tag = _scalar(attrs, "format")
-    if tag != FORMAT_TAG:
-        raise RecordingError(f"attribute 'format': expected {FORMAT_TAG!r}, got {_show(tag)}")
+    if tag not in (FORMAT_TAG, FORMAT_TAG_DOMAINS):
+        raise RecordingError(f"attribute 'format': expected {FORMAT_TAG!r} or {FORMAT_TAG_DOMAINS!r}, "
+                             f"got {_show(tag)}")
+    if "domain" not in attrs:
+        return "if"
+    domain = _scalar(attrs, "domain")
+    if domain not in DOMAINS:
+        raise RecordingError(f"attribute 'domain': expected one of {', '.join(DOMAINS)}, got {_show(domain)}")
+    if domain != "if" and tag == FORMAT_TAG:
+        raise RecordingError(f"attribute 'domain': {domain!r} needs format {FORMAT_TAG_DOMAINS!r}, got {tag!r}")
+    return domain
+
+
+def _check_domain_shape(domain: str, shape: tuple[int, ...]) -> None:
+    """A CW recording holds one channel: /iq is (n_pulses, 1)."""
+    if domain == "cw" and shape[1] != 1:
+        raise RecordingError(f"dataset '/iq': a 'cw' recording has shape (n_pulses, 1), got {shape}")
+
+
+def _metadata(attrs: dict[str, Any]) -> tuple[RadarConfig, RadarSite, datetime]:
     values = {n: _float_attr(attrs, n) for n in _CONFIG_ATTRS}
     values["range_offset_m"] = _float_attr(attrs, "range_offset_m", default=0.0)
     try:
@@ -268,7 +295,7 @@ def _simulation_attr(attrs: dict[str, Any]) -> str | None:
 
 
 #: Every attribute the format defines; others are ignored (never even read).
-_ATTR_NAMES = ("format", *_CONFIG_ATTRS, "range_offset_m", *_SITE_ATTRS, "start_time", "simulation")
+_ATTR_NAMES = ("format", "domain", *_CONFIG_ATTRS, "range_offset_m", *_SITE_ATTRS, "start_time", "simulation")
 
 #: What h5py, numpy, zipfile and the OS raise on corrupt, truncated or hostile files
 #: (bit flips in HDF5 metadata give RuntimeError/ValueError/KeyError/TypeError/OSError;
@@ -418,10 +445,12 @@ def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
         t = _h5_dataset(f, "remote_id_time_s")
         _check_global_heaps(path, ds)
         attrs = _h5_attrs(f)
+        domain = _domain(attrs)
         config, site, when = _metadata(attrs)
         simulation = _simulation_attr(attrs)
         try:
             _check_iq_header(ds.shape, ds.dtype, max_cells, max_bytes)
+            _check_domain_shape(domain, ds.shape)
             for name, d in (("remote_id", r), ("remote_id_time_s", t)):
                 if d is not None:
                     _check_rid_header(name, d.shape, d.dtype)
@@ -445,11 +474,12 @@ def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
                                  f"{_reason(exc)})") from None
     _check_iq_values(iq)
     _check_rid(rid, times)
-    return Recording(config, site, when, iq, rid, times, simulation)
+    return Recording(config, site, when, iq, rid, times, simulation, domain)
 
 
 def _attrs_of(rec: Recording) -> dict[str, Any]:
-    attrs: dict[str, Any] = {"format": FORMAT_TAG}
+    attrs: dict[str, Any] = {"format": FORMAT_TAG if rec.domain == "if" else FORMAT_TAG_DOMAINS,
+                             "domain": rec.domain}
     attrs.update(rec.config.model_dump())
     attrs["radar_lat_deg"] = rec.site.lat_deg
     attrs["radar_lon_deg"] = rec.site.lon_deg
@@ -518,6 +548,8 @@ def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
             for name in _ATTR_NAMES:
                 if name in members:
                     attrs[name] = _npz_member(zf, members[name], _attr_member_check(name))
+            domain = _domain(attrs)
+            _check_domain_shape(domain, iq.shape)
             config, site, when = _metadata(attrs)
             simulation = _simulation_attr(attrs)
             data: dict[str, np.ndarray | None] = {"remote_id": None, "remote_id_time_s": None}
@@ -535,7 +567,7 @@ def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
     times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
     _check_iq_values(iq)
     _check_rid(rid, times)
-    return Recording(config, site, when, iq, rid, times, simulation)
+    return Recording(config, site, when, iq, rid, times, simulation, domain)
 
 
 def _write_npz(rec: Recording, path: Path) -> None:
@@ -613,6 +645,9 @@ def write_recording(rec: Recording, path: str | Path) -> Path:
     path = Path(path)
     _check_iq_header(tuple(rec.iq.shape), rec.iq.dtype, max(MAX_IQ_CELLS, rec.iq.size),
                      max(MAX_IQ_BYTES, rec.iq.nbytes))
+    if rec.domain not in DOMAINS:
+        raise RecordingError(f"domain: expected one of {', '.join(DOMAINS)}, got {_show(rec.domain)}")
+    _check_domain_shape(rec.domain, tuple(rec.iq.shape))
     _check_iq_values(rec.iq)
     _check_rid(rec.remote_id, rec.remote_id_time_s)
     path.parent.mkdir(parents=True, exist_ok=True)
