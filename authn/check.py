@@ -150,7 +150,8 @@ class Checker:
             expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
                                            rec.start_time)
         lo, hi = rec.config.range_window_m
-        gate = expected.range_m if expected is not None and lo <= expected.range_m < hi else None
+        cw = rec.domain == "cw"  # CW: no range measured, so no gate and no range residual (docs/format.md)
+        gate = expected.range_m if expected is not None and lo <= expected.range_m < hi and not cw else None
         with timer.stage("radar_features"):
             feats = extract(rec, expected_range_m=gate)
         classifier = classifier_for(rec)
@@ -159,16 +160,17 @@ class Checker:
             with timer.stage("classify"):
                 pred = classifier.predict(feats.as_array(), lambda: feats.rd_patch)  # patch only if the CNN runs
             radar = replace(radar, model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
-                            range_m=round(float(feats.range_m), 3),
+                            range_m=None if cw else round(float(feats.range_m), 3),
                             radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
                             operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest)
         if expected is None or not radar.detected:
             return radar, None
-        with timer.stage("kinematics"):
-            res = residuals(expected, claim.state, radar.range_m, radar.radial_velocity_mps,
-                            rec.config.range_bin_m(rec.n_samples), rec.config.doppler_bin_mps(rec.n_chirps),
+        with timer.stage("kinematics"):  # CW: the range part is computed on the expected range and never shown
+            res = residuals(expected, claim.state, expected.range_m if cw else radar.range_m,
+                            radar.radial_velocity_mps, rec.config.range_bin_m(rec.n_samples),
+                            rec.config.doppler_bin_mps(rec.n_chirps),
                             rec.config.measured_unambiguous_velocity_mps(rec.n_samples))
-        return radar, KinematicsEvidence(expected, res)
+        return radar, KinematicsEvidence(expected, res, range_measured=not cw)
 
     # --- one check ------------------------------------------------------------------
     def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
@@ -193,7 +195,8 @@ class Checker:
             auth = authenticate(claim, facts, mid, self.trusted_registries)
         if auth.status == "valid":  # kinematics from signed Location messages only
             claim = claim.signed_only(auth.covered, rec.start_time, mid)
-        evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth)
+        evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth,
+                            range_measured=rec.domain != "cw")
         with timer.stage("policy_registry"):
             result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
                                                          evidence.context())
