@@ -127,7 +127,7 @@ class Checker:
     first radar use); checks many files."""
 
     def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None,
-                 trusted_registries: dict[bytes, bytes] | None = None) -> None:
+                 trusted_registries: dict[bytes, bytes] | None = None, model: str | Path | None = None) -> None:
         import h5py  # noqa: F401  every check opens an HDF5 file: load the library at start-up
 
         from registry.dbapi import Database
@@ -137,13 +137,18 @@ class Checker:
         self.trusted_registries = trusted_registries or {}  # HDA DET -> key whose DRIP Links are believed
         self.db = Database(db_url)
         self._read = read_recording
+        self.model = model  # a bundle folder that must serve every file (`--model`); None: by waveform
+        if model is not None:
+            from signatures.inference import load_classifier
+
+            load_classifier(path=model)  # a bad bundle stops here, not once per file
 
     # --- stages -------------------------------------------------------------------
 
-    def _radar(self, rec: Any, claim: Claim, timer: _Timer) -> tuple[RadarEvidence, KinematicsEvidence | None]:
+    def _radar(self, rec: Any, claim: Claim, timer: _Timer, classifier: Any
+               ) -> tuple[RadarEvidence, KinematicsEvidence | None]:
         """Features (gated at the claimed range when it lies in the window), class, kinematics."""
         from signatures.features import extract
-        from signatures.inference import classifier_for
 
         expected = None  # at the first chirp, the time the radar's range estimate refers to
         if claim.state is not None:
@@ -154,7 +159,6 @@ class Checker:
         gate = expected.range_m if expected is not None and lo <= expected.range_m < hi and not cw else None
         with timer.stage("radar_features"):
             feats = extract(rec, expected_range_m=gate)
-        classifier = classifier_for(rec)
         radar = RadarEvidence(gated=gate is not None, model_card_sha256=classifier.card_digest)
         if feats.detected:
             with timer.stage("classify"):
@@ -201,10 +205,11 @@ class Checker:
             result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
                                                          evidence.context())
         if result is None:
-            from signatures.inference import match_preset
+            from signatures.inference import classifier_for
 
-            evidence.preset = match_preset(rec.config, rec.n_chirps, rec.n_samples)
-            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer)
+            classifier = classifier_for(rec, self.model, file or "FILE")  # the bundle of the file's waveform
+            evidence.preset = classifier.preset
+            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer, classifier)
             evidence.remote_id_issues = _issues(claim, auth, mid, evidence.radar.rotorcraft)
             with timer.stage("policy"):
                 result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(),

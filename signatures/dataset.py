@@ -12,6 +12,8 @@ Why it is built this way:
   and RD patches are kept, never the IQ cubes.
 * Scenes come from the one scene sampler (`signatures.sampling`), with this module's
   distribution (`scene_distribution`) and the grid as the position.
+* The waveform is data (`signatures.radar.Preset`): the spec carries it to the worker
+  processes, and the cache key digests its parameters (a shipped preset by its name, as always).
 * The result is cached as `.npz` (no pickle) under a key that digests everything the
   samples depend on, so a retrain does not re-simulate. The code is not hashed: the key
   names the featurizer and the explicit feature and simulator versions (`feature_version`).
@@ -26,7 +28,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +36,7 @@ import numpy as np
 
 from signatures.errors import SignaturesError
 from signatures.profiles import NON_UAV_CLASSES, UavProfile
-from signatures.radar import get_preset
+from signatures.radar import TRAINABLE_DOMAINS, Preset, get_preset
 from signatures.sampling import SceneDistribution, sample_scene
 from signatures.scene import Scene
 
@@ -68,9 +70,12 @@ def block_split(x: float, y: float, z: float) -> str:
 
 @dataclass(frozen=True)
 class DatasetSpec:
-    """Everything a dataset depends on (its cache key digests all of it)."""
+    """Everything a dataset depends on (its cache key digests all of it).
 
-    preset: str
+    `preset`: the waveform, or the name of a shipped preset (resolved to it on construction).
+    """
+
+    preset: Preset | str
     profiles: tuple[UavProfile, ...]
     split: str
     n: int
@@ -87,7 +92,16 @@ class DatasetSpec:
             raise DatasetError(f"unknown split {self.split!r} (known: {', '.join(SPLITS)})")
         if self.n < 1:
             raise DatasetError("a dataset needs at least one sample")
-        get_preset(self.preset)
+        if isinstance(self.preset, str):
+            object.__setattr__(self, "preset", get_preset(self.preset))
+        if self.waveform.domain not in TRAINABLE_DOMAINS:
+            raise DatasetError(f"training for domain {self.waveform.domain} is not supported yet "
+                               f"(the simulator writes {', '.join(TRAINABLE_DOMAINS)} cubes)")
+
+    @property
+    def waveform(self) -> Preset:
+        assert isinstance(self.preset, Preset)  # resolved in __post_init__
+        return self.preset
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -96,8 +110,12 @@ class DatasetSpec:
         return uav + (NON_UAV_CLASSES if self.include_non_uav else ())
 
     def key(self) -> str:
-        doc = asdict(self)
+        """Digest of every field; a shipped preset enters by its name (the keys of datasets
+        cached before waveforms were data), any other waveform by its parameters."""
+        doc: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
         doc["profiles"] = [p.model_dump(mode="json") for p in self.profiles]
+        wf = self.waveform
+        doc["preset"] = wf.name if wf.shipped else {"name": wf.name, "key": wf.key, "max_range_m": wf.max_range_m}
         doc["generator_version"] = GENERATOR_VERSION
         blob = json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
         return hashlib.sha256(blob).hexdigest()[:24]
@@ -176,7 +194,7 @@ def draw_scene(spec: DatasetSpec, index: int) -> tuple[Scene, int]:
     rng = np.random.default_rng([spec.seed, SPLITS[spec.split], index, GENERATOR_VERSION])
     label = spec.classes[index % len(spec.classes)]
     target = label if label in NON_UAV_CLASSES else next(p for p in spec.profiles if p.slug == label)
-    max_range = get_preset(spec.preset).max_range_m
+    max_range = spec.waveform.max_range_m
     scene = sample_scene(rng, target, scene_distribution(spec), position=lambda g: _draw_point(g, spec, max_range))
     sim_seed = int(rng.integers(0, 2**63 - 1))
     return scene, sim_seed
@@ -213,7 +231,7 @@ def _chunk(spec: DatasetSpec, featurizer: Featurizer, start: int, stop: int) -> 
     """Simulate and featurise samples [start, stop) (runs in a worker process)."""
     from signatures.simulate import simulate
 
-    preset = get_preset(spec.preset)
+    preset = spec.waveform
     feats, rds, meta = [], [], []
     for i in range(start, stop):
         scene, seed = draw_scene(spec, i)
@@ -232,6 +250,16 @@ def _chunk(spec: DatasetSpec, featurizer: Featurizer, start: int, stop: int) -> 
                    range_m=np.array(rng_m, dtype=np.float32), speed_mps=np.array(spd, dtype=np.float32),
                    elevation_deg=np.array(el, dtype=np.float32), feature_ms=np.array(ms, dtype=np.float32),
                    classes=spec.classes, feature_names=names)
+
+
+def seconds_per_return(spec: DatasetSpec, featurizer: Featurizer | None = None, n: int = 3) -> float:
+    """Measured wall time to simulate and featurise one return of `spec` in this process (scenes
+    1..n after one warm-up): what a time estimate for a new waveform can scale."""
+    featurizer = featurizer or default_featurizer()
+    _chunk(spec, featurizer, 0, 1)  # imports, FFT plans
+    t0 = time.perf_counter()
+    _chunk(spec, featurizer, 1, 1 + n)  # scene draws do not depend on spec.n
+    return (time.perf_counter() - t0) / n
 
 
 def _names_of(featurizer: Featurizer) -> tuple[str, ...]:
@@ -263,12 +291,12 @@ def generate(spec: DatasetSpec, featurizer: Featurizer | None = None, *, workers
     path = None
     if cache is not False:
         folder = cache_dir() if cache is None or cache is True else Path(cache)
-        path = folder / f"{spec.preset}-{spec.split}-{spec.n}-{spec.key()}.npz"
+        path = folder / f"{spec.waveform.name}-{spec.split}-{spec.n}-{spec.key()}.npz"
         if path.exists():
             return Dataset.load(path)
     bounds = [(s, min(s + chunk, spec.n)) for s in range(0, spec.n, chunk)]
     parts: list[Dataset] = []
-    with _progress(progress, f"simulating {spec.n} {spec.preset} returns ({spec.split})", spec.n) as advance:
+    with _progress(progress, f"simulating {spec.n} {spec.waveform.name} returns ({spec.split})", spec.n) as advance:
         if workers <= 1 or len(bounds) == 1:
             for a, b in bounds:
                 parts.append(_chunk(spec, featurizer, a, b))

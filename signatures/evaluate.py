@@ -27,7 +27,7 @@ from signatures.inference import MEMBERS, Classifier
 from signatures.profiles import NON_UAV_CLASSES, UNKNOWN, UavProfile
 
 __all__ = ["DEFAULT_SNRS", "PAPER_FIGURES", "evaluate", "latency_ms", "metrics", "plot", "predictions",
-           "write_json"]
+           "test_summary", "write_json"]
 
 DEFAULT_SNRS = (-20.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 20.0, 30.0)
 PAPER_FIGURES = {"knn": 0.71, "rf": 1.00, "svm": 0.88}  # accuracy, paper section V
@@ -111,7 +111,7 @@ def evaluate(model: Classifier, snrs: Sequence[float], n_per_snr: int, seed: int
                               "n_per_snr": n_per_snr, "per_snr": {}, "open_set": {}}
     first: Dataset | None = None
     for snr in snrs:
-        ds = generate(DatasetSpec(preset=model.preset, profiles=known, split="test", n=n_per_snr, seed=seed,
+        ds = generate(DatasetSpec(preset=model.waveform, profiles=known, split="test", n=n_per_snr, seed=seed,
                                   snr_db=float(snr)), featurizer, cache=cache, progress=progress, workers=workers)
         first = first or ds
         row = {}
@@ -123,7 +123,7 @@ def evaluate(model: Classifier, snrs: Sequence[float], n_per_snr: int, seed: int
             np.asarray(predictions_cache["system"][0])[known_uav] == UNKNOWN)), 4) if known_uav.any() else 0.0
         report["per_snr"][f"{snr:g}"] = row
         if unknown_profiles:
-            uk = generate(DatasetSpec(preset=model.preset, profiles=tuple(unknown_profiles), split="test",
+            uk = generate(DatasetSpec(preset=model.waveform, profiles=tuple(unknown_profiles), split="test",
                                       n=max(n_per_snr // 2, 10), seed=seed, snr_db=float(snr), include_non_uav=False),
                           featurizer, cache=cache, progress=progress, workers=workers)
             lab, _ = predictions(model, uk)["system"]
@@ -139,6 +139,35 @@ def evaluate(model: Classifier, snrs: Sequence[float], n_per_snr: int, seed: int
     report["feature_ms_median"] = round(feat, 3)
     report["classification_time_delay_ms"] = {k: round(feat + v, 3) for k, v in lat.items()}
     return report
+
+
+def test_summary(report: dict[str, Any]) -> dict[str, Any]:
+    """Per SNR, what `authn check` would do with these returns (the `system` model: ensemble,
+    cascade, open set): accuracy and macro F1; of the known-airframe returns, the share labelled
+    with their own airframe (`genuine_confirmed`: a genuine claim's radar evidence agrees), with
+    another enrolled airframe (`wrong_airframe`: the evidence an impostor needs) and `unknown`;
+    bird / none returns called an airframe (`false_alarm_rate`); never-trained profiles called
+    `unknown` (`unknown_rejection`, when the report has them)."""
+    out: dict[str, Any] = {"seed": report["seed"], "n_per_snr": report["n_per_snr"], "per_snr": {}}
+    for snr, row in report["per_snr"].items():
+        m = row["system"]
+        cm = m["confusion"]
+        uav = [c for c in cm["cols"] if c not in NON_UAV_CLASSES and c != UNKNOWN]
+        n = confirmed = wrong = 0
+        for r, counts in zip(cm["rows"], cm["matrix"]):
+            if r not in uav:
+                continue
+            called = dict(zip(cm["cols"], counts))
+            n += sum(counts)
+            confirmed += called.get(r, 0)
+            wrong += sum(v for c, v in called.items() if c in uav and c != r)
+        doc = {"accuracy": m["accuracy"], "macro_f1": m["macro_f1"],
+               "genuine_confirmed": round(confirmed / max(n, 1), 4), "wrong_airframe": round(wrong / max(n, 1), 4),
+               "called_unknown": m["known_uav_called_unknown"], "false_alarm_rate": m["false_alarm_rate"]}
+        if snr in report["open_set"]:
+            doc["unknown_rejection"] = report["open_set"][snr]["unknown_rate"]
+        out["per_snr"][snr] = doc
+    return out
 
 
 def write_json(report: dict[str, Any], path: Path) -> None:

@@ -1,7 +1,9 @@
-"""Run a shipped model bundle: onnxruntime + numpy only (no scikit-learn, no torch).
+"""Run a model bundle: onnxruntime + numpy only (no scikit-learn, no torch).
 
 `load_classifier(preset)` verifies the bundle's digests against its card and keeps the
-result for the process (batch mode reuses it). The kNN (`knn.npz`) and the Random
+result for the process (batch mode reuses it). `classifier_for(recording)` picks the bundle of
+the recording's waveform: the shipped preset's, else a user bundle (`authn models train --like`,
+under `models_dir()`) whose card describes the same waveform. The kNN (`knn.npz`) and the Random
 Forests (`rf.npz`, `rf_state.npz`) are plain arrays evaluated in numpy, so the usual
 check never imports onnxruntime; the SVM and the CNN are ONNX files, opened on first use. `Classifier.predict` turns one
 feature vector (and optionally the RD patch) into a `Prediction`: calibrated soft-vote of
@@ -11,7 +13,8 @@ rejection (physical consistency with the predicted profile, see `signatures.open
 
 from __future__ import annotations
 
-import math
+import json
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import resources
@@ -21,17 +24,20 @@ from typing import Any
 import numpy as np
 
 from signatures.errors import SignaturesError
-from signatures.modelcard import read_card
+from signatures.modelcard import CARD_NAME, read_card
 from signatures.openset import OpenSet
 from signatures.profiles import NON_UAV_CLASSES, UNKNOWN
-from signatures.radar import PRESETS, RadarConfig
+from signatures.radar import (PRESETS, TRAINABLE_DOMAINS, Preset, RadarConfig, get_preset, parse_waveform,
+                              recording_waveform, shipped_preset)
 
 __all__ = ["MEMBERS", "Classifier", "ForestArrays", "KnnArrays", "NoModelError", "Prediction", "bundle_dir",
-           "calibrate", "classifier_for", "load_classifier", "match_preset"]
+           "calibrate", "card_waveform", "classifier_for", "find_bundle", "load_classifier", "match_preset",
+           "models_dir", "user_bundles"]
 
 #: The ensemble's members, in the order of the card's `ensemble.weights` (training and inference).
 MEMBERS = ("knn", "rf", "svm")
 _LOADED: dict[str, "Classifier"] = {}
+_FOUND: dict[str, "Classifier"] = {}  # "models_dir:waveform key" -> the user bundle `classifier_for` picked
 
 
 def calibrate(avg_proba: np.ndarray, beta: float) -> np.ndarray:
@@ -135,6 +141,7 @@ class Classifier:
     def _read(self, c: dict[str, Any]) -> None:
         """Everything inference needs from the card and `openset.npz` (current bundle layout only)."""
         self.preset: str = c["preset"]
+        self.waveform = card_waveform(c)
         self.classes: tuple[str, ...] = tuple(c["classes"])
         self.n_features = len(c["feature_names"])
         names = list(c["feature_names"])
@@ -246,19 +253,81 @@ class Classifier:
                           operational_state=state, used_cnn=bool(used[0]), nearest=self.classes[k])
 
 
+def card_waveform(card: dict[str, Any]) -> Preset:
+    """The waveform a bundle serves: its card's `waveform.radar_config`, else the shipped preset
+    its `preset` names (shipped bundles and bundles trained with `--preset`)."""
+    if "waveform" in card:
+        return parse_waveform(card["waveform"]["radar_config"], "model card waveform.radar_config")
+    return get_preset(card["preset"])
+
+
 def bundle_dir(preset: str) -> Path:
     """Folder of the shipped bundle of a preset (inside the installed package)."""
     return Path(str(resources.files("signatures.models").joinpath(preset)))
 
 
+def models_dir() -> Path:
+    """Where user bundles live: `$AUTHN_MODELS_DIR`, else `models/` in the user data folder."""
+    env = os.environ.get("AUTHN_MODELS_DIR")
+    if env:
+        return Path(env)
+    import platformdirs
+
+    return Path(platformdirs.user_data_dir("authn")) / "models"
+
+
+def user_bundles() -> list[tuple[Path, dict[str, Any] | None]]:
+    """Bundle folders under `models_dir()` with their cards as read (not verified: loading
+    verifies), None for a card that is not JSON."""
+    root = models_dir()
+    if not root.is_dir():
+        return []
+    out: list[tuple[Path, dict[str, Any] | None]] = []
+    for folder in sorted(p for p in root.iterdir() if (p / CARD_NAME).is_file()):
+        try:
+            card = json.loads((folder / CARD_NAME).read_text())
+        except (OSError, ValueError):
+            card = None
+        out.append((folder, card if isinstance(card, dict) else None))
+    return out
+
+
+def _serves(card: dict[str, Any] | None, wf: Preset) -> bool:
+    try:
+        return card is not None and card_waveform(card).matches(wf.config, wf.n_chirps, wf.n_samples, wf.domain)
+    except (SignaturesError, KeyError, TypeError):
+        return False  # a card of another layout serves nothing here; loading it names the problem
+
+
+def find_bundle(wf: Preset, source: str = "FILE") -> Path:
+    """The bundle folder for a waveform: the shipped preset's, else the user bundle whose card
+    describes it (the one named after the waveform first), else NoModelError naming the fix."""
+    if wf.shipped:
+        return bundle_dir(wf.name)
+    for folder, card in sorted(user_bundles(), key=lambda fc: (fc[0].name != wf.name, fc[0].name)):
+        if _serves(card, wf):
+            return folder
+    if wf.domain not in TRAINABLE_DOMAINS:
+        raise NoModelError(f"no classifier for this waveform ({wf.describe()}): training for domain "
+                           f"{wf.domain} is not supported yet")
+    raise NoModelError(f"no classifier for this waveform ({wf.describe()}): build one with "
+                       f"`authn models train --like {source}`")
+
+
 def load_classifier(preset: str | None = None, path: str | Path | None = None) -> Classifier:
-    """The verified classifier of a preset's shipped bundle, or of the bundle at `path` (cached)."""
+    """The verified classifier of a shipped preset or a user bundle (by name), or of the bundle at
+    `path` (cached)."""
     if path is None:
         if preset is None:
             raise SignaturesError("give a preset or a model bundle path")
-        if preset not in PRESETS:
-            raise NoModelError(f"no model for unknown preset {preset!r} (known: {', '.join(PRESETS)})")
-        folder = bundle_dir(preset)
+        if preset in PRESETS:
+            folder = bundle_dir(preset)
+        elif preset and "/" not in preset and not preset.startswith(".") \
+                and (models_dir() / preset / CARD_NAME).is_file():
+            folder = models_dir() / preset
+        else:
+            raise NoModelError(f"no model named {preset!r} (shipped: {', '.join(PRESETS)}; "
+                               "user bundles: `authn models list`)")
     else:
         folder = Path(path)
     key = str(folder.resolve())
@@ -271,17 +340,29 @@ def load_classifier(preset: str | None = None, path: str | Path | None = None) -
 
 
 def match_preset(config: RadarConfig, n_chirps: int, n_samples: int) -> str:
-    """The preset whose waveform the recording used (range offset aside), or NoModelError."""
-    fields = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz")
-    for name, pre in PRESETS.items():
-        if (pre.n_chirps, pre.n_samples) == (n_chirps, n_samples) and all(
-                math.isclose(getattr(config, f), getattr(pre.config, f), rel_tol=1e-6) for f in fields):
-            return name
-    raise NoModelError(f"no classifier for this waveform ({n_chirps}x{n_samples} at "
-                       f"{config.carrier_hz / 1e9:g} GHz, PRI {config.pri_s * 1e6:g} us): "
-                       f"models exist for presets {', '.join(PRESETS)}")
+    """The shipped preset whose waveform the recording used (range offset aside), or NoModelError."""
+    pre = shipped_preset(config, n_chirps, n_samples)
+    if pre is None:
+        raise NoModelError(f"no classifier for this waveform ({n_chirps}x{n_samples} at "
+                           f"{config.carrier_hz / 1e9:g} GHz, PRI {config.pri_s * 1e6:.3g} us) among the "
+                           f"shipped presets {', '.join(PRESETS)}")
+    return pre.name
 
 
-def classifier_for(recording: Any) -> Classifier:
-    """The shipped classifier matching a Recording's waveform."""
-    return load_classifier(match_preset(recording.config, recording.n_chirps, recording.n_samples))
+def classifier_for(recording: Any, model: str | Path | None = None, source: str = "FILE") -> Classifier:
+    """The classifier for a Recording's waveform (`find_bundle`; kept per waveform for the
+    process), or the bundle at `model`, which must serve that waveform. `source` names the file
+    in the hint of NoModelError."""
+    wf = recording_waveform(recording)
+    if model is not None:
+        clf = load_classifier(path=model)
+        if not clf.waveform.matches(wf.config, wf.n_chirps, wf.n_samples, wf.domain):
+            raise NoModelError(f"{model}: this bundle is for {clf.waveform.describe()}, the file's waveform is "
+                               f"{wf.describe()}")
+        return clf
+    if wf.shipped:
+        return load_classifier(wf.name)
+    key = f"{models_dir()}:{wf.key}"
+    if key not in _FOUND:
+        _FOUND[key] = load_classifier(path=find_bundle(wf, source))
+    return _FOUND[key]

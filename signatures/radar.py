@@ -1,4 +1,5 @@
-"""FMCW radar configuration, the two presets (docs/signal-model.md) and what they imply.
+"""FMCW radar configuration, waveforms (the two shipped presets and any other, docs/classifiers.md
+"Your radar's waveform") and what they imply.
 
 Everything here is closed-form physics: range resolution c/2B, beat frequency
 2*S*R/c, unambiguous velocity lambda*PRF/4 (complex slow-time sampling), Doppler
@@ -7,9 +8,14 @@ bin lambda/(2*N*PRI). No signal processing.
 
 from __future__ import annotations
 
+import hashlib
+import json
+import math
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from signatures.profiles import UavProfile
 
@@ -103,16 +109,33 @@ class RadarConfig(BaseModel):
         return body + self.tip_doppler_hz(profile) >= self.prf_hz / 2.0
 
 
+#: Sample domains of a recorded cube (docs/format.md `domain`): IF samples of the dechirped sweep,
+#: range bins, or CW (no sweep). A bundle only serves recordings of its own domain.
+DOMAINS = ("if", "range", "cw")
+#: Domains the simulator writes, hence the only ones a bundle can be trained for.
+TRAINABLE_DOMAINS = ("if",)
+#: Training range cover of a waveform that names none (a recording does not say): the paper's.
+DEFAULT_MAX_RANGE_M = 1200.0
+#: The waveform parameters that identify a bundle's radar (range offset aside: it moves with the target).
+WAVEFORM_FIELDS = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz")
+
+
 @dataclass(frozen=True)
 class Preset:
-    """A named waveform plus the cube size it records."""
+    """A waveform plus the cube size it records: what a classifier bundle is trained for.
+
+    The two shipped ones are named presets (`PRESETS`); any other radar's waveform is data,
+    built by `waveform_of` (from a recording's attributes) or `load_waveform` (a JSON file) and
+    named after its parameters and `key`.
+    """
 
     name: str
     config: RadarConfig
     n_chirps: int
     n_samples: int
     max_range_m: float
-    note: str
+    note: str = ""
+    domain: str = "if"
 
     @property
     def window_m(self) -> float:
@@ -125,6 +148,35 @@ class Preset:
 
     def with_offset(self, range_offset_m: float) -> RadarConfig:
         return self.config.model_copy(update={"range_offset_m": float(range_offset_m)})
+
+    @property
+    def key(self) -> str:
+        """Digest of the waveform parameters (6 significant digits), cube size and domain: equal
+        for waveforms a bundle may serve interchangeably. `matches` is the tolerant comparison."""
+        doc = {f: f"{getattr(self.config, f):.6g}" for f in WAVEFORM_FIELDS}
+        doc.update(n_chirps=self.n_chirps, n_samples=self.n_samples, domain=self.domain)
+        return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
+
+    @property
+    def shipped(self) -> bool:
+        """True for the shipped presets themselves (whose bundles ship inside the package)."""
+        return PRESETS.get(self.name) == self
+
+    def describe(self) -> str:
+        """The waveform in words, e.g. '512x80 at 77 GHz, PRI 44 us'."""
+        text = (f"{self.n_chirps}x{self.n_samples} at {self.config.carrier_hz / 1e9:g} GHz, "
+                f"PRI {self.config.pri_s * 1e6:.3g} us")
+        return text if self.domain == "if" else f"{text}, {self.domain} domain"
+
+    def matches(self, config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if") -> bool:
+        """Same waveform as a recording's (range offset aside; parameters within 1e-6 relative)."""
+        return (self.n_chirps, self.n_samples, self.domain) == (n_chirps, n_samples, domain) and all(
+            math.isclose(getattr(config, f), getattr(self.config, f), rel_tol=1e-6) for f in WAVEFORM_FIELDS)
+
+    def as_json(self) -> dict[str, Any]:
+        """The radar-configuration document (`load_waveform` reads it back)."""
+        return {**self.config.model_dump(include=set(WAVEFORM_FIELDS)), "n_chirps": self.n_chirps,
+                "n_samples": self.n_samples, "max_range_m": self.max_range_m, "domain": self.domain}
 
 
 def _paper() -> Preset:
@@ -166,6 +218,81 @@ def _wide() -> Preset:
 
 
 PRESETS: dict[str, Preset] = {p.name: p for p in (_paper(), _wide())}
+
+
+def shipped_preset(config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if") -> Preset | None:
+    """The shipped preset with this waveform, if any."""
+    return next((p for p in PRESETS.values() if p.matches(config, n_chirps, n_samples, domain)), None)
+
+
+def waveform_of(config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if",
+                max_range_m: float = DEFAULT_MAX_RANGE_M) -> Preset:
+    """The waveform of a cube: the shipped preset when it is one, else a new one named
+    `<carrier>GHz[-<domain>]-<chirps>x<samples>-<key8>` (range offset dropped)."""
+    found = shipped_preset(config, n_chirps, n_samples, domain)
+    if found is not None:
+        return found
+    cfg = config.model_copy(update={"range_offset_m": 0.0})
+    wf = Preset("", cfg, int(n_chirps), int(n_samples), float(max_range_m), domain=domain)
+    tag = "" if domain == "if" else f"-{domain}"
+    name = f"{cfg.carrier_hz / 1e9:g}GHz{tag}-{n_chirps}x{n_samples}-{wf.key[:8]}"
+    return Preset(name, cfg, wf.n_chirps, wf.n_samples, wf.max_range_m, domain=domain)
+
+
+def recording_waveform(recording: Any) -> Preset:
+    """The waveform a Recording was made with (its `domain` attribute, `if` when absent)."""
+    return waveform_of(recording.config, recording.n_chirps, recording.n_samples,
+                       getattr(recording, "domain", "if"))
+
+
+class WaveformFile(BaseModel):
+    """A radar-configuration JSON file: the RadarConfig fields plus cube size, range cover, domain."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    carrier_hz: float
+    bandwidth_hz: float
+    ramp_s: float
+    pri_s: float
+    sample_rate_hz: float
+    range_offset_m: float = 0.0  # accepted (a recording's attributes), ignored: the gate follows the target
+    n_chirps: int = Field(ge=16, le=1_000_000)
+    n_samples: int = Field(ge=8, le=65_536)
+    max_range_m: float = Field(default=DEFAULT_MAX_RANGE_M, ge=100.0, le=1e5)
+    domain: Literal["if", "range", "cw"] = "if"
+
+    @model_validator(mode="after")
+    def _cube_fits(self) -> "WaveformFile":
+        if self.n_chirps * self.n_samples > 1 << 25:
+            raise ValueError(f"a {self.n_chirps}x{self.n_samples} cube exceeds 2^25 samples")
+        return self
+
+
+def parse_waveform(doc: object, source: str) -> Preset:
+    """A waveform from a radar-configuration document; one-line SignaturesError when invalid."""
+    from signatures.errors import SignaturesError
+
+    try:
+        w = WaveformFile.model_validate(doc)
+        cfg = RadarConfig(**w.model_dump(include=set(WAVEFORM_FIELDS)))
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = ".".join(str(p) for p in err["loc"]) or "document"
+        raise SignaturesError(f"{source}: {loc}: {err['msg']}") from None
+    return waveform_of(cfg, w.n_chirps, w.n_samples, w.domain, w.max_range_m)
+
+
+def load_waveform(path: Path) -> Preset:
+    """The waveform described by a radar-configuration JSON file (docs/classifiers.md)."""
+    from signatures.errors import SignaturesError
+
+    try:
+        doc = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise SignaturesError(f"{path}: cannot read radar configuration ({exc.strerror})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise SignaturesError(f"{path}: radar configuration is not JSON ({exc})") from None
+    return parse_waveform(doc, str(path))
 
 
 def get_preset(name: str) -> Preset:

@@ -1,9 +1,10 @@
-"""Train a model bundle for one preset: simulate, fit, calibrate, export ONNX, write the card.
+"""Train a model bundle for one waveform: simulate, fit, calibrate, export ONNX, write the card.
 
 Everything is seeded, so the same command rebuilds the same bundle (byte-identical
 ONNX files and card on the same library versions). Validation data (its own grid
 blocks and seeds) calibrates the ensemble, sets the open-set thresholds and the
-cascade threshold; test data is left to `signatures.evaluate`.
+cascade threshold. With `n_test`, held-out test blocks (`signatures.evaluate`) measure the
+finished bundle and the card keeps the summary (`metrics.test`).
 """
 
 from __future__ import annotations
@@ -19,12 +20,12 @@ import numpy as np
 from signatures.dataset import GENERATOR_VERSION, Dataset, DatasetSpec, Featurizer, generate
 from signatures.modelcard import library_versions, write_card
 from signatures.profiles import UavProfile
-from signatures.radar import get_preset
+from signatures.radar import C, Preset, get_preset
 
 if TYPE_CHECKING:
     from signatures.openset import PhysicsCheck
 
-__all__ = ["CASCADE_GRID", "GEOMETRY_FEATURES", "LEVEL_FEATURES", "OPENSET_MODE", "OPENSET_QUANTILE",
+__all__ = ["CASCADE_GRID", "GEOMETRY_FEATURES", "TEST_SEED_OFFSET", "default_samples", "LEVEL_FEATURES", "OPENSET_MODE", "OPENSET_QUANTILE",
            "PHYSICS_METHOD", "PHYS_MAX_REL_TOL", "PHYS_MIN_FLASH_SCORE", "PHYS_Z", "TrainConfig",
            "choose_cascade_threshold", "train_bundle"]
 
@@ -51,11 +52,22 @@ GEOMETRY_FEATURES = ("mean_range_m", "range_m", "mean_doppler_mps", "radial_velo
 #: Absolute level (radar calibration x range): would make decisions depend on IQ scaling.
 LEVEL_FEATURES = ("peak_amplitude_db",)
 CASCADE_GRID = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
+#: Seed of the held-out test data: training seed + this (`authn models evaluate` defaults to 1000 too).
+TEST_SEED_OFFSET = 1000
+
+
+def default_samples(waveform: Preset) -> int:
+    """Training returns for a cube size: 8000 up to 100k samples per cube (paper: 48k), 4000 up to
+    1M (wide: 524k), else 2000; simulation time grows with the cube."""
+    cells = waveform.n_chirps * waveform.n_samples
+    return 8000 if cells <= 100_000 else 4000 if cells <= 1_000_000 else 2000
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    preset: str
+    """What a bundle is trained on. `preset`: the waveform, or a shipped preset's name."""
+
+    preset: Preset | str
     profiles: tuple[UavProfile, ...]
     n_train: int = 3000
     n_val: int = 1000
@@ -67,6 +79,18 @@ class TrainConfig:
     #: Profiles never trained on, for the card's validation open-set numbers (empty: none).
     unknown_profiles: tuple[UavProfile, ...] = ()
     n_unknown_val: int = 0
+    #: Held-out test returns per SNR of `test_snrs` measured into the card (0: none)
+    n_test: int = 0
+    test_snrs: tuple[float, ...] = (0.0, 10.0, 20.0)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.preset, str):
+            object.__setattr__(self, "preset", get_preset(self.preset))
+
+    @property
+    def waveform(self) -> Preset:
+        assert isinstance(self.preset, Preset)  # resolved in __post_init__
+        return self.preset
 
 
 def _codes(ds: Dataset) -> np.ndarray:
@@ -121,14 +145,14 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     ensemble = clf.calibrated_ensemble(members, Xv, yv, weights)
     uav = np.isin(train.y, [p.slug for p in cfg.profiles])
     state_head = clf.fit_state_head(train.X[uav], train.moving[uav], cfg.seed)
-    pre = get_preset(cfg.preset)
+    wf = cfg.waveform
     jitter = float(Scene.model_fields["rotor_rate_jitter"].default)
-    tip_bin = 299_792_458.0 / pre.config.carrier_hz / 2 / (pre.config.pri_s * pre.n_chirps)
+    tip_bin = C / wf.config.carrier_hz / 2 / (wf.config.pri_s * wf.n_chirps)  # this waveform's Doppler bin
     phys = physics_check(train.classes, {p.slug: p for p in cfg.profiles}, train.feature_names, jitter,
                          tip_bin_mps=tip_bin, z=PHYS_Z, max_rel_tol=PHYS_MAX_REL_TOL,
                          min_flash_score=PHYS_MIN_FLASH_SCORE)
 
-    tmp = Path(tempfile.mkdtemp(prefix=f".{cfg.preset}-", dir=out.parent if out.parent.exists() else None))
+    tmp = Path(tempfile.mkdtemp(prefix=f".{wf.name}-", dir=out.parent if out.parent.exists() else None))
     try:
         files = []
         # kNN and forests as numpy arrays (classifiers.knn_arrays / forest_arrays), the SVM as ONNX
@@ -154,9 +178,9 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
             cnn_card = {"input": "rd_patch", "shape": list(train.rd.shape[1:]), "input_mean": mean,
                         "input_std": std, "epochs": 12}
         card: dict[str, Any] = {
-            "preset": cfg.preset,
-            "radar": {**get_preset(cfg.preset).config.model_dump(exclude={"range_offset_m"}),
-                      "n_chirps": get_preset(cfg.preset).n_chirps, "n_samples": get_preset(cfg.preset).n_samples},
+            "preset": wf.name,
+            "radar": {**wf.config.model_dump(exclude={"range_offset_m"}),
+                      "n_chirps": wf.n_chirps, "n_samples": wf.n_samples},
             "classes": list(train.classes),
             "feature_names": list(train.feature_names),
             "class_features": [train.feature_names[i] for i in cols],
@@ -189,6 +213,8 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
             "libraries": library_versions(),
             "files": files,
         }
+        if not wf.shipped:  # a shipped preset is named by `preset`; any other waveform is described here
+            card["waveform"] = _waveform_card(wf, cfg.profiles)
         write_card(tmp, card)
         model = Classifier(tmp)
         p_ens = model.ensemble_proba(val.X)
@@ -234,6 +260,12 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         metrics["open_set"] = {"shipped_mode": cfg.openset_mode, **osv,
                                "unknown_profiles": [p.slug for p in cfg.unknown_profiles] if uk is not None else []}
         card["metrics"] = {"validation": metrics}
+        if cfg.n_test:
+            from signatures.evaluate import evaluate, test_summary
+
+            report = evaluate(model, cfg.test_snrs, cfg.n_test, cfg.seed + TEST_SEED_OFFSET, cfg.unknown_profiles,
+                              featurizer, cache=cache, progress=progress, workers=cfg.workers)
+            card["metrics"]["test"] = test_summary(report)
         card["files"] = files
         write_card(tmp, card)
         if out.exists():
@@ -253,7 +285,19 @@ def _physics_card(phys: PhysicsCheck) -> dict[str, Any]:
             "aliased_rate_slips": list(phys.rate_slips)}
 
 
+def _waveform_card(wf: Preset, profiles: tuple[UavProfile, ...]) -> dict[str, Any]:
+    """A non-preset waveform in the card: what bundle lookup matches (`radar_config`, `key`) and
+    which profiles' blade tips alias in it (the physical check then accepts flash-rate slips)."""
+    return {"key": wf.key, "description": wf.describe(), "radar_config": wf.as_json(),
+            "unambiguous_velocity_mps": round(wf.config.unambiguous_velocity_mps, 6),
+            "tips_alias_when_hovering": [p.slug for p in profiles if wf.config.tip_aliases(p)]}
+
+
 def _command(cfg: TrainConfig) -> str:
-    parts = ["authn models train", f"--preset {cfg.preset}", f"--samples {cfg.n_train}",
-             f"--val-samples {cfg.n_val}", f"--seed {cfg.seed}"]
+    wf = cfg.waveform
+    source = f"--preset {wf.name}" if wf.shipped else "--radar-config RADAR.json (the card's waveform.radar_config)"
+    parts = ["authn models train", source, f"--samples {cfg.n_train}", f"--val-samples {cfg.n_val}",
+             f"--seed {cfg.seed}"]
+    if cfg.n_test:
+        parts.append(f"--test-samples {cfg.n_test}")
     return " ".join(parts + (["--cnn"] if cfg.cnn else []))

@@ -103,6 +103,9 @@ def check(
     as_json: bool = typer.Option(False, "--json", help="Print JSON (one object; a list for several files)."),
     trust_registry: Path | None = typer.Option(None, "--trust-registry",
                                                help="JSON of registries (HDA DET + key) whose DRIP Links to trust."),
+    model: Path | None = typer.Option(None, "--model",
+                                      help="Classifier bundle folder to use (its waveform must be the file's; "
+                                           "default: chosen by the file's waveform)."),
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
@@ -124,7 +127,7 @@ def check(
         from authn.uakeys import load_trusted_registries
 
         trusted = load_trusted_registries(trust_registry) if trust_registry else None
-        checker = Checker(state.db_url, policy, trusted)
+        checker = Checker(state.db_url, policy, trusted, model=model)
         paths = _files(files)
         mapping = _claims(claims) if claims else {}
     except Exception as exc:

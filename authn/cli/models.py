@@ -1,15 +1,17 @@
-"""`authn models train / evaluate`: build the classifier bundles and print the paper's metrics."""
+"""`authn models train / list / evaluate`: build classifier bundles (for a shipped preset or any
+waveform), list them, and print the paper's metrics."""
 
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 
 import typer
 
 
-models_app = typer.Typer(help="Train and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
+models_app = typer.Typer(help="Train, list and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
                          no_args_is_help=True)
 
 
@@ -24,46 +26,164 @@ def _profiles(files: list[Path] | None, preset_default: bool = True):  # -> tupl
 
 @models_app.command("train")
 def train(
-    preset: str = typer.Option("paper", "--preset", help="Radar preset: paper or wide."),
+    preset: str | None = typer.Option(None, "--preset",
+                                      help="Shipped radar preset: paper or wide (the default without --like "
+                                           "or --radar-config)."),
+    like: Path | None = typer.Option(None, "--like", help="Train for the waveform of this recorded-return file."),
+    radar_config: Path | None = typer.Option(None, "--radar-config",
+                                             help="Train for the waveform in this JSON file (docs/classifiers.md)."),
     profiles: list[Path] | None = typer.Option(None, "--profiles",
                                                help="JSON file of extra UAV profiles to enrol (repeatable)."),
-    samples: int | None = typer.Option(None, "--samples", min=50, help="Training returns (default: 8000 paper, 4000 wide)."),
+    samples: int | None = typer.Option(None, "--samples", min=50,
+                                       help="Training returns (default by cube size: 8000 paper, 4000 wide)."),
     val_samples: int | None = typer.Option(None, "--val-samples", min=50, help="Validation returns (default: samples / 4)."),
+    test_samples: int | None = typer.Option(None, "--test-samples", min=10,
+                                            help="Held-out test returns per SNR (0, 10, 20 dB) measured into the card "
+                                                 "(default: samples / 20, 50..300, with --like/--radar-config; "
+                                                 "none with --preset)."),
     seed: int = typer.Option(0, "--seed", help="Training seed (datasets, forests, SVM, CNN)."),
     cnn: bool = typer.Option(False, "--cnn", help="Also train the RD-patch CNN (needs torch) and the cascade."),
-    out: Path | None = typer.Option(None, "--out", help="Bundle folder (default: the shipped bundle of the preset)."),
+    out: Path | None = typer.Option(None, "--out", help="Bundle folder (default: <models dir>/<waveform name>; "
+                                                        "`authn models list` shows the models dir)."),
+    overwrite_shipped: bool = typer.Option(False, "--overwrite-shipped",
+                                           help="Let --out replace the shipped bundle of --preset (maintainers)."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Simulation worker processes."),
 ) -> None:
     """Simulate, train and export a model bundle (numpy arrays, ONNX files, model card).
 
-    Example: authn models train --preset paper --cnn
+    Example: authn models train --like my_radar_capture.h5
+
+    Example (rebuild a shipped bundle): authn models train --preset paper --cnn --out signatures/models/paper --overwrite-shipped
     """
     from rich.console import Console
 
-    from signatures.inference import bundle_dir
-    from signatures.radar import get_preset
-    from signatures.training import TrainConfig, train_bundle
+    from signatures.dataset import DatasetSpec, seconds_per_return
+    from signatures.training import TrainConfig, default_samples, train_bundle
 
-    get_preset(preset)
-    n = samples or (8000 if preset == "paper" else 4000)
+    wf = _waveform(preset, like, radar_config)
+    folder = _bundle_folder(out, wf, overwrite_shipped)
+    n = samples or default_samples(wf)
     known = _profiles(profiles)
     n_val = val_samples or max(n // 4, 50)
+    n_test = test_samples if test_samples is not None else (0 if wf.shipped else min(max(n // 20, 50), 300))
     unknown = tuple(p for p in _invented() if p.slug not in {k.slug for k in known})
-    cfg = TrainConfig(preset=preset, profiles=known, n_train=n, n_val=n_val, seed=seed, cnn=cnn, workers=workers,
-                      unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20))
-    folder = out or bundle_dir(preset)
+    cfg = TrainConfig(preset=wf, profiles=known, n_train=n, n_val=n_val, seed=seed, cnn=cnn, workers=workers,
+                      unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20), n_test=n_test)
+    console = Console()
+    per = seconds_per_return(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed))
+    total = n + n_val + cfg.n_unknown_val + len(cfg.test_snrs) * (n_test + (max(n_test // 2, 10) if n_test else 0))
+    eta = total * per / min(workers, os.cpu_count() or 1)
+    console.print(f"[bold]{wf.name}[/]: {wf.describe()}. Simulating {total} returns ({n} train, {n_val} validation"
+                  + (f", {n_test} test per SNR" if n_test else "") + f") at {per * 1e3:.0f} ms each: about "
+                  f"{eta / 60:.1f} min with {workers} workers, plus fitting (cached datasets are reused).")
     t0 = time.perf_counter()
     card = train_bundle(cfg, folder, progress=True)
-    console = Console()
-    console.print(f"[bold]{preset}[/] bundle written to {folder} in {time.perf_counter() - t0:.0f} s")
+    console.print(f"[bold]{wf.name}[/] bundle written to {folder} in {time.perf_counter() - t0:.0f} s")
     for name, m in card["metrics"]["validation"].items():
         console.print(f"  validation {name}: {m}")
+    if "test" in card["metrics"]:
+        _print_test(console, card)
+    if not wf.shipped:
+        console.print(f"`authn check` now picks it for files of this waveform (or: --model {folder})")
+
+
+def _waveform(preset: str | None, like: Path | None, radar_config: Path | None):  # -> Preset
+    """The waveform to train for, from exactly one of the three options."""
+    from signatures.errors import SignaturesError
+    from signatures.radar import get_preset, load_waveform, recording_waveform
+    from signatures.recording import read_recording
+
+    given = [name for name, v in (("--preset", preset), ("--like", like), ("--radar-config", radar_config)) if v]
+    if len(given) > 1:
+        raise SignaturesError(f"{' and '.join(given)}: give only one of --preset, --like, --radar-config")
+    if like is None and radar_config is None:
+        return get_preset(preset or "paper")
+    source = like or radar_config
+    wf = recording_waveform(read_recording(like)) if like else load_waveform(radar_config)
+    if wf.shipped:
+        raise SignaturesError(f"{source}: this is the shipped preset {wf.name!r}, whose classifier ships with authn "
+                              f"(retrain it with --preset {wf.name})")
+    return wf
+
+
+def _bundle_folder(out: Path | None, wf, overwrite_shipped: bool) -> Path:
+    """Where the bundle goes: never inside the installed package unless a maintainer replaces a
+    shipped preset's bundle on purpose, never over a folder that is not a bundle."""
+    from signatures.errors import SignaturesError
+    from signatures.inference import bundle_dir, models_dir
+
+    folder = out or models_dir() / wf.name
+    shipped_root = bundle_dir(wf.name).parent.resolve()
+    target = folder.resolve()
+    if target.is_relative_to(shipped_root):
+        if not (wf.shipped and overwrite_shipped and target == bundle_dir(wf.name).resolve()):
+            raise SignaturesError(f"--out {folder}: inside the shipped bundles ({shipped_root}); only "
+                                  f"`--preset NAME --out {shipped_root}/NAME --overwrite-shipped` replaces one")
+    elif overwrite_shipped:
+        raise SignaturesError("--overwrite-shipped: only with --preset and --out naming that preset's shipped bundle")
+    if folder.exists() and not (folder / "card.json").is_file() and (not folder.is_dir() or any(folder.iterdir())):
+        raise SignaturesError(f"--out {folder}: exists and is not a model bundle (refusing to replace it)")
+    return folder
+
+
+def _print_test(console, card: dict) -> None:
+    from rich import box
+    from rich.table import Table
+
+    test = card["metrics"]["test"]
+    t = Table(title=f"held-out test, {test['n_per_snr']} returns per SNR: what `authn check` would conclude",
+              box=box.SIMPLE_HEAD)
+    for col in ("SNR", "accuracy", "macro F1", "own type", "other", "unknown", "false alarm", "unseen"):
+        t.add_column(col, justify="right")
+    for snr, r in sorted(test["per_snr"].items(), key=lambda kv: float(kv[0])):
+        unseen = r.get("unknown_rejection")
+        t.add_row(f"{snr} dB", *(f"{r[k]:.3f}" for k in ("accuracy", "macro_f1", "genuine_confirmed", "wrong_airframe",
+                                                         "called_unknown", "false_alarm_rate")),
+                  "-" if unseen is None else f"{unseen:.3f}")
+    console.print(t)
+    console.print("own type / other / unknown: known airframes labelled as themselves, as another enrolled "
+                  "airframe, as unknown; false alarm: bird/none called an airframe; unseen: never-trained "
+                  "airframes called unknown")
+
+
+@models_app.command("list")
+def list_models() -> None:
+    """Shipped and user model bundles: name, waveform, airframes, validation accuracy.
+
+    Example: authn models list
+    """
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    from signatures.errors import SignaturesError
+    from signatures.inference import bundle_dir, card_waveform, models_dir, user_bundles
+    from signatures.modelcard import CARD_NAME
+    from signatures.profiles import NON_UAV_CLASSES
+    from signatures.radar import PRESETS
+
+    rows = [(name, "shipped", json.loads((bundle_dir(name) / CARD_NAME).read_text()))
+            for name in PRESETS if (bundle_dir(name) / CARD_NAME).is_file()]
+    rows += [(folder.name, "user", card) for folder, card in user_bundles()]
+    t = Table(title=f"model bundles (user bundles in {models_dir()})", title_justify="left", box=box.SIMPLE_HEAD)
+    t.add_column("name", no_wrap=True)  # user bundle names are 21+ characters: the other columns fold
+    for col in ("kind", "waveform", "airframes", "val acc"):
+        t.add_column(col, overflow="fold", justify="right" if col == "val acc" else "left")
+    for name, kind, card in rows:
+        try:
+            wave = card_waveform(card).describe()
+            airframes = ", ".join(c for c in card["classes"] if c not in NON_UAV_CLASSES)
+            acc = f"{card['metrics']['validation']['ensemble']['accuracy']:.3f}"
+        except (SignaturesError, KeyError, TypeError):  # a broken card is listed as such, not a stop
+            wave, airframes, acc = "unreadable card", "", ""
+        t.add_row(name, kind, wave, airframes, acc)
+    Console(width=80).print(t)
 
 
 @models_app.command("evaluate")
 def evaluate(
-    preset: str = typer.Option("paper", "--preset", help="Radar preset whose shipped bundle to evaluate."),
-    model: Path | None = typer.Option(None, "--model", help="Bundle folder (default: the shipped one)."),
+    preset: str = typer.Option("paper", "--preset", help="Shipped preset or user bundle name to evaluate."),
+    model: Path | None = typer.Option(None, "--model", help="Bundle folder (default: the one --preset names)."),
     snr: str = typer.Option("-20,-15,-10,-5,0,5,10,20,30", "--snr", help="Comma-separated SNRs (dB)."),
     samples: int = typer.Option(500, "--samples", min=10, help="Test returns per SNR."),
     seed: int = typer.Option(1000, "--seed", help="Test seed (use one never used in training)."),

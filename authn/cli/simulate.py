@@ -59,6 +59,9 @@ def simulate(
     snr: float = typer.Option(20.0, "--snr", help="Target power / noise power per IF sample, dB."),
     out: Path = typer.Option(..., "--out", help="Output .h5 (or .npz) file; a directory with --count."),
     preset: str = typer.Option("paper", "--preset", help="Radar preset: paper or wide."),
+    chirps: int | None = typer.Option(None, "--chirps", min=16, max=1_000_000,
+                                      help="Chirps per dwell instead of the preset's (another waveform: "
+                                           "`authn models train --like` builds its classifier)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (scene i of --count uses seed + i)."),
     elevation: float = typer.Option(10.0, "--elevation", help="Elevation of the target seen from the radar, degrees."),
     clutter: float | None = typer.Option(None, "--clutter", help="Ground clutter-to-noise ratio, dB (default: no clutter)."),
@@ -103,11 +106,13 @@ def simulate(
     from pydantic import ValidationError
 
     from signatures.errors import SignaturesError
-    from signatures.radar import get_preset
+    from signatures.radar import get_preset, waveform_of
     from signatures.recording import write_recording
     from authn.scenario import Broadcast, simulate_flight
 
     pre = get_preset(preset)
+    if chirps is not None:
+        pre = waveform_of(pre.config, chirps, pre.n_samples, max_range_m=pre.max_range_m)
     if not 0 < range_m <= pre.max_range_m:
         raise SignaturesError(f"--range: {range_m:g} m is outside (0, {pre.max_range_m:g}] m of preset {preset!r}")
     try:
