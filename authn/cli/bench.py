@@ -4,8 +4,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from authn.bench.worlds import Trial
 
 
 def bench(
@@ -15,7 +21,11 @@ def bench(
     quick: bool = typer.Option(False, "--quick", help="CI-sized run: 12 scenes per category, paper preset."),
     with_latency: bool = typer.Option(True, "--latency/--no-latency", help="Also time cold and batch checks."),
     stress: bool = typer.Option(False, "--stress", help="Run the numerical stress suite instead (exit 1 unless clean)."),
-    plot_dir: Path | None = typer.Option(None, "--plot", help="Write the error-versus-time plot (PNG) here."),
+    plot_dir: Path | None = typer.Option(None, "--plot", help="Write the error-versus-time and DET plots (PNG) here."),
+    world: str | None = typer.Option(None, "--world", help="Worlds of the identity-claim rows: training, heldout or "
+                                     "both (default both; training with --quick)."),
+    snr: list[float] = typer.Option([0.0, 10.0], "--snr", help="SNR rows (dB) of the identity claims (repeatable)."),
+    worlds_only: bool = typer.Option(False, "--worlds-only", help="Run only the identity claims in the worlds."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Benchmark decisions and speed: accuracy, latency, stages, error vs time, throughput.
@@ -35,31 +45,49 @@ def bench(
     signature (another key, the victim's DET) and a day-old replayed one (rejected),
     with the verification's cost per check (signed against unsigned).
 
+    Identity claims in two worlds: genuine claims, type spoofs and airframes never
+    trained on (octocopter, 5-inch racer, coaxial X8, tricopter) claiming a registered
+    serial, at each --snr, rendered by the training simulator and by the held-out model
+    (signatures.heldout, a different signal model), the same scenes in both; right
+    decisions side by side, and the verification score's equal error rate and DET
+    curves (det-<preset>.png with --plot).
+
     Example: authn bench --preset paper --n 200 --json
 
     Example: authn bench --stress --quick
+
+    Example: authn bench --worlds-only --world both --n 100 --plot docs/figures
     """
     from rich.console import Console
     from rich.progress import Progress
-    from rich.table import Table
 
     from authn.bench.decisions import (CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, latency, run_decisions,
                                        summarise)
+    from authn.bench.tables import decision_table, imports_table, pareto_table, stage_table
+    from authn.bench.worlds import WORLD_CATEGORIES, world_choice
     from signatures.radar import get_preset
 
     if quick:
         preset, n = ["paper"], 12
+    worlds = world_choice(world or ("training" if quick else "both"))
     for p in preset:
         get_preset(p)
     if stress:
         _stress(tuple(preset), quick, as_json)
         return
+    n_claims = len(preset) * len(snr) * len(WORLD_CATEGORIES) * n * len(worlds)
+    if worlds_only:
+        _worlds(tuple(preset), worlds, tuple(snr), n, seed, n_claims, plot_dir, as_json)
+        return
     from authn.bench import pareto, perf
     from authn.bench.variants import DWELL_DIVISORS
+    from authn.bench.worlds import plot_worlds, run_worlds, summarise_worlds
 
     with Progress(transient=True, disable=as_json) as progress:
-        task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n)
+        task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n + n_claims)
         rows = run_decisions(tuple(preset), n, seed, progress=lambda k: progress.advance(task, k))
+        progress.update(task, description="identity claims in " + " and ".join(worlds))
+        trials = run_worlds(tuple(preset), worlds, n, seed, tuple(snr), progress=lambda k: progress.advance(task, k))
         cold_repeats = 3 if quick else 11
         lat = {p: latency(p, 5 if quick else 20, seed, cold_repeats) for p in preset} if with_latency else {}
         progress.update(task, description="timing stages")
@@ -78,24 +106,21 @@ def bench(
         plot_dir.mkdir(parents=True, exist_ok=True)
         for p, pts in grid.items():
             pareto.plot(pts, (0.0, 10.0, 20.0), plot_dir / f"error-vs-time-{p}.png", floor[p]["fft_ms"])
+        plot_worlds(trials, plot_dir)
     drip = drip_cost(rows)
     report = {"decisions": summarise(rows), "drip_verification_ms": drip, "latency_ms": lat, "stages": stages,
               "fft_floor": floor,
               "fft_floor_of_dwell_part_ms": dwell_floors,
               "pareto": {p: [pt.__dict__ for pt in pts] for p, pts in grid.items()},
               "near_fft_floor": {p: [q.name for q in pts] for p, pts in near.items()},
-              "imports_ms": imports, "throughput_per_s": tput, "n_per_category": n, "seed": seed}
+              "imports_ms": imports, "throughput_per_s": tput, "n_per_category": n, "seed": seed,
+              "worlds": summarise_worlds(trials)}
     if as_json:
         typer.echo(json.dumps(report, indent=2))
         return
-    table = Table(title=f"end-to-end decisions ({n} scenes per category, SNR 10-30 dB)")
-    for col in ("preset", "category", "expected", "correct", "radar skipped", "median check"):
-        table.add_column(col, justify="right")
-    for r in rows:
-        table.add_row(r.preset, r.category, EXPECTED[r.category],
-                      f"{r.rate:.1%}", f"{r.radar_skipped / r.n:.0%}", f"{r.median_ms:.1f} ms")
     console = Console()
-    console.print(table)
+    console.print(decision_table(rows, n, EXPECTED))
+    _print_worlds(console, trials)
     for p, d in drip.items():
         console.print(f"{p}: DRIP verification, median of the check's remote_id_auth stage:")
         console.print(f"  signed {d['signed_valid_ms']:.3f} ms, unsigned {d['unsigned_ms']:.3f} ms: "
@@ -114,13 +139,7 @@ def bench(
                       f"check = {d['first_registry_only_vs_full']:.1%}")
     for p in preset:
         st, fl = stages[p], floor[p]
-        t = Table(title=f"{p}: where the time goes (median ms over {st['checks']} mixed claims, batch mode)")
-        t.add_column("stage")
-        t.add_column("ms", justify="right")
-        for k, v in st["stage_median_ms"].items():
-            t.add_row(k, f"{v:.3f}")
-        t.add_row("FFT floor (numpy, just the FFTs)", f"{fl['fft_ms']:.3f}")
-        console.print(t)
+        console.print(stage_table(p, st, fl))
         console.print(f"  FFTs of one gated check: {fl['fft_mflop']:.2f} MFLOP at {fl['gflops']:.1f} GFLOP/s; "
                       f"radar_features is {st['stage_median_ms'].get('radar_features', float('nan')) / fl['fft_ms']:.1f}x "
                       f"the FFT floor")
@@ -134,23 +153,49 @@ def bench(
                       f"{tp['2_worker']:.0f} with 2 workers")
     for p, pts in grid.items():
         fl = floor[p]["fft_ms"]
-        t = Table(title=f"{p}: run time against error (same held-out returns; * = Pareto front)")
-        for col in ("configuration", "ms/return", "x FFT floor", "F1 0 dB", "F1 10 dB", "F1 20 dB", "FAR", "front"):
-            t.add_column(col, justify="right")
-        for pt in pts:
-            t.add_row(pt.name, f"{pt.ms_per_return:.2f}", f"{pt.ms_per_return / fl:.1f}",
-                      *(f"{pt.f1_by_snr[s]:.3f}" for s in (0.0, 10.0, 20.0)), f"{pt.far:.3f}", "*" if pt.pareto else "")
-        console.print(t)
+        console.print(pareto_table(p, pts, fl, (0.0, 10.0, 20.0)))
         console.print(f"  front points within 3x of the FFT floor ({fl:.2f} ms) with macro F1 >= 0.95 at 10 dB: "
                       + (", ".join(f"{q.name} ({q.ms_per_return / fl:.1f}x)" for q in near[p]) or "none"))
         console.print("  FFT floor of just the first part of the dwell (what those configurations transform): "
                       + ", ".join(f"{k} {v:.2f} ms" for k, v in dwell_floors[p].items()))
-    t = Table(title="cold-start imports (fresh interpreter each, ms)")
-    t.add_column("import")
-    t.add_column("ms", justify="right")
-    for k, v in imports.items():
-        t.add_row(k, f"{v:.0f}")
-    console.print(t)
+    console.print(imports_table(imports))
+
+
+def _worlds(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,
+            total: int, plot_dir: Path | None, as_json: bool) -> None:
+    """Only the identity claims in the chosen worlds (`--worlds-only`)."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from authn.bench.worlds import plot_worlds, run_worlds, summarise_worlds
+
+    with Progress(transient=True, disable=as_json) as progress:
+        task = progress.add_task("identity claims in " + " and ".join(worlds), total=total)
+        trials = run_worlds(presets, worlds, n, seed, snrs, progress=lambda k: progress.advance(task, k))
+    if plot_dir is not None:
+        plot_dir.mkdir(parents=True, exist_ok=True)
+        plot_worlds(trials, plot_dir)
+    if as_json:
+        typer.echo(json.dumps({"worlds": summarise_worlds(trials), "n_per_category": n, "seed": seed}, indent=2))
+        return
+    _print_worlds(Console(), trials)
+
+
+def _print_worlds(console: "Console", trials: "list[Trial]") -> None:
+    """The two-world tables, then each cell's wrong decisions by reason."""
+    from collections import Counter
+
+    from authn.bench.tables import eer_table, worlds_table
+
+    console.print(worlds_table(trials))
+    console.print(eer_table(trials))
+    wrong: dict[tuple, Counter] = {}
+    for t in trials:
+        if not t.correct:
+            wrong.setdefault((t.world, t.preset, t.snr_db, t.category), Counter())[",".join(t.reasons)] += 1
+    for (w, p, s, c), reasons in wrong.items():
+        console.print(f"  {w} {p} {s:g} dB {c.replace('_', ' ')} wrong: "
+                      + ", ".join(f"{k} {v}" for k, v in reasons.most_common()), markup=False)
 
 
 def _stress(presets: tuple[str, ...], quick: bool, as_json: bool) -> None:

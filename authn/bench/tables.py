@@ -1,0 +1,92 @@
+"""The tables `authn bench` prints, sized for an 80-column terminal.
+
+Headers are short and wrap at spaces, figures that belong together share a cell (F1 at three
+SNRs), and long labels wrap rather than truncate; `--json` keeps every value in full.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
+
+from rich.table import Table
+
+if TYPE_CHECKING:
+    from authn.bench.decisions import Row
+    from authn.bench.pareto import Point
+    from authn.bench.worlds import Trial
+
+WORLD_HEADERS = {"training": "training sim", "heldout": "held-out sim"}
+
+
+def _table(title: str, columns: Iterable[str], left: int = 1) -> Table:
+    """A table whose first `left` columns are labels (left-aligned) and the rest figures."""
+    t = Table(title=title, padding=(0, 1))
+    for i, col in enumerate(columns):
+        t.add_column(col, justify="left" if i < left else "right")
+    return t
+
+
+def decision_table(rows: list["Row"], n: int, expected: dict[str, str]) -> Table:
+    t = _table(f"end-to-end decisions ({n} scenes per category, SNR 10-30 dB)",
+               ("preset", "category", "expected", "correct", "radar skipped", "median check"), left=3)
+    for r in rows:
+        t.add_row(r.preset, r.category, expected[r.category], f"{r.rate:.1%}", f"{r.radar_skipped / r.n:.0%}",
+                  f"{r.median_ms:.1f} ms")
+    return t
+
+
+def stage_table(preset: str, st: dict[str, Any], fl: dict[str, float]) -> Table:
+    t = _table(f"{preset}: where the time goes (median ms over {st['checks']} mixed claims, batch mode)",
+               ("stage", "ms"))
+    for k, v in st["stage_median_ms"].items():
+        t.add_row(k, f"{v:.3f}")
+    t.add_row("FFT floor (numpy, just the FFTs)", f"{fl['fft_ms']:.3f}")
+    return t
+
+
+def pareto_table(preset: str, pts: list["Point"], floor_ms: float, snrs: tuple[float, ...]) -> Table:
+    t = _table(f"{preset}: run time against error (same held-out returns; * = Pareto front)",
+               ("configuration", "ms per return", "x FFT floor", f"F1 at {' / '.join(f'{s:g}' for s in snrs)} dB",
+                "FAR", "front"))
+    for pt in pts:
+        t.add_row(pt.name, f"{pt.ms_per_return:.2f}", f"{pt.ms_per_return / floor_ms:.1f}",
+                  " ".join(f"{pt.f1_by_snr[s]:.3f}" for s in snrs), f"{pt.far:.3f}", "*" if pt.pareto else "")
+    return t
+
+
+def imports_table(imports: dict[str, float]) -> Table:
+    t = _table("cold-start imports (fresh interpreter each, ms)", ("import", "ms"))
+    for k, v in imports.items():
+        t.add_row(k, f"{v:.0f}")
+    return t
+
+
+def worlds_table(trials: list["Trial"]) -> Table:
+    """Share of right decisions per preset, SNR and claim, one column per world."""
+    from authn.bench.worlds import WORLD_EXPECTED, correct_rates
+
+    rates = correct_rates(trials)
+    worlds = list(dict.fromkeys(t.world for t in trials))
+    n = max((sum(1 for t in trials if (t.preset, t.snr_db, t.category, t.world) == k) for k in rates), default=0)
+    table = _table(f"identity claims in two worlds: right decisions ({n} per cell)",
+               ("preset", "SNR dB", "claim", "right is", *(WORLD_HEADERS[w] for w in worlds)), left=4)
+    for key in dict.fromkeys((t.preset, t.snr_db, t.category) for t in trials):
+        preset, snr, cat = key
+        table.add_row(preset, f"{snr:g}", cat.replace("_", " "), WORLD_EXPECTED[cat],
+                  *(f"{rates[(*key, w)]:.1%}" if (*key, w) in rates else "-" for w in worlds))
+    return table
+
+
+def eer_table(trials: list["Trial"]) -> Table:
+    """Equal error rate of the verification score, genuine against each impostor kind."""
+    from authn.bench.worlds import equal_error_rates
+
+    eers = equal_error_rates(trials)
+    worlds = list(dict.fromkeys(t.world for t in trials))
+    table = _table("verification score: equal error rate (genuine claims vs impostors)",
+               ("preset", "SNR dB", "impostor", *(WORLD_HEADERS[w] for w in worlds)), left=3)
+    for key in dict.fromkeys(k[:3] for k in eers):
+        table.add_row(key[0], f"{key[1]:g}", key[2].replace("_", " "),
+                  *(f"{eers[(*key, w)]:.1%}" if (*key, w) in eers else "-" for w in worlds))
+    return table
