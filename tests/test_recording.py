@@ -123,3 +123,57 @@ def test_not_a_recording(tmp_path: Path) -> None:
     path.write_bytes(b"hello world")
     with pytest.raises(RecordingError, match="neither HDF5 nor .npz"):
         read_recording(path)
+
+
+# --- domain (docs/format.md "domain") ---------------------------------------------------
+
+@pytest.mark.parametrize("suffix", [".h5", ".npz"])
+@pytest.mark.parametrize("domain,cols", [("range", 80), ("cw", 1)])
+def test_domain_round_trip_and_format_tag(recording, tmp_path: Path, suffix: str, domain: str, cols: int) -> None:
+    rec = recording.__class__(recording.config, recording.site, recording.start_time, recording.iq[:, :cols],
+                              domain=domain)
+    path = write_recording(rec, tmp_path / f"d{suffix}")
+    back = read_recording(path)
+    assert back.domain == domain and np.array_equal(back.iq, rec.iq)
+    if suffix == ".h5":
+        with h5py.File(path) as f:
+            assert f.attrs["format"] == "uav-radar-return/2" and f.attrs["domain"] == domain
+
+
+def test_if_files_keep_version_1_and_absent_domain_is_if(recording, tmp_path: Path) -> None:
+    path = write_recording(recording, tmp_path / "if.h5")
+    with h5py.File(path, "a") as f:
+        assert f.attrs["format"] == "uav-radar-return/1" and f.attrs["domain"] == "if"
+        del f.attrs["domain"]
+    assert read_recording(path).domain == "if"
+
+
+DOMAIN_BAD = {
+    "unknown domain": (dict(attrs={"format": "uav-radar-return/2", "domain": "doppler"}), "attribute 'domain'"),
+    "numeric domain": (dict(attrs={"format": "uav-radar-return/2", "domain": 3}), "attribute 'domain'"),
+    "range under version 1": (dict(attrs={"domain": "range"}), "needs format 'uav-radar-return/2'"),
+    "cw with many columns": (dict(attrs={"format": "uav-radar-return/2", "domain": "cw"}), "a 'cw' recording"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(DOMAIN_BAD))
+@pytest.mark.parametrize("suffix", [".h5", ".npz"])
+def test_bad_domain_is_one_line(recording, tmp_path: Path, case: str, suffix: str) -> None:
+    kwargs, expected = DOMAIN_BAD[case]
+    path = _h5(tmp_path / "bad.h5", recording, **kwargs)
+    if suffix == ".npz":  # the same attributes as .npz members
+        with h5py.File(path) as f:
+            arrays = {k: np.asarray(v) for k, v in f.attrs.items()}
+            arrays["iq"] = f["iq"][()]
+        path = tmp_path / "bad.npz"
+        np.savez(path, **arrays)
+    with pytest.raises(RecordingError, match=expected.replace("(", r"\(")) as err:
+        read_recording(path)
+    assert "\n" not in str(err.value)
+
+
+def test_writer_refuses_an_unknown_domain(recording, tmp_path: Path) -> None:
+    rec = recording.__class__(recording.config, recording.site, recording.start_time, recording.iq, domain="x")
+    with pytest.raises(RecordingError, match="domain"):
+        write_recording(rec, tmp_path / "x.h5")
+    assert not (tmp_path / "x.h5").exists()

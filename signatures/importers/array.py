@@ -180,9 +180,12 @@ def _complex(a: np.ndarray, domain: str) -> np.ndarray:
     return analytic_half_rate(a.astype(np.float64 if a.dtype == np.float64 else np.float32))
 
 
+_FLAGS = {"pri_s": "--pri-s", "bandwidth_hz": "--bandwidth-hz", "ramp_s": "--ramp-s",
+          "sample_rate_hz": "--sample-rate-hz", "range_bin_m": "--range-bin-m", "first_range_m": "--first-range-m"}
+
+
 def _need(w: Waveform, domain: str, names: tuple[str, ...]) -> None:
-    flags = {"pri_s": "--pri-s", "bandwidth_hz": "--bandwidth-hz", "ramp_s": "--ramp-s",
-             "sample_rate_hz": "--sample-rate-hz", "range_bin_m": "--range-bin-m", "first_range_m": "--first-range-m"}
+    flags = _FLAGS
     missing = [flags[n] for n in names if getattr(w, n) is None]
     if missing:
         raise SignaturesError(f"--domain {domain} needs {', '.join(missing)}")
@@ -192,20 +195,33 @@ def _need(w: Waveform, domain: str, names: tuple[str, ...]) -> None:
         raise SignaturesError(f"--domain {domain} does not take {', '.join(extra)}")
 
 
-def waveform_config(w: Waveform, domain: str, n_cols: int, real_if: bool):
-    """The RadarConfig of the domain (docs/import.md): IF as given (the complex rate halves
-    for real samples), range via `range_config`, CW via `cw_config` (PRI = 1 / sample rate)."""
+def check_options(w: Waveform, domain: str) -> None:
+    """The numbers the domain needs are given, and none it does not take (before any data
+    are read)."""
+    for name, flag in {"carrier_hz": "--carrier-hz", **_FLAGS}.items():
+        value = getattr(w, name)
+        if value is not None and not (math.isfinite(value) and (value > 0 or name == "first_range_m" and value >= 0)):
+            raise SignaturesError(f"{flag}: must be a positive number, got {value:g}")
     if domain == "if":
         _need(w, domain, ("pri_s", "bandwidth_hz", "ramp_s", "sample_rate_hz"))
+    elif domain == "range":
+        _need(w, domain, ("pri_s", "range_bin_m"))
+    else:
+        if (w.pri_s is None) == (w.sample_rate_hz is None):
+            raise SignaturesError("--domain cw needs one of --pri-s or --sample-rate-hz (the IQ sample rate)")
+        _need(w, domain, ("pri_s",) if w.pri_s is not None else ("sample_rate_hz",))
+
+
+def waveform_config(w: Waveform, domain: str, n_cols: int, real_if: bool):
+    """The RadarConfig of the domain (docs/import.md; options checked by `check_options`):
+    IF as given (the complex rate halves for real samples), range via `range_config`, CW via
+    `cw_config` (PRI = 1 / sample rate)."""
+    if domain == "if":
         return radar_config("--domain if", carrier_hz=w.carrier_hz, bandwidth_hz=w.bandwidth_hz, ramp_s=w.ramp_s,
                             pri_s=w.pri_s, sample_rate_hz=w.sample_rate_hz / (2 if real_if else 1),
                             range_offset_m=w.first_range_m or 0.0)
     if domain == "range":
-        _need(w, domain, ("pri_s", "range_bin_m"))
         return _checked(lambda: range_config(w.carrier_hz, w.pri_s, w.range_bin_m, w.first_range_m or 0.0, n_cols))
-    if (w.pri_s is None) == (w.sample_rate_hz is None):
-        raise SignaturesError("--domain cw needs one of --pri-s or --sample-rate-hz (the IQ sample rate)")
-    _need(w, domain, ("pri_s",) if w.pri_s is not None else ("sample_rate_hz",))
     pri = w.pri_s if w.pri_s is not None else 1.0 / w.sample_rate_hz
     return _checked(lambda: cw_config(w.carrier_hz, pri))
 
@@ -226,8 +242,7 @@ def dwells(path: Path, src: ArraySource, domain: str, w: Waveform,
            pulses_per_dwell: int | None = None) -> list[Dwell]:
     """The file's samples as dwells of `pulses_per_dwell` pulses (all of them by default;
     a shorter tail is dropped)."""
-    if not (math.isfinite(w.carrier_hz) and w.carrier_hz > 0):
-        raise SignaturesError(f"--carrier-hz: must be a positive number, got {w.carrier_hz}")
+    check_options(w, domain)
     raw = load(path, src)
     stored = _pulses_first(raw, domain, src.transpose)
     if not np.all(np.isfinite(stored)):
