@@ -115,7 +115,7 @@ class NuisanceDistribution:
     attitude_wobble_deg: Span = (0.5, 5.0)
     blade_to_body_db: Span = (-18.0, -4.0)
     blade_rcs_spread: Span = (0.0, 0.3)
-    tip_weight: Span = (0.0, 1.0)
+    tip_weight: Span = (0.0, 0.1)
     body_scatterers: tuple[int, int] = (0, 6)
     radial_accel_mps2: Span = (-3.0, 3.0)
     phase_noise_rad: Span = (0.0, 0.02)
