@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from signatures.radar import C, RadarConfig
+from signatures.radar import RadarConfig
 
 
 def quantise(iq: np.ndarray, peak: float) -> tuple[np.ndarray, float]:
@@ -78,4 +78,4 @@ def write_capture(path: Path, words: np.ndarray, split_at: int | None = None) ->
     return [first, second]
 
 
-__all__ = ["C", "quantise", "raw_words", "sdk_cfg", "write_capture"]
+__all__ = ["quantise", "raw_words", "sdk_cfg", "write_capture"]
