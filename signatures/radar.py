@@ -114,6 +114,10 @@ class RadarConfig(BaseModel):
 DOMAINS = ("if", "range", "cw")
 #: Domains the simulator writes, hence the only ones a bundle can be trained for.
 TRAINABLE_DOMAINS = ("if",)
+#: The recorded domains a bundle of each domain serves. A range-domain cube is the range spectrum
+#: the IF pipeline computes first (the features skip only that FFT), so an IF bundle serves it;
+#: a CW cube has no range axis and its features differ: it needs a CW bundle.
+SERVES = {"if": ("if", "range"), "range": ("range",), "cw": ("cw",)}
 #: Training range cover of a waveform that names none (a recording does not say): the paper's.
 DEFAULT_MAX_RANGE_M = 1200.0
 #: The waveform parameters that identify a bundle's radar (range offset aside: it moves with the target).
@@ -151,11 +155,7 @@ class Preset:
 
     @property
     def key(self) -> str:
-        """Digest of the waveform parameters (6 significant digits), cube size and domain: equal
-        for waveforms a bundle may serve interchangeably. `matches` is the tolerant comparison."""
-        doc = {f: f"{getattr(self.config, f):.6g}" for f in WAVEFORM_FIELDS}
-        doc.update(n_chirps=self.n_chirps, n_samples=self.n_samples, domain=self.domain)
-        return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
+        return waveform_key(self.config, self.n_chirps, self.n_samples, self.domain)
 
     @property
     def shipped(self) -> bool:
@@ -169,8 +169,9 @@ class Preset:
         return text if self.domain == "if" else f"{text}, {self.domain} domain"
 
     def matches(self, config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if") -> bool:
-        """Same waveform as a recording's (range offset aside; parameters within 1e-6 relative)."""
-        return (self.n_chirps, self.n_samples, self.domain) == (n_chirps, n_samples, domain) and all(
+        """A bundle of this waveform serves a recording of that one: same cube size and parameters
+        (range offset aside; within 1e-6 relative), a domain it serves (`SERVES`)."""
+        return (self.n_chirps, self.n_samples) == (n_chirps, n_samples) and domain in SERVES[self.domain] and all(
             math.isclose(getattr(config, f), getattr(self.config, f), rel_tol=1e-6) for f in WAVEFORM_FIELDS)
 
     def as_json(self) -> dict[str, Any]:
@@ -220,23 +221,31 @@ def _wide() -> Preset:
 PRESETS: dict[str, Preset] = {p.name: p for p in (_paper(), _wide())}
 
 
+def waveform_key(config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if") -> str:
+    """Digest of the waveform parameters (6 significant digits), cube size and domain: it names
+    a waveform; `Preset.matches` is the tolerant comparison bundle lookup uses."""
+    doc: dict[str, Any] = {f: f"{getattr(config, f):.6g}" for f in WAVEFORM_FIELDS}
+    doc.update(n_chirps=int(n_chirps), n_samples=int(n_samples), domain=domain)
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
+
+
 def shipped_preset(config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if") -> Preset | None:
-    """The shipped preset with this waveform, if any."""
+    """The shipped preset whose bundle serves this waveform, if any."""
     return next((p for p in PRESETS.values() if p.matches(config, n_chirps, n_samples, domain)), None)
 
 
 def waveform_of(config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if",
                 max_range_m: float = DEFAULT_MAX_RANGE_M) -> Preset:
-    """The waveform of a cube: the shipped preset when it is one, else a new one named
+    """The waveform of a cube: the shipped preset when its bundle serves it, else a new one named
     `<carrier>GHz[-<domain>]-<chirps>x<samples>-<key8>` (range offset dropped)."""
     found = shipped_preset(config, n_chirps, n_samples, domain)
     if found is not None:
         return found
     cfg = config.model_copy(update={"range_offset_m": 0.0})
-    wf = Preset("", cfg, int(n_chirps), int(n_samples), float(max_range_m), domain=domain)
     tag = "" if domain == "if" else f"-{domain}"
-    name = f"{cfg.carrier_hz / 1e9:g}GHz{tag}-{n_chirps}x{n_samples}-{wf.key[:8]}"
-    return Preset(name, cfg, wf.n_chirps, wf.n_samples, wf.max_range_m, domain=domain)
+    key = waveform_key(cfg, n_chirps, n_samples, domain)
+    name = f"{cfg.carrier_hz / 1e9:g}GHz{tag}-{n_chirps}x{n_samples}-{key[:8]}"
+    return Preset(name, cfg, int(n_chirps), int(n_samples), float(max_range_m), domain=domain)
 
 
 def recording_waveform(recording: Any) -> Preset:

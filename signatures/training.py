@@ -25,9 +25,9 @@ from signatures.radar import C, Preset, get_preset
 if TYPE_CHECKING:
     from signatures.openset import PhysicsCheck
 
-__all__ = ["CASCADE_GRID", "GEOMETRY_FEATURES", "TEST_SEED_OFFSET", "default_samples", "LEVEL_FEATURES", "OPENSET_MODE", "OPENSET_QUANTILE",
-           "PHYSICS_METHOD", "PHYS_MAX_REL_TOL", "PHYS_MIN_FLASH_SCORE", "PHYS_Z", "TrainConfig",
-           "choose_cascade_threshold", "train_bundle"]
+__all__ = ["CASCADE_GRID", "GEOMETRY_FEATURES", "LEVEL_FEATURES", "OPENSET_MODE", "OPENSET_QUANTILE",
+           "PHYSICS_METHOD", "PHYS_MAX_REL_TOL", "PHYS_MIN_FLASH_SCORE", "PHYS_Z", "TEST_SEED_OFFSET", "TrainConfig",
+           "choose_cascade_threshold", "default_samples", "train_bundle"]
 
 #: Open-set threshold: this quantile of known validation returns' manifold distance.
 OPENSET_QUANTILE = 0.995

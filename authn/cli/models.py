@@ -36,7 +36,8 @@ def train(
                                                help="JSON file of extra UAV profiles to enrol (repeatable)."),
     samples: int | None = typer.Option(None, "--samples", min=50,
                                        help="Training returns (default by cube size: 8000 paper, 4000 wide)."),
-    val_samples: int | None = typer.Option(None, "--val-samples", min=50, help="Validation returns (default: samples / 4)."),
+    val_samples: int | None = typer.Option(None, "--val-samples", min=50,
+                                           help="Validation returns (default: samples / 4)."),
     test_samples: int | None = typer.Option(None, "--test-samples", min=10,
                                             help="Held-out test returns per SNR (0, 10, 20 dB) measured into the card "
                                                  "(default: samples / 20, 50..300, with --like/--radar-config; "
@@ -85,6 +86,9 @@ def train(
         _print_test(console, card)
     if not wf.shipped:
         console.print(f"`authn check` now picks it for files of this waveform (or: --model {folder})")
+    elif not overwrite_shipped:
+        console.print(f"the shipped {wf.name} bundle still serves {wf.name} files; this one: "
+                      f"`authn check --model {folder}`")
 
 
 def _waveform(preset: str | None, like: Path | None, radar_config: Path | None):  # -> Preset

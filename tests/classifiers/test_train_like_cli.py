@@ -111,3 +111,21 @@ def test_radar_config_of_another_domain_is_refused(world: dict, tmp_path: Path, 
     capsys.readouterr()
     assert main(["models", "train", "--radar-config", str(cfg), "--samples", "50"]) == 2
     assert "training for domain cw is not supported yet" in _err(capsys)
+
+
+def test_preset_training_defaults_to_the_user_folder(world: dict, capsys) -> None:
+    """`--preset` without `--out` once replaced the shipped bundle; now it writes a user bundle, and
+    paper files keep the shipped classifier unless `--model` names the new one."""
+    shipped = bundle_dir("paper") / "card.json"
+    before = shipped.read_bytes()
+    assert main(["models", "train", "--preset", "paper", "--samples", "60", "--val-samples", "50"]) == 0
+    assert "still serves paper files" in capsys.readouterr().out
+    folder = world["root"] / "models" / "paper"
+    card = json.loads((folder / "card.json").read_text())
+    assert card["preset"] == "paper" and "waveform" not in card and "test" not in card["metrics"]
+    assert shipped.read_bytes() == before
+    main(["--db", world["db"], "check", str(world["paper"]), "--serial", M300, "--json"])
+    assert json.loads(capsys.readouterr().out)["model_card_sha256"] == hashlib.sha256(before).hexdigest()
+    main(["--db", world["db"], "check", str(world["paper"]), "--serial", M300, "--json", "--model", str(folder)])
+    assert json.loads(capsys.readouterr().out)["model_card_sha256"] == hashlib.sha256(
+        (folder / "card.json").read_bytes()).hexdigest()

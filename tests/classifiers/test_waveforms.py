@@ -39,6 +39,7 @@ def test_shipped_presets_are_found_by_their_waveform() -> None:
     for name, pre in PRESETS.items():
         wf = waveform_of(pre.with_offset(412.0), pre.n_chirps, pre.n_samples)
         assert wf is pre and wf.shipped and find_bundle(wf).name == name
+    assert waveform_of(PAPER.config, PAPER.n_chirps, PAPER.n_samples, "range") is PAPER  # the IF pipeline's spectrum
     assert not waveform_of(PAPER.config, PAPER.n_chirps, PAPER.n_samples, "cw").shipped
 
 
@@ -166,6 +167,7 @@ def test_lookup_prefers_shipped_then_user_bundles(user_models: Path, monkeypatch
     with pytest.raises(NoModelError, match=r"no classifier for this waveform \(513x80 at 77 GHz, PRI 44 us\): "
                                            r"build one with `authn models train --like x.h5`"):
         classifier_for(_rec(_cut(513)), source="x.h5")
+    assert classifier_for(_rec(wf, domain="range")) is clf  # a range cube: the IF bundle's features
     with pytest.raises(NoModelError, match="training for domain cw is not supported yet"):
         classifier_for(_rec(wf, domain="cw"))
 
