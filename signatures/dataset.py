@@ -95,8 +95,10 @@ class DatasetSpec:
         if isinstance(self.preset, str):
             object.__setattr__(self, "preset", get_preset(self.preset))
         if self.waveform.domain not in TRAINABLE_DOMAINS:
-            raise DatasetError(f"training for domain {self.waveform.domain} is not supported yet "
-                               f"(the simulator writes {', '.join(TRAINABLE_DOMAINS)} cubes)")
+            raise DatasetError(f"training for domain {self.waveform.domain} is not supported "
+                               f"(trainable: {', '.join(TRAINABLE_DOMAINS)})")
+        if self.waveform.domain == "cw" and self.waveform.n_samples != 1:
+            raise DatasetError(f"a CW waveform records one sample per pulse, this one has {self.waveform.n_samples}")
 
     @property
     def waveform(self) -> Preset:
@@ -229,6 +231,7 @@ def feature_version(featurizer: Featurizer) -> str:
 
 def _chunk(spec: DatasetSpec, featurizer: Featurizer, start: int, stop: int) -> Dataset:
     """Simulate and featurise samples [start, stop) (runs in a worker process)."""
+    from signatures.domain import as_recorded
     from signatures.simulate import simulate
 
     preset = spec.waveform
@@ -236,6 +239,7 @@ def _chunk(spec: DatasetSpec, featurizer: Featurizer, start: int, stop: int) -> 
     for i in range(start, stop):
         scene, seed = draw_scene(spec, i)
         rec, _ = simulate(scene, preset, seed=seed)
+        rec = as_recorded(rec, preset.domain)
         t0 = time.perf_counter()
         res = featurizer(rec)
         ms = (time.perf_counter() - t0) * 1e3

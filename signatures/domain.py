@@ -14,9 +14,9 @@ import numpy as np
 from signatures import rd
 from signatures.errors import SignaturesError
 from signatures.radar import C, RadarConfig
-from signatures.recording import DOMAINS
+from signatures.recording import DOMAINS, Recording
 
-__all__ = ["DOMAINS", "cw_config", "range_config", "to_domain"]
+__all__ = ["DOMAINS", "as_recorded", "cw_config", "range_config", "to_domain"]
 
 
 def to_domain(iq_if: np.ndarray, config: RadarConfig, domain: str) -> np.ndarray:
@@ -61,3 +61,17 @@ def cw_config(carrier_hz: float, pri_s: float) -> RadarConfig:
     carry information."""
     return RadarConfig(carrier_hz=carrier_hz, bandwidth_hz=1.0 / pri_s, ramp_s=pri_s, pri_s=pri_s,
                        sample_rate_hz=1.0 / pri_s, range_offset_m=0.0)
+
+
+def as_recorded(rec: Recording, domain: str) -> Recording:
+    """A simulated IF recording as a radar of `domain` records it (training sets for range and
+    CW waveforms). The recording must already use that domain's equivalent waveform
+    (`range_config`, `cw_config`): a CW waveform has one sample per chirp, which is its CW
+    sample (`to_domain`), so only the cube's meaning changes, not its numbers."""
+    from dataclasses import replace
+
+    if domain == rec.domain:
+        return rec
+    if rec.domain != "if":
+        raise SignaturesError(f"cannot convert a {rec.domain}-domain recording to {domain}")
+    return replace(rec, iq=to_domain(rec.iq, rec.config, domain), domain=domain)

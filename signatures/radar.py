@@ -112,8 +112,9 @@ class RadarConfig(BaseModel):
 #: Sample domains of a recorded cube (docs/format.md `domain`): IF samples of the dechirped sweep,
 #: range bins, or CW (no sweep). A bundle only serves recordings of its own domain.
 DOMAINS = ("if", "range", "cw")
-#: Domains the simulator writes, hence the only ones a bundle can be trained for.
-TRAINABLE_DOMAINS = ("if",)
+#: Domains a bundle can be trained for: the simulator writes IF cubes of the domain's equivalent
+#: waveform (`signatures.domain`) and `signatures.domain.as_recorded` turns them into range or CW.
+TRAINABLE_DOMAINS = ("if", "range", "cw")
 #: The recorded domains a bundle of each domain serves. A range-domain cube is the range spectrum
 #: the IF pipeline computes first (the features skip only that FFT), so an IF bundle serves it;
 #: a CW cube has no range axis and its features differ: it needs a CW bundle.
@@ -266,7 +267,7 @@ class WaveformFile(BaseModel):
     sample_rate_hz: float
     range_offset_m: float = 0.0  # accepted (a recording's attributes), ignored: the gate follows the target
     n_chirps: int = Field(ge=16, le=1_000_000)
-    n_samples: int = Field(ge=8, le=65_536)
+    n_samples: int = Field(ge=1, le=65_536)
     max_range_m: float = Field(default=DEFAULT_MAX_RANGE_M, ge=100.0, le=1e5)
     domain: Literal["if", "range", "cw"] = "if"
 
@@ -274,6 +275,10 @@ class WaveformFile(BaseModel):
     def _cube_fits(self) -> "WaveformFile":
         if self.n_chirps * self.n_samples > 1 << 25:
             raise ValueError(f"a {self.n_chirps}x{self.n_samples} cube exceeds 2^25 samples")
+        if self.domain == "cw" and self.n_samples != 1:
+            raise ValueError(f"n_samples: a CW waveform has exactly one sample per pulse, not {self.n_samples}")
+        if self.domain != "cw" and self.n_samples < 8:
+            raise ValueError(f"n_samples: a {self.domain}-domain waveform needs at least 8, not {self.n_samples}")
         return self
 
 

@@ -66,3 +66,18 @@ def _audit_log_key(tmp_path_factory, monkeypatch):
     keys.mkdir(exist_ok=True)
     monkeypatch.setenv("AUTHN_LOG_KEY", str(keys / "audit-log-key.pem"))
     monkeypatch.setenv("AUTHN_AUDIT_STH_LOG", str(keys / "audit-sth.jsonl"))
+
+
+_MODELS_DIR_AT_START = os.environ.get("AUTHN_MODELS_DIR")
+
+
+@pytest.fixture(autouse=True)
+def _no_user_models(tmp_path_factory, monkeypatch):
+    """User model bundles (`authn models train --like`) come from an empty per-session folder,
+    so a developer's own bundles never change which waveforms have a classifier in a test.
+    A module fixture that set its own folder keeps it."""
+    if os.environ.get("AUTHN_MODELS_DIR") != _MODELS_DIR_AT_START:
+        return
+    models = tmp_path_factory.getbasetemp() / "user-models"
+    models.mkdir(exist_ok=True)
+    monkeypatch.setenv("AUTHN_MODELS_DIR", str(models))

@@ -52,6 +52,22 @@ _OPTION_OF = {"range_m": "range", "radial_speed_mps": "speed", "snr_db": "snr",
               "elevation_deg": "elevation", "clutter_db": "clutter"}
 
 
+def _in_domain(pre, domain: str):  # (Preset, str) -> Preset
+    """The preset's waveform as a radar of `domain` records it: range keeps the IF waveform (its
+    range bins), CW keeps the carrier and the PRI with one sample per pulse."""
+    from signatures.domain import cw_config
+    from signatures.errors import SignaturesError
+    from signatures.radar import DOMAINS, waveform_of
+
+    if domain not in DOMAINS:
+        raise SignaturesError(f"--domain: {domain!r} is not one of {', '.join(DOMAINS)}")
+    if domain == "if":
+        return pre
+    if domain == "range":
+        return waveform_of(pre.config, pre.n_chirps, pre.n_samples, "range", pre.max_range_m)
+    return waveform_of(cw_config(pre.config.carrier_hz, pre.config.pri_s), pre.n_chirps, 1, "cw", pre.max_range_m)
+
+
 def simulate(
     model: str = typer.Option(..., "--model", help="Profile slug (m600, m300, phantom4, ...), 'bird' or 'none'."),
     range_m: float = typer.Option(..., "--range", help="Slant range at the start of the dwell, metres."),
@@ -62,6 +78,9 @@ def simulate(
     chirps: int | None = typer.Option(None, "--chirps", min=16, max=1_000_000,
                                       help="Chirps per dwell instead of the preset's (another waveform: "
                                            "`authn models train --like` builds its classifier)."),
+    domain: str = typer.Option("if", "--domain",
+                               help="What the file records: if (dechirped IF), range (range-compressed pulses) or "
+                                    "cw (a CW radar at the preset's carrier and PRI; docs/format.md)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (scene i of --count uses seed + i)."),
     elevation: float = typer.Option(10.0, "--elevation", help="Elevation of the target seen from the radar, degrees."),
     clutter: float | None = typer.Option(None, "--clutter", help="Ground clutter-to-noise ratio, dB (default: no clutter)."),
@@ -106,6 +125,7 @@ def simulate(
     from pydantic import ValidationError
 
     from signatures.errors import SignaturesError
+    from signatures.domain import as_recorded
     from signatures.radar import get_preset, waveform_of
     from signatures.recording import write_recording
     from authn.scenario import Broadcast, simulate_flight
@@ -113,6 +133,7 @@ def simulate(
     pre = get_preset(preset)
     if chirps is not None:
         pre = waveform_of(pre.config, chirps, pre.n_samples, max_range_m=pre.max_range_m)
+    pre = _in_domain(pre, domain)
     if not 0 < range_m <= pre.max_range_m:
         raise SignaturesError(f"--range: {range_m:g} m is outside (0, {pre.max_range_m:g}] m of preset {preset!r}")
     try:
@@ -139,7 +160,8 @@ def simulate(
 
     def run_simulation(i: int):
         try:
-            return simulate_flight(scene, pre, seed + i, broadcast, azimuth, range_offset, start)
+            rec, truth = simulate_flight(scene, pre, seed + i, broadcast, azimuth, range_offset, start)
+            return as_recorded(rec, pre.domain), truth
         except ValidationError as exc:
             loc, msg, _ = first_error(exc)
             raise SignaturesError(f"--rid-*: {loc}: {msg}") from None

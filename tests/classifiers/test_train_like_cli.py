@@ -110,7 +110,7 @@ def test_radar_config_of_another_domain_is_refused(world: dict, tmp_path: Path, 
     cfg.write_text(json.dumps({**wf.as_json(), "domain": "cw"}))
     capsys.readouterr()
     assert main(["models", "train", "--radar-config", str(cfg), "--samples", "50"]) == 2
-    assert "training for domain cw is not supported yet" in _err(capsys)
+    assert "a CW waveform has exactly one sample per pulse" in _err(capsys)
 
 
 def test_preset_training_defaults_to_the_user_folder(world: dict, capsys) -> None:
@@ -129,3 +129,23 @@ def test_preset_training_defaults_to_the_user_folder(world: dict, capsys) -> Non
     main(["--db", world["db"], "check", str(world["paper"]), "--serial", M300, "--json", "--model", str(folder)])
     assert json.loads(capsys.readouterr().out)["model_card_sha256"] == hashlib.sha256(
         (folder / "card.json").read_bytes()).hexdigest()
+
+
+def test_a_cw_recording_gets_its_own_bundle_and_decides_without_range(world: dict, capsys) -> None:
+    """`simulate --domain cw` -> `models train --like` -> `check`: the CW bundle serves the file,
+    the decision carries no radar range and says why."""
+    cw = world["root"] / "cw.h5"
+    assert main(["simulate", "--model", "m300", "--range", "500", "--snr", "20", "--domain", "cw",
+                 "--seed", "5", "--out", str(cw)]) == 0
+    rec = read_recording(cw)
+    assert rec.domain == "cw" and rec.iq.shape == (600, 1)
+    capsys.readouterr()
+    assert main(["--db", world["db"], "check", str(cw), "--serial", M300]) == 2
+    assert "build one with `authn models train --like" in _err(capsys)
+    assert main(["models", "train", "--like", str(cw), "--samples", "150", "--val-samples", "50",
+                 "--test-samples", "20"]) == 0
+    capsys.readouterr()
+    code = main(["--db", world["db"], "check", str(cw), "--serial", M300, "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code in (0, 1) and doc["radar"]["range_m"] is None
+    assert doc["radar"]["range_evidence"] == "not measured: CW recording"

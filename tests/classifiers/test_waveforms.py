@@ -8,11 +8,12 @@ from dataclasses import asdict
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures.dataset import GENERATOR_VERSION, DatasetError, DatasetSpec
+from signatures.dataset import GENERATOR_VERSION, DatasetError, DatasetSpec, generate
 from signatures.errors import SignaturesError
 from signatures.inference import NoModelError, classifier_for, find_bundle, load_classifier
 from signatures.profiles import shipped_profiles
@@ -123,9 +124,26 @@ def test_dataset_keys_of_shipped_presets_are_unchanged_and_others_digest_the_wav
     assert len(keys) == 5
 
 
-def test_only_if_cubes_can_be_trained() -> None:
-    with pytest.raises(DatasetError, match="training for domain cw is not supported yet"):
+def test_a_cw_waveform_has_one_sample_per_pulse() -> None:
+    with pytest.raises(DatasetError, match="a CW waveform records one sample per pulse, this one has 80"):
         DatasetSpec(preset=_cut(domain="cw"), profiles=PROFILES, split="train", n=10)
+
+
+def test_cw_and_range_training_sets_are_simulated_in_their_domain() -> None:
+    """A CW waveform's returns are CW cubes (no range: the range features are 0); a range
+    waveform's are the IF pipeline's range spectra (the same features as the IF cube's)."""
+    from signatures.domain import cw_config
+
+    cw = waveform_of(cw_config(PAPER.config.carrier_hz, PAPER.config.pri_s), 600, 1, "cw")
+    data = generate(DatasetSpec(preset=cw, profiles=PROFILES, split="train", n=6), workers=1, cache=False)
+    names = list(data.feature_names)
+    for name in ("mean_range_m", "std_range_m"):
+        assert np.all(data.X[:, names.index(name)] == 0)
+    assert np.all(data.X[:, names.index("flash_rate_hz")][data.y == "m300"] > 0)
+    rng_wf = waveform_of(PAPER.config, PAPER.n_chirps, PAPER.n_samples, "range")
+    as_if = generate(DatasetSpec(preset=PAPER, profiles=PROFILES, split="train", n=4), workers=1, cache=False)
+    as_range = generate(DatasetSpec(preset=rng_wf, profiles=PROFILES, split="train", n=4), workers=1, cache=False)
+    np.testing.assert_allclose(as_range.X, as_if.X, rtol=1e-3, atol=1e-3)
 
 
 @pytest.fixture(scope="module")
@@ -168,8 +186,8 @@ def test_lookup_prefers_shipped_then_user_bundles(user_models: Path, monkeypatch
                                            r"build one with `authn models train --like x.h5`"):
         classifier_for(_rec(_cut(513)), source="x.h5")
     assert classifier_for(_rec(wf, domain="range")) is clf  # a range cube: the IF bundle's features
-    with pytest.raises(NoModelError, match="training for domain cw is not supported yet"):
-        classifier_for(_rec(wf, domain="cw"))
+    with pytest.raises(NoModelError, match=r"no classifier for this waveform \(512x80 at 77 GHz.*cw domain\): build"):
+        classifier_for(_rec(wf, domain="cw"))  # an IF bundle never serves a CW file
 
 
 def test_explicit_bundle_must_serve_the_file(user_models: Path) -> None:
