@@ -18,7 +18,7 @@ from importlib import resources
 import numpy as np
 
 from signatures.errors import SignaturesError
-from signatures.heldout.airframe import AirframeTruth, airframe
+from signatures.heldout.airframe import AirframeTruth, uav_points
 from signatures.heldout.receiver import ReceiverTruth, clutter, receive, thermal_noise
 from signatures.heldout.synthesis import if_cube
 from signatures.profiles import UavProfile, parse_profiles
@@ -70,7 +70,7 @@ def unseen_profiles() -> dict[str, UavProfile]:
 def _target(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: int,
             rng: np.random.Generator) -> tuple[np.ndarray, AirframeTruth]:
     t = np.arange(n_chirps) * config.pri_s
-    pts, truth = airframe(scene, t, C / config.carrier_hz, rng)
+    pts, truth = uav_points(scene, t, C / config.carrier_hz, rng)
     centre = scene.range_m + scene.radial_speed_mps * t
     s = ((2.0 * centre[:, None]).astype(np.float32) * pts.along_los + pts.norm_sq) \
         / (centre ** 2).astype(np.float32)[:, None]
