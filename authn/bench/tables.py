@@ -46,9 +46,9 @@ def stage_table(preset: str, st: dict[str, Any], fl: dict[str, float]) -> Table:
 
 
 def pareto_table(preset: str, pts: list["Point"], floor_ms: float, snrs: tuple[float, ...]) -> Table:
-    t = _table(f"{preset}: run time against error (same held-out returns; * = Pareto front)",
-               ("configuration", "ms per return", "x FFT floor", f"F1 at {' / '.join(f'{s:g}' for s in snrs)} dB",
-                "FAR", "front"))
+    t = _table(f"{preset}: run time against error (ms per return, x the FFT floor; same held-out returns; "
+               "* = Pareto front)",
+               ("configuration", "ms", "x floor", f"F1 at {'/'.join(f'{s:g}' for s in snrs)} dB", "FAR", "front"))
     for pt in pts:
         t.add_row(pt.name, f"{pt.ms_per_return:.2f}", f"{pt.ms_per_return / floor_ms:.1f}",
                   " ".join(f"{pt.f1_by_snr[s]:.3f}" for s in snrs), f"{pt.far:.3f}", "*" if pt.pareto else "")
