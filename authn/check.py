@@ -145,7 +145,18 @@ class Checker:
 
     # --- stages -------------------------------------------------------------------
 
-    def _radar(self, rec: Any, claim: Claim, timer: _Timer, classifier: Any
+    @staticmethod
+    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any) -> Any:
+        """1:1 verification of the return against the registered model's profile (None: no profile)."""
+        if claimed is None:
+            return None
+        from dataclasses import asdict
+
+        from signatures.verify import verify
+
+        return verify(asdict(feats.features), claimed, pred.probabilities, rec.config.unambiguous_velocity_mps)
+
+    def _radar(self, rec: Any, claim: Claim, timer: _Timer, classifier: Any, claimed: Any = None
                ) -> tuple[RadarEvidence, KinematicsEvidence | None]:
         """Features (gated at the claimed range when it lies in the window), class, kinematics."""
         from signatures.features import extract
@@ -166,7 +177,8 @@ class Checker:
             radar = replace(radar, model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
                             range_m=None if cw else round(float(feats.range_m), 3),
                             radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
-                            operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest)
+                            operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest,
+                            verification=self._verify(feats, pred, claimed, rec))
         if expected is None or not radar.detected:
             return radar, None
         with timer.stage("kinematics"):  # CW: the range part is computed on the expected range and never shown
@@ -209,7 +221,7 @@ class Checker:
 
             classifier = classifier_for(rec, self.model, file or "FILE")  # the bundle of the file's waveform
             evidence.preset = classifier.preset
-            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer, classifier)
+            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer, classifier, facts.profile)
             evidence.remote_id_issues = _issues(claim, auth, mid, evidence.radar.rotorcraft)
             with timer.stage("policy"):
                 result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(),

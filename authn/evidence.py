@@ -127,13 +127,14 @@ class RegistryFacts:
     valid_from: datetime | None = None
     valid_until: datetime | None = None
     public_key: bytes | None = None
+    profile: Any = None  # the registered model's UavProfile (1:1 verification), None if unknown
 
     @classmethod
     def of(cls, identity: Any) -> "RegistryFacts":
         if identity is None:
             return cls()
         return cls(True, identity.status, identity.model, identity.id_type, identity.valid_from,
-                   identity.valid_until, identity.public_key)
+                   identity.valid_until, identity.public_key, getattr(identity, "profile", None))
 
     def principal(self) -> dict[str, Any]:
         """Cedar attributes of the principal `Uav::"<serial>"`."""
@@ -181,6 +182,8 @@ class RadarEvidence:
     operational_state: str | None = None
     nearest: str | None = None
     model_card_sha256: str | None = None
+    #: 1:1 verification against the claimed profile (`signatures.verify`); None when not run
+    verification: Any = None
 
     @property
     def detected(self) -> bool:
@@ -196,6 +199,8 @@ class RadarEvidence:
                                "gated": self.gated, "used_cnn": self.used_cnn}
         if self.confidence is not None:  # a classified target
             doc.update(operational_state=self.operational_state, nearest=self.nearest)
+        if self.verification is not None:
+            doc["verification"] = self.verification.to_json()
         return doc
 
 
@@ -274,6 +279,8 @@ class Evidence:
             "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0,
             "remote_id_present": self.claim.n_messages > 0, "remote_id_issues": list(self.remote_id_issues),
             "remote_id_auth": self.auth.status, "range_measured": self.range_measured}
+        if radar is not None and radar.verification is not None and radar.verification.terms:
+            ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, radar.verification.llr * 100.0))))
         if self.kinematics is not None:
             ctx.update(self.kinematics.context())
         return ctx

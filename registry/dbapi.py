@@ -20,6 +20,7 @@ from datetime import datetime, timezone
 from typing import Any
 from urllib.parse import parse_qsl, unquote, urlsplit
 
+from signatures.profiles import UavProfile
 from registry.errors import DatabaseFault, RegistryError
 from registry.urls import resolve_url
 
@@ -40,6 +41,7 @@ class IdentityFacts:
     valid_from: datetime
     valid_until: datetime | None
     public_key: bytes | None = None  # raw Ed25519 host identity (DRIP), when registered with one
+    profile: UavProfile | None = None  # the registered model's physical parameters (1:1 verification)
 
 
 def _first_line(exc: BaseException) -> str:
@@ -214,4 +216,14 @@ class Database:
             return None
         s, id_type, model, status, vf, vu, key = rows[0]
         return IdentityFacts(s, id_type, model, status, self.from_db_time(vf), self.from_db_time(vu),
-                             bytes(key) if key is not None else None)
+                             bytes(key) if key is not None else None, self.profile(model))
+
+    def profile(self, slug: str) -> UavProfile | None:
+        """The registered model's physical parameters (what 1:1 verification checks against)."""
+        rows = self.fetch("SELECT name, rotors, arms, blades_per_rotor, blade_length_m, rotor_rate_hz, "
+                          "propeller_distance_m FROM model_profiles WHERE slug = :slug", {"slug": slug})
+        if not rows:
+            return None
+        name, rotors, arms, blades, length, rate, dist = rows[0]
+        return UavProfile(slug=slug, name=name, rotors=rotors, arms=arms, blades_per_rotor=blades,
+                          blade_length_m=length, rotor_rate_hz=rate, propeller_distance_m=dist)

@@ -1,87 +1,30 @@
-"""Verification: how consistent a radar return is with a claimed airframe, and the error rates
-of thresholding that score (ROC, DET, equal error rate).
+"""Verification: the error rates of thresholding the check's verification score (ROC, DET,
+equal error rate).
 
-`verification_score` is the one place the score is defined; the benchmark calls it through
-`SCORE`. It takes what the radar found on the return (`RadarCase`: the check's radar
-evidence, the classifier's `Prediction` and the features) and the claimed `UavProfile`, and
-returns a number where higher means more consistent with the claim. A physics-based score
-(rotor rate, blade length and count against the claimed profile) replaces it by assigning
-`SCORE` or passing `score=` to `authn.bench.worlds.run_worlds`; nothing else changes.
+The score is the one the Cedar policy thresholds: the log-likelihood ratio of "the claimed
+airframe" against "some other airframe" that `authn.check` computes for every detected target
+with `signatures.verify` and reports as `radar.verification.llr`. `verification_score` reads it
+back from a check's radar evidence; a claim the check could not verify scores `UNVERIFIED`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from signatures.profiles import UavProfile
-
-if TYPE_CHECKING:
-    from signatures.features import FeatureResult
-    from signatures.inference import Prediction
-    from signatures.recording import Recording
+#: The score of a claim with no verification (radar skipped, nothing detected, nothing to verify
+#: with): below any computed score, as the policy rejects such claims.
+UNVERIFIED = -100.0
 
 
-@dataclass(frozen=True)
-class RadarCase:
-    """What the radar found on one claimed return.
-
-    radar: the check's radar evidence (`Outcome.radar`: model, confidence, known, range, ...);
-        None when the radar did not run.
-    prediction: the classifier's full output (every class's calibrated probability); None
-        when no target was detected.
-    features: the feature vector and its estimates (`signatures.features.FeatureResult`);
-        None when the radar did not run.
-    """
-
-    radar: dict[str, Any] | None
-    prediction: "Prediction | None"
-    features: "FeatureResult | None"
-
-
-VerificationScore = Callable[[RadarCase, UavProfile], float]
-
-
-def verification_score(case: RadarCase, claimed: UavProfile) -> float:
-    """The classifier's calibrated probability of the claimed class; 0 when nothing was
-    detected or the open-set check called the airframe unknown."""
-    pred = case.prediction
-    if pred is None or not pred.known:
-        return 0.0
-    return float(pred.probabilities.get(claimed.slug, 0.0))
-
-
-#: The score the benchmark uses.
-SCORE: VerificationScore = verification_score
-
-
-def radar_case(rec: "Recording", radar: dict[str, Any] | None) -> RadarCase:
-    """The check's radar stage once more, keeping what the check reduces away: features gated
-    at the Remote ID's expected range exactly as `authn.check` gates them, and the full
-    `Prediction`."""
-    if radar is None:
-        return RadarCase(None, None, None)
-    from authn.evidence import read_claim
-    from authn.kinematics import expected_from_radar
-    from signatures.features import extract
-    from signatures.inference import classifier_for
-
-    claim = read_claim(rec, None)
-    gate = None
-    if claim.state is not None:
-        expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
-                                       rec.start_time)
-        lo, hi = rec.config.range_window_m
-        gate = expected.range_m if lo <= expected.range_m < hi else None
-    feats = extract(rec, expected_range_m=gate)
-    if not feats.detected:
-        return RadarCase(radar, None, feats)
-    pred = classifier_for(rec).predict(feats.as_array(), lambda: feats.rd_patch)
-    return RadarCase(radar, pred, feats)
+def verification_score(radar: dict[str, Any] | None) -> float:
+    """The check's verification LLR (nats; > 0 favours the claim), or `UNVERIFIED`."""
+    verification = (radar or {}).get("verification") or {}
+    terms = verification.get("terms") or {}
+    return float(verification["llr"]) if terms else UNVERIFIED
 
 
 def roc(genuine: Sequence[float], impostor: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:

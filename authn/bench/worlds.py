@@ -7,7 +7,7 @@ by the real `Checker` against the bench registry (`authn.bench.decisions`). Clai
 genuine (a registered serial, its true airframe), type spoofs (a serial registered as one
 shipped model, flown by another) and unseen airframes (`signatures.heldout.unseen_profiles`,
 never trained on) claiming a registered serial. Each return is also scored for verification
-(`authn.bench.verification.SCORE`). Nothing here may be used to train or tune anything.
+(`authn.bench.verification.verification_score`: the check's own LLR). Nothing here may be used to train or tune anything.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from authn.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
-from authn.bench.verification import SCORE, VerificationScore, eer, radar_case
+from authn.bench.verification import eer, verification_score
 from authn.scenario import Broadcast, remote_id_rows, simulate_flight
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import Preset, get_preset
@@ -94,13 +94,11 @@ def _pair(cat: str, i: int, slugs: list[str], unseen: list[str]) -> tuple[str, s
 
 
 def run_worlds(presets: tuple[str, ...], worlds: tuple[str, ...], n: int, seed: int,
-               snrs: tuple[float, ...] = DEFAULT_SNRS, score: VerificationScore | None = None,
-               progress: Callable[[int], None] | None = None) -> list[Trial]:
+               snrs: tuple[float, ...] = DEFAULT_SNRS, progress: Callable[[int], None] | None = None) -> list[Trial]:
     """n claims per category, SNR and preset, each checked in every world (same scene and seed)."""
     from authn.check import Checker
     from signatures.heldout import unseen_profiles
 
-    score = score or SCORE
     profiles: dict[str, UavProfile] = {**shipped_profiles(), **unseen_profiles()}
     slugs, unseen = list(shipped_profiles()), list(unseen_profiles())
     trials: list[Trial] = []
@@ -125,10 +123,9 @@ def run_worlds(presets: tuple[str, ...], worlds: tuple[str, ...], n: int, seed: 
                             t0 = time.perf_counter()
                             out = checker.evaluate(path)
                             ms = (time.perf_counter() - t0) * 1e3
-                            case = radar_case(rec, out.radar)
                             trials.append(Trial(preset, world, float(snr), cat, flies, claims, out.decision,
                                                 tuple(out.reasons), None if out.radar is None else out.radar["model"],
-                                                float(score(case, profiles[claims])), ms))
+                                                verification_score(out.radar), ms))
                             if progress:
                                 progress(1)
     return trials

@@ -62,7 +62,7 @@ def test_genuine_claim_is_accepted(setup, capsys) -> None:
     assert out["skipped"] == [] and out["audit_id"] >= 1
 
 
-@pytest.mark.parametrize("case,reason", [("type", "radar-type-mismatch"), ("position", "range-mismatch")])
+@pytest.mark.parametrize("case,reason", [("type", "radar-claim-inconsistent"), ("position", "range-mismatch")])
 def test_spoofs_are_rejected(setup, capsys, case: str, reason: str) -> None:
     _, db, files = setup
     code, out = _check(db, files[case], capsys)
@@ -72,7 +72,7 @@ def test_spoofs_are_rejected(setup, capsys, case: str, reason: str) -> None:
 def test_bird_checked_against_a_serial(setup, capsys) -> None:
     _, db, files = setup
     code, out = _check(db, files["bird"], capsys, "--serial", M300)
-    assert code == 1 and out["radar"]["model"] == "bird" and out["reasons"] == ["radar-type-mismatch"]
+    assert code == 1 and out["radar"]["model"] == "bird" and out["reasons"] == ["radar-not-a-drone"]
     assert out["kinematics"] is None and "kinematics" in out["skipped"]
 
 

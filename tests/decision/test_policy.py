@@ -16,27 +16,31 @@ SITE = dict(time_s=T_NOW, preset="paper")
 GOOD = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300", radar_known=True,
             radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120, range_tolerance_cm=850,
             velocity_residual_cmps=40, velocity_tolerance_cmps=170, remote_id_present=True, remote_id_issues=[],
-            remote_id_auth="absent")
+            remote_id_auth="absent", verification_llr_cn=250)
 #: What the check knows before the radar runs (authn.check._skipped_context).
 NO_RADAR = {**GOOD, "radar_run": False, "target_detected": False, "radar_model": "", "radar_known": False,
             "radar_confidence_bp": 0, "has_kinematics": False, "range_residual_cm": 0, "range_tolerance_cm": 0,
             "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0}
+del NO_RADAR["verification_llr_cn"]
 
 CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
     "accept": ({}, {}, {}, "accept", ["registered-active"]),
     "unregistered": (dict(registered=False, status="unregistered", model="", id_type=""), {}, {},
-                     "reject", ["radar-type-mismatch", "unregistered"]),
+                     "reject", ["unregistered"]),
     "revoked": (dict(status="revoked"), {}, {}, "reject", ["revoked"]),
     "not yet valid": (dict(valid_from_s=T_NOW + 10), {}, {}, "reject", ["outside-validity-window"]),
     "expired": (dict(valid_until_s=T_NOW), {}, {}, "reject", ["outside-validity-window"]),
     "valid until later": (dict(valid_until_s=T_NOW + 1), {}, {}, "accept", ["registered-active"]),
     "no target": ({}, {}, dict(target_detected=False), "reject", ["no-target"]),
-    "unknown airframe": ({}, {}, dict(radar_known=False, radar_model="unknown"), "reject",
-                         ["radar-unknown-airframe"]),
-    "type mismatch": ({}, {}, dict(radar_model="phantom4"), "reject", ["radar-type-mismatch"]),
-    "bird": ({}, {}, dict(radar_model="bird"), "reject", ["radar-type-mismatch"]),
-    "low confidence": ({}, {}, dict(radar_confidence_bp=5999), "reject", ["low-confidence"]),
-    "confidence at threshold": ({}, {}, dict(radar_confidence_bp=6000), "accept", ["registered-active"]),
+    "claim inconsistent": ({}, {}, dict(verification_llr_cn=-1), "reject", ["radar-claim-inconsistent"]),
+    "verification at threshold": ({}, {}, dict(verification_llr_cn=0), "accept", ["registered-active"]),
+    "nothing to verify with": ({}, {}, dict(verification_llr_cn=None), "reject", ["radar-claim-unverifiable"]),
+    "bird": ({}, {}, dict(radar_model="bird", verification_llr_cn=None), "reject", ["radar-not-a-drone"]),
+    # the classifier's own answer informs the score; alone it neither accepts nor rejects
+    "classifier names another type, claim verified": ({}, {}, dict(radar_model="phantom4", radar_confidence_bp=5000),
+                                                      "accept", ["registered-active"]),
+    "open-set unknown, claim verified": ({}, {}, dict(radar_known=False, radar_model="unknown"), "accept",
+                                         ["registered-active"]),
     "range mismatch": ({}, {}, dict(range_residual_cm=851), "reject", ["range-mismatch"]),
     "range at tolerance": ({}, {}, dict(range_residual_cm=850), "accept", ["registered-active"]),
     "velocity mismatch": ({}, {}, dict(velocity_residual_cmps=171), "reject", ["velocity-mismatch"]),
@@ -48,8 +52,8 @@ CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
                                          ["registered-active"]),
     "radar skipped, registry ok": ({}, {}, dict(radar_run=False, target_detected=False), "accept",
                                    ["registered-active"]),
-    "spoofed type and position": ({}, {}, dict(radar_model="phantom4", range_residual_cm=30000), "reject",
-                                  ["radar-type-mismatch", "range-mismatch"]),
+    "spoofed type and position": ({}, {}, dict(verification_llr_cn=-500, range_residual_cm=30000), "reject",
+                                  ["radar-claim-inconsistent", "range-mismatch"]),
     "revoked and expired": (dict(status="revoked", valid_until_s=T_NOW - 5), {}, {}, "reject",
                             ["outside-validity-window", "revoked"]),
     "signature invalid": ({}, {}, dict(remote_id_auth="invalid"), "reject", ["remote-id-auth-invalid"]),
@@ -75,7 +79,8 @@ def engine() -> PolicyEngine:
 @pytest.mark.parametrize("name", list(CASES))
 def test_golden_decision(engine: PolicyEngine, name: str) -> None:
     p, r, c, decision, reasons = CASES[name]
-    result = engine.decide("1581BDEM00000002", {**ACTIVE, **p}, {**SITE, **r}, {**GOOD, **c})
+    context = {k: v for k, v in {**GOOD, **c}.items() if v is not None}  # None: the attribute is absent
+    result = engine.decide("1581BDEM00000002", {**ACTIVE, **p}, {**SITE, **r}, context)
     assert (result.decision, result.reasons) == (decision, reasons)
     assert result.errors == []
 

@@ -1,0 +1,129 @@
+"""1:1 verification: is this return consistent with the *claimed* airframe? (docs/classifiers.md "Verification")
+
+Classification answers "which enrolled type is it?"; authentication needs "is it the type the
+claim names?". `verify` scores one return against one claimed `UavProfile` as a log-likelihood
+ratio (natural log) of "the claimed airframe" against "some other multirotor", summed over
+independent terms:
+
+* **physics**, from two ratios:
+  - rate: the blade-flash rate over the claim's nominal one, r = f / F. A flown rotor turns at
+    `RATE_BAND` of its nominal rate (hover against climb, payload, battery), so under the claim
+    log r is uniform over that band blurred by the estimator's error; under the alternative
+    log r is uniform over `ALT_LOG_SPAN`.
+  - blade (unaliased tips only): tip speed over flash rate is 2 pi L / N times the LOS
+    projection, whatever the rotor rate. Over the claim's value it lies in `BLADE_BAND` (the
+    projection cos(elevation) for elevations up to ~63 deg, +5 % estimator bias).
+  The estimator's known failure, a whole-period slip of the flash rate, keeps `SLIP_WEIGHT` of
+  the claim's mass at the `SLIPS` multiples, both ratios evaluated under the same slip.
+* **classifier**: the bundle's calibrated probability of the claimed class as log-odds against
+  its prior 1/K, clipped to +-`CLASSIFIER_CLIP` (a classifier fitted to one simulator is not
+  trusted further than that). Absent when the claim is not one of the bundle's classes: a new
+  profile registered from its physical parameters is verified by the physical terms alone.
+
+A term abstains (is left out) when its estimate is unreliable; the physics term is floored at
+`TERM_FLOOR`. The Cedar policy thresholds the
+sum. numpy and math only: this runs on the inference path.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from signatures.profiles import UavProfile
+
+__all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "Verification", "verify"]
+
+#: Flown rotor rate over the profile's nominal rate (hover to climb, payload, battery sag).
+RATE_BAND = (0.80, 1.20)
+#: Tip-speed / flash-rate over the claim's 2 pi L / N: cos(elevation) (0.45 = 63 deg) up to +5 %.
+BLADE_BAND = (0.45, 1.05)
+#: The alternative hypothesis: a ratio anywhere within a factor 8 either way, log-uniform.
+ALT_LOG_SPAN = math.log(64.0)
+#: The estimator's relative accuracy floor (5 % demonstrated on known airframes; 3 % floor).
+REL_FLOOR = 0.03
+#: Share of the claim's mass at whole-period slips of the flash-rate estimate: half the rate
+#: (unequal blades flash unequally: one flash per turn), twice or three times (aliased tips).
+SLIP_WEIGHT = 0.3
+SLIPS = (0.5, 2.0, 3.0)
+#: Below this flash score the rate estimate is noise (the open set's own threshold).
+MIN_FLASH_SCORE = 1.0
+CLASSIFIER_CLIP = 3.0
+#: An estimate whose stated std exceeds this share of its value abstains.
+MAX_REL_STD = 1.0
+TERM_FLOOR = -8.0
+
+
+@dataclass(frozen=True)
+class Verification:
+    """The verification of one return against one claimed airframe."""
+
+    llr: float  # sum of the terms, nats: > 0 favours the claim
+    terms: dict[str, float] = field(default_factory=dict)  # the terms that did not abstain
+
+    def to_json(self) -> dict[str, object]:
+        return {"llr": round(self.llr, 4), "terms": {k: round(v, 4) for k, v in self.terms.items()}}
+
+
+def _phi(x: float) -> float:
+    return 0.5 * math.erfc(-x / math.sqrt(2.0))
+
+
+def _band_density(x: float, lo: float, hi: float, sigma: float) -> float:
+    """Density at x of uniform[lo, hi] convolved with N(0, sigma^2)."""
+    return (_phi((hi - x) / sigma) - _phi((lo - x) / sigma)) / (hi - lo)
+
+
+def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: float | None) -> float | None:
+    """log p(rate, blade | claim) - log p(rate, blade | other), or None when the rate estimate is
+    unreliable. Slip hypotheses m scale the measured rate (f = m r F) and hence the blade ratio
+    (tip / f carries 1/m): both terms are evaluated under the same m."""
+    f = float(features.get("flash_rate_hz", 0.0))
+    F = claimed.blade_flash_rate_hz
+    if not (f > 0 and F > 0 and float(features.get("flash_score", 0.0)) >= MIN_FLASH_SCORE):
+        return None
+    f_rel = float(features.get("flash_rate_std_hz", 0.0)) / f
+    if not f_rel <= MAX_REL_STD:  # an estimate less certain than itself says nothing (NaN too)
+        return None
+    x = math.log(f) - math.log(F)  # logs apart: f / F underflows for a subnormal f
+    rate = (math.log(RATE_BAND[0]), math.log(RATE_BAND[1]), math.hypot(f_rel, REL_FLOOR))
+    tip = float(features.get("tip_speed_mps", 0.0))
+    tips_fit = max_tip_mps is None or claimed.tip_speed_mps * RATE_BAND[1] < max_tip_mps
+    blade = None
+    if tip > 0 and tips_fit and float(features.get("tip_aliased", 0.0)) < 0.5:
+        tip_rel = float(features.get("tip_speed_std_mps", 0.0)) / tip
+        if tip_rel <= MAX_REL_STD:
+            y = math.log(tip) - math.log(f) - math.log(claimed.tip_speed_mps / F)  # over 2 pi L / N
+            sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
+            blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
+    p = 0.0
+    for m, w in ((1.0, 1.0 - SLIP_WEIGHT), *((m, SLIP_WEIGHT / len(SLIPS)) for m in SLIPS)):
+        q = w * _band_density(x - math.log(m), *rate)
+        if blade is not None:
+            y, lo, hi, sigma = blade
+            q *= _band_density(y + math.log(m), lo, hi, sigma)
+        p += q
+    alt = 1.0 / ALT_LOG_SPAN ** (2 if blade is not None else 1)
+    return max(TERM_FLOOR, math.log(max(p, 1e-300)) - math.log(alt))
+
+
+def verify(features: Mapping[str, float], claimed: UavProfile,
+           probabilities: Mapping[str, float] | None = None, max_tip_mps: float | None = None) -> Verification:
+    """Score a return's physical estimates (feature name -> value, `signatures.features`) and
+    the classifier's probabilities (class -> p, optional) against the claimed profile.
+
+    `max_tip_mps`: the fastest LOS speed the waveform measures unaliased (lambda * PRF / 4, the
+    radar's `unambiguous_velocity_mps`); the blade term runs only when the claimed airframe's
+    fastest tips stay below it, whatever a noisy return's own aliasing flag says."""
+    terms: dict[str, float] = {}
+    physics = _physics(features, claimed, max_tip_mps)
+    if physics is not None:
+        terms["physics"] = physics
+    if probabilities and claimed.slug in probabilities:
+        uav = [c for c in probabilities if c not in ("bird", "none")]
+        prior = 1.0 / max(len(uav), 2)
+        p = min(max(float(probabilities[claimed.slug]), 1e-6), 1.0 - 1e-6)
+        odds = math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
+        terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP, odds))
+    return Verification(llr=sum(terms.values()), terms=terms)

@@ -1,0 +1,101 @@
+"""1:1 verification (`signatures.verify`): physics against the claimed profile, rate-invariant
+where it should be, the classifier's say bounded, a new profile verifiable without retraining."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from signatures.profiles import UavProfile, shipped_profiles
+from signatures.verify import CLASSIFIER_CLIP, RATE_BAND, TERM_FLOOR, verify
+
+P = shipped_profiles()
+WIDE_MAX_TIP = 156.0  # the wide preset's unambiguous velocity: tips never alias there
+
+
+def _seen(flown: UavProfile, rate_scale: float = 1.0, cos_el: float = 1.0, aliased: bool = False,
+          flash_scale: float = 1.0) -> dict[str, float]:
+    """The estimates a clean return of `flown` gives (flash rate, LOS tip speed, their stds)."""
+    f = flown.blade_flash_rate_hz * rate_scale * flash_scale
+    return {"flash_rate_hz": f, "flash_rate_std_hz": 0.01 * f, "flash_score": 5.0,
+            "tip_speed_mps": flown.tip_speed_mps * rate_scale * cos_el, "tip_speed_std_mps": 1.0,
+            "tip_aliased": float(aliased)}
+
+
+@pytest.mark.parametrize("slug", list(P))
+@pytest.mark.parametrize("scale", [0.85, 1.0, 1.15])
+def test_a_genuine_airframe_at_any_flown_rotor_rate_verifies(slug: str, scale: float) -> None:
+    v = verify(_seen(P[slug], scale, cos_el=0.95), P[slug], max_tip_mps=WIDE_MAX_TIP)
+    assert set(v.terms) == {"physics"} and v.llr > 1.0
+
+
+def test_rates_outside_the_band_contradict_the_claim() -> None:
+    """A Phantom 4 (flash 117 Hz) claiming an M300 (80 Hz) is 1.46x off: beyond RATE_BAND and no slip."""
+    v = verify(_seen(P["phantom4"], aliased=True), P["m300"])
+    assert v.terms["physics"] < -4.0
+    assert 117 / 80 > RATE_BAND[1] * 1.2
+
+
+def test_blade_ratio_separates_airframes_whose_rates_overlap() -> None:
+    """An M600 flown 9 % fast has the M300's flash rate; its tip speed over flash rate (2 pi L / N,
+    rotor-rate free) is 25 % too high for an M300 and gives it away when the tips do not alias."""
+    seen = _seen(P["m600"], rate_scale=P["m300"].blade_flash_rate_hz / P["m600"].blade_flash_rate_hz)
+    assert verify(seen, P["m300"], max_tip_mps=WIDE_MAX_TIP).llr < 0
+    assert verify(seen, P["m600"], max_tip_mps=WIDE_MAX_TIP).llr > 0
+    # the same return where the claimed tips alias (paper): only the rate speaks, and it fits
+    aliased = {**seen, "tip_aliased": 1.0}
+    assert verify(aliased, P["m300"], max_tip_mps=22.0).llr > 0
+
+
+def test_a_whole_period_slip_weakens_but_does_not_veto() -> None:
+    full = verify(_seen(P["m300"], aliased=True), P["m300"]).terms["physics"]
+    half = verify(_seen(P["m300"], aliased=True, flash_scale=0.5), P["m300"]).terms["physics"]
+    assert TERM_FLOOR < half < full
+
+
+def test_the_classifier_term_is_bounded_and_only_for_its_own_classes() -> None:
+    probs = {"m600": 0.0, "m300": 1.0, "phantom4": 0.0, "bird": 0.0, "none": 0.0}
+    assert verify({}, P["m300"], probs).terms == {"classifier": CLASSIFIER_CLIP}
+    assert verify({}, P["m600"], probs).terms == {"classifier": -CLASSIFIER_CLIP}
+    uniform = {"m600": 1 / 3, "m300": 1 / 3, "phantom4": 1 / 3, "bird": 0.0, "none": 0.0}
+    assert verify({}, P["m300"], uniform).terms["classifier"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_profile_registered_from_its_parameters_verifies_without_retraining() -> None:
+    """A profile no bundle knows: the classifier says nothing about it, the physics does."""
+    octo = UavProfile(slug="octo-x", name="Octo X", rotors=8, arms=8, blade_length_m=0.38,
+                      rotor_rate_hz=45.0, propeller_distance_m=1.2)
+    probs = {"m600": 0.6, "m300": 0.3, "phantom4": 0.1, "bird": 0.0, "none": 0.0}
+    v = verify(_seen(octo, 1.1), octo, probs, max_tip_mps=WIDE_MAX_TIP)
+    assert set(v.terms) == {"physics"} and v.llr > 0
+    assert verify(_seen(P["phantom4"]), octo, probs, max_tip_mps=WIDE_MAX_TIP).llr < 0
+
+
+def test_an_unreliable_rate_abstains() -> None:
+    assert verify({**_seen(P["m300"]), "flash_score": 0.5}, P["m300"]).terms == {}
+    assert verify({**_seen(P["m300"]), "flash_rate_hz": 0.0}, P["m300"]).terms == {}
+
+
+finite = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(f=finite, f_std=finite, tip=finite, tip_std=finite, score=finite, aliased=st.booleans(),
+       p=st.floats(0.0, 1.0), slug=st.sampled_from(sorted(P)))
+def test_any_estimate_gives_a_finite_bounded_score(f, f_std, tip, tip_std, score, aliased, p, slug) -> None:
+    feats = {"flash_rate_hz": f, "flash_rate_std_hz": f_std, "tip_speed_mps": tip, "tip_speed_std_mps": tip_std,
+             "flash_score": score, "tip_aliased": float(aliased)}
+    v = verify(feats, P[slug], {slug: p, "other": 1.0 - p}, max_tip_mps=WIDE_MAX_TIP)
+    assert math.isfinite(v.llr)
+    assert TERM_FLOOR - CLASSIFIER_CLIP <= v.llr <= 10.0
+
+
+@settings(max_examples=100, deadline=None)
+@given(scale=st.floats(0.82, 1.18), cos_el=st.floats(0.5, 1.0), slug=st.sampled_from(sorted(P)))
+def test_the_physics_of_a_genuine_return_never_contradicts_its_claim(scale: float, cos_el: float, slug: str) -> None:
+    """Whatever rotor rate it flies (within the band) and whatever elevation, a clean genuine
+    return's physics favours its claim."""
+    assert verify(_seen(P[slug], scale, cos_el), P[slug], max_tip_mps=WIDE_MAX_TIP).llr > 0
