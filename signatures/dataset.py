@@ -28,7 +28,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +37,7 @@ import numpy as np
 from signatures.errors import SignaturesError
 from signatures.profiles import NON_UAV_CLASSES, UavProfile
 from signatures.radar import TRAINABLE_DOMAINS, Preset, get_preset
-from signatures.sampling import SceneDistribution, sample_scene
+from signatures.sampling import NuisanceDistribution, SceneDistribution, sample_scene
 from signatures.scene import Scene
 
 #: Bump when the scene sampling (`scene_distribution`, `signatures.sampling`) changes: cached datasets
@@ -86,6 +86,8 @@ class DatasetSpec:
     clutter_db: tuple[float, float] = (0.0, 10.0)
     include_non_uav: bool = True
     feature_version: str = ""
+    #: domain randomisation of every airframe and bird scene (None: the plain simulator)
+    nuisance: NuisanceDistribution | None = None
 
     def __post_init__(self) -> None:
         if self.split not in SPLITS:
@@ -115,6 +117,10 @@ class DatasetSpec:
         """Digest of every field; a shipped preset enters by its name (the keys of datasets
         cached before waveforms were data), any other waveform by its parameters."""
         doc: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
+        if self.nuisance is None:  # the keys of datasets cached before randomisation existed
+            del doc["nuisance"]
+        else:
+            doc["nuisance"] = asdict(self.nuisance)
         doc["profiles"] = [p.model_dump(mode="json") for p in self.profiles]
         wf = self.waveform
         doc["preset"] = wf.name if wf.shipped else {"name": wf.name, "key": wf.key, "max_range_m": wf.max_range_m}
@@ -188,7 +194,8 @@ def scene_distribution(spec: DatasetSpec) -> SceneDistribution:
     return SceneDistribution(order=("position", "speed", "snr", "clutter"), hover_fraction=HOVER_FRACTION,
                              birds_hover=False, speeds_mps=MOVING_SPEEDS_MPS, snr_db=spec.snr_db,
                              clutter_band=(0.0, spec.clutter_fraction), clutter_db=spec.clutter_db,
-                             bird_wing_m=(0.15, 0.6), bird_flap_hz=(2.0, 12.0), bird_flap_amplitude_deg=(20.0, 60.0))
+                             bird_wing_m=(0.15, 0.6), bird_flap_hz=(2.0, 12.0), bird_flap_amplitude_deg=(20.0, 60.0),
+                             nuisance=spec.nuisance)
 
 
 def draw_scene(spec: DatasetSpec, index: int) -> tuple[Scene, int]:

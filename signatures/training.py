@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from signatures.dataset import GENERATOR_VERSION, Dataset, DatasetSpec, Featurizer, generate
+from signatures.sampling import NuisanceDistribution
 from signatures.modelcard import library_versions, write_card
 from signatures.profiles import UavProfile
 from signatures.radar import C, Preset, get_preset
@@ -82,6 +83,8 @@ class TrainConfig:
     #: Held-out test returns per SNR of `test_snrs` measured into the card (0: none)
     n_test: int = 0
     test_snrs: tuple[float, ...] = (0.0, 10.0, 20.0)
+    #: domain randomisation of the training and validation scenes (None: the plain simulator)
+    nuisance: NuisanceDistribution | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.preset, str):
@@ -131,7 +134,7 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     from signatures.openset import MODES, OpenSet, fit_openset, physics_check
     from signatures.scene import Scene
 
-    common = dict(preset=cfg.preset, profiles=cfg.profiles, seed=cfg.seed)
+    common = dict(preset=cfg.preset, profiles=cfg.profiles, seed=cfg.seed, nuisance=cfg.nuisance)
     train = generate(DatasetSpec(split="train", n=cfg.n_train, **common), featurizer,
                      workers=cfg.workers, cache=cache, progress=progress)
     val = generate(DatasetSpec(split="val", n=cfg.n_val, **common), featurizer,
@@ -187,8 +190,9 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
             "profiles": [p.model_dump(mode="json") for p in cfg.profiles],
             "training": {"seed": cfg.seed, "n_train": cfg.n_train, "n_val": cfg.n_val,
                          "generator_version": GENERATOR_VERSION,
-                         "dataset": {k: v for k, v in DatasetSpec(split="train", n=1, **common).__dict__.items()
-                                     if k in ("snr_db", "max_elevation_deg", "clutter_fraction", "clutter_db")},
+                         "dataset": {**{k: v for k, v in DatasetSpec(split="train", n=1, **common).__dict__.items()
+                                        if k in ("snr_db", "max_elevation_deg", "clutter_fraction", "clutter_db")},
+                                     **({"randomisation": asdict(cfg.nuisance)} if cfg.nuisance else {})},
                          "command": _command(cfg)},
             "models": {"knn": "StandardScaler + KNeighborsClassifier(k=5, euclidean); shipped as knn.npz "
                               "(scaler, standardised training set, labels), evaluated in numpy",
@@ -300,4 +304,4 @@ def _command(cfg: TrainConfig) -> str:
              f"--seed {cfg.seed}"]
     if cfg.n_test:
         parts.append(f"--test-samples {cfg.n_test}")
-    return " ".join(parts + (["--cnn"] if cfg.cnn else []))
+    return " ".join(parts + (["--cnn"] if cfg.cnn else []) + (["--randomise"] if cfg.nuisance else []))

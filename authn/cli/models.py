@@ -44,6 +44,8 @@ def train(
                                                  "none with --preset)."),
     seed: int = typer.Option(0, "--seed", help="Training seed (datasets, forests, SVM, CNN)."),
     cnn: bool = typer.Option(False, "--cnn", help="Also train the RD-patch CNN (needs torch) and the cascade."),
+    randomise: bool = typer.Option(False, "--randomise",
+                                   help="Domain randomisation of the training scenes (docs/signal-model.md)."),
     out: Path | None = typer.Option(None, "--out", help="Bundle folder (default: <models dir>/<waveform name>; "
                                                         "`authn models list` shows the models dir)."),
     overwrite_shipped: bool = typer.Option(False, "--overwrite-shipped",
@@ -59,6 +61,7 @@ def train(
     from rich.console import Console
 
     from signatures.dataset import DatasetSpec, seconds_per_return
+    from signatures.sampling import NuisanceDistribution
     from signatures.training import TrainConfig, default_samples, train_bundle
 
     wf = _waveform(preset, like, radar_config)
@@ -69,7 +72,8 @@ def train(
     n_test = test_samples if test_samples is not None else (0 if wf.shipped else min(max(n // 20, 50), 300))
     unknown = tuple(p for p in _invented() if p.slug not in {k.slug for k in known})
     cfg = TrainConfig(preset=wf, profiles=known, n_train=n, n_val=n_val, seed=seed, cnn=cnn, workers=workers,
-                      unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20), n_test=n_test)
+                      unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20), n_test=n_test,
+                      nuisance=NuisanceDistribution() if randomise else None)
     console = Console()
     per = seconds_per_return(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed))
     total = n + n_val + cfg.n_unknown_val + len(cfg.test_snrs) * (n_test + (max(n_test // 2, 10) if n_test else 0))

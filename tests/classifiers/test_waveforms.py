@@ -103,6 +103,7 @@ def test_unreadable_radar_configuration(tmp_path: Path) -> None:
 def _legacy_key(spec: DatasetSpec) -> str:
     """The cache key as computed before waveforms were data (preset as its name)."""
     doc = asdict(DatasetSpec(**{**spec.__dict__, "preset": "paper"}))
+    del doc["nuisance"]  # the field came later; a spec without randomisation keeps the old key
     doc["preset"] = spec.waveform.name
     doc["profiles"] = [p.model_dump(mode="json") for p in spec.profiles]
     doc["generator_version"] = GENERATOR_VERSION
