@@ -149,3 +149,12 @@ def test_a_cw_recording_gets_its_own_bundle_and_decides_without_range(world: dic
     doc = json.loads(capsys.readouterr().out)
     assert code in (0, 1) and doc["radar"]["range_m"] is None
     assert doc["radar"]["range_evidence"] == "not measured: CW recording"
+
+
+def test_randomised_training_is_recorded_in_the_card(world: dict, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "rand"
+    assert main(["models", "train", "--like", str(world["cut"]), "--randomise", "--samples", "60",
+                 "--val-samples", "50", "--test-samples", "10", "--out", str(out)]) == 0
+    card = json.loads((out / "card.json").read_text())
+    assert card["training"]["dataset"]["randomisation"]["rotor_rate_scale"] == [0.85, 1.15]
+    assert "--randomise" in card["training"]["command"]
