@@ -11,8 +11,9 @@ independent terms:
     log r is uniform over that band blurred by the estimator's error; under the alternative
     log r is uniform over `ALT_LOG_SPAN`.
   - blade (unaliased tips only): tip speed over flash rate is 2 pi L / N times the LOS
-    projection, whatever the rotor rate. Over the claim's value it lies in `BLADE_BAND` (the
-    projection cos(elevation) for elevations up to ~63 deg, +5 % estimator bias).
+    projection, whatever the rotor rate. Over the claim's value it lies in `BLADE_BAND`: never
+    above 1 (+5 %), while projection and noise only shrink it, so the test is an upper bound
+    (tips too fast for the claimed blades).
   The estimator's known failure, a whole-period slip of the flash rate, keeps `SLIP_WEIGHT` of
   the claim's mass at the `SLIPS` multiples, both ratios evaluated under the same slip.
 * **classifier**: the bundle's calibrated probability of the claimed class as log-odds against
@@ -38,15 +39,17 @@ __all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "Verifi
 #: Flown rotor rate over the profile's nominal rate (hover to climb, payload, battery sag).
 RATE_BAND = (0.80, 1.20)
 #: Tip-speed / flash-rate over the claim's 2 pi L / N: cos(elevation) (0.45 = 63 deg) up to +5 %.
-BLADE_BAND = (0.45, 1.05)
+BLADE_BAND = (0.05, 1.05)
 #: The alternative hypothesis: a ratio anywhere within a factor 8 either way, log-uniform.
 ALT_LOG_SPAN = math.log(64.0)
 #: The estimator's relative accuracy floor (5 % demonstrated on known airframes; 3 % floor).
 REL_FLOOR = 0.03
 #: Share of the claim's mass at whole-period slips of the flash-rate estimate: half the rate
-#: (unequal blades flash unequally: one flash per turn), twice or three times (aliased tips).
+#: (unequal blades flash unequally: one flash per turn), and when the tips alias also twice or
+#: three times (flashes folded onto each other).
 SLIP_WEIGHT = 0.3
 SLIPS = (0.5, 2.0, 3.0)
+UNALIASED_SLIPS = (0.5,)
 #: Below this flash score the rate estimate is noise (the open set's own threshold).
 MIN_FLASH_SCORE = 1.0
 CLASSIFIER_CLIP = 3.0
@@ -93,12 +96,13 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
     blade = None
     if tip > 0 and tips_fit and float(features.get("tip_aliased", 0.0)) < 0.5:
         tip_rel = float(features.get("tip_speed_std_mps", 0.0)) / tip
-        if tip_rel <= MAX_REL_STD:
-            y = math.log(tip) - math.log(f) - math.log(claimed.tip_speed_mps / F)  # over 2 pi L / N
+        y = math.log(tip) - math.log(f) - math.log(claimed.tip_speed_mps / F)  # over 2 pi L / N
+        if tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
             blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
+    slips = SLIPS if float(features.get("tip_aliased", 0.0)) >= 0.5 else UNALIASED_SLIPS
     p = 0.0
-    for m, w in ((1.0, 1.0 - SLIP_WEIGHT), *((m, SLIP_WEIGHT / len(SLIPS)) for m in SLIPS)):
+    for m, w in ((1.0, 1.0 - SLIP_WEIGHT), *((m, SLIP_WEIGHT / len(slips)) for m in slips)):
         q = w * _band_density(x - math.log(m), *rate)
         if blade is not None:
             y, lo, hi, sigma = blade

@@ -36,6 +36,10 @@ CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
     "verification at threshold": ({}, {}, dict(verification_llr_cn=0), "accept", ["registered-active"]),
     "nothing to verify with": ({}, {}, dict(verification_llr_cn=None), "reject", ["radar-claim-unverifiable"]),
     "bird": ({}, {}, dict(radar_model="bird", verification_llr_cn=None), "reject", ["radar-not-a-drone"]),
+    "bird, claim contradicted": ({}, {}, dict(radar_model="bird", verification_llr_cn=-300), "reject",
+                                 ["radar-not-a-drone"]),
+    "bird label, claim verified": ({}, {}, dict(radar_model="bird", verification_llr_cn=150), "accept",
+                                   ["registered-active"]),
     # the classifier's own answer informs the score; alone it neither accepts nor rejects
     "classifier names another type, claim verified": ({}, {}, dict(radar_model="phantom4", radar_confidence_bp=5000),
                                                       "accept", ["registered-active"]),
