@@ -110,3 +110,36 @@ def test_cold_check_imports_only_what_it_needs(setup, serial: str, radar_modules
                            serial, "--json"], capture_output=True, text=True, timeout=120)
     line = next((x for x in proc.stdout.splitlines() if x.startswith("IMPORTS ")), proc.stdout[-300:] + proc.stderr)
     assert line == f"IMPORTS {0 if radar_modules else 1} [] {radar_modules} {radar_modules}"
+
+
+def test_the_decision_carries_the_verification_of_the_registered_model(setup, capsys) -> None:
+    """The check scores the return against the registered model's physics and the classifier:
+    a genuine M300 favours its claim, a Phantom 4 claiming the M600 does not, and the policy's
+    reason follows the score."""
+    _, db, files = setup
+    _, genuine = _check(db, files["genuine"], capsys)
+    v = genuine["radar"]["verification"]
+    assert v["llr"] > 0 and set(v["terms"]) == {"physics", "classifier"}
+    assert v["llr"] == pytest.approx(sum(v["terms"].values()), abs=1e-3)
+    _, spoof = _check(db, files["type"], capsys)
+    assert spoof["radar"]["verification"]["llr"] < 0 and spoof["reasons"] == ["radar-claim-inconsistent"]
+
+
+def test_a_model_registered_from_its_physics_is_verified_without_a_classifier(setup, tmp_path, capsys) -> None:
+    """Profiles no bundle was trained on: the classifier has no say, the physics decides. An
+    M300 flies for a serial registered as an airframe with its physics (accepted) and for one
+    registered as an airframe turning 40 % faster (rejected)."""
+    root, db, _ = setup
+    m300 = shipped_profiles()["m300"].model_dump()
+    twin = {**m300, "slug": "m300-twin", "name": "M300 twin"}
+    fast = {**m300, "slug": "fast-quad", "name": "Fast quad", "rotor_rate_hz": 56.0}
+    ids = [{"serial": serial, "model": model, "id_type": "serial", "status": "active",
+            "valid_from": "2025-01-01T00:00:00+00:00"} for serial, model in (("1581BTWN00000001", "m300-twin"),
+                                                                             ("1581BFST00000002", "fast-quad"))]
+    doc = tmp_path / "registry.json"
+    doc.write_text(json.dumps({"format": "authn-registry/1", "profiles": [twin, fast], "identities": ids}))
+    assert main(["--db", db, "registry", "import", str(doc)]) == 0
+    for serial, decision in (("1581BTWN00000001", "accept"), ("1581BFST00000002", "reject")):
+        code, out = _check(db, _flight(tmp_path, serial, "m300", serial), capsys)
+        assert out["decision"] == decision, out
+        assert set(out["radar"]["verification"]["terms"]) == {"physics"}
