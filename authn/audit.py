@@ -95,7 +95,7 @@ def compute_hash(seq: int, created_at: datetime, kind: str, serial: str | None, 
 
 @dataclass(frozen=True)
 class NewEntry:
-    kind: str  # "decision" | "error"
+    kind: str  # "decision" | "error" | "registry" (a registry change through `authn serve`)
     serial: str | None
     decision: str | None  # "accept" | "reject" | None for errors
     payload: dict[str, Any]
@@ -170,8 +170,8 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
     policy_sha = hashlib.sha256(policy_text.encode()).hexdigest() if policy_text is not None else None
     prepared: list[tuple[NewEntry, dict[str, Any], str]] = []
     for e in entries:
-        if e.kind not in ("decision", "error"):
-            raise AuthnError(f"audit entry kind must be 'decision' or 'error', got {e.kind!r}")
+        if e.kind not in ("decision", "error", "registry"):
+            raise AuthnError(f"audit entry kind must be 'decision', 'error' or 'registry', got {e.kind!r}")
         payload = e.payload
         if policy_sha is not None:
             given = payload.get("policy_sha256")

@@ -125,7 +125,8 @@ class Identity(Base):
 
 
 class AuditLog(Base):
-    """Hash-chained, append-only decision log (written by the decision layer)."""
+    """Hash-chained, append-only decision log (written by the decision layer); kind 'registry'
+    entries record registry changes made through `authn serve` (revision 0003)."""
 
     __tablename__ = "audit_log"
 
@@ -141,7 +142,7 @@ class AuditLog(Base):
     leaf_hash: Mapped[str | None] = mapped_column(CHAR(64))  # RFC 9162 leaf hash (revision 0002)
 
     __table_args__ = (
-        CheckConstraint("kind IN ('decision', 'error')", name="kind_enum"),
+        CheckConstraint("kind IN ('decision', 'error', 'registry')", name="kind_enum"),
         CheckConstraint("decision IS NULL OR decision IN ('accept', 'reject')", name="decision_enum"),
     )
 
@@ -171,3 +172,19 @@ class AuditTreeHead(Base):
     log_key_id: Mapped[str] = mapped_column(CHAR(64))
     signature: Mapped[str] = mapped_column(Text)
     frontier: Mapped[str | None] = mapped_column(Text)  # JSON list of hex subtree roots, largest first
+
+
+class ApiKey(Base):
+    """A key of `authn serve` (`authn keys api create`): its role and the SHA-256 of its token;
+    the token itself is shown once and never stored."""
+
+    __tablename__ = "api_keys"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str | None] = mapped_column(String(100))
+    role: Mapped[str] = mapped_column(String(16))
+    key_hash: Mapped[str] = mapped_column(CHAR(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime)
+    revoked_at: Mapped[datetime | None] = mapped_column(UtcDateTime)
+
+    __table_args__ = (CheckConstraint("role IN ('operator', 'admin')", name="role_enum"),)

@@ -18,7 +18,8 @@ os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
 import typer
 
-from authn.cli import audit, bench, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid, simulate
+from authn.cli import (audit, bench, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid, serve,
+                       simulate)
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
 from authn.errors import AuthnException, describe, exit_code_for
@@ -62,7 +63,7 @@ def _global_options(
 
 for _name, _command in (("check", check.check), ("simulate", simulate.simulate), ("inspect", inspect.inspect_file),
                         ("register", registry.register_cmd), ("demo", demo.demo), ("plot", plot.plot),
-                        ("bench", bench.bench)):
+                        ("bench", bench.bench), ("serve", serve.serve)):
     app.command(_name)(_command)
 for _name, _group in (("registry", registry.registry_app), ("audit", audit.audit_app), ("rid", rid.rid_app),
                       ("db", db.db_app), ("features", features.features_app), ("models", models.models_app),

@@ -1,4 +1,4 @@
-"""`authn keys ...`: Ed25519 keys for DRIP-signed Remote ID (RFC 9374 DETs)."""
+"""`authn keys ...`: Ed25519 keys for DRIP-signed Remote ID (RFC 9374 DETs), and the API keys of `authn serve`."""
 
 from __future__ import annotations
 
@@ -36,3 +36,60 @@ def generate_cmd(
         return
     for name, value in doc.items():
         typer.echo(f"{name:16} {value}")
+
+
+api_app = typer.Typer(help="API keys of `authn serve` (the secret is shown once; only its hash is stored).",
+                      no_args_is_help=True)
+keys_app.add_typer(api_app, name="api")
+
+
+@api_app.command("create")
+def api_create_cmd(
+    ctx: typer.Context,
+    role: str = typer.Option(..., "--role", help="operator (checks, audit reads) or admin (everything)."),
+    name: str | None = typer.Option(None, "--name", help="A label to tell keys apart."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Create an API key and print its secret, once: store it now, it cannot be shown again.
+
+    Example: authn keys api create --role operator --name radar-site-1
+    """
+    from authn.service.keys import create_key
+
+    info, token = create_key(ctx.obj.db_url, role, name)
+    if as_json:
+        typer.echo(json.dumps({**info.to_json(), "token": token}, indent=2))
+        return
+    typer.echo(f"API key {info.id} ({info.role}{', ' + info.name if info.name else ''}) created; its secret, "
+               "shown only now:", err=True)
+    typer.echo(token)
+
+
+@api_app.command("list")
+def api_list_cmd(ctx: typer.Context, as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """List API keys (never their secrets).
+
+    Example: authn keys api list
+    """
+    from authn.service.keys import list_keys
+
+    keys = list_keys(ctx.obj.db_url)
+    if as_json:
+        typer.echo(json.dumps([k.to_json() for k in keys], indent=2))
+        return
+    for k in keys:
+        state = f"revoked {k.revoked_at:%Y-%m-%d %H:%M}" if k.revoked_at else "active"
+        typer.echo(f"{k.id:>5}  {k.role:8}  {state:24}  {k.name or ''}")
+
+
+@api_app.command("revoke")
+def api_revoke_cmd(ctx: typer.Context, key_id: int = typer.Argument(..., help="Key id (`authn keys api list`).")
+                   ) -> None:
+    """Revoke an API key: the server refuses it (401) from its next request.
+
+    Example: authn keys api revoke 3
+    """
+    from authn.service.keys import revoke_key
+
+    info = revoke_key(ctx.obj.db_url, key_id)
+    typer.echo(f"API key {info.id} revoked")

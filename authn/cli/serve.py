@@ -1,0 +1,40 @@
+"""`authn serve`: the decision engine as an HTTP service (docs/service.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def serve(
+    ctx: typer.Context,
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on."),
+    port: int = typer.Option(8080, "--port", min=1, max=65535, help="TCP port."),
+    workers: int = typer.Option(1, "--workers", min=1, max=64, help="Worker processes (one Checker each)."),
+    max_upload_mib: float = typer.Option(64.0, "--max-upload-mib", min=0.001, max=1024.0,
+                                         help="Largest upload accepted (413 beyond it)."),
+    policy: Path | None = typer.Option(None, "--policy", help="Cedar decision policy replacing the default."),
+    timeout_keep_alive: int = typer.Option(5, "--keep-alive-s", min=1, max=300, help="Idle keep-alive timeout."),
+) -> None:
+    """Serve checks, the audit log and the registry over HTTP (OpenAPI at /docs).
+
+    Clients authenticate with API keys: `authn keys api create --role operator`.
+
+    Example: authn serve --port 8080 --workers 2
+    """
+    import os
+
+    import uvicorn
+
+    from authn.service.settings import Settings
+
+    settings = Settings(db_url=ctx.obj.db_url, policy_path=str(policy) if policy else None,
+                        max_upload_bytes=int(max_upload_mib * 2**20))
+    os.environ.update(settings.to_env())  # read by each worker process's app factory
+    from registry.db import get_engine
+
+    get_engine(settings.db_url)  # migrate once here, before the workers race to
+    uvicorn.run("authn.service.app:app_from_env", factory=True, host=host, port=port, workers=workers,
+                timeout_keep_alive=timeout_keep_alive, limit_concurrency=256, log_level="info",
+                server_header=False)

@@ -1,0 +1,121 @@
+"""The application factory: routes under /v1, health at /healthz and /readyz, Prometheus
+at /metrics, OpenAPI at /docs. Every error answers `{"error": "<one line>"}`."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse, Response
+from starlette.exceptions import HTTPException
+
+from authn.errors import AuthnException, BadInput, describe, one_line
+from authn.service.auth import Forbidden, Unauthenticated
+from authn.service.limits import UploadLimits
+from authn.service.runtime import Runtime
+from authn.service.settings import Settings
+
+log = logging.getLogger("authn.service")
+
+
+def _error(request: Request, status: int, message: str, kind: str, headers: dict[str, str] | None = None
+           ) -> JSONResponse:
+    rt: Runtime | None = getattr(request.app.state, "runtime", None)
+    if rt is not None:
+        rt.metrics.error(status, kind)
+    return JSONResponse({"error": one_line(message)}, status_code=status, headers=headers)
+
+
+def _validation_message(exc: RequestValidationError) -> str:
+    errors = exc.errors()
+    if not errors:
+        return "invalid request"
+    first = errors[0]
+    loc = ".".join(str(p) for p in first.get("loc", ()) if p not in ("body", "query", "path"))
+    return f"{loc}: {first.get('msg', 'invalid')}" if loc else str(first.get("msg", "invalid"))
+
+
+def _install_error_handlers(app: FastAPI) -> None:
+    @app.exception_handler(Unauthenticated)
+    async def _unauthenticated(request: Request, exc: Unauthenticated) -> JSONResponse:
+        return _error(request, 401, str(exc), "unauthenticated", {"WWW-Authenticate": "Bearer"})
+
+    @app.exception_handler(Forbidden)
+    async def _forbidden(request: Request, exc: Forbidden) -> JSONResponse:
+        return _error(request, 403, str(exc), "forbidden")
+
+    @app.exception_handler(HTTPException)
+    async def _http(request: Request, exc: HTTPException) -> JSONResponse:
+        return _error(request, exc.status_code, str(exc.detail), "http", getattr(exc, "headers", None))
+
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
+        return _error(request, 422, _validation_message(exc), "validation")
+
+    @app.exception_handler(AuthnException)
+    async def _ours(request: Request, exc: AuthnException) -> JSONResponse:
+        if isinstance(exc, BadInput):
+            return _error(request, 400, describe(exc), "bad-input")
+        log.warning("system fault on %s %s: %s", request.method, request.url.path, describe(exc))
+        return _error(request, 503, describe(exc), "system")
+
+    @app.exception_handler(Exception)
+    async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+        log.error("internal error on %s %s: %s", request.method, request.url.path, describe(exc))
+        return _error(request, 500, describe(exc), "internal")
+
+
+def create_app(settings: Settings) -> FastAPI:
+    """One application with its own runtime (loaded in the lifespan, once per worker)."""
+    from authn.service import checks, records
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        app.state.runtime = Runtime.load(settings)
+        try:
+            yield
+        finally:
+            app.state.runtime.close()
+
+    app = FastAPI(title="authn", version="1", lifespan=lifespan,
+                  description="Radar micro-Doppler + Remote ID identity authentication of UAVs, as a service. "
+                              "Authenticate with `Authorization: Bearer <key>` (`authn keys api create`).")
+    _install_error_handlers(app)
+    app.include_router(checks.router)
+    app.include_router(records.router)
+
+    @app.get("/healthz", tags=["health"])
+    async def healthz() -> dict[str, str]:
+        """The process is up."""
+        return {"status": "ok"}
+
+    @app.get("/readyz", tags=["health"], responses={503: {"description": "not ready"}})
+    async def readyz(request: Request) -> Any:
+        """Database reachable, its schema at the current migration, classifiers loaded."""
+        from migrations import VERSION_QUERY, is_current
+
+        rt: Runtime = request.app.state.runtime
+        try:
+            current = is_current(await rt.run(lambda: rt.checker.db.fetch(VERSION_QUERY)))
+        except Exception as exc:  # noqa: BLE001 - any database failure means not ready
+            return JSONResponse({"ready": False, "error": one_line(describe(exc))}, status_code=503)
+        doc = {"ready": current and bool(rt.models), "database": "ok", "migrations_current": current,
+               "models": rt.models}
+        return JSONResponse(doc, status_code=200 if doc["ready"] else 503)
+
+    @app.get("/metrics", tags=["health"], response_class=Response)
+    async def metrics(request: Request) -> Response:
+        """Prometheus text format (this worker's counters)."""
+        return Response(request.app.state.runtime.metrics.render(), media_type="text/plain; version=0.0.4")
+
+    app.add_middleware(UploadLimits, max_upload_bytes=settings.max_upload_bytes)
+    return app
+
+
+def app_from_env() -> FastAPI:
+    """uvicorn's factory in each worker process (`authn serve` puts the settings in the environment)."""
+    return create_app(Settings.from_env())

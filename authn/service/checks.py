@@ -1,0 +1,136 @@
+"""POST /v1/checks and /v1/checks:batch: the `authn check --json` object over HTTP.
+
+A decision is answered only after its audit entry committed; a failed check is audited as
+the CLI audits it. The upload is held in memory (size-limited while it streams, see
+limits.py); the recording reader takes a path, so the bytes go to a private temporary file
+for the read and nothing else. Nothing is unpickled (the reader refuses pickles)."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, File, Form, Request, UploadFile
+from fastapi.responses import JSONResponse
+
+from authn.errors import EXIT_BAD_INPUT, SystemFault
+from authn.service.auth import Caller
+from authn.service.deps import require, runtime
+
+router = APIRouter(prefix="/v1", tags=["checks"])
+_ERRORS: dict[int | str, dict[str, Any]] = {
+    400: {"description": "bad recorded return"}, 401: {"description": "no valid API key"},
+    403: {"description": "role may not check"}, 413: {"description": "upload too large"},
+    415: {"description": "not multipart/form-data"}, 422: {"description": "missing or invalid field"},
+    503: {"description": "database or policy engine unavailable; nothing was decided"}}
+_TMP = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+
+
+def _name(upload: UploadFile) -> str:
+    """The client's file name (base name only, one line), for the JSON's `file` and the audit."""
+    name = Path((upload.filename or "upload").replace("\\", "/")).name
+    return " ".join(name.split())[:200] or "upload"
+
+
+def _read(data: bytes, name: str) -> Any:
+    """The recording in `data`, read through a private temporary file (errors name the upload)."""
+    from authn.errors import AuthnException
+    from signatures.recording import read_recording
+
+    fd, tmp = tempfile.mkstemp(suffix=".upload", dir=_TMP)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        try:
+            return read_recording(tmp)
+        except AuthnException as exc:  # the message names the file: the client's name, not ours
+            exc.args = (str(exc).replace(tmp, name),)
+            raise
+    finally:
+        os.unlink(tmp)
+
+
+def _evaluate(checker: Any, data: bytes, name: str, serial: str | None) -> Any:
+    """One decision (not yet audited); raises what the CLI's `evaluate` raises."""
+    t0 = time.perf_counter()
+    rec = _read(data, name)
+    digest = hashlib.sha256(data).hexdigest()
+    read_ms = round((time.perf_counter() - t0) * 1e3, 3)
+    outcome = checker.evaluate_recording(rec, serial, name, digest)
+    outcome.timings_ms = {"read": read_ms, **outcome.timings_ms}
+    return outcome
+
+
+def _check_one(checker: Any, data: bytes, name: str, serial: str | None) -> Any:
+    from authn.check import Failure
+
+    try:
+        outcome = _evaluate(checker, data, name, serial)
+    except Exception as exc:
+        failure = Failure.of(name, serial, exc)
+        checker.record([failure])  # a database fault here is answered instead (503)
+        if failure.exit_code == EXIT_BAD_INPUT:
+            raise
+        raise SystemFault(f"{name}: {failure.error}") from None
+    checker.record([outcome])  # raises if the entry did not commit: then nothing is answered
+    return outcome
+
+
+def _check_many(checker: Any, files: list[tuple[str, bytes]], serial: str | None) -> list[Any]:
+    from authn.check import Failure
+
+    items: list[Any] = []
+    for name, data in files:
+        try:
+            items.append(_evaluate(checker, data, name, serial))
+        except SystemFault as exc:  # the database or policy engine: the batch cannot go on
+            checker.record([*items, Failure.of(name, serial, exc)])
+            raise
+        except Exception as exc:  # noqa: BLE001 - one bad file must not stop the batch
+            items.append(Failure.of(name, serial, exc))
+    checker.record(items)
+    return items
+
+
+def _serial(serial: str | None) -> str | None:
+    return serial.strip() or None if serial is not None else None
+
+
+@router.post("/checks", responses=_ERRORS, summary="Check one recorded return")
+async def check(request: Request, file: Annotated[UploadFile, File(description="HDF5 or .npz recorded return")],
+                serial: Annotated[str | None, Form(max_length=64, description="claimed serial")] = None,
+                _caller: Caller = Depends(require("check"))) -> JSONResponse:
+    """Decide one return: the `authn check --json` object, status 200 for accept and reject alike."""
+    rt = runtime(request)
+    data, name = await file.read(), _name(file)
+    outcome = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial)))
+    rt.metrics.outcome(outcome.decision, outcome.reasons, outcome.timings_ms)
+    return JSONResponse(outcome.to_json())
+
+
+@router.post("/checks:batch", responses=_ERRORS, summary="Check several recorded returns")
+async def check_batch(request: Request,
+                      files: Annotated[list[UploadFile], File(description="HDF5 or .npz recorded returns")],
+                      serial: Annotated[str | None, Form(max_length=64, description="claimed serial for all")] = None,
+                      _caller: Caller = Depends(require("check"))) -> JSONResponse:
+    """Decide several returns in one audit transaction: `results` holds, per file in order, the
+    `authn check --json` object or `{"file", "error", "exit_code"}`."""
+    from authn.check import Outcome
+
+    rt = runtime(request)
+    if len(files) > rt.settings.max_batch_files:
+        from authn.errors import AuthnError
+
+        raise AuthnError(f"at most {rt.settings.max_batch_files} files per batch, got {len(files)}")
+    loaded = [(_name(f), await f.read()) for f in files]
+    items = await rt.run(lambda: _check_many(rt.checker, loaded, _serial(serial)))
+    for o in items:
+        if isinstance(o, Outcome):
+            rt.metrics.outcome(o.decision, o.reasons, o.timings_ms)
+        else:
+            rt.metrics.error(400 if o.exit_code == EXIT_BAD_INPUT else 503, "batch-item")
+    return JSONResponse({"results": [o.to_json() for o in items]})

@@ -1,0 +1,63 @@
+"""Upload limits enforced while the body streams in (ASGI middleware): a declared
+Content-Length over the limit is refused before a byte is read, a chunked body as soon as it
+passes the limit (413); a check upload that is not multipart/form-data gets 415."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+UPLOAD_PATHS = ("/v1/checks", "/v1/checks:batch")
+#: room for the multipart boundaries, part headers and the serial field
+FORM_OVERHEAD = 64 * 1024
+
+
+async def _reply(send: Any, status: int, message: str) -> None:
+    body = json.dumps({"error": message}).encode()
+    await send({"type": "http.response.start", "status": status,
+                "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
+                            (b"connection", b"close")]})
+    await send({"type": "http.response.body", "body": body})
+
+
+class UploadLimits:
+    def __init__(self, app: Any, max_upload_bytes: int) -> None:
+        self.app = app
+        self.limit = max_upload_bytes + FORM_OVERHEAD
+        self.max_upload_bytes = max_upload_bytes
+
+    async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
+        if scope["type"] != "http" or scope["method"] != "POST" or scope["path"] not in UPLOAD_PATHS:
+            await self.app(scope, receive, send)
+            return
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
+        too_big = f"upload larger than the limit of {self.max_upload_bytes} bytes"
+        if not headers.get("content-type", "").lower().startswith("multipart/form-data"):
+            await _reply(send, 415, "upload the recorded return as multipart/form-data (field 'file')")
+            return
+        declared = headers.get("content-length", "")
+        if declared.isdigit() and int(declared) > self.limit:
+            await _reply(send, 413, too_big)
+            return
+        state = {"received": 0, "over": False}
+
+        async def limited_receive() -> dict:
+            msg = await receive()
+            if msg["type"] == "http.request":
+                state["received"] += len(msg.get("body", b""))
+                if state["received"] > self.limit:
+                    state["over"] = True
+                    return {"type": "http.disconnect"}  # the app stops reading; we answer below
+            return msg
+
+        async def guarded_send(msg: dict) -> None:
+            if not state["over"]:
+                await send(msg)
+
+        try:
+            await self.app(scope, limited_receive, guarded_send)
+        except Exception:
+            if not state["over"]:
+                raise
+        if state["over"]:
+            await _reply(send, 413, too_big)

@@ -1,0 +1,226 @@
+"""The audit log and the registry over HTTP. Audit reads go through the check path's
+DB-API connection (on the checker's thread); registry writes through the registry's
+validated store, each followed by an audit entry naming the acting key."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request
+from pydantic import BaseModel, ConfigDict, Field
+
+from authn.service.auth import Caller
+from authn.service.deps import require, runtime
+
+router = APIRouter(prefix="/v1")
+_AUTH: dict[int | str, dict[str, Any]] = {401: {"description": "no valid API key"},
+                                          403: {"description": "role may not do this"}}
+_SERIAL = r"^[\x21-\x7e]{1,64}$"
+
+
+def _entry_json(e: Any) -> dict[str, Any]:
+    return {"seq": e.seq, "created_at": e.created_at.isoformat(), "kind": e.kind, "serial": e.serial,
+            "decision": e.decision, "payload": e.payload, "prev_hash": e.prev_hash, "entry_hash": e.entry_hash}
+
+
+# --- audit ------------------------------------------------------------------------------
+
+@router.get("/audit", tags=["audit"], responses=_AUTH)
+async def audit_list(request: Request, after: Annotated[int, Query(ge=0, le=2**62)] = 0,
+                     limit: Annotated[int, Query(ge=1, le=500)] = 100,
+                     decision: Literal["accept", "reject"] | None = None,
+                     serial: Annotated[str | None, Query(max_length=64)] = None,
+                     _caller: Caller = Depends(require("read_audit"))) -> dict[str, Any]:
+    """Entries with seq > `after`, oldest first; `next_after` pages on (null at the end)."""
+    from authn.audit import get_entry
+
+    rt = runtime(request)
+    where, params = ["seq > :after"], {"after": after, "limit": limit}
+    for column, value in (("decision", decision), ("serial", serial)):
+        if value is not None:
+            where.append(f"{column} = :{column}")
+            params[column] = value
+
+    def page() -> list[Any]:
+        db = rt.checker.db
+        seqs = db.fetch(f"SELECT seq FROM audit_log WHERE {' AND '.join(where)} ORDER BY seq LIMIT :limit", params)
+        return [get_entry(db, int(s)) for (s,) in seqs]
+
+    entries = await rt.run(page)
+    return {"entries": [_entry_json(e) for e in entries],
+            "next_after": entries[-1].seq if len(entries) == limit else None}
+
+
+@router.get("/audit:verify", tags=["audit"], responses=_AUTH)
+async def audit_verify(request: Request, _caller: Caller = Depends(require("read_audit"))) -> dict[str, Any]:
+    """Recompute the chain and Merkle tree; check them against every signed tree head known
+    (as `authn audit verify`). `ok` false names the first bad entry."""
+    from authn.audit import known_heads, newest, verify
+    from authn.logkey import LogKey, key_path
+
+    rt = runtime(request)
+
+    def run() -> dict[str, Any]:
+        db = rt.checker.db
+        heads = known_heads(db)
+        key = LogKey.load(None, create=False).public_key if heads or key_path(None).exists() else None
+        forged = [h for h in heads if not h.sth.verify_signature(key)]
+        if forged:
+            h = min(forged, key=lambda h: h.sth.tree_size)
+            return {"ok": False, "size": None, "first_bad_seq": None,
+                    "problem": f"tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key"}
+        report = verify(db, heads, public_key=key, require_signed_to_end=True)
+        best = newest(heads)
+        return {"ok": report.ok, "size": report.size, "head": report.head, "root": report.root,
+                "first_bad_seq": report.first_bad_seq, "problem": report.problem,
+                "newest_signed_size": best.sth.tree_size if best else None, "unsigned": report.unsigned}
+
+    return await rt.run(run)
+
+
+@router.post("/audit:checkpoint", tags=["audit"], responses=_AUTH)
+async def audit_checkpoint(request: Request, _caller: Caller = Depends(require("checkpoint"))) -> dict[str, Any]:
+    """Verify the log, then sign its tree head (authn-sth/1), as `authn audit checkpoint`."""
+    import json
+
+    from authn.audit import checkpoint
+
+    rt = runtime(request)
+    sth = await rt.run(lambda: checkpoint(rt.checker.db))
+    return json.loads(sth.to_json())
+
+
+@router.get("/audit/{seq}", tags=["audit"], responses={**_AUTH, 404: {"description": "no such entry"}})
+async def audit_get(request: Request, seq: Annotated[int, Path(ge=1, le=2**62)],
+                    _caller: Caller = Depends(require("read_audit"))) -> dict[str, Any]:
+    """One entry in full (evidence, digests, hashes)."""
+    from authn.audit import get_entry
+
+    rt = runtime(request)
+    entry = await rt.run(lambda: get_entry(rt.checker.db, seq))
+    if entry is None:
+        raise HTTPException(404, f"no audit entry {seq}")
+    return _entry_json(entry)
+
+
+# --- registry -----------------------------------------------------------------------------
+
+class IdentityIn(BaseModel):
+    """A registration (the fields of `authn register`); public_key is 64 hex digits."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    serial: str = Field(min_length=1, max_length=64)
+    model: str = Field(min_length=1, max_length=32)
+    id_type: Literal["serial", "caa_registration", "utm_uuid", "specific_session"] = "serial"
+    operator_id: str | None = Field(default=None, max_length=20)
+    public_key: str | None = Field(default=None, max_length=64)
+    valid_from: datetime | None = None
+    valid_until: datetime | None = None
+    notes: str | None = Field(default=None, max_length=2000)
+
+
+class RevokeIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    reason: str | None = Field(default=None, max_length=500)
+
+
+def _record_json(rec: Any) -> dict[str, Any]:
+    return rec.model_dump(mode="json")
+
+
+def _audit_change(rt: Any, caller: Caller, action: str, serial: str, detail: dict[str, Any]) -> None:
+    """The registry change as an audit entry naming the acting key (kind 'registry')."""
+    from authn.audit import NewEntry, append
+
+    append(rt.checker.db, [NewEntry("registry", serial, None, {"action": action, "api_key_id": caller.key_id,
+                                                                "role": caller.role, **detail})])
+
+
+@router.get("/identities", tags=["registry"], responses=_AUTH)
+def identities_list(request: Request, status: Literal["active", "revoked"] | None = None,
+                    _caller: Caller = Depends(require("read_registry"))) -> list[dict[str, Any]]:
+    """Registered identities, by serial."""
+    from registry.db import session_scope
+    from registry.store import list_identities
+
+    with session_scope(runtime(request).settings.db_url) as s:
+        return [_record_json(r) for r in list_identities(s, status)]
+
+
+@router.post("/identities", tags=["registry"], status_code=201,
+             responses={**_AUTH, 400: {"description": "invalid or duplicate identity"}})
+async def identities_register(request: Request, body: IdentityIn,
+                              caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
+    """Register an identity (admins); the change is audited with the acting key's id."""
+    from pydantic import ValidationError
+    from starlette.concurrency import run_in_threadpool
+
+    from authn.errors import AuthnError
+    from registry.db import session_scope
+    from registry.store import NewIdentity, describe_validation_error, register_identity
+
+    rt = runtime(request)
+    try:
+        new = NewIdentity(**body.model_dump(exclude_none=True))
+    except ValidationError as exc:
+        raise AuthnError(describe_validation_error(exc)) from None
+
+    def write() -> Any:
+        with session_scope(rt.settings.db_url) as s:
+            return register_identity(s, new)
+
+    rec = await run_in_threadpool(write)
+    await rt.run(lambda: _audit_change(rt, caller, "register", rec.serial, {"model": rec.model}))
+    return _record_json(rec)
+
+
+@router.get("/identities/{serial}", tags=["registry"], responses={**_AUTH, 404: {"description": "not registered"}})
+def identities_get(request: Request, serial: Annotated[str, Path(pattern=_SERIAL)],
+                   _caller: Caller = Depends(require("read_registry"))) -> dict[str, Any]:
+    """One identity with its declared airframe."""
+    from registry.db import session_scope
+    from registry.store import get_identity
+
+    with session_scope(runtime(request).settings.db_url) as s:
+        rec = get_identity(s, serial)
+    if rec is None:
+        raise HTTPException(404, f"serial {serial}: not registered")
+    return _record_json(rec)
+
+
+@router.post("/identities/{serial}:revoke", tags=["registry"],
+             responses={**_AUTH, 404: {"description": "not registered"}, 400: {"description": "already revoked"}})
+async def identities_revoke(request: Request, serial: Annotated[str, Path(pattern=_SERIAL)],
+                            body: RevokeIn | None = None,
+                            caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
+    """Revoke an identity (admins); kept for the audit trail, never deleted; audited."""
+    from starlette.concurrency import run_in_threadpool
+
+    from registry.db import session_scope
+    from registry.store import get_identity, revoke_identity
+
+    rt = runtime(request)
+    reason = body.reason if body else None
+
+    def write() -> Any:
+        with session_scope(rt.settings.db_url) as s:
+            if get_identity(s, serial) is None:
+                raise HTTPException(404, f"serial {serial}: not registered")
+            return revoke_identity(s, serial, reason)
+
+    rec = await run_in_threadpool(write)
+    await rt.run(lambda: _audit_change(rt, caller, "revoke", rec.serial, {"reason": reason}))
+    return _record_json(rec)
+
+
+@router.get("/profiles", tags=["registry"], responses=_AUTH)
+def profiles(request: Request, _caller: Caller = Depends(require("read_registry"))) -> list[dict[str, Any]]:
+    """Airframe profiles that identities may declare."""
+    from registry.db import session_scope
+    from registry.store import list_profiles
+
+    with session_scope(runtime(request).settings.db_url) as s:
+        return [p.model_dump(mode="json") for p in list_profiles(s)]

@@ -1,0 +1,36 @@
+"""What one server needs to know, passed explicitly (and through the environment to the
+worker processes uvicorn spawns, which import `authn.service.app:app_from_env`)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+ENV_PREFIX = "AUTHN_SERVE_"
+
+
+@dataclass(frozen=True)
+class Settings:
+    db_url: str | None = None
+    policy_path: str | None = None
+    max_upload_bytes: int = 64 * 2**20
+    #: most files in one POST /v1/checks:batch
+    max_batch_files: int = 64
+
+    def to_env(self) -> dict[str, str]:
+        """The settings as environment variables for worker processes."""
+        env = {f"{ENV_PREFIX}MAX_UPLOAD_BYTES": str(self.max_upload_bytes),
+               f"{ENV_PREFIX}MAX_BATCH_FILES": str(self.max_batch_files)}
+        if self.db_url:
+            env[f"{ENV_PREFIX}DB_URL"] = self.db_url
+        if self.policy_path:
+            env[f"{ENV_PREFIX}POLICY"] = self.policy_path
+        return env
+
+    @classmethod
+    def from_env(cls) -> "Settings":
+        env = os.environ
+        return cls(db_url=env.get(f"{ENV_PREFIX}DB_URL") or env.get("AUTHN_DATABASE_URL"),
+                   policy_path=env.get(f"{ENV_PREFIX}POLICY"),
+                   max_upload_bytes=int(env.get(f"{ENV_PREFIX}MAX_UPLOAD_BYTES", 64 * 2**20)),
+                   max_batch_files=int(env.get(f"{ENV_PREFIX}MAX_BATCH_FILES", 64)))
