@@ -35,6 +35,12 @@ def serve(
     from registry.db import get_engine
 
     get_engine(settings.db_url)  # migrate once here, before the workers race to
-    uvicorn.run("authn.service.app:app_from_env", factory=True, host=host, port=port, workers=workers,
-                timeout_keep_alive=timeout_keep_alive, limit_concurrency=256, log_level="info",
-                server_header=False)
+    config = dict(app="authn.service.app:app_from_env", factory=True, timeout_keep_alive=timeout_keep_alive,
+                  limit_concurrency=256, log_level="info", server_header=False)
+    if workers == 1:
+        uvicorn.Server(uvicorn.Config(host=host, port=port, **config)).run()
+        return
+    from authn.service.workers import run_workers
+
+    typer.echo(f"authn serve: {workers} workers on http://{host}:{port} (OpenAPI at /docs)", err=True)
+    raise typer.Exit(run_workers(host, port, workers, config))

@@ -4,6 +4,7 @@ at /metrics, OpenAPI at /docs. Every error answers `{"error": "<one line>"}`."""
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -89,9 +90,9 @@ def create_app(settings: Settings) -> FastAPI:
     app.include_router(records.router)
 
     @app.get("/healthz", tags=["health"])
-    async def healthz() -> dict[str, str]:
-        """The process is up."""
-        return {"status": "ok"}
+    async def healthz() -> dict[str, Any]:
+        """The process is up (`worker`: its process id, to see how connections spread)."""
+        return {"status": "ok", "worker": os.getpid()}
 
     @app.get("/readyz", tags=["health"], responses={503: {"description": "not ready"}})
     async def readyz(request: Request) -> Any:
