@@ -25,8 +25,6 @@ def serve(
     """
     import os
 
-    import uvicorn
-
     from authn.service.settings import Settings
 
     settings = Settings(db_url=ctx.obj.db_url, policy_path=str(policy) if policy else None,
@@ -37,10 +35,7 @@ def serve(
     get_engine(settings.db_url)  # migrate once here, before the workers race to
     config = dict(app="authn.service.app:app_from_env", factory=True, timeout_keep_alive=timeout_keep_alive,
                   limit_concurrency=256, log_level="info", server_header=False)
-    if workers == 1:
-        uvicorn.Server(uvicorn.Config(host=host, port=port, **config)).run()
-        return
     from authn.service.workers import run_workers
 
-    typer.echo(f"authn serve: {workers} workers on http://{host}:{port} (OpenAPI at /docs)", err=True)
+    typer.echo(f"authn serve: {workers} worker(s) on http://{host}:{port} (OpenAPI at /docs)", err=True)
     raise typer.Exit(run_workers(host, port, workers, config))

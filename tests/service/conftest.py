@@ -90,3 +90,4 @@ def server(sqlite_db, keys, keys_dir, tmp_path_factory) -> Server:
     yield srv
     log = srv.stop()
     assert "Traceback" not in log, log[-3000:]
+    assert srv.proc.returncode == 0, log[-3000:]  # SIGTERM is a clean stop
