@@ -1,8 +1,8 @@
 """`authn serve` under load: checks/s sustained, p50/p99, and the audit chain after
 concurrent clients.
 
-    python benchmarks/locust_serve.py [--db URL] [--workers 2] [--users 4] [--duration 60]
-                                      [--clients 4] [--checks-each 250]
+    python benchmarks/locust_serve.py [--db URL --db2 URL] [--workers 2] [--users 2] [--duration 60]
+                                      [--connection close|keep-alive] [--clients 4] [--checks-each 250]
 
 1. Simulates paper-preset returns (genuine and spoofed claims), starts `authn serve
    --workers N` on a fresh database (SQLite in a temporary folder, or --db, which must be
@@ -162,12 +162,15 @@ def main() -> None:
                                               "the load phase and the chain phase each need their own")
     ap.add_argument("--db2", default=None, help="second empty database for the 4 x 250 phase (with --db)")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--users", type=int, default=4)
+    ap.add_argument("--users", type=int, default=2)
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--clients", type=int, default=4)
     ap.add_argument("--checks-each", type=int, default=250)
     ap.add_argument("--returns", type=int, default=12)
     ap.add_argument("--port", type=int, default=8765)
+    ap.add_argument("--connection", choices=("close", "keep-alive"), default="close",
+                    help="a new connection per check (radars posting dwells; the kernel spreads them over the "
+                         "workers) or one kept-alive connection per user (each stays on one worker)")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="authn-serve-bench-"))
     os.environ.setdefault("AUTHN_LOG_KEY", str(tmp / "log.pem"))
@@ -175,9 +178,11 @@ def main() -> None:
     from authn.cli import main as cli
     from authn.service.keys import create_key
 
+    os.environ["AUTHN_BENCH_CONNECTION"] = args.connection
     files = _returns(tmp, args.returns)
     url = f"http://127.0.0.1:{args.port}"
-    summary: dict = {"workers": args.workers, "cpus": os.cpu_count()}
+    summary: dict = {"workers": args.workers, "cpus": os.cpu_count(), "connection": args.connection,
+                     "database": "postgresql" if args.db and args.db.startswith("postgresql") else "sqlite"}
 
     db = _fresh_db(args.db, tmp, "load")
     token = create_key(db, "operator", "bench")[1]
