@@ -15,6 +15,8 @@ def serve(
     max_upload_mib: float = typer.Option(64.0, "--max-upload-mib", min=0.001, max=1024.0,
                                          help="Largest upload accepted (413 beyond it)."),
     policy: Path | None = typer.Option(None, "--policy", help="Cedar decision policy replacing the default."),
+    upload_timeout_s: float = typer.Option(60.0, "--upload-timeout-s", min=0.1, max=3600.0,
+                                           help="Seconds an upload may take to arrive (408 after)."),
     timeout_keep_alive: int = typer.Option(5, "--keep-alive-s", min=1, max=300, help="Idle keep-alive timeout."),
 ) -> None:
     """Serve checks, the audit log and the registry over HTTP (OpenAPI at /docs).
@@ -28,7 +30,7 @@ def serve(
     from authn.service.settings import Settings
 
     settings = Settings(db_url=ctx.obj.db_url, policy_path=str(policy) if policy else None,
-                        max_upload_bytes=int(max_upload_mib * 2**20))
+                        max_upload_bytes=int(max_upload_mib * 2**20), upload_timeout_s=upload_timeout_s)
     os.environ.update(settings.to_env())  # read by each worker process's app factory
     from registry.db import get_engine
 

@@ -113,7 +113,7 @@ def create_app(settings: Settings) -> FastAPI:
         """Prometheus text format (this worker's counters)."""
         return Response(request.app.state.runtime.metrics.render(), media_type="text/plain; version=0.0.4")
 
-    app.add_middleware(UploadLimits, max_upload_bytes=settings.max_upload_bytes)
+    app.add_middleware(UploadLimits, max_upload_bytes=settings.max_upload_bytes, timeout_s=settings.upload_timeout_s)
     return app
 
 

@@ -1,10 +1,14 @@
 """Upload limits enforced while the body streams in (ASGI middleware): a declared
 Content-Length over the limit is refused before a byte is read, a chunked body as soon as it
-passes the limit (413); a check upload that is not multipart/form-data gets 415."""
+passes the limit (413); a body that takes longer than the upload timeout to arrive is cut off
+(408), so a slow client holds one connection, never a worker; a check upload that is not
+multipart/form-data gets 415."""
 
 from __future__ import annotations
 
+import asyncio
 import json
+import time
 from typing import Any
 
 UPLOAD_PATHS = ("/v1/checks", "/v1/checks:batch")
@@ -21,8 +25,9 @@ async def _reply(send: Any, status: int, message: str) -> None:
 
 
 class UploadLimits:
-    def __init__(self, app: Any, max_upload_bytes: int) -> None:
+    def __init__(self, app: Any, max_upload_bytes: int, timeout_s: float) -> None:
         self.app = app
+        self.timeout_s = timeout_s
         self.limit = max_upload_bytes + FORM_OVERHEAD
         self.max_upload_bytes = max_upload_bytes
 
@@ -39,10 +44,15 @@ class UploadLimits:
         if declared.isdigit() and int(declared) > self.limit:
             await _reply(send, 413, too_big)
             return
-        state = {"received": 0, "over": False}
+        state: dict[str, Any] = {"received": 0, "over": False, "slow": False}
+        deadline = time.monotonic() + self.timeout_s
 
         async def limited_receive() -> dict:
-            msg = await receive()
+            try:
+                msg = await asyncio.wait_for(receive(), max(deadline - time.monotonic(), 0.001))
+            except asyncio.TimeoutError:
+                state["slow"] = state["over"] = True
+                return {"type": "http.disconnect"}
             if msg["type"] == "http.request":
                 state["received"] += len(msg.get("body", b""))
                 if state["received"] > self.limit:
@@ -59,5 +69,7 @@ class UploadLimits:
         except Exception:
             if not state["over"]:
                 raise
-        if state["over"]:
+        if state["slow"]:
+            await _reply(send, 408, f"upload not received within {self.timeout_s:g} s")
+        elif state["over"]:
             await _reply(send, 413, too_big)

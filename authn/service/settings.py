@@ -16,11 +16,14 @@ class Settings:
     max_upload_bytes: int = 64 * 2**20
     #: most files in one POST /v1/checks:batch
     max_batch_files: int = 64
+    #: seconds an upload's body may take to arrive (408 after)
+    upload_timeout_s: float = 60.0
 
     def to_env(self) -> dict[str, str]:
         """The settings as environment variables for worker processes."""
         env = {f"{ENV_PREFIX}MAX_UPLOAD_BYTES": str(self.max_upload_bytes),
-               f"{ENV_PREFIX}MAX_BATCH_FILES": str(self.max_batch_files)}
+               f"{ENV_PREFIX}MAX_BATCH_FILES": str(self.max_batch_files),
+               f"{ENV_PREFIX}UPLOAD_TIMEOUT_S": str(self.upload_timeout_s)}
         if self.db_url:
             env[f"{ENV_PREFIX}DB_URL"] = self.db_url
         if self.policy_path:
@@ -33,4 +36,5 @@ class Settings:
         return cls(db_url=env.get(f"{ENV_PREFIX}DB_URL") or env.get("AUTHN_DATABASE_URL"),
                    policy_path=env.get(f"{ENV_PREFIX}POLICY"),
                    max_upload_bytes=int(env.get(f"{ENV_PREFIX}MAX_UPLOAD_BYTES", 64 * 2**20)),
-                   max_batch_files=int(env.get(f"{ENV_PREFIX}MAX_BATCH_FILES", 64)))
+                   max_batch_files=int(env.get(f"{ENV_PREFIX}MAX_BATCH_FILES", 64)),
+                   upload_timeout_s=float(env.get(f"{ENV_PREFIX}UPLOAD_TIMEOUT_S", 60.0)))

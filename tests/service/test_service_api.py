@@ -97,6 +97,28 @@ def test_bad_uploads_are_4xx_one_line_and_audited(server, keys, returns, tmp_pat
     assert server.proc.poll() is None
 
 
+def test_slow_upload_is_cut_off_and_blocks_nothing(server, keys) -> None:
+    """A client that stops sending its body gets 408 after the upload timeout (3 s here);
+    meanwhile the same worker answers others."""
+    import socket
+    import time
+    from urllib.parse import urlsplit
+
+    url = urlsplit(server.url)
+    head = (f"POST /v1/checks HTTP/1.1\r\nHost: {url.netloc}\r\nAuthorization: Bearer {keys.operator}\r\n"
+            "Content-Type: multipart/form-data; boundary=b\r\nContent-Length: 100000\r\n\r\n--b\r\n")
+    with socket.create_connection((url.hostname, url.port), timeout=30) as sock:
+        t0 = time.monotonic()
+        sock.sendall(head.encode())
+        with server.client() as c:
+            assert c.get("/healthz").status_code == 200 and time.monotonic() - t0 < 2.0
+        reply = sock.recv(65536).decode()
+        waited = time.monotonic() - t0
+    status, _, rest = reply.partition("\r\n")
+    assert status == "HTTP/1.1 408 Request Timeout" and 2.5 < waited < 15.0, (reply, waited)
+    assert json.loads(rest.split("\r\n\r\n", 1)[1]) == {"error": "upload not received within 3 s"}
+
+
 def test_batch_answers_each_file_in_order(server, keys, returns) -> None:
     files = [("files", ("a.h5", returns["genuine"].read_bytes(), "application/x-hdf5")),
              ("files", ("junk.h5", b"junk", "application/x-hdf5")),
