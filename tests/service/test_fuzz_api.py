@@ -9,11 +9,9 @@ from __future__ import annotations
 import os
 from collections import Counter
 
-import pytest
+import schemathesis
 from hypothesis import HealthCheck, given, settings
 from hypothesis.errors import Unsatisfiable
-
-schemathesis = pytest.importorskip("schemathesis")  # a dev dependency: installed by `pip install -e ".[dev]"`
 
 EXAMPLES = int(os.environ.get("AUTHN_FUZZ_EXAMPLES", "60"))
 MIN_REQUESTS = 1000
