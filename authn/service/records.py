@@ -4,6 +4,7 @@ validated store, each followed by an audit entry naming the acting key."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
@@ -139,6 +140,24 @@ def _audit_change(rt: Any, caller: Caller, action: str, serial: str, detail: dic
                                                                 "role": caller.role, **detail})])
 
 
+async def _audited_write(rt: Any, caller: Caller, action: str, serial: str, detail: dict[str, Any],
+                         write: Callable[[], Any]) -> Any:
+    """Write-ahead: the change's audit entry commits before the change, so no change is ever
+    unaudited (the registry and the log are two transactions). A change that then fails is
+    followed by an `<action>-failed` entry with the one-line reason."""
+    from starlette.concurrency import run_in_threadpool
+
+    from authn.errors import describe
+
+    await rt.run(lambda: _audit_change(rt, caller, action, serial, detail))
+    try:
+        return await run_in_threadpool(write)
+    except Exception as exc:
+        reason = describe(exc) if not isinstance(exc, HTTPException) else str(exc.detail)
+        await rt.run(lambda: _audit_change(rt, caller, f"{action}-failed", serial, {"error": reason}))
+        raise
+
+
 @router.get("/identities", tags=["registry"], responses=_AUTH)
 def identities_list(request: Request, status: Literal["active", "revoked"] | None = None,
                     _caller: Caller = Depends(require("read_registry"))) -> list[dict[str, Any]]:
@@ -156,8 +175,6 @@ async def identities_register(request: Request, body: IdentityIn,
                               caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
     """Register an identity (admins); the change is audited with the acting key's id."""
     from pydantic import ValidationError
-    from starlette.concurrency import run_in_threadpool
-
     from authn.errors import AuthnError
     from registry.db import session_scope
     from registry.store import NewIdentity, describe_validation_error, register_identity
@@ -172,8 +189,7 @@ async def identities_register(request: Request, body: IdentityIn,
         with session_scope(rt.settings.db_url) as s:
             return register_identity(s, new)
 
-    rec = await run_in_threadpool(write)
-    await rt.run(lambda: _audit_change(rt, caller, "register", rec.serial, {"model": rec.model}))
+    rec = await _audited_write(rt, caller, "register", new.serial, {"model": new.model}, write)
     return _record_json(rec)
 
 
@@ -197,8 +213,6 @@ async def identities_revoke(request: Request, serial: Annotated[str, Path(patter
                             body: RevokeIn | None = None,
                             caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
     """Revoke an identity (admins); kept for the audit trail, never deleted; audited."""
-    from starlette.concurrency import run_in_threadpool
-
     from registry.db import session_scope
     from registry.store import get_identity, revoke_identity
 
@@ -211,8 +225,7 @@ async def identities_revoke(request: Request, serial: Annotated[str, Path(patter
                 raise HTTPException(404, f"serial {serial}: not registered")
             return revoke_identity(s, serial, reason)
 
-    rec = await run_in_threadpool(write)
-    await rt.run(lambda: _audit_change(rt, caller, "revoke", rec.serial, {"reason": reason}))
+    rec = await _audited_write(rt, caller, "revoke", serial, {"reason": reason}, write)
     return _record_json(rec)
 
 

@@ -175,8 +175,11 @@ def test_registry_changes_are_audited_with_the_key(server, keys) -> None:
     assert revoked.status_code == 200 and revoked.json()["status"] == "revoked"
     assert again.status_code == 400 and missing.status_code == 404
     assert {"m300", "m600", "phantom4"} <= slugs
+    # write-ahead: every attempt is logged before it runs, a failed one is followed by its reason
     assert [(e["kind"], e["payload"]["action"], e["payload"]["api_key_id"]) for e in entries] == \
-        [("registry", "register", keys.admin_id), ("registry", "revoke", keys.admin_id)]
+        [("registry", a, keys.admin_id) for a in ("register", "register", "register-failed", "revoke", "revoke",
+                                                   "revoke-failed")]
+    assert "already registered" in entries[2]["payload"]["error"]
 
 
 def test_audit_paging_verify_and_checkpoint(server, keys, returns, sqlite_db) -> None:
