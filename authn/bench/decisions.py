@@ -97,6 +97,7 @@ class Row:
     wrong_reasons: dict[str, int]  # reasons of the decisions that went the wrong way
     auth_ms: list[float] = field(default_factory=list)  # each check's remote_id_auth stage (DRIP verification)
     reason_missing: int = 0  # DRIP rejections without their category's reason (`DRIP_REASONS`)
+    wrong_pairs: dict[str, int] = field(default_factory=dict)  # "flown->claimed" of the wrong decisions
 
     @property
     def median_auth_ms(self) -> float:
@@ -142,6 +143,7 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                 correct = skipped = missing = 0
                 times, auth = [], []
                 wrong: dict[str, int] = defaultdict(int)
+                pairs: dict[str, int] = defaultdict(int)
                 for i in range(n):
                     flies = slugs[i % len(slugs)]
                     claims = flies
@@ -169,10 +171,11 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                     skipped += out.radar is None
                     if out.decision != EXPECTED[cat]:
                         wrong[",".join(out.reasons)] += 1
+                        pairs[f"{flies}->{claims}"] += 1
                     if progress:
                         progress(1)
                 rows.append(Row(preset, cat, n, correct, skipped, statistics.median(times), dict(wrong), auth,
-                                missing))
+                                missing, dict(pairs)))
     return rows
 
 
@@ -262,6 +265,7 @@ def summarise(rows: list[Row]) -> dict[str, dict[str, dict[str, float]]]:
     for r in rows:
         out[r.preset][r.category] = {"n": r.n, "correct_rate": r.rate, "radar_skipped_rate": r.radar_skipped / r.n,
                                      "median_check_ms": round(r.median_ms, 2), "wrong_reasons": r.wrong_reasons,
+                                     "wrong_pairs": r.wrong_pairs,
                                      "median_remote_id_auth_ms": round(r.median_auth_ms, 4)}
         if r.category in DRIP_REASONS:
             out[r.preset][r.category]["reason_missing"] = r.reason_missing

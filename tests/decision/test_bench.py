@@ -22,6 +22,9 @@ def test_decision_rows_cover_every_category() -> None:
     summary = summarise(rows)["paper"]
     assert set(summary) == set(CATEGORIES)
     assert summary["drip_forged"]["reason_missing"] == 0 and "reason_missing" not in summary["genuine"]
+    for r in rows:  # every wrong decision is counted once by reason and once by (flown -> claimed) pair
+        assert sum(r.wrong_pairs.values()) == sum(r.wrong_reasons.values()) == r.n - r.correct
+        assert summary[r.category]["wrong_pairs"] == r.wrong_pairs
     cost = drip_cost(rows)["paper"]
     assert (cost["signed_valid_n"], cost["signed_rejected_n"], cost["unsigned_n"]) == (3, 6, 18)
     assert cost["signed_valid_ms"] > cost["unsigned_ms"] > 0  # verifying costs more than finding nothing to verify
