@@ -99,7 +99,7 @@ class _Timer:
         try:
             yield
         finally:
-            self.ms[name] = round((time.perf_counter() - t0) * 1e3, 3)
+            self.ms[name] = round(self.ms.get(name, 0.0) + (time.perf_counter() - t0) * 1e3, 3)  # a stage may recur
 
 
 def _file_sha256(path: Path) -> str:
@@ -221,7 +221,9 @@ class Checker:
 
             classifier = classifier_for(rec, self.model, file or "FILE")  # the bundle of the file's waveform
             evidence.preset = classifier.preset
-            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer, classifier, facts.profile)
+            with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
+                claimed = self.db.profile(facts.model) if facts.model else None
+            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer, classifier, claimed)
             evidence.remote_id_issues = _issues(claim, auth, mid, evidence.radar.rotorcraft)
             with timer.stage("policy"):
                 result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(),

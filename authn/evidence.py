@@ -127,14 +127,13 @@ class RegistryFacts:
     valid_from: datetime | None = None
     valid_until: datetime | None = None
     public_key: bytes | None = None
-    profile: Any = None  # the registered model's UavProfile (1:1 verification), None if unknown
 
     @classmethod
     def of(cls, identity: Any) -> "RegistryFacts":
         if identity is None:
             return cls()
         return cls(True, identity.status, identity.model, identity.id_type, identity.valid_from,
-                   identity.valid_until, identity.public_key, getattr(identity, "profile", None))
+                   identity.valid_until, identity.public_key)
 
     def principal(self) -> dict[str, Any]:
         """Cedar attributes of the principal `Uav::"<serial>"`."""

@@ -41,7 +41,6 @@ class IdentityFacts:
     valid_from: datetime
     valid_until: datetime | None
     public_key: bytes | None = None  # raw Ed25519 host identity (DRIP), when registered with one
-    profile: UavProfile | None = None  # the registered model's physical parameters (1:1 verification)
 
 
 def _first_line(exc: BaseException) -> str:
@@ -216,10 +215,11 @@ class Database:
             return None
         s, id_type, model, status, vf, vu, key = rows[0]
         return IdentityFacts(s, id_type, model, status, self.from_db_time(vf), self.from_db_time(vu),
-                             bytes(key) if key is not None else None, self.profile(model))
+                             bytes(key) if key is not None else None)
 
     def profile(self, slug: str) -> UavProfile | None:
-        """The registered model's physical parameters (what 1:1 verification checks against)."""
+        """The registered model's physical parameters (what 1:1 verification checks against);
+        read only when the radar runs, so a registry-only rejection costs one query."""
         rows = self.fetch("SELECT name, rotors, arms, blades_per_rotor, blade_length_m, rotor_rate_hz, "
                           "propeller_distance_m FROM model_profiles WHERE slug = :slug", {"slug": slug})
         if not rows:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import os
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import pytest
 
@@ -21,6 +23,28 @@ def _pg_admin():
     return create_engine(resolve_url(PG_URL), isolation_level="AUTOCOMMIT")
 
 
+@contextmanager
+def fresh_pg_database(prefix: str) -> Iterator[str]:
+    """URL of a new empty PostgreSQL database (skips the test without a server), dropped after."""
+    if not PG_URL:
+        pytest.skip("PostgreSQL: set AUTHN_TEST_POSTGRES_URL to a server (.ci/run starts one)")
+    from sqlalchemy.engine import make_url
+
+    from registry.db import dispose_engines, resolve_url
+
+    name = f"{prefix}_{uuid.uuid4().hex[:12]}"
+    admin = _pg_admin()
+    with admin.connect() as conn:
+        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
+    try:
+        yield make_url(resolve_url(PG_URL)).set(database=name).render_as_string(hide_password=False)
+    finally:
+        dispose_engines()
+        with admin.connect() as conn:
+            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        admin.dispose()
+
+
 @pytest.fixture(params=BACKENDS, ids=BACKENDS)
 def db_url(request, tmp_path):
     """URL of an empty database (never migrated yet)."""
@@ -30,21 +54,8 @@ def db_url(request, tmp_path):
         yield f"sqlite:///{tmp_path / 'registry.sqlite3'}"
         dispose_engines()
         return
-    if not PG_URL:
-        pytest.skip("PostgreSQL: set AUTHN_TEST_POSTGRES_URL to a server (.ci/run starts one)")
-    from sqlalchemy.engine import make_url
-
-    from registry.db import resolve_url
-
-    name = f"authn_test_{uuid.uuid4().hex[:12]}"
-    admin = _pg_admin()
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
-    yield make_url(resolve_url(PG_URL)).set(database=name).render_as_string(hide_password=False)
-    dispose_engines()
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-    admin.dispose()
+    with fresh_pg_database("authn_test") as url:
+        yield url
 
 
 @pytest.fixture

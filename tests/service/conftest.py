@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import PG_URL
 from tests.service.server import M300, M600, Server, flight, server_env, start
 
 
@@ -55,27 +54,12 @@ def sqlite_db(tmp_path_factory) -> str:
 @pytest.fixture(scope="module")
 def pg_db():
     """A fresh PostgreSQL database with the example identities (skipped without a server)."""
-    if not PG_URL:
-        pytest.skip("PostgreSQL: set AUTHN_TEST_POSTGRES_URL to a server (.ci/run starts one)")
-    import uuid
-
-    from sqlalchemy.engine import make_url
-
     from authn.demo import register_examples
-    from registry.db import dispose_engines, resolve_url
-    from tests.conftest import _pg_admin
+    from tests.conftest import fresh_pg_database
 
-    name = f"authn_svc_{uuid.uuid4().hex[:12]}"
-    admin = _pg_admin()
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
-    url = make_url(resolve_url(PG_URL)).set(database=name).render_as_string(hide_password=False)
-    register_examples(url)
-    yield url
-    dispose_engines()
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-    admin.dispose()
+    with fresh_pg_database("authn_svc") as url:
+        register_examples(url)
+        yield url
 
 
 @pytest.fixture(scope="module")
