@@ -102,3 +102,11 @@ def test_signing_and_trust_options_refuse_bad_input_in_one_line(tmp_path: Path, 
         assert main(["--db", f"sqlite:///{tmp_path / 'r.sqlite3'}", *argv]) == 2, argv
         err = capsys.readouterr().err
         assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err, (argv, err)
+
+
+def test_simulate_refuses_an_unknown_domain_in_one_line(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "x.h5"
+    assert main(["simulate", "--model", "m300", "--range", "300", "--domain", "fmcw", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [err] and "--domain: 'fmcw' is not one of if, range, cw" in err
+    assert not out.exists()
