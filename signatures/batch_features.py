@@ -1,0 +1,596 @@
+"""Features of many returns at once: `extract_iq` with a batch axis (B x chirps x samples).
+
+Why: one return costs ~1,500 Python-level numpy calls in `features.extract_iq`, so the
+interpreter, not the arithmetic, sets its cost. Here every stage runs once per batch on
+(B, ...) arrays and yields the same `FeatureResult`s as the single-return path, row by
+row (same `detected`, `gate` and counts; features to float32 rounding;
+tests/features/test_batch_features.py).
+
+Layout: the cube stage (scaling, clutter suppression, range FFT, range profile, CFAR,
+gate) runs in blocks of rows that fit the cache (`_CUBE_BLOCK_BYTES`), because the
+passes over the cube are the cost floor on big cubes; everything after it works on the
+(B, chirps, gate bins) slow-time gates of the whole batch. Only the columns the CNN patch
+needs are kept per row, and the patch itself is built lazily by `features._patch`.
+`cw` cubes (no range axis) go through the single-return path row by row.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from dataclasses import fields as dataclass_fields
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from signatures import batch_estimators as best
+from signatures import estimators as est
+from signatures import features as F
+from signatures import fft as _fft
+from signatures import rd
+from signatures import timefreq as tf
+from signatures.errors import SignaturesError
+from signatures.radar import RadarConfig
+from signatures.recording import DOMAINS
+from signatures.stats import median
+
+__all__ = ["MAX_BATCH", "batch_size", "extract_batch", "extract_many"]
+
+MAX_BATCH = 1024
+#: rows of the cube stage run together while their complex128 FFT workspace fits in this (cache-sized)
+_CUBE_BLOCK_BYTES = 4 << 20
+#: default memory budget: this share of the available memory, capped at _BUDGET_CAP
+_BUDGET_SHARE = 0.25
+_BUDGET_CAP = 1 << 30
+_TINY = F._TINY
+_F32 = np.float32
+
+
+@dataclass(frozen=True)
+class _Cube:
+    """What the cube stage leaves per row (B rows): all the slow-time stage needs."""
+
+    log2_scale: np.ndarray  # (B,) int
+    zero: np.ndarray  # (B,) bool: all-zero cube
+    profile: np.ndarray  # (B, bins) float32
+    mu: np.ndarray  # (B, bins) complex64: range spectrum of the slow-time mean
+    detected: np.ndarray  # (B,) bool
+    peak_bin: np.ndarray  # (B,) int
+    peak_bin_frac: np.ndarray  # (B,) float64
+    snr_db: np.ndarray  # (B,) float64
+    gate_lo: np.ndarray  # (B,) int
+    slow: np.ndarray  # (B, chirps, gate) complex64
+    patch_lo: np.ndarray  # (B,) int
+    patch_cols: np.ndarray  # (B, chirps, patch bins) complex64
+
+
+def batch_size(n_chirps: int, n_samples: int, memory_bytes: int | None = None) -> int:
+    """Rows per batch so that the batch's working arrays fit `memory_bytes` (default: a quarter
+    of the available memory, at most 1 GiB); between 1 and MAX_BATCH."""
+    budget = _default_budget() if memory_bytes is None else int(memory_bytes)
+    return int(min(MAX_BATCH, max(1, budget // _bytes_per_return(n_chirps, n_samples))))
+
+
+def _bytes_per_return(n_chirps: int, n_samples: int, gate_bins: int = F.GATE_BINS) -> int:
+    """Peak bytes one row adds to a batch: its input cube as complex64 (stacked by `extract_many`),
+    the kept patch columns and gate, and ~24 gate-sized complex128 temporaries (Doppler
+    spectrum, powers, STFT frames and the flash estimators' fields), measured with tracemalloc
+    (tests/features/test_batch_features.py checks the estimate is not below the measured peak)."""
+    gate = n_chirps * min(gate_bins, n_samples)
+    patch = n_chirps * min(F.PATCH_SHAPE[1], n_samples)
+    return 8 * n_chirps * n_samples + 8 * patch + 24 * 16 * gate
+
+
+def _default_budget() -> int:
+    avail = None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    avail = int(line.split()[1]) * 1024
+                    break
+    except OSError:
+        pass
+    if avail is None:
+        try:
+            avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (ValueError, OSError, AttributeError):
+            avail = 4 << 30
+    return int(min(_BUDGET_CAP, avail * _BUDGET_SHARE))
+
+
+def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] | None = None, *,
+                 memory_bytes: int | None = None) -> list[F.FeatureResult]:
+    """Features of any mix of recordings, in input order: rows that share (config, cube shape,
+    dtype, domain) run through `extract_batch` in chunks of `batch_size`; `cw` rows through
+    `features.extract`. A bad row raises `SignaturesError` naming its input index."""
+    n = len(recordings)
+    expected = _expected(expected_range_m, n)
+    out: list[F.FeatureResult | None] = [None] * n
+    groups: dict[tuple, list[int]] = {}
+    for i, rec in enumerate(recordings):
+        iq = np.asarray(rec.iq)
+        groups.setdefault((rec.config, iq.shape, iq.dtype.str, rec.domain), []).append(i)
+    for (config, shape, _, domain), rows in groups.items():
+        if domain == "cw" or len(shape) != 2:
+            for i in rows:
+                out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i]))
+            continue
+        step = batch_size(shape[0], shape[1], memory_bytes)
+        for s in range(0, len(rows), step):
+            part = rows[s:s + step]
+            iq = np.stack([np.asarray(recordings[i].iq) for i in part])
+            res = _extract(iq, config, [expected[i] for i in part], F.GATE_BINS, True, domain, part)
+            for i, r in zip(part, res):
+                out[i] = r
+    return out  # type: ignore[return-value]
+
+
+def extract_batch(iq: np.ndarray, config: RadarConfig, expected_range_m: Sequence[float | None] | None = None,
+                  *, gate_bins: int = F.GATE_BINS, clutter_suppression: bool = True,
+                  domain: str = "if") -> list[F.FeatureResult]:
+    """`features.extract_iq(iq[b], config, expected_range_m[b], gate_bins, clutter_suppression,
+    domain=domain)` for every row b of `iq` (B, chirps, samples; any numeric dtype).
+
+    Bad input in any row raises the single path's `SignaturesError`, prefixed with "row b: ".
+    """
+    a = np.asarray(iq)
+    if a.ndim != 3:
+        raise SignaturesError(f"IQ batch must be 3-D (batch, n_chirps, n_samples), got shape {a.shape}")
+    expected = _expected(expected_range_m, a.shape[0])
+    return _extract(a, config, expected, gate_bins, clutter_suppression, domain, list(range(a.shape[0])))
+
+
+def _expected(expected_range_m: Sequence[float | None] | None, n: int) -> list[float | None]:
+    if expected_range_m is None:
+        return [None] * n
+    expected = list(expected_range_m)
+    if len(expected) != n:
+        raise SignaturesError(f"{len(expected)} expected ranges for {n} returns")
+    return expected
+
+
+def _labelled(row: int, fn):
+    """Run fn, prefixing a SignaturesError's message with the row it concerns."""
+    try:
+        return fn()
+    except SignaturesError as exc:
+        raise SignaturesError(f"row {row}: {exc}") from None
+
+
+def _extract(iq: np.ndarray, config: RadarConfig, expected: list[float | None], gate_bins: int,
+             suppress: bool, domain: str, labels: list[int]) -> list[F.FeatureResult]:
+    if gate_bins < 1:
+        raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
+    if domain not in DOMAINS:
+        raise SignaturesError(f"unknown domain {domain!r} (known: {', '.join(DOMAINS)})")
+    if iq.shape[0] == 0:
+        return []
+    if domain == "cw" or iq.shape[1] < 1 or iq.shape[2] < 1:  # cw: the single path, row by row
+        return [_labelled(labels[b], lambda b=b: F.extract_iq(iq[b], config, expected[b], gate_bins, suppress,
+                                                              domain=domain)) for b in range(iq.shape[0])]
+    if not (np.issubdtype(iq.dtype, np.number) and not np.issubdtype(iq.dtype, np.timedelta64)):
+        raise SignaturesError(f"IQ cube must be numeric, got dtype {iq.dtype}")
+    n_chirps, n_bins = iq.shape[1:]
+    within = [_within(config, e, gate_bins, n_bins, labels[b]) for b, e in enumerate(expected)]
+    cube = _cube_stage(iq, within, gate_bins, suppress, domain, labels)
+    live = np.flatnonzero(~cube.zero)
+    results: list[F.FeatureResult | None] = [None] * iq.shape[0]
+    for b in np.flatnonzero(cube.zero):
+        results[b] = F._empty(config, n_chirps, n_bins, within[b])
+    if live.size:
+        for b, r in zip(live, _slow_stage(cube, live, config, n_chirps, n_bins, suppress)):
+            results[b] = r
+    return results  # type: ignore[return-value]
+
+
+def _within(config: RadarConfig, expected: float | None, gate_bins: int, n_bins: int,
+            label: int) -> tuple[int, int] | None:
+    """The gate an expected range asks for (as `extract_iq`), or None."""
+    if expected is None:
+        return None
+    lo, hi = config.range_window_m
+    if not (math.isfinite(expected) and lo <= expected < hi):
+        raise SignaturesError(f"row {label}: expected range {expected:g} m is outside the recorded window "
+                              f"[{lo:g}, {hi:g}) m")
+    k = int((expected - lo) / config.range_bin_m(n_bins))
+    return max(0, k - gate_bins // 2), min(n_bins, k + gate_bins // 2 + 1)
+
+
+# --- cube stage ---------------------------------------------------------------------------------
+
+def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins: int, suppress: bool,
+                domain: str, labels: list[int]) -> _Cube:
+    """Scale, suppress clutter, range-FFT, profile and detect in cache-sized blocks of rows;
+    keep each row's gate and patch columns."""
+    n_rows, n_chirps, n_bins = iq.shape
+    size = min(gate_bins, n_bins)
+    p_size = min(F.PATCH_SHAPE[1], n_bins)
+    lo_w = np.array([w[0] if w else 0 for w in within])
+    hi_w = np.array([w[1] if w else n_bins for w in within])
+    looks = max(1, n_chirps - 1) if suppress else n_chirps
+    out = dict(log2_scale=np.zeros(n_rows, int), zero=np.zeros(n_rows, bool),
+               profile=np.zeros((n_rows, n_bins), np.float32), mu=np.zeros((n_rows, n_bins), np.complex64),
+               detected=np.zeros(n_rows, bool), peak_bin=np.zeros(n_rows, int),
+               peak_bin_frac=np.zeros(n_rows), snr_db=np.zeros(n_rows), gate_lo=np.zeros(n_rows, int),
+               slow=np.empty((n_rows, n_chirps, size), np.complex64), patch_lo=np.zeros(n_rows, int),
+               patch_cols=np.empty((n_rows, n_chirps, p_size), np.complex64))
+    block = max(1, _CUBE_BLOCK_BYTES // (16 * n_chirps * n_bins))
+    for s in range(0, n_rows, block):
+        e = min(n_rows, s + block)
+        scaled, log2, zero = _prepare(iq[s:e], labels[s:e])
+        mean = scaled.mean(axis=1, keepdims=True)
+        if suppress:
+            scaled -= mean  # our own copy
+        if domain == "if":
+            spec = _fft.fft(scaled, axis=-1, window=rd.hann(n_bins))
+            # `_fft.fft`'s arithmetic, outside its workspaces (keyed by shape: reused by the cube)
+            mu = np.fft.fft(mean[:, 0] * rd.hann(n_bins), axis=-1).astype(np.complex64)
+        else:  # a range cube already is a range spectrum
+            spec = scaled
+            mu = mean[:, 0]
+        profile = _range_profile(spec)
+        det, frac, snr, peak = _detect(profile, looks, lo_w[s:e], hi_w[s:e])
+        g_lo = _window(peak, size, n_bins)
+        p_lo = _window(peak, p_size, n_bins)
+        out["slow"][s:e] = _columns(spec, g_lo, size)
+        out["patch_cols"][s:e] = _columns(spec, p_lo, p_size)
+        for key, val in (("log2_scale", log2), ("zero", zero), ("profile", profile), ("mu", mu),
+                         ("detected", det), ("peak_bin", peak), ("peak_bin_frac", frac), ("snr_db", snr),
+                         ("gate_lo", g_lo), ("patch_lo", p_lo)):
+            out[key][s:e] = val
+    return _Cube(**out)
+
+
+def _prepare(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`rd.prepare` of every row: complex64 scaled by an exact power of two per row."""
+    if a.dtype in (np.complex64, np.float32, np.float16) or np.issubdtype(a.dtype, np.integer):
+        work = np.ascontiguousarray(a, dtype=np.complex64)
+    else:
+        work = np.ascontiguousarray(a, dtype=np.complex128)
+    peak = np.abs(work.view(work.real.dtype)).max(axis=(1, 2)).astype(np.float64)
+    bad = ~np.isfinite(peak)
+    if bad.any():
+        raise SignaturesError(f"row {labels[int(np.argmax(bad))]}: IQ cube holds NaN or Inf")
+    zero = peak == 0.0
+    exponent = np.where(zero, 0, np.frexp(np.where(zero, 1.0, peak))[1])
+    scale = np.ldexp(1.0, -exponent)[:, None, None]
+    if work.dtype == np.complex64 and bool(np.all((-exponent >= -126) & (-exponent <= 127))):
+        scaled = work * scale.astype(np.float32)  # exact: powers of two
+    else:
+        scaled = (work.astype(np.complex128) * scale).astype(np.complex64)
+    return scaled, exponent, zero
+
+
+def _range_profile(spec: np.ndarray) -> np.ndarray:
+    """`rd.range_profile` per row: mean power over chirps of each range bin."""
+    b, n, k = spec.shape
+    f = np.ascontiguousarray(spec).view(np.float32).reshape(b, n, 2 * k)
+    sq = (f * f).sum(axis=1).reshape(b, k, 2).sum(axis=2)
+    return (sq / np.float32(n)).astype(np.float32, copy=False)
+
+
+def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):
+    """`rd.detect` per row (median CFAR over range, detection counted within [lo, hi)):
+    (detected, peak_bin_frac, snr_db, peak_bin)."""
+    b, n = profile.shape
+    g, t = rd.CFAR_GUARD, rd.CFAR_TRAIN
+    offsets = np.concatenate([np.arange(-g - t, -g), np.arange(g + 1, g + t + 1)])
+    idx = np.arange(n)[:, None] + offsets[None, :]
+    period = max(2 * n - 2, 1)
+    idx = np.mod(idx, period)
+    idx = np.where(idx >= n, period - idx, idx)
+    noise = median(profile[:, idx], axis=2).astype(np.float32, copy=False)
+    factor = rd._cfar_factor(looks, offsets.size, rd.CFAR_PFA)
+    threshold = noise * np.float32(factor)
+    hits = (profile > threshold) & (profile > rd._TINY)
+    cols = np.arange(n)[None, :]
+    sel = (cols >= lo[:, None]) & (cols < hi[:, None])
+    region = hits & sel
+    level = np.maximum(threshold / np.float32(rd._cfar_factor(looks, 2 * t, rd.CFAR_PFA)), rd._TINY)
+    ratio = np.where(sel, profile / level, -np.inf)
+    any_hit = region.any(axis=1)
+    ratio = np.where(any_hit[:, None] & ~region, -np.inf, ratio)
+    k = np.argmax(ratio, axis=1)
+    best = ratio[np.arange(b), k].astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        snr = np.where(np.isfinite(best), 10.0 * np.log10(np.maximum(best, 1e-30)), -300.0)
+    return any_hit, _interp_peak(profile, k), snr, k
+
+
+def _interp_peak(y: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """`rd._interp_peak` per row: log-parabolic sub-bin peak of y[b] around k[b]."""
+    b, n = y.shape
+    inner = (k > 0) & (k < n - 1)
+    kc = np.clip(k, 1, max(n - 2, 1)) if n >= 3 else k
+    rows = np.arange(b)
+    if n < 3:
+        return k.astype(np.float64)
+    a, m, c = (np.log(np.maximum(y[rows, kc + j].astype(np.float64), 1e-37)) for j in (-1, 0, 1))
+    den = a - 2.0 * m + c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        step = np.clip(0.5 * (a - c) / np.where(den < 0.0, den, -1.0), -0.5, 0.5)
+    return np.where(inner & (den < 0.0), k + step, k.astype(np.float64))
+
+
+def _window(centre: np.ndarray, size: int, n: int) -> np.ndarray:
+    """`features._window` per row: the window's first bin."""
+    return np.minimum(np.maximum(0, centre - size // 2), n - size)
+
+
+def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
+    """x[b, :, lo[b]:lo[b] + size] for every row b."""
+    return np.take_along_axis(x, (lo[:, None] + np.arange(size))[:, None, :], axis=2)
+
+
+# --- slow-time stage -----------------------------------------------------------------------------
+
+def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, n_chirps: int, n_bins: int,
+                suppress: bool) -> list[F.FeatureResult]:
+    """`features._features` of the rows `live` (not all-zero), vectorised over rows."""
+    n = n_chirps
+    slow = cube.slow[live]
+    size = slow.shape[2]
+    g_lo = cube.gate_lo[live]
+    peak_bin = cube.peak_bin[live]
+    dop = np.fft.fftshift(_fft.fft(slow, axis=1, window=rd.hann(n)[:, None]), axes=1)
+    power = _power(dop)
+    if suppress:
+        raw_power, stationary = _unsuppressed(cube.mu[live], dop, power, g_lo, size)
+    else:
+        raw_power, stationary = power, np.zeros(live.size)
+    noise_bin = median(cube.profile[live], axis=1).astype(np.float64)
+    noise_doppler = np.maximum(noise_bin * n * float(np.mean(rd.hann(n) ** 2)), _TINY)
+
+    bin_m = config.range_bin_m(n_bins)
+    dop_bin_hz = config.prf_hz / n
+    lam = config.doppler_wavelength_m(n_bins)
+    d = power.sum(axis=2)
+    d_raw = raw_power.sum(axis=2)
+    centre = n // 2
+    d_max = d.max(axis=1).astype(np.float64)
+    d_med = median(d, axis=1).astype(np.float64)
+    contrast = d_max / np.maximum(d_med, _TINY)
+    hovering = suppress & (stationary > d_max) & (contrast < n / F.MOVING_LINE_BINS)
+    body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering)
+    body_hz = (body_idx - centre) * dop_bin_hz
+    velocity = body_hz * lam / 2.0
+    vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
+    dwell = n * config.pri_s
+    snr_db = cube.snr_db[live]
+    snr = np.maximum(10.0 ** (snr_db / 10.0), 1e-3)
+    range_mid = config.range_offset_m + cube.peak_bin_frac[live] * bin_m
+    range_std = bin_m * (0.05 + 1.0 / np.sqrt(snr))
+
+    rel_bins = np.mod(np.arange(n)[None, :] - body_idx[:, None] + n // 2, n) - n // 2
+    rel_hz = (rel_bins * dop_bin_hz).astype(np.float32)
+    total = np.maximum(d.sum(axis=1).astype(np.float64), _TINY)
+    total32 = total.astype(np.float32)[:, None]
+    q_d = d / total32
+    q_r = power.sum(axis=1) / total32
+    r_axis = (g_lo[:, None] + np.arange(size) - peak_bin[:, None]) * bin_m
+    mu_r_rel = np.sum(r_axis * q_r, axis=1)
+    std_r = np.sqrt(np.maximum(np.sum((r_axis - mu_r_rel[:, None]) ** 2 * q_r, axis=1), 0.0))
+    mu_hz = np.sum(rel_hz * q_d, axis=1).astype(np.float64)
+    dev = rel_hz - mu_hz.astype(np.float32)[:, None]
+    std_hz = np.sqrt(np.maximum(np.sum(dev ** 2 * q_d, axis=1).astype(np.float64), 0.0))
+    par_db = _db(d_max / np.maximum(d.mean(axis=1).astype(np.float64), _TINY))
+    micro = np.abs(rel_bins) > F.BODY_BINS
+    d_micro = np.where(micro, d, np.float32(0.0))
+    micro_power = np.maximum(d_micro.sum(axis=1).astype(np.float64), _TINY)
+    abs_hz = np.abs(rel_hz)
+    centroid = np.sum(abs_hz * d_micro, axis=1).astype(np.float64) / micro_power
+    spread = np.where(micro, (abs_hz - centroid.astype(np.float32)[:, None]) ** 2 * d, np.float32(0.0))
+    bandwidth = np.sqrt(np.maximum(spread.sum(axis=1).astype(np.float64) / micro_power, 0.0))
+    peak_db = _db(power.max(axis=(1, 2)).astype(np.float64)) + 20.0 * math.log10(2.0) * cube.log2_scale[live]
+    noise_gate = noise_doppler * size
+    shift = (n // 2 - body_idx).astype(int)  # np.roll's truncation of a fractional shift
+    rolled = np.take_along_axis(d, (np.arange(n)[None, :] - shift[:, None]) % n, axis=1)
+    n_peaks = _count_peaks(rolled, noise_gate)
+    energy_ratio = np.where(micro, np.float32(0.0), d).sum(axis=1).astype(np.float64) / total
+    q = power / total32[:, :, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plogp = np.where(q > 0, q * np.log(np.maximum(q, np.float32(_TINY))), np.float32(0.0))
+    entropy = -plogp.reshape(live.size, -1).sum(axis=1).astype(np.float64) / math.log(max(n * size, 2))
+
+    occupied = _smooth(d, max(1, n // 256)) > (noise_gate * 10 ** (F.OCCUPANCY_DB / 10)).astype(np.float32)[:, None]
+    occupancy = occupied.mean(axis=1)
+    tip, tip_std, aliased = _tip_speed(occupied, rel_bins, body_hz, config, dop_bin_hz)
+
+    per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
+    flash, flash_std = per.flash_rate_hz, per.flash_rate_std_hz
+    rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
+    has_length = (rotor > 0) & (tip > 0) & ~aliased
+    with np.errstate(divide="ignore", invalid="ignore"):
+        length = np.where(has_length, tip / (2 * math.pi * rotor), 0.0)
+        length_std = np.where(has_length, length * np.hypot(tip_std / tip, rotor_std / rotor), 0.0)
+
+    win, hop = tf.stft_params(config, n)
+    cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop)), flash)
+
+    cols = dict(
+        mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
+        std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
+        spectral_centroid_hz=centroid, spectral_bandwidth_hz=bandwidth, peak_amplitude_db=peak_db,
+        num_peaks=n_peaks, energy_ratio=energy_ratio, entropy=entropy,
+        range_m=range_mid - velocity * dwell / 2.0, range_std_m=range_std,
+        radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
+        tip_speed_mps=tip, tip_speed_std_mps=tip_std, tip_aliased=aliased, doppler_occupancy=occupancy,
+        snr_db=np.maximum(snr_db, -100.0), detected=cube.detected[live],
+        flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,
+        rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,
+        blade_length_std_m=length_std, flash_score=per.score, flash_count=per.n_events,
+        flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
+    table = np.stack([np.asarray(cols[name], dtype=np.float64) for name in F.FEATURE_NAMES], axis=1).tolist()
+    detected = cube.detected[live].tolist()
+    gates = (g_lo + 0).tolist()
+    out = []
+    for j, b in enumerate(live.tolist()):
+        make = _patch_maker(cube.patch_cols[b], config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]))
+        out.append(F.FeatureResult(detected[j], F.Features(*table[j]), make, (gates[j], gates[j] + size)))
+    return out
+
+
+def _patch_maker(cols: np.ndarray, config: RadarConfig, peak: int, body_idx: float):
+    """The lazy CNN patch of one row: `features._patch` of its kept columns (the same window)."""
+    def make() -> np.ndarray:
+        return F._patch(cols, config, peak, body_idx)
+    return make
+
+
+def _power(z: np.ndarray) -> np.ndarray:
+    return z.real ** 2 + z.imag ** 2
+
+
+def _db(x: np.ndarray) -> np.ndarray:
+    return 10.0 * np.log10(np.maximum(x, 1e-30))
+
+
+def _unsuppressed(mu: np.ndarray, dop: np.ndarray, power: np.ndarray, g_lo: np.ndarray,
+                  size: int) -> tuple[np.ndarray, np.ndarray]:
+    """`features._unsuppressed` per row: the gate's Doppler power before mean removal and the
+    stationary excess power."""
+    n = dop.shape[1]
+    mu2 = _power(mu)
+    gate_idx = g_lo[:, None] + np.arange(size)
+    excess_bins = np.maximum(np.take_along_axis(mu2, gate_idx, axis=1) - median(mu2, axis=1)[:, None],
+                             np.float32(0.0))
+    excess = excess_bins.sum(axis=1).astype(np.float64) * n * n
+    mu_g = np.take_along_axis(mu, gate_idx, axis=1)
+    out = power.copy()
+    c = n // 2
+    for j, w in ((0, 1.0), (-1, -0.5), (1, -0.5)):
+        if 0 <= c + j < n and (j == 0 or n > 2):
+            out[:, c + j] = _power(dop[:, c + j] + mu_g * np.float32(n * w))
+    return out, excess
+
+
+def _body_line(d: np.ndarray, d_raw: np.ndarray, d_med: np.ndarray, centre: int,
+               hovering: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`features._body_line` per row: fractional Doppler index of the body line, its std in bins."""
+    rows, n = d.shape
+    k = np.argmax(d, axis=1)
+    use_raw = hovering | (np.abs(k - centre) <= F.BODY_BINS)
+    lo, hi = max(0, centre - F.BODY_BINS), min(n, centre + F.BODY_BINS + 1)
+    k = np.where(use_raw, lo + np.argmax(d_raw[:, lo:hi], axis=1), k)
+    src = np.where(use_raw[:, None], d_raw, d)
+    src_med = np.where(use_raw, median(d_raw, axis=1).astype(np.float64), d_med)
+    frac = _interp_peak(src, k)
+    line_snr = src[np.arange(rows), k].astype(np.float64) / np.maximum(src_med, _TINY)
+    return frac, 0.05 + 1.0 / np.sqrt(np.maximum(line_snr, 1.0))
+
+
+def _smooth(x: np.ndarray, half: int) -> np.ndarray:
+    """`features._smooth` per row: circular moving average over 2 half + 1 bins."""
+    if half < 1:
+        return x
+    k = np.full(2 * half + 1, 1.0 / (2 * half + 1), dtype=x.dtype)
+    padded = np.concatenate([x[:, -half:], x, x[:, :half]], axis=1)
+    return np.stack([np.convolve(row, k, mode="valid") for row in padded]).astype(x.dtype, copy=False)
+
+
+def _count_peaks(d: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """`features._count_peaks` per row (prominence over all candidate x bin pairs at once)."""
+    rows, size = d.shape
+    group = max(1, size // F.PEAK_PROFILE_BANDS)
+    m = (size // group) * group
+    pooled = d[:, :m].reshape(rows, -1, group).sum(axis=2)
+    with np.errstate(divide="ignore"):
+        y = np.log(np.maximum(pooled, np.float32(_TINY))) * F._DB
+    floor = (_db(noise * group) + F.PEAK_ABOVE_NOISE_DB).astype(np.float32)
+    n = y.shape[1]
+    rise = np.ones_like(y, dtype=bool)
+    rise[:, 1:] = y[:, 1:] > y[:, :-1]
+    fall = np.ones_like(y, dtype=bool)
+    fall[:, :-1] = y[:, :-1] >= y[:, 1:]
+    cand = (y >= floor[:, None]) & rise & fall  # (rows, n)
+    idx = np.arange(n)
+    higher = y[:, None, :] > y[:, :, None]  # [r, i, j]: bin j above candidate i
+    left = idx[None, :] < idx[:, None]
+    right = idx[None, :] > idx[:, None]
+    last_left = np.where(higher & left, idx, -1).max(axis=2)
+    first_right = np.where(higher & right, idx, n).min(axis=2)
+    span_l = left & (idx[None, None, :] > last_left[:, :, None])
+    span_r = right & (idx[None, None, :] < first_right[:, :, None])
+    base_l = np.where(span_l, y[:, None, :], np.inf).min(axis=2)
+    base_r = np.where(span_r, y[:, None, :], np.inf).min(axis=2)
+    base_l = np.where(span_l.any(axis=2), base_l, y)
+    base_r = np.where(span_r.any(axis=2), base_r, y)
+    prominent = y - np.maximum(base_l, base_r) >= F.PEAK_PROMINENCE_DB
+    return np.count_nonzero(cand & prominent, axis=1)
+
+
+def _tip_speed(occupied: np.ndarray, rel_bins: np.ndarray, body_hz: np.ndarray, config: RadarConfig,
+               dop_bin_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`features._tip_speed` per row."""
+    half = occupied.shape[1] // 2
+    ext_pos = np.where(occupied & (rel_bins > 0), rel_bins, 0.0).max(axis=1).astype(int)
+    ext_neg = (-np.where(occupied & (rel_bins < 0), rel_bins, 0.0).min(axis=1)).astype(int)
+    lam2 = config.wavelength_m / 2.0
+    aliased = np.maximum(ext_pos, ext_neg) >= F.ALIAS_FRACTION * half
+    tip_hz = 0.5 * (ext_pos + ext_neg) * dop_bin_hz
+    std_hz = np.hypot(0.5 * np.abs(ext_pos - ext_neg) * dop_bin_hz, dop_bin_hz)
+    tip = np.where(aliased, lam2 * np.maximum(config.prf_hz / 2.0 - np.abs(body_hz), 0.0), lam2 * tip_hz)
+    return tip, np.where(aliased, 0.0, lam2 * std_hz), aliased
+
+
+def _flash(slow: np.ndarray, peak_rel: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
+           bin_m: float, n_bins: int) -> best.PeriodicityBatch:
+    """The blade-flash estimators on each row's peak bin +- 1 (narrower at the gate's edge):
+    `batch_estimators` once per column count."""
+    size = slow.shape[2]
+    lo = np.maximum(0, peak_rel - 1)
+    width = np.minimum(size, peak_rel + 2) - lo
+    rows = slow.shape[0]
+    fields = {name: np.zeros(rows, dtype=int if name == "n_events" else np.float64)
+              for name in (f.name for f in dataclass_fields(best.PeriodicityBatch))}
+    for w in np.unique(width):
+        sel = np.flatnonzero(width == w)
+        cols = _columns(slow[sel], lo[sel], int(w))
+        per = best.periodicity_batch(best.flash_series_batch(cols, config, body_hz[sel], bin_m, n_bins))
+        for name in fields:
+            fields[name][sel] = getattr(per, name)
+    return best.PeriodicityBatch(**fields)
+
+
+def _spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int) -> tuple[np.ndarray, np.ndarray]:
+    """`timefreq.spectrogram` (summed over the gate's columns) per row: (power (B, time, Doppler),
+    frame times)."""
+    x = slow
+    if x.shape[1] < win:
+        x = np.concatenate([x, np.zeros((x.shape[0], win - x.shape[1], x.shape[2]), x.dtype)], axis=1)
+    frames = sliding_window_view(x, win, axis=1)[:, ::hop]  # (B, frames, bins, win)
+    spec = _fft.fft(frames, axis=-1, window=rd.hann(win))
+    power = np.fft.fftshift(_power(spec).sum(axis=2), axes=-1)
+    t = (np.arange(power.shape[1]) * hop + win / 2) * config.pri_s
+    return power, t
+
+
+def _cadence(spec: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """`timefreq.cadence(...).spectrum()` per row: (cadence spectrum (B, cadence bins), cadence_hz)."""
+    power, t = spec
+    p = power - power.mean(axis=1, keepdims=True)
+    mag = np.abs(np.fft.rfft(p, axis=1)).astype(p.dtype, copy=False)
+    step = float(t[1] - t[0]) if t.size > 1 else 1.0
+    return mag.sum(axis=2), np.fft.rfftfreq(p.shape[1], d=step)
+
+
+def _cadence_features(cad: tuple[np.ndarray, np.ndarray], flash_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`features._cadence_features` per row."""
+    spec, f = cad
+    rows = spec.shape[0]
+    use = f >= est.FLASH_RATE_MIN_HZ
+    if not use.any():
+        return np.zeros(rows), np.zeros(rows)
+    used = spec[:, use]
+    total = np.maximum(used.sum(axis=1).astype(np.float64), _TINY)
+    peak = np.where(total > _TINY, f[use][np.argmax(used, axis=1)], 0.0)
+    if f.size < 2:
+        return peak, np.zeros(rows)
+    step = float(f[1] - f[0])
+    fl = np.where(flash_hz > 0, flash_hz, 1.0)[:, None]
+    harm = np.abs(f / fl - np.round(f / fl)) * fl <= step
+    on = np.where(use & harm, spec, np.float32(0.0)).sum(axis=1).astype(np.float64)
+    return peak, np.where(flash_hz > 0, on / total, 0.0)
