@@ -160,13 +160,18 @@ def db_label(db: Database) -> str:
 # --- append ------------------------------------------------------------------------------
 
 def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None = None,
-           log_key: str | Path | None = None, sth_log: str | Path | None = None) -> list[Entry]:
+           log_key: str | Path | None = None, sth_log: str | Path | None = None,
+           idempotency_key: str | None = None) -> list[Entry]:
     """Append entries in one transaction (one per check, or one per batch), serialised
     against other writers: SQLite's BEGIN IMMEDIATE, PostgreSQL's advisory lock.
 
     With `policy_text`, its text is recorded (once per SHA-256) and every entry's payload
     carries its `policy_sha256` (added to entries without one; a different one is refused).
-    Signs and stores a tree head when one is due (see the module docstring)."""
+    Signs and stores a tree head when one is due (see the module docstring).
+
+    With `idempotency_key`, the transaction also records the key in `audit_batches`; if a
+    transaction with that key already committed, nothing is written and its entries are
+    returned instead (a retried append is a no-op: exactly once)."""
     policy_sha = hashlib.sha256(policy_text.encode()).hexdigest() if policy_text is not None else None
     prepared: list[tuple[NewEntry, dict[str, Any], str]] = []
     for e in entries:
@@ -190,6 +195,10 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
     with db.write():
         if db.dialect == "postgresql":
             db.execute("SELECT pg_advisory_xact_lock(:k)", {"k": _PG_AUDIT_LOCK})
+        if idempotency_key is not None:
+            done = batch_entries(db, idempotency_key)
+            if done is not None:
+                return done
         head = db.fetch("SELECT seq, entry_hash FROM audit_log ORDER BY seq DESC LIMIT 1")
         seq, prev = (0, GENESIS) if not head else (int(head[0][0]), str(head[0][1]))
         if policy_sha is not None:  # once per distinct text: later inserts of it do nothing
@@ -209,6 +218,10 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
                         "leaf_hash": leaf})
             out.append(Entry(seq, now, e.kind, e.serial, e.decision, payload, prev, digest, leaf))
             prev = digest
+        if idempotency_key is not None:
+            db.execute("INSERT INTO audit_batches (key, first_seq, n, created_at) VALUES (:k, :f, :n, :c)",
+                       {"k": idempotency_key, "f": seq - len(out) + 1, "n": len(out),
+                        "c": db.to_db_time(datetime.now(timezone.utc))})
         if out:
             sth, due = _sign_head(db, seq - len(out), seq, every, seconds, log_key, latest_file)
     if sth is not None:
@@ -216,6 +229,17 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
         if due:
             append_sth_log(sth_log_path(sth_log, log_key), sth, label)
     return out
+
+
+def batch_entries(db: Database, key: str) -> list[Entry] | None:
+    """The entries the committed append with this idempotency key wrote (None: no such append);
+    `append` asks inside its transaction, a retried caller may ask first to skip the work."""
+    rows = db.fetch("SELECT first_seq, n FROM audit_batches WHERE key = :k", {"k": key})
+    if not rows:
+        return None
+    first, n = int(rows[0][0]), int(rows[0][1])
+    return [_entry(r) for r in db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq >= :a AND seq < :b "
+                                        "ORDER BY seq", {"a": first, "b": first + n})]
 
 
 def _newest_head(db: Database) -> tuple[int, int, str] | None:

@@ -234,13 +234,14 @@ class Checker:
                        model_card_sha256=evidence.radar.model_card_sha256 if evidence.radar else None,
                        file_sha256=digest, policy_errors=result.errors, policy_input=evidence.policy_input())
 
-    def record(self, outcomes: Sequence[Outcome | Failure]) -> list[int]:
+    def record(self, outcomes: Sequence[Outcome | Failure], idempotency_key: str | None = None) -> list[int]:
         """Append decisions and failed checks in one transaction; raises DatabaseFault if it
-        does not commit (the caller then prints no decision)."""
+        does not commit (the caller then prints no decision). With `idempotency_key`, a key
+        that already committed writes nothing and returns that transaction's entry ids."""
         entries = [NewEntry("decision", o.claim["serial"], o.decision, o.audit_payload()) if isinstance(o, Outcome)
                    else o.entry(self.policy.sha256) for o in outcomes]
         t0 = time.perf_counter()
-        written = append(self.db, entries, policy_text=self.policy.text)
+        written = append(self.db, entries, policy_text=self.policy.text, idempotency_key=idempotency_key)
         ms = round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)
         ids = [e.seq for e in written]
         for o, seq in zip(outcomes, ids):

@@ -174,6 +174,21 @@ class AuditTreeHead(Base):
     frontier: Mapped[str | None] = mapped_column(Text)  # JSON list of hex subtree roots, largest first
 
 
+class AuditBatch(Base):
+    """One keyed append transaction of the audit log (revision 0004): a retried append whose
+    key is here already committed, so it writes nothing (`authn check --cluster` retries a
+    partition whose worker died). Written by authn.audit."""
+
+    __tablename__ = "audit_batches"
+
+    key: Mapped[str] = mapped_column(String(200), primary_key=True)
+    first_seq: Mapped[int] = mapped_column(BigInteger)
+    n: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime)
+
+    __table_args__ = (CheckConstraint("n >= 0", name="n_non_negative"),)
+
+
 class ApiKey(Base):
     """A key of `authn serve` (`authn keys api create`): its role and the SHA-256 of its token;
     the token itself is shown once and never stored."""

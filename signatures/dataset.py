@@ -8,7 +8,8 @@ Why it is built this way:
   returns) therefore never straddle splits, whatever the dataset seed.
 * Each sample's simulator seed is derived from (dataset seed, split, index): two
   datasets with different seeds or splits never share a noise realisation.
-* Generation is chunked (2 worker processes by default); only the feature vectors
+* Generation is chunked (2 worker processes by default, or any `concurrent.futures`
+  executor: `chunks_on` runs the chunks on a Dask cluster); only the feature vectors
   and RD patches are kept, never the IQ cubes.
 * Scenes come from the one scene sampler (`signatures.sampling`), with this module's
   distribution (`scene_distribution`) and the grid as the position.
@@ -26,8 +27,10 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import contextmanager, nullcontext
+from contextvars import ContextVar
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -289,13 +292,31 @@ def cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("uav-radar-authn")) / "datasets"
 
 
+#: The executor `generate` runs chunks on when none is given (None: its own process pool).
+_EXECUTOR: ContextVar[Executor | None] = ContextVar("signatures_dataset_executor", default=None)
+
+
+@contextmanager
+def chunks_on(executor: Executor) -> Iterator[None]:
+    """Inside the block, every `generate` call runs its chunks on `executor` (e.g. a Dask
+    client's `get_executor()`), so callers such as `train_bundle` need no new argument."""
+    token = _EXECUTOR.set(executor)
+    try:
+        yield
+    finally:
+        _EXECUTOR.reset(token)
+
+
 def generate(spec: DatasetSpec, featurizer: Featurizer | None = None, *, workers: int = 2,
-             chunk: int = 64, cache: Path | None | bool = None, progress: bool = False) -> Dataset:
+             chunk: int = 64, cache: Path | None | bool = None, progress: bool = False,
+             executor: Executor | None = None) -> Dataset:
     """Simulate + featurise `spec.n` samples, or read them from the cache.
 
     `cache=None` uses `cache_dir()`, `False` disables caching, a Path picks the folder.
-    Results do not depend on `workers` or `chunk` (every sample has its own seed).
+    `executor` (or the one `chunks_on` set) runs the chunks instead of a pool of `workers`.
+    Results do not depend on `workers`, `chunk` or where a chunk ran (every sample has its own seed).
     """
+    executor = _EXECUTOR.get() if executor is None else executor
     featurizer = featurizer or default_featurizer()
     if not spec.feature_version:
         spec = DatasetSpec(**{**spec.__dict__, "feature_version": feature_version(featurizer)})
@@ -308,12 +329,12 @@ def generate(spec: DatasetSpec, featurizer: Featurizer | None = None, *, workers
     bounds = [(s, min(s + chunk, spec.n)) for s in range(0, spec.n, chunk)]
     parts: list[Dataset] = []
     with _progress(progress, f"simulating {spec.n} {spec.waveform.name} returns ({spec.split})", spec.n) as advance:
-        if workers <= 1 or len(bounds) == 1:
+        if executor is None and (workers <= 1 or len(bounds) == 1):
             for a, b in bounds:
                 parts.append(_chunk(spec, featurizer, a, b))
                 advance(b - a)
         else:
-            with ProcessPoolExecutor(max_workers=workers) as pool:
+            with nullcontext(executor) if executor is not None else ProcessPoolExecutor(max_workers=workers) as pool:
                 futures = [pool.submit(_chunk, spec, featurizer, a, b) for a, b in bounds]
                 for fut, (a, b) in zip(futures, bounds):
                     parts.append(fut.result())

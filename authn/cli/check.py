@@ -106,6 +106,11 @@ def check(
     model: Path | None = typer.Option(None, "--model",
                                       help="Classifier bundle folder to use (its waveform must be the file's; "
                                            "default: chosen by the file's waveform)."),
+    cluster: str | None = typer.Option(None, "--cluster",
+                                       help="Check in partitions on Dask workers: 'local' (one per core) or a "
+                                            "scheduler address (needs the cluster extra; docs/cluster.md)."),
+    partition_size: int | None = typer.Option(None, "--partition-size", min=1,
+                                              help="Files per --cluster partition (default: 4 per worker, <= 250)."),
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
@@ -133,6 +138,11 @@ def check(
     except Exception as exc:
         _record_failure(state.db_url, [Failure.of(str(f), serial, exc) for f in files])
         raise
+    if cluster is not None:  # the engine is imported only here (a cold check never loads it)
+        from authn.cluster.recheck import cli_recheck
+
+        raise typer.Exit(cli_recheck(checker, paths, mapping, serial, cluster, partition_size, as_json,
+                                     policy=policy, trusted=trusted, model=model))
     if len(paths) == 1:
         _single(checker, paths[0], mapping.get(paths[0].name, mapping.get(str(paths[0]), serial)), as_json)
         return

@@ -51,6 +51,9 @@ def train(
     overwrite_shipped: bool = typer.Option(False, "--overwrite-shipped",
                                            help="Let --out replace the shipped bundle of --preset (maintainers)."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Simulation worker processes."),
+    cluster: str | None = typer.Option(None, "--cluster",
+                                       help="Simulate the datasets as tasks on Dask workers instead: 'local' or a "
+                                            "scheduler address (needs the cluster extra; docs/cluster.md)."),
 ) -> None:
     """Simulate, train and export a model bundle (numpy arrays, ONNX files, model card).
 
@@ -82,7 +85,13 @@ def train(
                   + (f", {n_test} test per SNR" if n_test else "") + f") at {per * 1e3:.0f} ms each: about "
                   f"{eta / 60:.1f} min with {workers} workers, plus fitting (cached datasets are reused).")
     t0 = time.perf_counter()
-    card = train_bundle(cfg, folder, progress=True)
+    if cluster is None:
+        card = train_bundle(cfg, folder, progress=True)
+    else:  # the engine is imported only here
+        from authn.cluster.engine import training_on
+
+        with training_on(cluster):
+            card = train_bundle(cfg, folder, progress=True)
     console.print(f"[bold]{wf.name}[/] bundle written to {folder} in {time.perf_counter() - t0:.0f} s")
     for name, m in card["metrics"]["validation"].items():
         console.print(f"  validation {name}: {m}")

@@ -1,0 +1,62 @@
+"""The Dask connection: `local` starts a LocalCluster (one single-threaded worker process per
+core), anything else is a scheduler address. Also the hook that runs training-set chunks
+on the cluster."""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from authn.errors import AuthnError, SystemFault
+
+#: Seconds to wait for a remote scheduler before giving up (exit 3).
+CONNECT_TIMEOUT_S = 30
+#: Times a task that raised is re-run; a task whose worker died is re-run by the scheduler
+#: itself (`distributed.scheduler.allowed-failures`, 3 by default).
+RETRIES = 2
+
+
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise SystemFault("--cluster needs Dask distributed: pip install 'uav-radar-authn[cluster]'") from None
+    return distributed
+
+
+@contextmanager
+def connect(address: str, workers: int | None = None) -> Iterator[Any]:
+    """A `distributed.Client` for `address` ("local", or e.g. tcp://scheduler:8786), closed
+    after the block (a local cluster is shut down with it)."""
+    distributed = _distributed()
+    if address == "local":
+        n = workers or os.cpu_count() or 1
+        with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                      silence_logs=logging.ERROR) as cluster, distributed.Client(cluster) as client:
+            yield client
+        return
+    if "://" not in address and ":" not in address:
+        raise AuthnError(f"--cluster {address!r}: give 'local' or a scheduler address such as tcp://host:8786")
+    try:
+        client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SystemFault(f"cannot reach the Dask scheduler at {address}: {' '.join(str(exc).split())}") from None
+    with client:
+        yield client
+
+
+def n_workers(client: Any) -> int:
+    """Worker processes connected now."""
+    return len(client.nthreads())
+
+
+@contextmanager
+def training_on(address: str) -> Iterator[None]:
+    """Inside the block every training-set `generate` runs its chunks as tasks on the cluster."""
+    from signatures.dataset import chunks_on
+
+    with connect(address) as client, chunks_on(client.get_executor(retries=RETRIES)):
+        yield

@@ -1,0 +1,106 @@
+"""What runs on a Dask worker for `authn check --cluster`: check one partition of files and
+append its decisions in ONE audit transaction keyed by (run id, partition index).
+
+Exactly once: a partition re-run after its worker died (the scheduler re-runs the task)
+first asks whether its key committed: if so it returns those entries without checking
+again; if not, it checks the files and appends, and `authn.audit.append` refuses inside
+the transaction to append a key that committed in between. Either the whole partition is
+in the log once, or none of it is. No Dask import here: the worker calls plain functions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from authn.check import Checker, Failure, Outcome
+from authn.errors import EXIT_BAD_INPUT, EXIT_SYSTEM
+
+
+@dataclass(frozen=True)
+class CheckerArgs:
+    """What builds a worker's `Checker` (hashable: the per-process cache key). Paths must
+    be readable by every worker (a shared file system)."""
+
+    db_url: str
+    policy: str | None = None
+    trusted: tuple[tuple[bytes, bytes], ...] = ()
+    model: str | None = None
+
+
+@dataclass(frozen=True)
+class Partition:
+    key: str  # the idempotency key of its audit transaction: "check/<run id>/<index>"
+    files: tuple[str, ...]
+    claims: tuple[str | None, ...]  # the claimed serial of each file (None: its Remote ID)
+
+
+@dataclass(frozen=True)
+class PartitionResult:
+    key: str
+    #: per file, what `authn check DIR --json` prints for it and its exit code (0/1/2/3)
+    items: tuple[tuple[dict[str, Any], int], ...]
+    #: True when the key had already committed (a re-run after a worker died): nothing was checked
+    replayed: bool = False
+
+
+_CHECKER: list[tuple[CheckerArgs, Checker]] = []  # this worker process's Checker and what built it
+
+
+def checker_for(args: CheckerArgs) -> Checker:
+    """One Checker per worker process: policy, database connection and classifier bundles
+    load once, not once per partition; other arguments (another run) replace it."""
+    if _CHECKER and _CHECKER[0][0] == args:
+        return _CHECKER[0][1]
+    checker = Checker(args.db_url, args.policy, dict(args.trusted) or None, model=args.model)
+    if _CHECKER:
+        _CHECKER.pop()[1].db.close()
+    _CHECKER.append((args, checker))
+    return checker
+
+
+def _item(o: Outcome | Failure) -> tuple[dict[str, Any], int]:
+    if isinstance(o, Failure):
+        return o.to_json(), o.exit_code
+    return o.to_json(), 0 if o.decision == "accept" else 1
+
+
+def _from_entry(entry: Any) -> Outcome | Failure:
+    """A committed audit entry as the result it recorded (timings are not audited)."""
+    p = dict(entry.payload)
+    if entry.kind == "error":
+        code = EXIT_BAD_INPUT if p.get("error_kind") == "bad-input" else EXIT_SYSTEM
+        return Failure(p["file"], entry.serial, p["error"], code)
+    return Outcome(**p, timings_ms={}, audit_id=entry.seq)
+
+
+def check_partition(args: CheckerArgs, part: Partition) -> PartitionResult:
+    """Check every file of the partition (a bad file is a Failure entry, as in batch mode)
+    and append all of them in one transaction keyed by `part.key`."""
+    from authn.audit import batch_entries
+
+    checker = checker_for(args)
+    done = batch_entries(checker.db, part.key)
+    if done is not None:
+        return PartitionResult(part.key, tuple(_item(_from_entry(e)) for e in done), replayed=True)
+    results: list[Outcome | Failure] = []
+    for file, claim in zip(part.files, part.claims):
+        try:
+            results.append(checker.evaluate(Path(file), claim))
+        except Exception as exc:  # noqa: BLE001 - one bad or crashing file must not stop the partition
+            results.append(Failure.of(file, claim, exc))
+    checker.record(results, idempotency_key=part.key)
+    return PartitionResult(part.key, tuple(_item(r) for r in results))
+
+
+def record_lost(checker: Checker, part: Partition, error: str) -> PartitionResult:
+    """On the client, for a partition the cluster gave up on (its task failed every retry):
+    each file an error entry (exit 3) under the partition's key, so every file is audited
+    once. Reported as committed: if the partition did commit after all, its decisions."""
+    from authn.audit import batch_entries
+
+    failures = [Failure(file, claim, f"cluster: {error}", EXIT_SYSTEM) for file, claim in zip(part.files, part.claims)]
+    checker.record(failures, idempotency_key=part.key)  # writes nothing if the key committed
+    committed = batch_entries(checker.db, part.key) or []
+    return PartitionResult(part.key, tuple(_item(_from_entry(e)) for e in committed))
