@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
@@ -44,8 +45,10 @@ _CUBE_BLOCK_BYTES = 4 << 20
 #: default memory budget: this share of the available memory, capped at _BUDGET_CAP
 _BUDGET_SHARE = 0.25
 _BUDGET_CAP = 1 << 30
+#: cubes whose peak lies within 2**+-this of 1 are scaled on the window (`_range_spectra`)
+_SAFE_EXPONENT = 20
 _TINY = F._TINY
-_F32 = np.float32
+_local = threading.local()
 
 
 @dataclass(frozen=True)
@@ -220,23 +223,14 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
     block = max(1, _CUBE_BLOCK_BYTES // (16 * n_chirps * n_bins))
     for s in range(0, n_rows, block):
         e = min(n_rows, s + block)
-        scaled, log2, zero = _prepare(iq[s:e], labels[s:e])
-        mean = scaled.mean(axis=1, keepdims=True)
-        if suppress:
-            scaled -= mean  # our own copy
-        if domain == "if":
-            spec = _fft.fft(scaled, axis=-1, window=rd.hann(n_bins))
-            # `_fft.fft`'s arithmetic, outside its workspaces (keyed by shape: reused by the cube)
-            mu = np.fft.fft(mean[:, 0] * rd.hann(n_bins), axis=-1).astype(np.complex64)
-        else:  # a range cube already is a range spectrum
-            spec = scaled
-            mu = mean[:, 0]
+        spec, mu, log2, zero = _range_spectra(iq[s:e], suppress, domain, labels[s:e])
         profile = _range_profile(spec)
         det, frac, snr, peak = _detect(profile, looks, lo_w[s:e], hi_w[s:e])
         g_lo = _window(peak, size, n_bins)
         p_lo = _window(peak, p_size, n_bins)
-        out["slow"][s:e] = _columns(spec, g_lo, size)
-        out["patch_cols"][s:e] = _columns(spec, p_lo, p_size)
+        for j in range(e - s):  # complex64, as the single path's spectrum
+            out["slow"][s + j] = spec[j, :, g_lo[j]:g_lo[j] + size]
+            out["patch_cols"][s + j] = spec[j, :, p_lo[j]:p_lo[j] + p_size]
         for key, val in (("log2_scale", log2), ("zero", zero), ("profile", profile), ("mu", mu),
                          ("detected", det), ("peak_bin", peak), ("peak_bin_frac", frac), ("snr_db", snr),
                          ("gate_lo", g_lo), ("patch_lo", p_lo)):
@@ -244,32 +238,86 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
     return _Cube(**out)
 
 
-def _prepare(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`rd.prepare` of every row: complex64 scaled by an exact power of two per row."""
+def _range_spectra(a: np.ndarray, suppress: bool, domain: str,
+                   labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`rd.prepare` then `features._range_spectrum` of every row with the single path's
+    arithmetic: (spectrum (complex128 workspace: its complex64 rounding is the single path's),
+    mu (spectrum of the slow-time mean, complex64), log2 scale, all-zero flag).
+
+    The exact power-of-two scale s commutes with every rounding while nothing under- or
+    overflows, so for cubes within 2**+-_SAFE_EXPONENT of unit scale it rides on the window,
+    (x - m) * (w * s), saving a pass over the cube; other cubes are scaled first.
+    """
     if a.dtype in (np.complex64, np.float32, np.float16) or np.issubdtype(a.dtype, np.integer):
         work = np.ascontiguousarray(a, dtype=np.complex64)
     else:
         work = np.ascontiguousarray(a, dtype=np.complex128)
-    peak = np.abs(work.view(work.real.dtype)).max(axis=(1, 2)).astype(np.float64)
+    flat = work.view(work.real.dtype).reshape(work.shape[0], -1)
+    peak = np.maximum(flat.max(axis=1), -flat.min(axis=1)).astype(np.float64)  # NaN/Inf propagate
     bad = ~np.isfinite(peak)
     if bad.any():
         raise SignaturesError(f"row {labels[int(np.argmax(bad))]}: IQ cube holds NaN or Inf")
     zero = peak == 0.0
     exponent = np.where(zero, 0, np.frexp(np.where(zero, 1.0, peak))[1])
     scale = np.ldexp(1.0, -exponent)[:, None, None]
-    if work.dtype == np.complex64 and bool(np.all((-exponent >= -126) & (-exponent <= 127))):
-        scaled = work * scale.astype(np.float32)  # exact: powers of two
+    if np.all(np.abs(exponent) <= _SAFE_EXPONENT):
+        x = work.astype(np.complex64, copy=False)
+    else:  # as rd.prepare: exact in complex64 where it can, else via complex128
+        small = work.dtype == np.complex64 and bool(np.all((exponent >= -127) & (exponent <= 126)))
+        x = work * scale.astype(np.float32) if small else (work.astype(np.complex128) * scale).astype(np.complex64)
+        scale = np.ones_like(scale)
+    mean = x.mean(axis=1, keepdims=True)
+    y = np.subtract(x, mean, out=_scratch("y", x.shape, np.complex64)) if suppress else x
+    n_bins = x.shape[2]
+    weight = scale * (rd.hann(n_bins) if domain == "if" else 1.0)  # (rows, 1, bins): exact products
+    src = np.multiply(y, weight, out=_scratch("in", x.shape, np.complex128))
+    mu = mean[:, 0] * weight[:, 0]
+    if domain != "if":  # a range cube already is a range spectrum
+        return src, mu.astype(np.complex64), exponent, zero
+    if _fft.backend() == "scipy":
+        spec = _fft.fft(src, axis=-1)
     else:
-        scaled = (work.astype(np.complex128) * scale).astype(np.complex64)
-    return scaled, exponent, zero
+        spec = np.fft.fft(src, axis=-1, out=_scratch("out", x.shape, np.complex128))
+    return spec, np.fft.fft(mu, axis=-1).astype(np.complex64), exponent, zero
+
+
+def _scratch(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
+    """A per-thread array reused across blocks and calls (its first rows when a block is
+    shorter): fresh large arrays cost page faults (signatures/fft.py)."""
+    spaces = getattr(_local, "spaces", None)
+    if spaces is None:
+        spaces = _local.spaces = {}
+    buf = spaces.get(key)
+    if buf is None or buf.shape[1:] != shape[1:] or buf.dtype != dtype or buf.shape[0] < shape[0]:
+        buf = spaces[key] = np.empty(shape, dtype=dtype)
+    return buf[:shape[0]]
+
+
+def _fft_rows(x: np.ndarray, axis: int, window: np.ndarray, key: str, post=None) -> np.ndarray:
+    """`signatures.fft.fft(x[b], axis - 1, window)` of every row b (complex64, same arithmetic),
+    in cache-sized blocks of rows through reused workspaces; `post` maps each block's
+    transform to what is kept (default: the transform itself)."""
+    step = max(1, _CUBE_BLOCK_BYTES // (16 * max(1, math.prod(x.shape[1:]))))
+    parts = []
+    for s in range(0, x.shape[0], step):
+        blk = x[s:s + step]
+        if _fft.backend() == "scipy":
+            spec = _fft.fft(blk, axis=axis, window=window)
+        else:
+            src = np.multiply(blk, window, out=_scratch(key + "in", blk.shape, np.complex128))
+            out = np.fft.fft(src, axis=axis, out=_scratch(key + "out", blk.shape, np.complex128))
+            spec = _scratch(key + "64", blk.shape, np.complex64)
+            np.copyto(spec, out, casting="same_kind")
+        parts.append(post(spec) if post is not None else spec.copy())
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def _range_profile(spec: np.ndarray) -> np.ndarray:
-    """`rd.range_profile` per row: mean power over chirps of each range bin."""
+    """`rd.range_profile` per row: mean power over chirps of each range bin (float32)."""
     b, n, k = spec.shape
-    f = np.ascontiguousarray(spec).view(np.float32).reshape(b, n, 2 * k)
-    sq = (f * f).sum(axis=1).reshape(b, k, 2).sum(axis=2)
-    return (sq / np.float32(n)).astype(np.float32, copy=False)
+    f = spec.view(spec.real.dtype).reshape(b, n, 2 * k)
+    sq = np.einsum("bnj,bnj->bj", f, f).reshape(b, k, 2).sum(axis=2)
+    return (sq / n).astype(np.float32)
 
 
 def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):
@@ -335,7 +383,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, n_chirps: in
     size = slow.shape[2]
     g_lo = cube.gate_lo[live]
     peak_bin = cube.peak_bin[live]
-    dop = np.fft.fftshift(_fft.fft(slow, axis=1, window=rd.hann(n)[:, None]), axes=1)
+    dop = _fft_rows(slow, 1, rd.hann(n)[:, None], "doppler", lambda z: np.fft.fftshift(z, axes=1))
     power = _power(dop)
     if suppress:
         raw_power, stationary = _unsuppressed(cube.mu[live], dop, power, g_lo, size)
@@ -505,21 +553,25 @@ def _count_peaks(d: np.ndarray, noise: np.ndarray) -> np.ndarray:
     rise[:, 1:] = y[:, 1:] > y[:, :-1]
     fall = np.ones_like(y, dtype=bool)
     fall[:, :-1] = y[:, :-1] >= y[:, 1:]
-    cand = (y >= floor[:, None]) & rise & fall  # (rows, n)
+    r, c = np.nonzero((y >= floor[:, None]) & rise & fall)  # candidates: row, band
+    if r.size == 0:
+        return np.zeros(rows, dtype=int)
+    # features._count_peaks' prominence, one line per candidate of any row
     idx = np.arange(n)
-    higher = y[:, None, :] > y[:, :, None]  # [r, i, j]: bin j above candidate i
-    left = idx[None, :] < idx[:, None]
-    right = idx[None, :] > idx[:, None]
-    last_left = np.where(higher & left, idx, -1).max(axis=2)
-    first_right = np.where(higher & right, idx, n).min(axis=2)
-    span_l = left & (idx[None, None, :] > last_left[:, :, None])
-    span_r = right & (idx[None, None, :] < first_right[:, :, None])
-    base_l = np.where(span_l, y[:, None, :], np.inf).min(axis=2)
-    base_r = np.where(span_r, y[:, None, :], np.inf).min(axis=2)
-    base_l = np.where(span_l.any(axis=2), base_l, y)
-    base_r = np.where(span_r.any(axis=2), base_r, y)
-    prominent = y - np.maximum(base_l, base_r) >= F.PEAK_PROMINENCE_DB
-    return np.count_nonzero(cand & prominent, axis=1)
+    yr = y[r]
+    yc = y[r, c][:, None]
+    higher = yr > yc
+    left, right = idx[None, :] < c[:, None], idx[None, :] > c[:, None]
+    last_left = np.where(higher & left, idx[None, :], -1).max(axis=1)
+    first_right = np.where(higher & right, idx[None, :], n).min(axis=1)
+    span_l = left & (idx[None, :] > last_left[:, None])
+    span_r = right & (idx[None, :] < first_right[:, None])
+    base_l = np.where(span_l, yr, np.inf).min(axis=1)
+    base_r = np.where(span_r, yr, np.inf).min(axis=1)
+    base_l = np.where(span_l.any(axis=1), base_l, yc[:, 0])
+    base_r = np.where(span_r.any(axis=1), base_r, yc[:, 0])
+    prominent = yc[:, 0] - np.maximum(base_l, base_r) >= F.PEAK_PROMINENCE_DB
+    return np.bincount(r[prominent], minlength=rows)
 
 
 def _tip_speed(occupied: np.ndarray, rel_bins: np.ndarray, body_hz: np.ndarray, config: RadarConfig,
@@ -562,8 +614,8 @@ def _spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int) -> t
     if x.shape[1] < win:
         x = np.concatenate([x, np.zeros((x.shape[0], win - x.shape[1], x.shape[2]), x.dtype)], axis=1)
     frames = sliding_window_view(x, win, axis=1)[:, ::hop]  # (B, frames, bins, win)
-    spec = _fft.fft(frames, axis=-1, window=rd.hann(win))
-    power = np.fft.fftshift(_power(spec).sum(axis=2), axes=-1)
+    power = _fft_rows(frames, -1, rd.hann(win), "stft",
+                      lambda z: np.fft.fftshift(_power(z).sum(axis=2), axes=-1))
     t = (np.arange(power.shape[1]) * hop + win / 2) * config.pri_s
     return power, t
 
