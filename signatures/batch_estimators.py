@@ -3,26 +3,68 @@
 The same estimates as `signatures.estimators` (flash series, periodicity, rotor count)
 for B gates at once: `flash_series_batch(slow[B, chirps, bins], ...)` then
 `periodicity_batch(series)`. Row b equals the single-return functions applied to
-`slow[b]` and `body_hz[b]` (to float tolerance; tests/features/test_batch_estimators.py).
+`slow[b]` and `body_hz[b]` (tests/features/test_batch_estimators.py), with the same
+arithmetic in the same order, so that no discrete decision (an event, a lag, a halving)
+can differ by rounding:
+
+* the flash series is computed with a batch axis in front of the single path's arrays
+  (cumulative sums, matched filters and reductions run along the same axes);
+* flash events: the greedy sinc-skirt suppression is a loop over the candidates' rank,
+  vectorised over the batch;
+* everything after the events runs on groups of rows with the same number of events k
+  (no padding: (G, 2, lags, k) arrays), and the weighted check sums are stacked matrix
+  products with the single path's per-row shapes (BLAS sums in a shape-dependent order);
+  the greedy re-rank is a loop over its RERANK_N ranks, the halving rule a loop over
+  halvings, both vectorised over the group.
+
+The few per-row calls left (a `searchsorted` per row, period statistics per match count)
+cost a few microseconds a row; scratch memory is bounded by processing rows in chunks
+(MEMORY_BUDGET_BYTES).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from signatures import estimators as est
+from signatures.errors import SignaturesError
+from signatures.estimators import (
+    COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, FLASH_LOBE_S, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
+    FULL_VOTE_DB, HALF_LLR, HALF_SHARE_CAP, HIGHPASS_S, MIN_OVERLAP, MIN_VOTE_WEIGHT, NOISE_MADS,
+    POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
+    SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.radar import RadarConfig
+from signatures.stats import median
 
-__all__ = ["FlashSeriesBatch", "PeriodicityBatch", "flash_series_batch", "periodicity_batch"]
+__all__ = ["MEMORY_BUDGET_BYTES", "FlashSeriesBatch", "PeriodicityBatch", "flash_series_batch",
+           "periodicity_batch"]
+
+#: Scratch memory one call aims to stay under (bytes): larger batches run in row chunks.
+MEMORY_BUDGET_BYTES = 256 * 2**20
+_SIGNS = np.array([1.0, -1.0])
 
 
 @dataclass(frozen=True)
 class FlashSeriesBatch:
-    """B flash series of equal length (see `estimators.FlashSeries`)."""
+    """B flash series of equal length (row b as `estimators.FlashSeries`: `row(b)`)."""
 
-    rows: tuple[est.FlashSeries, ...]
+    energy: np.ndarray  # float64 (B, n): flash energy above the noise, >= 0
+    per_bin: np.ndarray  # float64 (B, n, bins): energy before the noise cut, per range bin
+    threshold: np.ndarray  # float64 (B,): detection level subtracted from the energy
+    drift_bins_per_sample: np.ndarray  # float64 (B,): body range migration
+    field: np.ndarray | None  # complex (B, chirps, positions); None where the coherent checks never run
+    rate_hz: float
+    radius: int
+    decimation: int
+
+    def row(self, b: int) -> est.FlashSeries:
+        """Row b as the single-return series (what `estimators.flash_series` gives for it)."""
+        return est.FlashSeries(self.energy[b], self.per_bin[b], self.rate_hz, self.radius,
+                               float(self.drift_bins_per_sample[b]), float(self.threshold[b]),
+                               None if self.field is None else self.field[b], self.decimation)
 
 
 @dataclass(frozen=True)
@@ -38,19 +80,444 @@ class PeriodicityBatch:
     rotor_count_std: np.ndarray
 
 
+# --- flash series ---------------------------------------------------------------------------
+
 def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
                        range_bin_m: float, n_fft: int) -> FlashSeriesBatch:
     """`estimators.flash_series` of every row of `slow` (B, chirps, bins) with its `body_hz[b]`."""
-    return FlashSeriesBatch(tuple(est.flash_series(slow[b], config, float(body_hz[b]), range_bin_m, n_fft)
-                                  for b in range(slow.shape[0])))
+    slow = np.asarray(slow)
+    body = np.asarray(body_hz, dtype=np.float64).reshape(-1)
+    if slow.ndim != 3 or body.size != slow.shape[0]:
+        raise SignaturesError(f"flash_series_batch needs slow (B, chirps, bins) and body_hz (B,), got "
+                              f"{slow.shape} and {body.shape}")
+    b_rows, n, n_bins = slow.shape
+    dec = max(1, int(config.prf_hz // SERIES_RATE_HZ))
+    m = (n // dec) * dec
+    n_out = m // dec if m >= dec else n
+    filters = est.matched_filters(n_bins, n_fft)
+    n_pos = filters.shape[1]
+    keep_field = (config.prf_hz / dec) * dec * FLASH_LOBE_S <= 1.0  # else `_coherent` never reads it
+    cdt = np.result_type(slow.dtype, np.complex64)
+    energy = np.empty((b_rows, n_out))
+    per_bin = np.empty((b_rows, n_out, n_bins))
+    threshold = np.empty(b_rows)
+    field = np.empty((b_rows, n, n_pos), cdt) if keep_field else None
+    per_row = n * (n_bins * cdt.itemsize * 10 + n_pos * (cdt.itemsize + 16))
+    step = max(1, MEMORY_BUDGET_BYTES // max(per_row, 1))
+    for a in range(0, b_rows, step):
+        sl = slice(a, min(a + step, b_rows))
+        y = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl], threshold[sl])
+        if field is not None:
+            field[sl] = y
+    drift = body * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
+    return FlashSeriesBatch(energy, per_bin, threshold, drift, field, config.prf_hz / dec, EVENT_RADIUS, dec)
 
 
-def periodicity_batch(series: FlashSeriesBatch) -> PeriodicityBatch:
+def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft: int, dec: int,
+                 energy: np.ndarray, per_bin: np.ndarray, threshold: np.ndarray) -> np.ndarray:
+    """`estimators.flash_series` of a chunk of rows, written into the output views; returns the
+    matched-filter field. Same expressions as the single path with a leading batch axis."""
+    g, n, n_bins = slow.shape
+    t = np.arange(n)
+    demod = np.exp((-2j * math.pi * body * config.pri_s)[:, None] * t).astype(np.complex64)
+    z0 = slow * demod[:, :, None]
+    length = max(3, int(round(HIGHPASS_S / config.pri_s)) | 1)
+    if n > length:
+        z = _highpass(z0, length)
+        e1 = (z.real ** 2 + z.imag ** 2).sum(axis=2)
+        # the single path compares with a Python float: in e1's dtype (NEP 50)
+        strong = e1 > _noise_level(e1).astype(e1.dtype)[:, None]
+        strong[:, 1:] |= strong[:, :-1].copy()
+        strong[:, :-1] |= strong[:, 1:].copy()
+        z = _highpass(z0, length, ~strong)
+    else:
+        z = z0 - z0.mean(axis=1, keepdims=True)
+    eb = (z.real ** 2 + z.imag ** 2).astype(np.float64)
+    y = z @ est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)  # (g, chirps, positions)
+    ey = (y.real ** 2 + y.imag ** 2).astype(np.float64)
+    m = (n // dec) * dec
+    if m >= dec:
+        eb = eb[:, :m].reshape(g, -1, dec, n_bins).sum(axis=2)
+        ey = ey[:, :m].reshape(g, -1, dec, ey.shape[2]).sum(axis=2)
+    e = ey.max(axis=2)
+    level = _noise_level(e)
+    energy[:] = np.maximum(e - level[:, None], 0.0)
+    per_bin[:] = eb
+    threshold[:] = level
+    return y
+
+
+def _noise_level(e: np.ndarray) -> np.ndarray:
+    """Per row of (rows, samples): `estimators._noise_level` (median + NOISE_MADS MADs), float64."""
+    med = median(e, axis=1)
+    mad = median(np.abs(e - med[:, None]), axis=1)
+    return med.astype(np.float64) + NOISE_MADS * 1.4826 * mad.astype(np.float64)
+
+
+def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.ndarray:
+    """`estimators._highpass` along axis 1 of (rows, chirps, bins), `keep` (rows, chirps)."""
+    g, n, n_bins = z.shape
+    t = np.arange(n)
+    zk = z if keep is None else np.where(keep[:, :, None], z, 0)
+    c = np.empty((g, n + 1, n_bins), z.dtype)
+    c[:, 0] = 0
+    np.cumsum(zk, axis=1, out=c[:, 1:])
+    half = length // 2
+    lo, hi = np.maximum(t - half, 0), np.minimum(t + half + 1, n)
+    if keep is None:
+        return z - (c[:, hi] - c[:, lo]) / (hi - lo)[:, None].astype(np.float32)
+    ck = np.zeros((g, n + 1), np.int64)
+    np.cumsum(keep, axis=1, out=ck[:, 1:])
+    cnt = ck[:, hi] - ck[:, lo]
+    thin = cnt < max(2, length // 2)
+    lo2, hi2 = np.maximum(t - 2 * length, 0), np.minimum(t + 2 * length + 1, n)
+    lo_b, hi_b = np.where(thin, lo2, lo), np.where(thin, hi2, hi)
+    cnt = np.take_along_axis(ck, hi_b, axis=1) - np.take_along_axis(ck, lo_b, axis=1)
+    sums = np.take_along_axis(c, hi_b[:, :, None], axis=1) - np.take_along_axis(c, lo_b[:, :, None], axis=1)
+    return z - sums / np.maximum(cnt, 1)[:, :, None].astype(np.float32)
+
+
+# --- periodicity ----------------------------------------------------------------------------
+
+def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> PeriodicityBatch:
     """`estimators.periodicity` and `estimators.rotor_count` of every row."""
-    pers = [est.periodicity(s) for s in series.rows]
-    rotors = [est.rotor_count(p) for p in pers]
-    f = np.array
-    return PeriodicityBatch(f([p.flash_rate.value for p in pers]), f([p.flash_rate.std for p in pers]),
-                            f([p.score for p in pers]), f([p.n_events for p in pers], dtype=int),
-                            f([p.flash_par_db for p in pers]), f([r.value for r in rotors]),
-                            f([r.std for r in rotors]))
+    e = series.energy
+    b_rows, n = e.shape
+    out = {name: np.zeros(b_rows) for name in ("rate", "std", "score", "par", "rotors", "rotors_std")}
+    n_events = np.zeros(b_rows, dtype=int)
+    if n >= 8 and b_rows:
+        emax = e.max(axis=1)
+        live = emax > 0.0
+        mean = e.mean(axis=1)
+        out["par"][:] = [10.0 * math.log10(max(a / max(b, 1e-300), 1.0)) if ok else 0.0
+                         for a, b, ok in zip(emax.tolist(), mean.tolist(), live.tolist())]
+        times, pos, k = _flash_events(e, series.threshold, series.per_bin, series.radius, max_events)
+        n_events[:] = np.where(live, k, 0)
+        lag_min = max(2.0, series.rate_hz / FLASH_RATE_MAX_HZ)
+        lag_max = min(n * (1.0 - MIN_OVERLAP), series.rate_hz / FLASH_RATE_MIN_HZ)
+        if lag_max > lag_min:
+            lags = np.arange(math.ceil(lag_min), math.floor(lag_max) + 1, dtype=float)
+            work = live & (k >= 2)
+            for kk in np.unique(k[work]).tolist():
+                rows = np.flatnonzero(work & (k == kk))
+                per_row = 2 * lags.size * kk * 64 + kk * series.field.shape[1] * 40 \
+                    if series.field is not None else 2 * lags.size * kk * 64
+                step = max(1, MEMORY_BUDGET_BYTES // per_row)
+                for a in range(0, rows.size, step):
+                    r = rows[a:a + step]
+                    res = _periodicity_group(series, r, times[r, :kk], pos[r, :kk], lags)
+                    for name, values in res.items():
+                        out[name][r] = values
+    return PeriodicityBatch(out["rate"], out["std"], out["score"], n_events, out["par"], out["rotors"],
+                            out["rotors_std"])
+
+
+def _flash_events(e: np.ndarray, threshold: np.ndarray, per_bin: np.ndarray, radius: int,
+                  max_events: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators.flash_events` of every row: times and positions (B, K) sorted by time in the
+    first k[b] columns (inf after), and k (B,). The greedy skirt suppression runs over the
+    candidates' rank (strongest first), vectorised over rows."""
+    b_rows, n = e.shape
+    pad = np.zeros((b_rows, n + 2 * radius))
+    pad[:, radius:radius + n] = e
+    wmax = np.lib.stride_tricks.sliding_window_view(pad, 2 * radius + 1, axis=1).max(axis=2)
+    rows, cols = np.nonzero((e > 0.0) & (e >= wmax))
+    order = np.lexsort((cols, -e[rows, cols], rows))  # per row: strongest first, ties by time
+    rows, cols = rows[order], cols[order]
+    n_cand = np.bincount(rows, minlength=b_rows)
+    rank = np.arange(rows.size) - (np.cumsum(n_cand) - n_cand)[rows]
+    width = int(n_cand.max()) if rows.size else 0
+    cand = np.zeros((b_rows, width), dtype=int)
+    cand[rows, rank] = cols
+    raw = e + threshold[:, None]
+    cand_raw = np.zeros((b_rows, width))
+    cand_raw[rows, rank] = raw[rows, cols]
+    kept = np.zeros((b_rows, max_events), dtype=int)
+    kept_raw = np.zeros((b_rows, max_events))
+    k = np.zeros(b_rows, dtype=int)
+    skirt = 10.0 ** (SKIRT_DB / 10.0)
+    slots = np.arange(max_events)
+    for r in range(width):
+        act = (r < n_cand) & (k < max_events)
+        if not act.any():
+            break
+        p = cand[:, r]
+        km = int(k.max())
+        if km:
+            d = p[:, None] - kept[:, :km]
+            near = act[:, None] & (slots[:km] < k[:, None]) & (np.abs(d) <= SKIRT_REACH)
+            bound = kept_raw[:, :km] * skirt / np.where(near, d * d, 1)
+            act &= ~(near & ~(cand_raw[:, r:r + 1] >= bound)).any(axis=1)
+        idx = np.flatnonzero(act)
+        kept[idx, k[idx]] = p[idx]
+        kept_raw[idx, k[idx]] = cand_raw[idx, r]
+        k[idx] += 1
+    width = int(k.max()) if b_rows else 0
+    peaks = kept[:, :width]
+    valid = slots[:width] < k[:, None]
+    lo, hi = np.maximum(peaks - 1, 0), np.minimum(peaks + 1, n - 1)
+    el, ep, eh = (np.take_along_axis(e, i, axis=1) for i in (lo, peaks, hi))
+    w = el + ep + eh
+    centroid = (lo * el + peaks * ep + hi * eh) / np.maximum(w, 1e-300)
+    profiles = np.take_along_axis(per_bin, peaks[:, :, None], axis=1)
+    positions = est._peak_positions(profiles.reshape(-1, per_bin.shape[2])).reshape(peaks.shape)
+    order = np.argsort(np.where(valid, centroid, np.inf), axis=1)
+    times = np.where(valid, np.take_along_axis(centroid, order, axis=1), np.inf)
+    return times, np.take_along_axis(positions, order, axis=1), k
+
+
+def _periodicity_group(series: FlashSeriesBatch, rows: np.ndarray, times: np.ndarray, pos: np.ndarray,
+                       lags: np.ndarray) -> dict[str, np.ndarray]:
+    """Periodicity and rotor count of rows that all have k = times.shape[1] >= 2 events."""
+    g, k = times.shape
+    e = series.energy[rows]
+    n = e.shape[1]
+    threshold = series.threshold[rows]
+    drift = series.drift_bins_per_sample[rows]
+    n_bins = series.per_bin.shape[2]
+    ti = np.minimum(np.maximum(np.round(times).astype(int), 0), n - 1)
+    strength = np.take_along_axis(e, ti, axis=1) / np.maximum(threshold, 1e-300)[:, None]
+    weight = np.minimum(np.maximum(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT), 1.0)
+    vote, found_n, valid_n = _votes(times, pos, weight, lags, n, drift, n_bins)
+    res = {name: np.zeros(g) for name in ("rate", "std", "score", "rotors", "rotors_std")}
+    best = vote.max(axis=1)
+    ok = np.flatnonzero((best > 0.0) & (found_n.max(axis=1) > 0.0))
+    if ok.size == 0:
+        return res
+    vote, found_n, valid_n, best = vote[ok], found_n[ok], valid_n[ok], best[ok]
+    times, pos, weight, drift = times[ok], pos[ok], weight[ok], drift[ok]
+    i0 = np.argmax(vote, axis=1)
+    idx = np.arange(lags.size)
+    after = (idx[None, :] > i0[:, None]) & (vote != best[:, None])
+    i1 = np.where(after.any(axis=1), np.argmax(after, axis=1), lags.size) - 1
+    lag0 = 0.5 * (lags[i0] + lags[i1])
+    if (series.field is not None and series.field.shape[1] >= n * max(1, series.decimation)
+            and series.rate_hz * series.decimation * FLASH_LOBE_S <= 1.0):
+        counts, share = _coherent(series.field[rows[ok]], times, n, max(1, series.decimation))
+        lag0 = _rerank(counts, share, times, weight, lags, vote, lag0, n)
+    else:
+        lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
+    rate, std, score, phases, tol = _period(times, pos, drift, lag0, series.rate_hz, n_bins)
+    rotors, rotors_std = _rotor_count(phases, tol)
+    for name, values in (("rate", rate), ("std", std), ("score", score), ("rotors", rotors),
+                         ("rotors_std", rotors_std)):
+        res[name][ok] = values
+    return res
+
+
+def _weighted_sums(mask: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """(g, 2, m, k) checks weighted by (g, k) events, summed over events and both signs: (g, m).
+    One stacked matrix product: each row's sums are the single path's `(mask @ weight).sum(axis=0)`
+    to the bit (same BLAS call shape per row)."""
+    return np.matmul(mask.astype(np.float64), weight[:, None, :, None])[..., 0].sum(axis=1)
+
+
+def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndarray, n: int,
+           drift: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators._votes` of a group: (vote, found_n, valid_n), each (g, lags)."""
+    g, k = times.shape
+    informative = (pos > 0.0) & (pos < n_bins - 1)
+    moved = pos[:, None, :] - pos[:, :, None] - drift[:, None, None] * (times[:, None, :] - times[:, :, None])
+    compat = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[:, None, :] | ~informative[:, :, None]
+    share_compat = (compat.sum(axis=(1, 2)) - k) / max(k * (k - 1), 1)
+    tol = TOL_SAMPLES + TOL_FRACTION * lags
+    t3 = tol[None, :, None]
+    target = times[:, None, None, :] + (_SIGNS[:, None, None] * lags[None, :, None])[None]
+    valid = (target >= t3) & (target <= n - 1 - t3)
+    idx = np.empty(target.shape, dtype=np.intp)
+    for b in range(g):
+        idx[b] = np.searchsorted(times[b], target[b])
+    base = (np.arange(g) * k)[:, None, None, None]
+    flat_times = times.ravel()
+    flat_compat = compat.reshape(g, -1)
+    own = (np.arange(g) * k * k)[:, None, None, None] + (np.arange(k) * k)[None, None, None, :]
+    found = np.zeros(target.shape, bool)
+    for cand in (np.minimum(idx, k - 1), np.maximum(idx - 1, 0)):
+        found |= (np.abs(flat_times[base + cand] - target) <= t3) & flat_compat.ravel()[own + cand]
+    found &= valid
+    found_w = _weighted_sums(found, weight)
+    valid_w = _weighted_sums(valid, weight)
+    found_n = found.sum(axis=(1, 3)).astype(float)
+    valid_n = valid.sum(axis=(1, 3)).astype(float)
+    chance = np.minimum(np.maximum(1.0 - np.exp((-(k - 1) / n * 2.0 * tol)[None, :] * share_compat[:, None]),
+                                   1e-3), 0.999)
+    share = np.minimum(np.maximum(found_w / np.maximum(valid_w, 1e-12), 1e-9), 1.0 - 1e-9)
+    llr = found_w * np.log(share / chance) + (valid_w - found_w) * np.log((1.0 - share) / (1.0 - chance))
+    return np.where(share > chance, llr * share, 0.0), found_n, valid_n
+
+
+def _coherent(field: np.ndarray, times: np.ndarray, n: int, dec: int) -> tuple[np.ndarray, np.ndarray]:
+    """`estimators._coherent` of a group: hit counts (g, k, n + 1) and the chance share (g,)."""
+    g, k = times.shape
+    field = field[:, :n * dec]
+    gi = np.arange(g)[:, None]
+    ti = np.minimum(np.maximum(np.rint(times).astype(int), 0), n - 1)
+    rows = ti * dec
+    if dec > 1:
+        block = field.reshape(g, n, dec, -1)[gi, rows // dec]  # (g, k, dec, positions)
+        rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=3), axis=2)
+    energy = field.real ** 2 + field.imag ** 2  # (g, n * dec, positions)
+    at = np.argmax(energy[gi, rows], axis=2)
+    own = field[gi, rows, at]
+    phase = own / np.maximum(np.abs(own), 1e-30)
+    cols = np.take_along_axis(field, at[:, None, :], axis=2)  # (g, n * dec, k)
+    power = np.square((cols * phase.conj()[:, None, :]).real.transpose(0, 2, 1))  # (g, k, n * dec)
+    total = energy.max(axis=2)
+    coherent = power >= np.float32(COHERENT_SHARE) * total[:, None, :]
+    if dec > 1:
+        coherent = coherent.reshape(g, k, n, dec)
+        power = power.reshape(g, k, n, dec)
+        pick = np.argmax(np.where(coherent, power, np.float32(-1.0)), axis=3)[..., None]
+        coherent = np.take_along_axis(coherent, pick, axis=3)[..., 0]
+        power = np.take_along_axis(power, pick, axis=3)[..., 0]
+    half = n // 2
+    med = np.partition(power, half, axis=2)[:, :, half:half + 1]
+    hit = coherent & (power > np.float32(COHERENT_LEVEL / 0.455) * np.maximum(med, np.float32(1e-30)))
+    counts = np.zeros((g, k, n + 1), np.int32)
+    np.cumsum(hit, axis=2, out=counts[:, :, 1:])
+    lo, hi = np.maximum(ti - 2, 0), np.minimum(ti + 3, n)
+    own_hits = (np.take_along_axis(counts, hi[:, :, None], axis=2)
+                - np.take_along_axis(counts, lo[:, :, None], axis=2)).sum(axis=(1, 2)).astype(float)
+    others = np.maximum((k * n - (hi - lo).sum(axis=1)).astype(float), 1.0)
+    return counts, np.maximum(counts[:, :, -1].sum(axis=1).astype(float) - own_hits, 0.0) / others
+
+
+def _coherent_checks(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray,
+                     lags: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators._coherent_checks` with per-row lags (g, m): (found, made, chance), each (g, m)."""
+    g, k = times.shape
+    tol = TOL_SAMPLES + TOL_FRACTION * lags
+    w = np.floor(tol + 0.5).astype(int)
+    chance = np.minimum(np.maximum(1.0 - (1.0 - share[:, None]) ** (2 * w + 1), 1e-3), 0.999)
+    target = times[:, None, None, :] + _SIGNS[None, :, None, None] * lags[:, None, :, None]
+    t3, w3 = tol[:, None, :, None], w[:, None, :, None]
+    ok = (target >= t3) & (target <= n - 1 - t3)
+    centre = np.rint(target).astype(int)
+    lo = np.minimum(np.maximum(centre - w3, 0), n)
+    hi = np.minimum(np.maximum(centre + w3 + 1, 0), n)
+    flat = counts.ravel()
+    base = (np.arange(g) * k * (n + 1))[:, None, None, None] + (np.arange(k) * (n + 1))[None, None, None, :]
+    hit = ok & (flat[base + hi] > flat[base + lo])
+    return _weighted_sums(hit, weight), _weighted_sums(ok, weight), chance
+
+
+def _rerank(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
+            vote: np.ndarray, lag0: np.ndarray, n: int) -> np.ndarray:
+    """`estimators._rerank` of a group, halving applied: the chosen lag per row. The greedy
+    candidate choice runs over its RERANK_N ranks; the checks over rows with the same number
+    of candidates (the single path's shapes)."""
+    g = vote.shape[0]
+    gi = np.arange(g)
+    left = np.where(vote > 0.0, vote, -np.inf)
+    reach = TOL_SAMPLES + TOL_FRACTION * lags
+    cands = np.zeros((g, RERANK_N))
+    scores = np.zeros((g, RERANK_N))
+    n_c = np.zeros(g, dtype=int)
+    for r in range(RERANK_N):
+        j = np.argmax(left, axis=1)
+        top = left[gi, j]
+        act = top > 0.0
+        if not act.any():
+            break
+        cands[act, r] = lag0[act] if r == 0 else lags[j[act]]
+        scores[act, r] = top[act]
+        n_c += act
+        left = np.where(act[:, None] & (np.abs(lags[None, :] - lags[j][:, None]) <= reach[None, :]), -np.inf, left)
+    out = lag0.copy()
+    for c in np.unique(n_c[n_c > 0]).tolist():
+        sel = np.flatnonzero(n_c == c)
+        cl = cands[sel, :c]
+        found, made, chance = _coherent_checks(counts[sel], share[sel], times[sel], weight[sel],
+                                               np.concatenate([cl, 2.0 * cl, cl / 2.0], axis=1), n)
+        s = (found[:, :c] + found[:, c:2 * c]) / np.maximum(made[:, :c] + made[:, c:2 * c], 1e-12)
+        llr = (est._binomial_llr(found[:, :c], made[:, :c], s, chance[:, :c])
+               + est._binomial_llr(found[:, c:2 * c], made[:, c:2 * c], s, chance[:, c:2 * c]))
+        best = np.argmax(scores[sel, :c] + RERANK_WEIGHT * s * llr, axis=1)
+        si = np.arange(sel.size)
+        lag = cl[si, best]
+        half = (lag / 2.0 >= lags[0]) & _half_is_period(found[si, best], made[si, best], found[si, 2 * c + best],
+                                                        made[si, 2 * c + best], chance[si, 2 * c + best])
+        out[sel] = np.where(half, lag / 2.0, lag)
+    return out
+
+
+def _half_is_period(found: np.ndarray, made: np.ndarray, found_h: np.ndarray, made_h: np.ndarray,
+                    chance_h: np.ndarray) -> np.ndarray:
+    """`estimators._half_is_period`, elementwise."""
+    s0 = np.minimum(found / np.where(made > 0.0, made, 1.0), HALF_SHARE_CAP)
+    llr = est._binomial_llr(found_h, made_h, s0, chance_h)
+    return (made > 0.0) & (made_h > 0.0) & (found_h >= 1.0) & (llr > HALF_LLR)
+
+
+def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, valid_n: np.ndarray,
+                     lag0: np.ndarray) -> np.ndarray:
+    """`estimators._event_half_rule` of a group: a loop over halvings, vectorised over rows."""
+    lag0 = lag0.copy()
+    going = np.ones(lag0.size, bool)
+    gi = np.arange(lag0.size)
+    while True:
+        going &= lag0 / 2.0 >= lags[0]
+        sel = going[:, None] & (np.abs(lags[None, :] - (lag0 / 2.0)[:, None])
+                                <= (TOL_SAMPLES + TOL_FRACTION * lag0 / 2.0)[:, None])
+        going &= sel.any(axis=1)
+        if not going.any():
+            return lag0
+        j = np.argmax(np.where(sel, vote, -np.inf), axis=1)
+        fj, vj = found_n[gi, j], valid_n[gi, j]
+        going &= ~((fj < SUBHARMONIC_MIN_FOUND) | (fj < SUBHARMONIC_SHARE * vj))
+        c = np.argmin(np.abs(lags[None, :] - lag0[:, None]), axis=1)
+        fc, vc = found_n[gi, c], valid_n[gi, c]
+        vj_safe = np.where(going, vj, 1.0)
+        pooled = (fc + fj) / np.maximum(vc + vj, 1.0)
+        se = np.sqrt(np.maximum(pooled * (1.0 - pooled), 1e-12) * (1.0 / np.maximum(vc, 1.0) + 1.0 / vj_safe))
+        going &= ~(fc / np.maximum(vc, 1.0) - fj / vj_safe > SUBHARMONIC_Z * se)
+        lag0 = np.where(going, lags[j], lag0)
+
+
+def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndarray, rate_hz: float,
+            n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The tail of `estimators.periodicity` for a group: rate, rate std, score, phases, tolerance
+    (in periods). Mean and std of the matched intervals run per match count (numpy's pairwise
+    sums depend on the length); the scalar tail in Python floats, as the single path."""
+    g, k = times.shape
+    diff = times[:, None, :] - times[:, :, None]
+    l3 = lag0[:, None, None]
+    mult = np.round(diff / l3)
+    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * l3) <= TOL_SAMPLES + TOL_FRACTION * mult * l3)
+    intervals = diff / np.maximum(mult, 1)
+    n_matched = matched.sum(axis=(1, 2))
+    mean = lag0.copy()
+    spread = np.full(g, np.nan)
+    for m in np.unique(n_matched[n_matched > 0]).tolist():
+        sel = np.flatnonzero(n_matched == m)
+        vals = intervals[sel][matched[sel]].reshape(sel.size, m)
+        mean[sel] = vals.mean(axis=1)
+        if m > 1:
+            spread[sel] = vals.std(axis=1)
+    rate, std, tol = np.empty(g), np.empty(g), np.empty(g)
+    for b, (period, lag, scatter, count) in enumerate(zip(mean.tolist(), lag0.tolist(), spread.tolist(),
+                                                         n_matched.tolist())):
+        tol0 = TOL_SAMPLES + TOL_FRACTION * lag
+        if count <= 1:
+            scatter = tol0
+        period_std = math.sqrt(scatter ** 2 + 1.0 / 12.0) / math.sqrt(max(count, 1))
+        rate[b] = rate_hz / period
+        std[b] = rate[b] * period_std / period
+        tol[b] = tol0 / period
+    phases = np.mod(times / mean[:, None], 1.0)
+    moved = pos[:, None, :] - pos[:, :, None] - drift[:, None, None] * diff
+    informative = (pos > 0.0) & (pos < n_bins - 1)
+    same_place = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[:, None, :] | ~informative[:, :, None]
+    score = (np.sum(matched & same_place & (mult == 1), axis=(1, 2))
+             + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2), axis=(1, 2)))
+    return rate, std, score.astype(float), phases, tol
+
+
+def _rotor_count(phases: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`estimators.rotor_count` of rows of k >= 2 phases: circular groups split at gaps > tol."""
+    ph = np.sort(phases, axis=1)
+    gaps = np.diff(np.concatenate([ph, ph[:, :1] + 1.0], axis=1), axis=1)
+    breaks = gaps > np.maximum(tol, 1e-3)[:, None]
+    groups = breaks.sum(axis=1)
+    singletons = (breaks & np.roll(breaks, -1, axis=1)).sum(axis=1)
+    return np.where(groups > 0, groups, 1).astype(float), np.where(groups > 0, 0.5 * singletons, 0.0)
