@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from datetime import datetime
@@ -122,6 +122,33 @@ def _issues(claim: Claim, auth: RemoteIdAuth, mid: datetime, rotorcraft: bool | 
     return issues
 
 
+@dataclass
+class _Pending:
+    """A check the registry facts did not decide: what its radar stages and final decision need."""
+
+    rec: Any
+    claim: Claim
+    auth: RemoteIdAuth
+    mid: datetime
+    evidence: Evidence
+    classifier: Any
+    claimed: Any  # the registered model's profile (None: no profile)
+    expected: Any  # the radar-frame state the Remote ID predicts (None: no position)
+    gate: float | None  # range the features are gated at
+    file: str
+    digest: str
+    timer: _Timer
+
+
+@dataclass(frozen=True)
+class Batch:
+    """What `Checker.evaluate_many` decided, in input order; `fault`: the SystemFault that stopped
+    it (its Failure is the last item, the files after it were not checked)."""
+
+    items: list[Outcome | Failure]
+    fault: BaseException | None = None
+
+
 class Checker:
     """Loads once what every check needs (policy, database, file reader; the classifier on
     first radar use); checks many files."""
@@ -156,52 +183,9 @@ class Checker:
 
         return verify(asdict(feats.features), claimed, pred.probabilities, rec.config.unambiguous_velocity_mps)
 
-    def _radar(self, rec: Any, claim: Claim, timer: _Timer, classifier: Any, claimed: Any = None
-               ) -> tuple[RadarEvidence, KinematicsEvidence | None]:
-        """Features (gated at the claimed range when it lies in the window), class, kinematics."""
-        from signatures.features import extract
-
-        expected = None  # at the first chirp, the time the radar's range estimate refers to
-        if claim.state is not None:
-            expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
-                                           rec.start_time)
-        lo, hi = rec.config.range_window_m
-        cw = rec.domain == "cw"  # CW: no range measured, so no gate and no range residual (docs/format.md)
-        gate = expected.range_m if expected is not None and lo <= expected.range_m < hi and not cw else None
-        with timer.stage("radar_features"):
-            feats = extract(rec, expected_range_m=gate)
-        radar = RadarEvidence(gated=gate is not None, model_card_sha256=classifier.card_digest)
-        if feats.detected:
-            with timer.stage("classify"):
-                pred = classifier.predict(feats.as_array(), lambda: feats.rd_patch)  # patch only if the CNN runs
-            radar = replace(radar, model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
-                            range_m=None if cw else round(float(feats.range_m), 3),
-                            radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
-                            operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest,
-                            verification=self._verify(feats, pred, claimed, rec))
-        if expected is None or not radar.detected:
-            return radar, None
-        with timer.stage("kinematics"):  # CW: the range part is computed on the expected range and never shown
-            res = residuals(expected, claim.state, expected.range_m if cw else radar.range_m,
-                            radar.radial_velocity_mps, rec.config.range_bin_m(rec.n_samples),
-                            rec.config.doppler_bin_mps(rec.n_chirps),
-                            rec.config.measured_unambiguous_velocity_mps(rec.n_samples))
-        return radar, KinematicsEvidence(expected, res, range_measured=not cw)
-
-    # --- one check ------------------------------------------------------------------
-    def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
-        """Decide one file (no audit write); raises package errors on bad input."""
-        path = Path(path)
-        timer = _Timer()
-        with timer.stage("read"):
-            rec = self._read(path)
-            digest = _file_sha256(path)
-        return self.evaluate_recording(rec, serial, str(path), digest, timer)
-
-    def evaluate_recording(self, rec: Any, serial: str | None = None, file: str = "", digest: str = "",
-                           timer: _Timer | None = None) -> Outcome:
-        """Decide an in-memory recording (benchmarks and the stress suite skip the file)."""
-        timer = timer or _Timer()
+    def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer) -> Outcome | _Pending:
+        """Everything before the radar: the claim, the registry, DRIP, and the policy with the radar
+        not run. An Outcome when that already decides; otherwise what the radar stages need."""
         with timer.stage("remote_id"):
             claim = read_claim(rec, serial)
         with timer.stage("registry"):
@@ -216,23 +200,198 @@ class Checker:
         with timer.stage("policy_registry"):
             result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
                                                          evidence.context())
-        if result is None:
-            from signatures.inference import classifier_for
+        if result is not None:
+            return self._outcome(file, digest, result, evidence, timer)
+        from signatures.inference import classifier_for
 
-            classifier = classifier_for(rec, self.model, file or "FILE")  # the bundle of the file's waveform
-            evidence.preset = classifier.preset
-            with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
-                claimed = self.db.profile(facts.model) if facts.model else None
-            evidence.radar, evidence.kinematics = self._radar(rec, claim, timer, classifier, claimed)
-            evidence.remote_id_issues = _issues(claim, auth, mid, evidence.radar.rotorcraft)
-            with timer.stage("policy"):
-                result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(),
-                                            evidence.context())
+        classifier = classifier_for(rec, self.model, file or "FILE")  # the bundle of the file's waveform
+        evidence.preset = classifier.preset
+        with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
+            claimed = self.db.profile(facts.model) if facts.model else None
+        expected = None  # at the first chirp, the time the radar's range estimate refers to
+        if claim.state is not None:
+            expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
+                                           rec.start_time)
+        lo, hi = rec.config.range_window_m
+        cw = rec.domain == "cw"  # CW: no range measured, so no gate and no range residual (docs/format.md)
+        gate = expected.range_m if expected is not None and lo <= expected.range_m < hi and not cw else None
+        return _Pending(rec, claim, auth, mid, evidence, classifier, claimed, expected, gate, file, digest, timer)
+
+    def _finish(self, p: _Pending, feats: Any, pred: Any) -> Outcome:
+        """The radar evidence from the features and the class, kinematics, the full policy decision."""
+        rec, claim, cw = p.rec, p.claim, p.rec.domain == "cw"
+        radar = RadarEvidence(gated=p.gate is not None, model_card_sha256=p.classifier.card_digest)
+        if feats.detected:
+            radar = replace(radar, model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
+                            range_m=None if cw else round(float(feats.range_m), 3),
+                            radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
+                            operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest,
+                            verification=self._verify(feats, pred, p.claimed, rec))
+        kin = None
+        if p.expected is not None and radar.detected:
+            with p.timer.stage("kinematics"):  # CW: the range part is computed on the expected range, never shown
+                res = residuals(p.expected, claim.state, p.expected.range_m if cw else radar.range_m,
+                                radar.radial_velocity_mps, rec.config.range_bin_m(rec.n_samples),
+                                rec.config.doppler_bin_mps(rec.n_chirps),
+                                rec.config.measured_unambiguous_velocity_mps(rec.n_samples))
+            kin = KinematicsEvidence(p.expected, res, range_measured=not cw)
+        evidence = p.evidence
+        evidence.radar, evidence.kinematics = radar, kin
+        evidence.remote_id_issues = _issues(claim, p.auth, p.mid, radar.rotorcraft)
+        with p.timer.stage("policy"):
+            result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(), evidence.context())
+        return self._outcome(p.file, p.digest, result, evidence, p.timer)
+
+    def _outcome(self, file: str, digest: str, result: Any, evidence: Evidence, timer: _Timer) -> Outcome:
         return Outcome(file=file, decision=result.decision, reasons=result.reasons, **evidence.report(),
                        skipped=[s for s in RADAR_STAGES if s not in timer.ms], timings_ms=timer.ms,
                        policy_sha256=self.policy.sha256,
                        model_card_sha256=evidence.radar.model_card_sha256 if evidence.radar else None,
                        file_sha256=digest, policy_errors=result.errors, policy_input=evidence.policy_input())
+
+    # --- one check ------------------------------------------------------------------
+    def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
+        """Decide one file (no audit write); raises package errors on bad input."""
+        path = Path(path)
+        timer = _Timer()
+        with timer.stage("read"):
+            rec = self._read(path)
+            digest = _file_sha256(path)
+        return self.evaluate_recording(rec, serial, str(path), digest, timer)
+
+    def evaluate_recording(self, rec: Any, serial: str | None = None, file: str = "", digest: str = "",
+                           timer: _Timer | None = None) -> Outcome:
+        """Decide an in-memory recording (benchmarks and the stress suite skip the file)."""
+        front = self._front(rec, serial, file, digest, timer or _Timer())
+        if isinstance(front, Outcome):
+            return front
+        from signatures.features import extract
+
+        with front.timer.stage("radar_features"):
+            feats = extract(rec, expected_range_m=front.gate)
+        pred = None
+        if feats.detected:
+            with front.timer.stage("classify"):
+                pred = front.classifier.predict(feats.as_array(), lambda: feats.rd_patch)  # patch only if CNN runs
+        return self._finish(front, feats, pred)
+
+    # --- many checks ------------------------------------------------------------------
+    def evaluate_many(self, items: Sequence[tuple[str | Path, str | None]],
+                      stop: Callable[[], bool] = lambda: False) -> Batch:
+        """Decide many files, (path, claimed serial or None) each; see `decide_many`."""
+        def loader(path: Path) -> Callable[[], tuple[Any, str]]:
+            return lambda: (self._read(path), _file_sha256(path))
+
+        return self.decide_many([(str(path), serial, loader(Path(path))) for path, serial in items], stop)
+
+    def decide_many(self, items: Sequence[tuple[str, str | None, Callable[[], tuple[Any, str]]]],
+                    stop: Callable[[], bool] = lambda: False) -> Batch:
+        """Decide many returns (no audit write), each (name, claimed serial, a loader giving its
+        Recording and file SHA-256), the radar stages batched: the returns that need the radar
+        share one batched feature extraction (`signatures.batch_features`, grouped by waveform,
+        as many cubes at once as `batch_size` allows in memory) and one classifier call per bundle.
+        Bad input or a crash in one return is that return's Failure; a SystemFault (database,
+        policy engine) stops the batch (`Batch.fault`). Radar timings are each return's share.
+        `stop()` is asked before each return is read: once true, the returns read so far are
+        decided and the rest are left out of `Batch.items`."""
+        from authn.errors import SystemFault
+        from signatures.batch_features import batch_size
+
+        done: dict[int, Outcome | Failure] = {}
+        pending: dict[int, _Pending] = {}
+
+        def flush() -> None:
+            done.update(self._radar_batch(pending))
+            pending.clear()
+
+        for i, (name, serial, load) in enumerate(items):
+            if stop():
+                items = items[:i]
+                break
+            try:
+                timer = _Timer()
+                with timer.stage("read"):
+                    rec, digest = load()
+                front = self._front(rec, serial, name, digest, timer)
+            except SystemFault as exc:
+                return Batch([done[j] for j in sorted(done)] + [Failure.of(name, serial, exc)], exc)
+            except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
+                front = Failure.of(name, serial, exc)
+            if not isinstance(front, _Pending):
+                done[i] = front
+                continue
+            pending[i] = front
+            if len(pending) >= batch_size(rec.n_chirps, rec.n_samples):  # memory holds no more cubes
+                try:
+                    flush()
+                except SystemFault as exc:
+                    return Batch([done[j] for j in sorted(done)], exc)
+        try:
+            flush()
+        except SystemFault as exc:
+            return Batch([done[j] for j in sorted(done)], exc)
+        return Batch([done[j] for j in range(len(items))])
+
+    @staticmethod
+    def _features_or_failure(p: _Pending) -> Any:
+        from signatures.features import extract
+
+        try:
+            return extract(p.rec, expected_range_m=p.gate)
+        except Exception as exc:  # noqa: BLE001 - this file's failure, not the batch's
+            return Failure.of(p.file, p.claim.serial, exc)
+
+    def _radar_batch(self, pending: dict[int, _Pending]) -> dict[int, Outcome | Failure]:
+        """Features of every pending return in batches, classes per bundle, then each decision."""
+        import numpy as np
+
+        from authn.errors import SystemFault
+        from signatures.batch_features import extract_many
+
+        if not pending:
+            return {}
+        out: dict[int, Outcome | Failure] = {}
+        keys = list(pending)
+        t0 = time.perf_counter()
+        try:
+            feats = extract_many([pending[k].rec for k in keys], [pending[k].gate for k in keys])
+        except Exception:  # noqa: BLE001 - find the file at fault: each return on its own
+            feats = [self._features_or_failure(pending[k]) for k in keys]
+            out = {k: f for k, f in zip(keys, feats) if isinstance(f, Failure)}
+            keys = [k for k, f in zip(keys, feats) if not isinstance(f, Failure)]
+            feats = [f for f in feats if not isinstance(f, Failure)]
+        share = (time.perf_counter() - t0) * 1e3 / max(len(keys), 1)
+        preds: dict[int, Any] = {}
+        by_bundle: dict[int, list[int]] = {}
+        for k, f in zip(keys, feats):
+            pending[k].timer.ms["radar_features"] = round(share, 3)
+            if f.detected:
+                by_bundle.setdefault(id(pending[k].classifier), []).append(k)
+        fmap = dict(zip(keys, feats))
+        for ks in by_bundle.values():
+            t0 = time.perf_counter()
+            clf = pending[ks[0]].classifier
+            try:
+                rows = clf.predict_many(np.stack([fmap[k].as_array() for k in ks]),
+                                        lambda ks=ks: np.stack([fmap[k].rd_patch for k in ks]))
+            except Exception as exc:  # noqa: BLE001 - a broken bundle fails its returns, not the batch
+                out.update({k: Failure.of(pending[k].file, pending[k].claim.serial, exc) for k in ks})
+                continue
+            share = round((time.perf_counter() - t0) * 1e3 / len(ks), 3)
+            for k, pred in zip(ks, rows):
+                preds[k] = pred
+                pending[k].timer.ms["classify"] = share
+        for k in keys:
+            p = pending[k]
+            if k in out:
+                continue
+            try:
+                out[k] = self._finish(p, fmap[k], preds.get(k))
+            except SystemFault:
+                raise
+            except Exception as exc:  # noqa: BLE001
+                out[k] = Failure.of(p.file, p.claim.serial, exc)
+        return out
 
     def record(self, outcomes: Sequence[Outcome | Failure], idempotency_key: str | None = None) -> list[int]:
         """Append decisions and failed checks in one transaction; raises DatabaseFault if it

@@ -233,24 +233,33 @@ class Classifier:
         """Open-set rejection of full feature vectors given their predicted class indices."""
         return self.openset.unknown(self._x(X), pred, mode)
 
-    # --- one return -----------------------------------------------------------------
+    # --- returns -------------------------------------------------------------------
     def predict(self, features: np.ndarray,
                 rd_patch: np.ndarray | Callable[[], np.ndarray] | None = None) -> Prediction:
         """Classify one return from its feature vector (and RD patch for the cascade; a callable
         is only called when the cascade runs the CNN)."""
+        return self.predict_many(self._x(features), rd_patch)[0]
+
+    def predict_many(self, features: np.ndarray,
+                     rd_patches: np.ndarray | Callable[[], np.ndarray] | None = None) -> list[Prediction]:
+        """Classify B returns at once (B x features; the patches B x PATCH_SHAPE, or a callable
+        giving them, called only when the cascade runs the CNN for some row): every member and
+        the open set run once over the batch, so a batch costs little more than one return."""
         X = self._x(features)
-        p, used = self.cascade_proba(X, rd_patch)
-        p = p[0]
-        k = int(np.argmax(p))
-        pk = np.array([k])
-        known = not bool(self.openset.unknown(X, pk)[0])
-        label = self.classes[k] if known else UNKNOWN
-        state = None
-        if label not in NON_UAV_CLASSES:
-            state = "moving" if float(self.moving_proba(X)[0]) >= 0.5 else "hovering"
-        return Prediction(label=label, confidence=float(p[k]), known=known,
-                          probabilities={c: float(v) for c, v in zip(self.classes, p)},
-                          operational_state=state, used_cnn=bool(used[0]), nearest=self.classes[k])
+        p, used = self.cascade_proba(X, rd_patches)
+        k = np.argmax(p, axis=1)
+        known = ~self.openset.unknown(X, k)
+        labels = [self.classes[ki] if kn else UNKNOWN for ki, kn in zip(k.tolist(), known.tolist())]
+        uav = [label not in NON_UAV_CLASSES for label in labels]
+        moving = self.moving_proba(X) >= 0.5 if any(uav) else np.zeros(len(X), bool)
+        out = []
+        for i, label in enumerate(labels):
+            ki = int(k[i])
+            state = ("moving" if moving[i] else "hovering") if uav[i] else None
+            out.append(Prediction(label=label, confidence=float(p[i, ki]), known=bool(known[i]),
+                                  probabilities={c: float(v) for c, v in zip(self.classes, p[i])},
+                                  operational_state=state, used_cnn=bool(used[i]), nearest=self.classes[ki]))
+        return out
 
 
 def card_waveform(card: dict[str, Any]) -> Preset:

@@ -90,3 +90,22 @@ def eer_table(trials: list["Trial"]) -> Table:
         table.add_row(key[0], f"{key[1]:g}", key[2].replace("_", " "),
                   *(f"{eers[(*key, w)]:.1%}" if (*key, w) in eers else "-" for w in worlds))
     return table
+
+
+def batch_table(report: dict[str, dict[str, Any]]) -> Table:
+    """Per preset: ms per return and x the FFT floor at each batch size, then accuracy and the
+    registry-only ratio (`authn bench --batch`)."""
+    t = _table("batch mode: features + classifier per return (ms, x the FFT floor)",
+               ("preset", "batch", "ms", "x floor"), left=2)
+    for p, r in report.items():
+        c = r["curve"]
+        for k, ms in c["ms_per_return"].items():
+            t.add_row(p, "one at a time" if k == "single" else k, f"{ms:.3f}", f"{c['x_floor'][k]:.1f}")
+        t.add_row(p, "FFT floor", f"{c['fft_floor_ms']:.3f}", "1.0")
+        acc, reg = r["accuracy"], r["registry_only"]
+        f1 = acc["macro_f1"]
+        t.add_row(p, "F1 0/10/20 dB", "single " + " ".join(f"{v:.3f}" for v in f1["single"].values()),
+                  "batched " + " ".join(f"{v:.3f}" for v in f1["batched"].values()))
+        t.add_row(p, "registry-only", f"{reg['registry_only_ms']:.3f}",
+                  f"{reg['x_floor']:.2f} of I/O floor {reg['io_floor_ms']:.3f} ms")
+    return t

@@ -26,6 +26,9 @@ def bench(
                                      "both (default both; training with --quick)."),
     snr: list[float] = typer.Option([0.0, 10.0], "--snr", help="SNR rows (dB) of the identity claims (repeatable)."),
     worlds_only: bool = typer.Option(False, "--worlds-only", help="Run only the identity claims in the worlds."),
+    batch: bool = typer.Option(False, "--batch", help="Run only the batch-mode figures: per-return time against "
+                               "batch size beside the FFT floor, accuracy against one return at a time, "
+                               "registry-only rejections against the I/O floor."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Benchmark decisions and speed: accuracy, latency, stages, error vs time, throughput.
@@ -56,7 +59,14 @@ def bench(
 
     Example: authn bench --stress --quick
 
+    Batch mode (--batch): batched features + classifier per return at batch sizes 1 to 1024
+    beside the single-return path and the FFT floor (batch-size.png with --plot), macro F1
+    of both paths on the same returns, and registry-only rejections in batch mode against
+    the I/O floor (open + validate + hash + one Cedar decision).
+
     Example: authn bench --worlds-only --world both --n 100 --plot docs/figures
+
+    Example: authn bench --batch --plot docs/figures
     """
     from rich.console import Console
     from rich.progress import Progress
@@ -74,6 +84,9 @@ def bench(
         get_preset(p)
     if stress:
         _stress(tuple(preset), quick, as_json)
+        return
+    if batch:
+        _batch(tuple(preset), quick, seed, plot_dir, as_json)
         return
     n_claims = len(preset) * len(snr) * len(WORLD_CATEGORIES) * n * len(worlds)
     if worlds_only:
@@ -159,6 +172,38 @@ def bench(
         console.print("  FFT floor of just the first part of the dwell (what those configurations transform): "
                       + ", ".join(f"{k} {v:.2f} ms" for k, v in dwell_floors[p].items()))
     console.print(imports_table(imports))
+
+
+def _batch(presets: tuple[str, ...], quick: bool, seed: int, plot_dir: Path | None, as_json: bool) -> None:
+    """Only the batch-mode figures (`--batch`)."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from authn.bench import batch
+    from authn.bench.tables import batch_table
+
+    sizes = (1, 8, 64) if quick else batch.SIZES
+    report: dict[str, dict[str, object]] = {}
+    with Progress(transient=True, disable=as_json) as progress:
+        task = progress.add_task("batch mode", total=3 * len(presets))
+        for p in presets:
+            progress.update(task, description=f"{p}: per-return time against batch size")
+            curve = batch.curve(p, sizes, distinct=10 if quick else 64, seed=seed, budget_s=5.0 if quick else 30.0)
+            progress.advance(task)
+            progress.update(task, description=f"{p}: accuracy, single against batched")
+            acc = batch.accuracy(p, per_class=2 if quick else 20, seed=seed)
+            progress.advance(task)
+            progress.update(task, description=f"{p}: registry-only rejections against the I/O floor")
+            reg = batch.registry_only(p, n=20 if quick else 200, seed=seed)
+            progress.advance(task)
+            report[p] = {"curve": curve, "accuracy": acc, "registry_only": reg}
+    if plot_dir is not None:
+        plot_dir.mkdir(parents=True, exist_ok=True)
+        batch.plot({p: r["curve"] for p, r in report.items()}, plot_dir / "batch-size.png")
+    if as_json:
+        typer.echo(json.dumps(report, indent=2))
+        return
+    Console().print(batch_table(report))
 
 
 def _worlds(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,

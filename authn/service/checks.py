@@ -81,19 +81,16 @@ def _check_one(checker: Any, data: bytes, name: str, serial: str | None) -> Any:
 
 
 def _check_many(checker: Any, files: list[tuple[str, bytes]], serial: str | None) -> list[Any]:
-    from authn.check import Failure
+    """Every upload decided with the radar stages batched (`Checker.decide_many`), then audited in
+    one transaction; a SystemFault stops the batch after auditing what it decided."""
+    def loader(name: str, data: bytes) -> Any:
+        return lambda: (_read(data, name), hashlib.sha256(data).hexdigest())
 
-    items: list[Any] = []
-    for name, data in files:
-        try:
-            items.append(_evaluate(checker, data, name, serial))
-        except SystemFault as exc:  # the database or policy engine: the batch cannot go on
-            checker.record([*items, Failure.of(name, serial, exc)])
-            raise
-        except Exception as exc:  # noqa: BLE001 - one bad file must not stop the batch
-            items.append(Failure.of(name, serial, exc))
-    checker.record(items)
-    return items
+    batch = checker.decide_many([(name, serial, loader(name, data)) for name, data in files])
+    checker.record(batch.items)
+    if batch.fault is not None:  # the database or policy engine: the batch cannot go on
+        raise batch.fault
+    return batch.items
 
 
 def _serial(serial: str | None) -> str | None:

@@ -119,14 +119,14 @@ def test_a_crashing_file_does_not_stop_the_batch(archive: Path, db: str, capsys,
     and the files after it are still decided and audited."""
     import authn.check
 
-    real = authn.check.Checker.evaluate
+    real = authn.check.Checker._front
 
-    def evaluate(self, path, serial=None):
-        if Path(path).name == "r001.h5":
+    def front(self, rec, serial, file, digest, timer):
+        if Path(file).name == "r001.h5":
             raise OverflowError("date value out of range")
-        return real(self, path, serial)
+        return real(self, rec, serial, file, digest, timer)
 
-    monkeypatch.setattr(authn.check.Checker, "evaluate", evaluate)
+    monkeypatch.setattr(authn.check.Checker, "_front", front)
     files = sorted(archive.iterdir())[:4]  # r000 good, r001 crashes, r002-r003 good
     capsys.readouterr()
     assert main(["--db", db, "check", *map(str, files), "--json"]) == 3
