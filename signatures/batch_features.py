@@ -78,12 +78,13 @@ def batch_size(n_chirps: int, n_samples: int, memory_bytes: int | None = None) -
 
 def _bytes_per_return(n_chirps: int, n_samples: int, gate_bins: int = F.GATE_BINS) -> int:
     """Peak bytes one row adds to a batch: its input cube as complex64 (stacked by `extract_many`),
-    the kept patch columns and gate, and ~24 gate-sized complex128 temporaries (Doppler
-    spectrum, powers, STFT frames and the flash estimators' fields), measured with tracemalloc
-    (tests/features/test_batch_features.py checks the estimate is not below the measured peak)."""
+    the kept patch columns, and 16 gate-sized complex128 temporaries (Doppler spectrum, powers,
+    STFT frames, the flash estimators' fields: ~10 measured with tracemalloc; the cube stage's
+    workspaces are per block, not per row). tests/features/test_batch_features.py checks the
+    estimate against the measured peak."""
     gate = n_chirps * min(gate_bins, n_samples)
     patch = n_chirps * min(F.PATCH_SHAPE[1], n_samples)
-    return 8 * n_chirps * n_samples + 8 * patch + 24 * 16 * gate
+    return 8 * n_chirps * n_samples + 8 * patch + 16 * 16 * gate
 
 
 def _default_budget() -> int:
@@ -273,12 +274,19 @@ def _range_spectra(a: np.ndarray, suppress: bool, domain: str,
     src = np.multiply(y, weight, out=_scratch("in", x.shape, np.complex128))
     mu = mean[:, 0] * weight[:, 0]
     if domain != "if":  # a range cube already is a range spectrum
-        return src, mu.astype(np.complex64), exponent, zero
+        return _complex64(src), mu.astype(np.complex64), exponent, zero
     if _fft.backend() == "scipy":
         spec = _fft.fft(src, axis=-1)
     else:
         spec = np.fft.fft(src, axis=-1, out=_scratch("out", x.shape, np.complex128))
-    return spec, np.fft.fft(mu, axis=-1).astype(np.complex64), exponent, zero
+    return _complex64(spec), np.fft.fft(mu, axis=-1).astype(np.complex64), exponent, zero
+
+
+def _complex64(z: np.ndarray) -> np.ndarray:
+    """z rounded to complex64 in a reused workspace (the single path's spectrum dtype)."""
+    out = _scratch("spec64", z.shape, np.complex64)
+    np.copyto(out, z, casting="same_kind")
+    return out
 
 
 def _scratch(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
@@ -313,11 +321,12 @@ def _fft_rows(x: np.ndarray, axis: int, window: np.ndarray, key: str, post=None)
 
 
 def _range_profile(spec: np.ndarray) -> np.ndarray:
-    """`rd.range_profile` per row: mean power over chirps of each range bin (float32)."""
+    """`rd.range_profile` per row: mean power over chirps of each range bin (float32; einsum
+    accumulates as `rd.range_profile`'s sum over chirps, bit for bit, without its temporary)."""
     b, n, k = spec.shape
-    f = spec.view(spec.real.dtype).reshape(b, n, 2 * k)
+    f = spec.view(np.float32).reshape(b, n, 2 * k)
     sq = np.einsum("bnj,bnj->bj", f, f).reshape(b, k, 2).sum(axis=2)
-    return (sq / n).astype(np.float32)
+    return (sq / np.float32(n)).astype(np.float32, copy=False)
 
 
 def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):

@@ -1,0 +1,201 @@
+"""The batched feature front end (`signatures.batch_features`) gives the single-return path's
+results row by row: same detection, gate and counts, every feature within REL of
+max(|value|, 1), the same CNN patch."""
+
+from __future__ import annotations
+
+import tracemalloc
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from authn.bench.stress import cases
+from signatures import batch_features as bf
+from signatures import features as F
+from signatures.dataset import DatasetSpec, draw_scene
+from signatures.domain import as_recorded
+from signatures.errors import SignaturesError
+from signatures.profiles import shipped_profiles
+from signatures.simulate import simulate
+
+REL = 1e-5
+#: features that are counts or flags: equal, not close
+EXACT = ("num_peaks", "flash_count", "rotor_count", "tip_aliased", "detected")
+
+
+def _drawn(preset: str, n: int):
+    """n dataset scenes of `preset` (SNR -5..30 dB; UAVs hovering and moving, birds, empty
+    scenes) and their simulated recordings."""
+    spec = DatasetSpec(preset, tuple(shipped_profiles().values()), "test", n)
+    out = []
+    for i in range(n):
+        scene, seed = draw_scene(spec, i)
+        out.append((scene, simulate(scene, spec.waveform, seed=seed)[0]))
+    return out
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return _drawn("paper", 30)
+
+
+@pytest.fixture(scope="module")
+def wide():
+    return _drawn("wide", 8)
+
+
+def assert_same(single: F.FeatureResult, batch: F.FeatureResult, where: str) -> None:
+    assert (batch.detected, batch.gate) == (single.detected, single.gate), where
+    a, b = single.as_array().astype(np.float64), batch.as_array().astype(np.float64)
+    exact = [F.FEATURE_NAMES.index(n) for n in EXACT]
+    assert np.array_equal(a[exact], b[exact]), f"{where}: counts {a[exact]} != {b[exact]}"
+    err = np.abs(a - b) / np.maximum(np.abs(a), 1.0)
+    bad = {n: (a[i], b[i]) for i, n in enumerate(F.FEATURE_NAMES) if not err[i] <= REL}
+    assert not bad, f"{where}: {bad}"
+    np.testing.assert_allclose(batch.rd_patch, single.rd_patch, rtol=0, atol=1e-5, err_msg=where)
+
+
+def _expected(config, n: int, detected: list[float]) -> list[float | None]:
+    """None, the single path's own detected range, or a range elsewhere in the window, in turn."""
+    lo, hi = config.range_window_m
+    out: list[float | None] = []
+    for i in range(n):
+        r = detected[i] if i % 3 == 1 else lo + (hi - lo) * ((0.37 * i) % 1.0)
+        out.append(None if i % 3 == 0 or not lo <= r < hi else r)
+    return out
+
+
+@pytest.mark.parametrize("preset", ["paper", "wide"])
+@pytest.mark.parametrize("gated", [False, True], ids=["no-expected-range", "expected-ranges"])
+def test_batch_equals_single_on_simulated_returns(request, preset, gated):
+    drawn = request.getfixturevalue(preset)
+    scenes = [s for s, _ in drawn]
+    if preset == "paper":  # the draw covers what the features must handle
+        assert {s.kind for s in scenes} == {"uav", "bird", "none"}
+        assert any(s.hovering for s in scenes if s.kind == "uav")
+        assert any(not s.hovering for s in scenes if s.kind == "uav")
+    # one radar: every cube under the first one's configuration (only the range offset differs)
+    config = drawn[0][1].config
+    iq = np.stack([r.iq for _, r in drawn])
+    expected = None
+    if gated:
+        expected = _expected(config, len(drawn), [F.extract_iq(c, config).range_m for c in iq])
+    results = bf.extract_batch(iq, config, expected)
+    assert len(results) == len(drawn)
+    for b, res in enumerate(results):
+        single = F.extract_iq(iq[b], config, None if expected is None else expected[b])
+        assert_same(single, res, f"{preset} row {b} ({scenes[b].label}, {scenes[b].snr_db:.0f} dB)")
+
+
+@pytest.mark.parametrize("preset", ["paper", "wide"])
+def test_stress_cases_batched_as_single(preset):
+    """Every numerical stress case that gives features (scales 1e-30..1e30, ADC dtypes,
+    degenerate and odd-shaped cubes, extreme SNR and geometry), batched by `extract_many`
+    with the cases that share its configuration, shape and dtype."""
+    recs, singles = [], []
+    for group, name, make in cases(preset, quick=True):
+        rec = make()
+        try:
+            singles.append((f"{group}/{name}", F.extract(rec)))
+        except SignaturesError:
+            continue
+        recs.append(rec)
+    assert len(recs) >= 20
+    batched = bf.extract_many(recs)
+    for (name, single), res in zip(singles, batched):
+        assert_same(single, res, f"{preset} {name}")
+
+
+def test_extract_many_keeps_order_over_a_mixed_list(paper, wide):
+    base = [r for _, r in paper[:4]]
+    recs = [base[0], wide[0][1], as_recorded(base[1], "range"), base[2], as_recorded(base[3], "cw"),
+            wide[1][1], base[0]]
+    lo, hi = base[2].config.range_window_m
+    far = base[0].config.range_window_m[0] + 20.0  # away from the (centred) target
+    expected = [None, None, None, 0.5 * (lo + hi), None, None, far]
+    results = bf.extract_many(recs, expected, memory_bytes=1)  # batches of one row
+    assert len(results) == len(recs)
+    for i, (rec, res) in enumerate(zip(recs, results)):
+        assert_same(F.extract(rec, expected[i]), res, f"item {i} ({rec.domain})")
+    assert results[0].as_array().tolist() != results[6].as_array().tolist()  # gated away from the target
+    by_default = bf.extract_many(recs, expected)
+    for i, res in enumerate(by_default):
+        assert_same(results[i], res, f"item {i}, default batch size")
+
+
+def test_bad_rows_raise_the_single_path_error_naming_the_row(paper):
+    config = paper[0][1].config
+    iq = np.stack([r.iq for _, r in paper[:3]])
+    bad = iq.copy()
+    bad[2, 5, 7] = np.nan
+    with pytest.raises(SignaturesError) as single:
+        F.extract_iq(bad[2], config)
+    with pytest.raises(SignaturesError) as batch:
+        bf.extract_batch(bad, config)
+    assert str(batch.value) == f"row 2: {single.value}"
+    far = config.range_window_m[1] + 10.0
+    with pytest.raises(SignaturesError) as single:
+        F.extract_iq(iq[1], config, far)
+    with pytest.raises(SignaturesError) as batch:
+        bf.extract_batch(iq, config, [None, far, None])
+    assert str(batch.value) == f"row 1: {single.value}"
+    with pytest.raises(SignaturesError, match="row 1: expected range"):
+        bf.extract_many([paper[0][1], paper[1][1]], [None, far])
+    with pytest.raises(SignaturesError, match="3-D"):
+        bf.extract_batch(iq[0], config)
+    with pytest.raises(SignaturesError, match="2 expected ranges for 3 returns"):
+        bf.extract_batch(iq, config, [None, None])
+    with pytest.raises(SignaturesError, match="gate_bins"):
+        bf.extract_batch(iq, config, gate_bins=0)
+    assert bf.extract_batch(iq[:0], config) == []
+
+
+def test_batch_size_follows_memory(paper):
+    n, k = paper[0][1].iq.shape
+    assert 1 <= bf.batch_size(8192, 64) <= bf.batch_size(n, k) <= bf.MAX_BATCH
+    assert bf.batch_size(n, k, memory_bytes=1) == 1
+    assert bf.batch_size(n, k, memory_bytes=1 << 50) == bf.MAX_BATCH
+    half, full = bf.batch_size(n, k, memory_bytes=64 << 20), bf.batch_size(n, k, memory_bytes=128 << 20)
+    assert 1 < half < bf.MAX_BATCH and 2 * half <= full <= 2 * half + 1
+    # the estimate covers what a row really costs: input cube plus the batch's peak per row
+    config = paper[0][1].config
+    peaks = {}
+    for rows in (4, 12):
+        iq = np.stack([paper[i % len(paper)][1].iq for i in range(rows)])
+        bf.extract_batch(iq, config)  # workspaces, caches
+        tracemalloc.start()
+        bf.extract_batch(iq, config)
+        peaks[rows] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    per_row = (peaks[12] - peaks[4]) / 8 + paper[0][1].iq.astype(np.complex64).nbytes
+    assert bf.batch_size(n, k, memory_bytes=int(10 * per_row)) <= 10
+
+
+@pytest.fixture(scope="module")
+def four(paper):
+    config = paper[0][1].config
+    iq = np.stack([paper[i][1].iq for i in (0, 5, 10, 11)])
+    return config, iq, bf.extract_batch(iq, config)
+
+
+@settings(max_examples=10, deadline=None)
+@given(row=st.integers(0, 3), exponent=st.integers(-20, 20).filter(bool))
+def test_scaling_one_row_by_a_power_of_ten(four, row, exponent):
+    """Only that row's peak amplitude moves (by 20 dB per decade); the other rows are untouched."""
+    config, iq, base = four
+    scaled = iq.copy()
+    scaled[row] = (iq[row].astype(np.complex128) * 10.0 ** exponent).astype(np.complex64)
+    results = bf.extract_batch(scaled, config)
+    peak = F.FEATURE_NAMES.index("peak_amplitude_db")
+    for b, res in enumerate(results):
+        if b != row:
+            assert res.gate == base[b].gate and np.array_equal(res.as_array(), base[b].as_array())
+            continue
+        a, s = base[b].as_array().astype(np.float64), res.as_array().astype(np.float64)
+        assert s[peak] == pytest.approx(a[peak] + 20.0 * exponent, abs=1e-3)
+        err = np.abs(a - s) / np.maximum(np.abs(a), 1.0)
+        err[peak] = 0.0
+        assert err.max() <= REL, {F.FEATURE_NAMES[i]: (a[i], s[i]) for i in np.flatnonzero(err > REL)}
+        assert res.gate == base[b].gate and res.detected == base[b].detected
