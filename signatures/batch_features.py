@@ -565,22 +565,45 @@ def _count_peaks(d: np.ndarray, noise: np.ndarray) -> np.ndarray:
     r, c = np.nonzero((y >= floor[:, None]) & rise & fall)  # candidates: row, band
     if r.size == 0:
         return np.zeros(rows, dtype=int)
-    # features._count_peaks' prominence, one line per candidate of any row
-    idx = np.arange(n)
-    yr = y[r]
-    yc = y[r, c][:, None]
-    higher = yr > yc
-    left, right = idx[None, :] < c[:, None], idx[None, :] > c[:, None]
-    last_left = np.where(higher & left, idx[None, :], -1).max(axis=1)
-    first_right = np.where(higher & right, idx[None, :], n).min(axis=1)
-    span_l = left & (idx[None, :] > last_left[:, None])
-    span_r = right & (idx[None, :] < first_right[:, None])
-    base_l = np.where(span_l, yr, np.inf).min(axis=1)
-    base_r = np.where(span_r, yr, np.inf).min(axis=1)
-    base_l = np.where(span_l.any(axis=1), base_l, yc[:, 0])
-    base_r = np.where(span_r.any(axis=1), base_r, yc[:, 0])
-    prominent = yc[:, 0] - np.maximum(base_l, base_r) >= F.PEAK_PROMINENCE_DB
+    # features._count_peaks' prominence by range-min/max tables (no candidate x band matrices):
+    # the base on each side is the lowest point from the candidate to just before the nearest
+    # higher band (those points are all <= the candidate, so the candidate itself may be included)
+    lows, highs = _tables(y, np.minimum), _tables(y, np.maximum)
+    yc = y[r, c]
+    left = c.copy()  # first band of the run ending at c with nothing above yc
+    right = c + 1  # one past the last band of the run starting at c
+    for k in range(len(highs) - 1, -1, -1):
+        step = 1 << k
+        go = left - step >= 0
+        go[go] = highs[k][r[go], left[go] - step] <= yc[go]
+        left[go] -= step
+        go = right + step <= n
+        go[go] = highs[k][r[go], right[go]] <= yc[go]
+        right[go] += step
+    base_l = _range_min(lows, r, left, c + 1)
+    base_r = _range_min(lows, r, c, right)
+    prominent = yc - np.maximum(base_l, base_r) >= F.PEAK_PROMINENCE_DB
     return np.bincount(r[prominent], minlength=rows)
+
+
+def _tables(y: np.ndarray, op) -> list[np.ndarray]:
+    """Sparse table per row: level k holds op over y[:, j:j + 2**k] at column j."""
+    out = [y]
+    while 2 << (len(out) - 1) <= y.shape[1]:
+        half = 1 << (len(out) - 1)
+        out.append(op(out[-1][:, :-half], out[-1][:, half:]))
+    return out
+
+
+def _range_min(lows: list[np.ndarray], r: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """min of y[r, lo:hi] (hi > lo) from the sparse min table."""
+    k = np.floor(np.log2(hi - lo)).astype(int)
+    out = np.empty(r.size, dtype=lows[0].dtype)
+    for level in np.unique(k):
+        sel = k == level
+        t = lows[level]
+        out[sel] = np.minimum(t[r[sel], lo[sel]], t[r[sel], hi[sel] - (1 << level)])
+    return out
 
 
 def _tip_speed(occupied: np.ndarray, rel_bins: np.ndarray, body_hz: np.ndarray, config: RadarConfig,
