@@ -37,13 +37,15 @@ from signatures.estimators import (
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.radar import RadarConfig
-from signatures.stats import median
 
 __all__ = ["MEMORY_BUDGET_BYTES", "FlashSeriesBatch", "PeriodicityBatch", "flash_series_batch",
            "periodicity_batch"]
 
 #: Scratch memory one call aims to stay under (bytes): larger batches run in row chunks.
 MEMORY_BUDGET_BYTES = 256 * 2**20
+#: Rows are processed in chunks of about this much scratch memory: arrays that stay in the
+#: CPU cache make the batched arithmetic ~1.5x faster than one pass over a large batch.
+CHUNK_BYTES = 4 * 2**20
 _SIGNS = np.array([1.0, -1.0])
 
 
@@ -56,6 +58,8 @@ class FlashSeriesBatch:
     threshold: np.ndarray  # float64 (B,): detection level subtracted from the energy
     drift_bins_per_sample: np.ndarray  # float64 (B,): body range migration
     field: np.ndarray | None  # complex (B, chirps, positions); None where the coherent checks never run
+    field_power: np.ndarray | None  # |field|^2 (B, chirps, positions), as `_coherent` computes it
+    field_peak: np.ndarray | None  # (B, chirps): its maximum over positions
     rate_hz: float
     radius: int
     decimation: int
@@ -102,21 +106,28 @@ def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarra
     per_bin = np.empty((b_rows, n_out, n_bins))
     threshold = np.empty(b_rows)
     field = np.empty((b_rows, n, n_pos), cdt) if keep_field else None
+    rdt = np.empty(0, cdt).real.dtype
+    field_power = np.empty((b_rows, n, n_pos), rdt) if keep_field else None
+    field_peak = np.empty((b_rows, n), rdt) if keep_field else None
     per_row = n * (n_bins * cdt.itemsize * 10 + n_pos * (cdt.itemsize + 16))
-    step = max(1, MEMORY_BUDGET_BYTES // max(per_row, 1))
+    step = max(1, min(MEMORY_BUDGET_BYTES, CHUNK_BYTES) // max(per_row, 1))
     for a in range(0, b_rows, step):
         sl = slice(a, min(a + step, b_rows))
-        y = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl], threshold[sl])
+        y, power, peak = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl],
+                                      threshold[sl])
         if field is not None:
-            field[sl] = y
+            field[sl], field_power[sl], field_peak[sl] = y, power, peak
     drift = body * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
-    return FlashSeriesBatch(energy, per_bin, threshold, drift, field, config.prf_hz / dec, EVENT_RADIUS, dec)
+    return FlashSeriesBatch(energy, per_bin, threshold, drift, field, field_power, field_peak, config.prf_hz / dec,
+                            EVENT_RADIUS, dec)
 
 
 def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft: int, dec: int,
-                 energy: np.ndarray, per_bin: np.ndarray, threshold: np.ndarray) -> np.ndarray:
+                 energy: np.ndarray, per_bin: np.ndarray,
+                 threshold: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`estimators.flash_series` of a chunk of rows, written into the output views; returns the
-    matched-filter field. Same expressions as the single path with a leading batch axis."""
+    matched-filter field, its power and the power's maximum over positions per chirp. Same
+    expressions as the single path with a leading batch axis."""
     g, n, n_bins = slow.shape
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body * config.pri_s)[:, None] * t).astype(np.complex64)
@@ -124,7 +135,7 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     length = max(3, int(round(HIGHPASS_S / config.pri_s)) | 1)
     if n > length:
         z = _highpass(z0, length)
-        e1 = (z.real ** 2 + z.imag ** 2).sum(axis=2)
+        e1 = _sum_last(_power(z))
         # the single path compares with a Python float: in e1's dtype (NEP 50)
         strong = e1 > _noise_level(e1).astype(e1.dtype)[:, None]
         strong[:, 1:] |= strong[:, :-1].copy()
@@ -132,49 +143,101 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
         z = _highpass(z0, length, ~strong)
     else:
         z = z0 - z0.mean(axis=1, keepdims=True)
-    eb = (z.real ** 2 + z.imag ** 2).astype(np.float64)
+    eb = _power(z).astype(np.float64)
     y = z @ est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)  # (g, chirps, positions)
-    ey = (y.real ** 2 + y.imag ** 2).astype(np.float64)
+    py = _power(y)
+    peak = _max_last(py)
     m = (n // dec) * dec
-    if m >= dec:
+    if m >= dec and dec > 1:
         eb = eb[:, :m].reshape(g, -1, dec, n_bins).sum(axis=2)
-        ey = ey[:, :m].reshape(g, -1, dec, ey.shape[2]).sum(axis=2)
-    e = ey.max(axis=2)
+        e = _max_last(py.astype(np.float64)[:, :m].reshape(g, -1, dec, py.shape[2]).sum(axis=2))
+    else:  # the maximum of the float64 copies is the float64 copy of the maximum
+        e = peak.astype(np.float64)
     level = _noise_level(e)
     energy[:] = np.maximum(e - level[:, None], 0.0)
     per_bin[:] = eb
     threshold[:] = level
-    return y
+    return y, py, peak
+
+
+def _power(z: np.ndarray) -> np.ndarray:
+    """z.real ** 2 + z.imag ** 2 (the same floats), on the contiguous interleaved view."""
+    zz = np.ascontiguousarray(z)
+    sq = zz.view(zz.real.dtype)
+    sq = sq * sq
+    return sq[..., 0::2] + sq[..., 1::2]
+
+
+def _sum_last(x: np.ndarray) -> np.ndarray:
+    """x.sum(axis=-1) for a short last axis, added left to right as numpy reduces it there,
+    without numpy's per-row reduction overhead."""
+    if x.shape[-1] >= 8:
+        return x.sum(axis=-1)
+    out = x[..., 0].copy()
+    for j in range(1, x.shape[-1]):
+        out += x[..., j]
+    return out
+
+
+def _max_last(x: np.ndarray) -> np.ndarray:
+    """x.max(axis=-1) (exact in any order), one slice at a time."""
+    out = x[..., 0].copy()
+    for j in range(1, x.shape[-1]):
+        np.maximum(out, x[..., j], out=out)
+    return out
 
 
 def _noise_level(e: np.ndarray) -> np.ndarray:
     """Per row of (rows, samples): `estimators._noise_level` (median + NOISE_MADS MADs), float64."""
-    med = median(e, axis=1)
-    mad = median(np.abs(e - med[:, None]), axis=1)
+    med = _median_rows(e)
+    mad = _median_rows(np.abs(e - med[:, None]))
     return med.astype(np.float64) + NOISE_MADS * 1.4826 * mad.astype(np.float64)
+
+
+def _median_rows(x: np.ndarray) -> np.ndarray:
+    """`stats.median` of every row: one partition at the upper middle; for an even length the
+    lower middle is the largest value below it (the same order statistic, ~4x faster)."""
+    half = x.shape[1] // 2
+    part = np.partition(x, half, axis=1)
+    if x.shape[1] % 2:
+        return part[:, half]
+    return (part[:, :half].max(axis=1) + part[:, half]) / 2
 
 
 def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.ndarray:
     """`estimators._highpass` along axis 1 of (rows, chirps, bins), `keep` (rows, chirps)."""
     g, n, n_bins = z.shape
-    t = np.arange(n)
     zk = z if keep is None else np.where(keep[:, :, None], z, 0)
     c = np.empty((g, n + 1, n_bins), z.dtype)
     c[:, 0] = 0
     np.cumsum(zk, axis=1, out=c[:, 1:])
     half = length // 2
-    lo, hi = np.maximum(t - half, 0), np.minimum(t + half + 1, n)
+    sums = _window_diff(c, half, n)
     if keep is None:
-        return z - (c[:, hi] - c[:, lo]) / (hi - lo)[:, None].astype(np.float32)
+        t = np.arange(n)
+        count = np.minimum(t + half + 1, n) - np.maximum(t - half, 0)
+        return z - sums / count[:, None].astype(np.float32).astype(z.dtype)  # the cast numpy makes, made once
     ck = np.zeros((g, n + 1), np.int64)
     np.cumsum(keep, axis=1, out=ck[:, 1:])
-    cnt = ck[:, hi] - ck[:, lo]
-    thin = cnt < max(2, length // 2)
-    lo2, hi2 = np.maximum(t - 2 * length, 0), np.minimum(t + 2 * length + 1, n)
-    lo_b, hi_b = np.where(thin, lo2, lo), np.where(thin, hi2, hi)
-    cnt = np.take_along_axis(ck, hi_b, axis=1) - np.take_along_axis(ck, lo_b, axis=1)
-    sums = np.take_along_axis(c, hi_b[:, :, None], axis=1) - np.take_along_axis(c, lo_b[:, :, None], axis=1)
-    return z - sums / np.maximum(cnt, 1)[:, :, None].astype(np.float32)
+    cnt = _window_diff(ck, half, n)
+    bi, ti = np.nonzero(cnt < max(2, length // 2))
+    if bi.size:  # thin windows: the 4x longer one
+        lo2, hi2 = np.maximum(ti - 2 * length, 0), np.minimum(ti + 2 * length + 1, n)
+        cnt[bi, ti] = ck[bi, hi2] - ck[bi, lo2]
+        sums[bi, ti] = c[bi, hi2] - c[bi, lo2]
+    return z - sums / np.maximum(cnt, 1)[:, :, None].astype(np.float32).astype(z.dtype)
+
+
+def _window_diff(c: np.ndarray, half: int, n: int) -> np.ndarray:
+    """c[:, hi] - c[:, lo] for hi = min(t + half + 1, n), lo = max(t - half, 0), t = 0..n-1, by slices."""
+    out = np.empty((c.shape[0], n) + c.shape[2:], c.dtype)
+    a = max(0, n - half)  # t < a: hi = t + half + 1
+    out[:, :a] = c[:, half + 1:half + 1 + a]
+    out[:, a:] = c[:, n:n + 1]
+    b = min(n, half + 1)  # t < b: lo = 0
+    out[:, :b] -= c[:, 0:1]
+    out[:, b:] -= c[:, 1:n - half]
+    return out
 
 
 # --- periodicity ----------------------------------------------------------------------------
@@ -200,8 +263,7 @@ def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> Periodi
             work = live & (k >= 2)
             for kk in np.unique(k[work]).tolist():
                 rows = np.flatnonzero(work & (k == kk))
-                per_row = 2 * lags.size * kk * 64 + kk * series.field.shape[1] * 40 \
-                    if series.field is not None else 2 * lags.size * kk * 64
+                per_row = 2 * lags.size * kk * 48 + (kk * series.field.shape[1] * 40 if series.field is not None else 0)
                 step = max(1, MEMORY_BUDGET_BYTES // per_row)
                 for a in range(0, rows.size, step):
                     r = rows[a:a + step]
@@ -232,26 +294,30 @@ def _flash_events(e: np.ndarray, threshold: np.ndarray, per_bin: np.ndarray, rad
     raw = e + threshold[:, None]
     cand_raw = np.zeros((b_rows, width))
     cand_raw[rows, rank] = raw[rows, cols]
+    by_count = np.argsort(-n_cand, kind="stable")  # the rows still choosing are a prefix of this order
+    cand, cand_raw, n_sorted = cand[by_count], cand_raw[by_count], n_cand[by_count]
     kept = np.zeros((b_rows, max_events), dtype=int)
     kept_raw = np.zeros((b_rows, max_events))
     k = np.zeros(b_rows, dtype=int)
     skirt = 10.0 ** (SKIRT_DB / 10.0)
     slots = np.arange(max_events)
     for r in range(width):
-        act = (r < n_cand) & (k < max_events)
-        if not act.any():
-            break
-        p = cand[:, r]
-        km = int(k.max())
+        m = int(np.count_nonzero(n_sorted > r))
+        act = k[:m] < max_events
+        p = cand[:m, r]
+        km = int(k[:m].max())
         if km:
-            d = p[:, None] - kept[:, :km]
-            near = act[:, None] & (slots[:km] < k[:, None]) & (np.abs(d) <= SKIRT_REACH)
-            bound = kept_raw[:, :km] * skirt / np.where(near, d * d, 1)
-            act &= ~(near & ~(cand_raw[:, r:r + 1] >= bound)).any(axis=1)
+            d = p[:, None] - kept[:m, :km]
+            near = act[:, None] & (slots[:km] < k[:m, None]) & (np.abs(d) <= SKIRT_REACH)
+            bound = kept_raw[:m, :km] * skirt / np.where(near, d * d, 1)
+            act &= ~(near & ~(cand_raw[:m, r:r + 1] >= bound)).any(axis=1)
         idx = np.flatnonzero(act)
         kept[idx, k[idx]] = p[idx]
         kept_raw[idx, k[idx]] = cand_raw[idx, r]
         k[idx] += 1
+    unsort = np.empty_like(by_count)
+    unsort[by_count] = np.arange(b_rows)
+    kept, k = kept[unsort], k[unsort]
     width = int(k.max()) if b_rows else 0
     peaks = kept[:, :width]
     valid = slots[:width] < k[:, None]
@@ -293,7 +359,9 @@ def _periodicity_group(series: FlashSeriesBatch, rows: np.ndarray, times: np.nda
     lag0 = 0.5 * (lags[i0] + lags[i1])
     if (series.field is not None and series.field.shape[1] >= n * max(1, series.decimation)
             and series.rate_hz * series.decimation * FLASH_LOBE_S <= 1.0):
-        counts, share = _coherent(series.field[rows[ok]], times, n, max(1, series.decimation))
+        sel = rows[ok]
+        counts, share = _coherent(series.field[sel], series.field_power[sel], series.field_peak[sel], times, n,
+                                  max(1, series.decimation))
         lag0 = _rerank(counts, share, times, weight, lags, vote, lag0, n)
     else:
         lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
@@ -309,36 +377,35 @@ def _weighted_sums(mask: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """(g, 2, m, k) checks weighted by (g, k) events, summed over events and both signs: (g, m).
     One stacked matrix product: each row's sums are the single path's `(mask @ weight).sum(axis=0)`
     to the bit (same BLAS call shape per row)."""
-    return np.matmul(mask.astype(np.float64), weight[:, None, :, None])[..., 0].sum(axis=1)
+    return np.matmul(mask.astype(np.float64, copy=False), weight[:, None, :, None])[..., 0].sum(axis=1)
 
 
 def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndarray, n: int,
            drift: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`estimators._votes` of a group: (vote, found_n, valid_n), each (g, lags)."""
+    """`estimators._votes` of a group: (vote, found_n, valid_n), each (g, lags).
+
+    The single path looks up, for every event, sign and lag, the two events next to the target
+    t +- L (`searchsorted`). Here the lookup runs the other way round: event j is one of those two
+    for target T exactly when t[j-1] < T <= t[j+1], and can only be found within the tolerance
+    when |t[j] - t[i]| is within a few samples of L; so every pair of events is checked at the
+    few lags near its interval, with the single path's expressions (same floats, same decisions).
+    """
     g, k = times.shape
     informative = (pos > 0.0) & (pos < n_bins - 1)
-    moved = pos[:, None, :] - pos[:, :, None] - drift[:, None, None] * (times[:, None, :] - times[:, :, None])
+    dt = times[:, None, :] - times[:, :, None]  # (g, i, j): t_j - t_i
+    moved = pos[:, None, :] - pos[:, :, None] - drift[:, None, None] * dt
     compat = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[:, None, :] | ~informative[:, :, None]
     share_compat = (compat.sum(axis=(1, 2)) - k) / max(k * (k - 1), 1)
     tol = TOL_SAMPLES + TOL_FRACTION * lags
     t3 = tol[None, :, None]
     target = times[:, None, None, :] + (_SIGNS[:, None, None] * lags[None, :, None])[None]
     valid = (target >= t3) & (target <= n - 1 - t3)
-    idx = np.empty(target.shape, dtype=np.intp)
-    for b in range(g):
-        idx[b] = np.searchsorted(times[b], target[b])
-    base = (np.arange(g) * k)[:, None, None, None]
-    flat_times = times.ravel()
-    flat_compat = compat.reshape(g, -1)
-    own = (np.arange(g) * k * k)[:, None, None, None] + (np.arange(k) * k)[None, None, None, :]
-    found = np.zeros(target.shape, bool)
-    for cand in (np.minimum(idx, k - 1), np.maximum(idx - 1, 0)):
-        found |= (np.abs(flat_times[base + cand] - target) <= t3) & flat_compat.ravel()[own + cand]
-    found &= valid
-    found_w = _weighted_sums(found, weight)
-    valid_w = _weighted_sums(valid, weight)
-    found_n = found.sum(axis=(1, 3)).astype(float)
-    valid_n = valid.sum(axis=(1, 3)).astype(float)
+    found = _found(times, compat, lags, n)
+    found_f, valid_f = found.astype(np.float64), valid.astype(np.float64)
+    found_w = _weighted_sums(found_f, weight)
+    valid_w = _weighted_sums(valid_f, weight)
+    found_n = found_f.sum(axis=(1, 3))  # sums of 0/1: exact in any order
+    valid_n = valid_f.sum(axis=(1, 3))
     chance = np.minimum(np.maximum(1.0 - np.exp((-(k - 1) / n * 2.0 * tol)[None, :] * share_compat[:, None]),
                                    1e-3), 0.999)
     share = np.minimum(np.maximum(found_w / np.maximum(valid_w, 1e-12), 1e-9), 1.0 - 1e-9)
@@ -346,23 +413,54 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     return np.where(share > chance, llr * share, 0.0), found_n, valid_n
 
 
-def _coherent(field: np.ndarray, times: np.ndarray, n: int, dec: int) -> tuple[np.ndarray, np.ndarray]:
-    """`estimators._coherent` of a group: hit counts (g, k, n + 1) and the chance share (g,)."""
+def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
+    """(g, 2, lags, k): does event i find a position-compatible partner at t_i +- L (`_votes`)."""
     g, k = times.shape
-    field = field[:, :n * dec]
+    found = np.zeros((g, 2, lags.size, k), bool)
+    lag0, lag1 = float(lags[0]), float(lags[-1])
+    reach = TOL_SAMPLES + TOL_FRACTION * lag1
+    dt = times[:, None, :] - times[:, :, None]
+    gi, ii, jj = np.nonzero(compat & (np.abs(dt) >= lag0 - reach) & (np.abs(dt) <= lag1 + reach))
+    if gi.size == 0:
+        return found
+    ti, tj = times[gi, ii], times[gi, jj]
+    inf = np.full((g, 1), np.inf)
+    t_prev = np.concatenate([-inf, times], axis=1)[gi, jj]
+    t_next = np.concatenate([times, inf], axis=1)[gi, jj + 1]
+    sign = np.where(tj > ti, 1.0, -1.0)
+    span = np.abs(tj - ti)
+    # |span - L| <= TOL_SAMPLES + TOL_FRACTION L  =>  L in [(span - 1) / 1.01, (span + 1) / 0.99]
+    first = np.floor((span - TOL_SAMPLES) / (1.0 + TOL_FRACTION)) - 1.0
+    width = int(math.ceil(2.0 * TOL_SAMPLES + 2.0 * TOL_FRACTION * (lag1 + reach) + 4.0))
+    lag = first[:, None] + np.arange(width)[None, :]  # (pairs, width) candidate lags
+    inside = (lag >= lag0) & (lag <= lag1)
+    lag = np.minimum(np.maximum(lag, lag0), lag1)
+    tol = TOL_SAMPLES + TOL_FRACTION * lag
+    target = ti[:, None] + sign[:, None] * lag
+    hit = (inside & (target >= tol) & (target <= n - 1 - tol) & (t_prev[:, None] < target)
+           & (target <= t_next[:, None]) & (np.abs(tj[:, None] - target) <= tol))
+    p, w = np.nonzero(hit)
+    found[gi[p], (sign[p] < 0).astype(int), (lag[p, w] - lag0).astype(int), ii[p]] = True
+    return found
+
+
+def _coherent(field: np.ndarray, energy: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
+              dec: int) -> tuple[np.ndarray, np.ndarray]:
+    """`estimators._coherent` of a group: hit counts (g, k, n + 1) and the chance share (g,);
+    `energy` is |field|^2 and `total` its maximum over positions (`FlashSeriesBatch`)."""
+    g, k = times.shape
+    field, energy, total = field[:, :n * dec], energy[:, :n * dec], total[:, :n * dec]
     gi = np.arange(g)[:, None]
     ti = np.minimum(np.maximum(np.rint(times).astype(int), 0), n - 1)
     rows = ti * dec
     if dec > 1:
         block = field.reshape(g, n, dec, -1)[gi, rows // dec]  # (g, k, dec, positions)
         rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=3), axis=2)
-    energy = field.real ** 2 + field.imag ** 2  # (g, n * dec, positions)
     at = np.argmax(energy[gi, rows], axis=2)
     own = field[gi, rows, at]
     phase = own / np.maximum(np.abs(own), 1e-30)
     cols = np.take_along_axis(field, at[:, None, :], axis=2)  # (g, n * dec, k)
-    power = np.square((cols * phase.conj()[:, None, :]).real.transpose(0, 2, 1))  # (g, k, n * dec)
-    total = energy.max(axis=2)
+    power = np.square((cols * phase.conj()[:, None, :]).real.transpose(0, 2, 1), order="C")  # (g, k, n * dec)
     coherent = power >= np.float32(COHERENT_SHARE) * total[:, None, :]
     if dec > 1:
         coherent = coherent.reshape(g, k, n, dec)
@@ -413,6 +511,8 @@ def _rerank(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np
     cands = np.zeros((g, RERANK_N))
     scores = np.zeros((g, RERANK_N))
     n_c = np.zeros(g, dtype=int)
+    span = int(math.ceil(TOL_SAMPLES + TOL_FRACTION * float(lags[-1]) / (1.0 - TOL_FRACTION))) + 1
+    offsets = np.arange(-span, span + 1)
     for r in range(RERANK_N):
         j = np.argmax(left, axis=1)
         top = left[gi, j]
@@ -422,7 +522,10 @@ def _rerank(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np
         cands[act, r] = lag0[act] if r == 0 else lags[j[act]]
         scores[act, r] = top[act]
         n_c += act
-        left = np.where(act[:, None] & (np.abs(lags[None, :] - lags[j][:, None]) <= reach[None, :]), -np.inf, left)
+        # the lags within reach of lags[j] lie within `span` indices of j: test those only
+        near = np.minimum(np.maximum(j[act, None] + offsets[None, :], 0), lags.size - 1)
+        drop = np.abs(lags[near] - lags[j[act], None]) <= reach[near]
+        left[np.repeat(gi[act], offsets.size)[drop.ravel()], near[drop]] = -np.inf
     out = lag0.copy()
     for c in np.unique(n_c[n_c > 0]).tolist():
         sel = np.flatnonzero(n_c == c)
