@@ -45,6 +45,10 @@ _CUBE_BLOCK_BYTES = 4 << 20
 #: default memory budget: this share of the available memory, capped at _BUDGET_CAP
 _BUDGET_SHARE = 0.25
 _BUDGET_CAP = 1 << 30
+#: a block's chirps run in chunks of at most this many bytes of complex128 (bounds the workspaces: one `wide` cube is 8 MiB)
+_CHUNK_BYTES = 4 << 20
+#: complex64 spectra of this many bytes are detected and gated together (`_cube_stage`)
+_SPECTRA_BYTES = 32 << 20
 #: cubes whose peak lies within 2**+-this of 1 are scaled on the window (`_range_spectra`)
 _SAFE_EXPONENT = 20
 _TINY = F._TINY
@@ -222,32 +226,38 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
                slow=np.empty((n_rows, n_chirps, size), np.complex64), patch_lo=np.zeros(n_rows, int),
                patch_cols=np.empty((n_rows, n_chirps, p_size), np.complex64))
     block = max(1, _CUBE_BLOCK_BYTES // (16 * n_chirps * n_bins))
-    for s in range(0, n_rows, block):
-        e = min(n_rows, s + block)
-        spec, mu, log2, zero = _range_spectra(iq[s:e], suppress, domain, labels[s:e])
-        profile = _range_profile(spec)
-        det, frac, snr, peak = _detect(profile, looks, lo_w[s:e], hi_w[s:e])
+    group = max(1, _SPECTRA_BYTES // (8 * n_chirps * n_bins) // block) * block
+    for s in range(0, n_rows, group):  # detection and gating once per group of blocks
+        e = min(n_rows, s + group)
+        spectra = _scratch("spectra", (e - s, n_chirps, n_bins), np.complex64)
+        for b0 in range(s, e, block):
+            b1 = min(e, b0 + block)
+            spec = spectra[b0 - s:b1 - s]
+            out["mu"][b0:b1], out["log2_scale"][b0:b1], out["zero"][b0:b1] = _range_spectra(
+                iq[b0:b1], suppress, domain, labels[b0:b1], spec)
+            out["profile"][b0:b1] = _range_profile(spec)
+        det, frac, snr, peak = _detect(out["profile"][s:e], looks, lo_w[s:e], hi_w[s:e])
         g_lo = _window(peak, size, n_bins)
         p_lo = _window(peak, p_size, n_bins)
-        for j in range(e - s):  # complex64, as the single path's spectrum
-            out["slow"][s + j] = spec[j, :, g_lo[j]:g_lo[j] + size]
-            out["patch_cols"][s + j] = spec[j, :, p_lo[j]:p_lo[j] + p_size]
-        for key, val in (("log2_scale", log2), ("zero", zero), ("profile", profile), ("mu", mu),
-                         ("detected", det), ("peak_bin", peak), ("peak_bin_frac", frac), ("snr_db", snr),
+        for j in range(e - s):
+            out["slow"][s + j] = spectra[j, :, g_lo[j]:g_lo[j] + size]
+            out["patch_cols"][s + j] = spectra[j, :, p_lo[j]:p_lo[j] + p_size]
+        for key, val in (("detected", det), ("peak_bin", peak), ("peak_bin_frac", frac), ("snr_db", snr),
                          ("gate_lo", g_lo), ("patch_lo", p_lo)):
             out[key][s:e] = val
     return _Cube(**out)
 
 
-def _range_spectra(a: np.ndarray, suppress: bool, domain: str,
-                   labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int],
+                   out: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`rd.prepare` then `features._range_spectrum` of every row with the single path's
-    arithmetic: (spectrum (complex128 workspace: its complex64 rounding is the single path's),
-    mu (spectrum of the slow-time mean, complex64), log2 scale, all-zero flag).
+    arithmetic: the complex64 spectrum into `out`; returns (mu (the spectrum of the slow-time
+    mean, complex64), log2 scale, all-zero flag).
 
     The exact power-of-two scale s commutes with every rounding while nothing under- or
     overflows, so for cubes within 2**+-_SAFE_EXPONENT of unit scale it rides on the window,
-    (x - m) * (w * s), saving a pass over the cube; other cubes are scaled first.
+    (x - m) * (w * s), saving a pass over the cube; other cubes are scaled first. Chirps run
+    in chunks (`_CHUNK_BYTES`) to bound the workspaces on big cubes.
     """
     if a.dtype in (np.complex64, np.float32, np.float16) or np.issubdtype(a.dtype, np.integer):
         work = np.ascontiguousarray(a, dtype=np.complex64)
@@ -268,37 +278,38 @@ def _range_spectra(a: np.ndarray, suppress: bool, domain: str,
         x = work * scale.astype(np.float32) if small else (work.astype(np.complex128) * scale).astype(np.complex64)
         scale = np.ones_like(scale)
     mean = x.mean(axis=1, keepdims=True)
-    y = np.subtract(x, mean, out=_scratch("y", x.shape, np.complex64)) if suppress else x
-    n_bins = x.shape[2]
+    n_chirps, n_bins = x.shape[1:]
     weight = scale * (rd.hann(n_bins) if domain == "if" else 1.0)  # (rows, 1, bins): exact products
-    src = np.multiply(y, weight, out=_scratch("in", x.shape, np.complex128))
     mu = mean[:, 0] * weight[:, 0]
-    if domain != "if":  # a range cube already is a range spectrum
-        return _complex64(src), mu.astype(np.complex64), exponent, zero
-    if _fft.backend() == "scipy":
-        spec = _fft.fft(src, axis=-1)
-    else:
-        spec = np.fft.fft(src, axis=-1, out=_scratch("out", x.shape, np.complex128))
-    return _complex64(spec), np.fft.fft(mu, axis=-1).astype(np.complex64), exponent, zero
-
-
-def _complex64(z: np.ndarray) -> np.ndarray:
-    """z rounded to complex64 in a reused workspace (the single path's spectrum dtype)."""
-    out = _scratch("spec64", z.shape, np.complex64)
-    np.copyto(out, z, casting="same_kind")
-    return out
+    step = max(1, _CHUNK_BYTES // (16 * x.shape[0] * n_bins))
+    for c0 in range(0, n_chirps, step):
+        part = x[:, c0:c0 + step]
+        y = np.subtract(part, mean, out=_scratch("y", part.shape, np.complex64)) if suppress else part
+        src = np.multiply(y, weight, out=_scratch("in", part.shape, np.complex128))
+        if domain != "if":  # a range cube already is a range spectrum
+            np.copyto(out[:, c0:c0 + step], src, casting="same_kind")
+            continue
+        if _fft.backend() == "scipy":
+            spec = _fft.fft(src, axis=-1)
+        else:
+            spec = np.fft.fft(src, axis=-1, out=_scratch("out", part.shape, np.complex128))
+        np.copyto(out[:, c0:c0 + step], spec, casting="same_kind")  # the single path's complex64 spectrum
+    if domain != "if":
+        return mu.astype(np.complex64), exponent, zero
+    return np.fft.fft(mu, axis=-1).astype(np.complex64), exponent, zero
 
 
 def _scratch(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
-    """A per-thread array reused across blocks and calls (its first rows when a block is
-    shorter): fresh large arrays cost page faults (signatures/fft.py)."""
+    """A per-thread array reused across blocks and calls (grown, never shrunk): fresh large
+    arrays cost page faults (signatures/fft.py)."""
     spaces = getattr(_local, "spaces", None)
     if spaces is None:
         spaces = _local.spaces = {}
-    buf = spaces.get(key)
-    if buf is None or buf.shape[1:] != shape[1:] or buf.dtype != dtype or buf.shape[0] < shape[0]:
-        buf = spaces[key] = np.empty(shape, dtype=dtype)
-    return buf[:shape[0]]
+    size = math.prod(shape)
+    buf = spaces.get((key, np.dtype(dtype).str))
+    if buf is None or buf.size < size:
+        buf = spaces[(key, np.dtype(dtype).str)] = np.empty(size, dtype=dtype)
+    return buf[:size].reshape(shape)
 
 
 def _fft_rows(x: np.ndarray, axis: int, window: np.ndarray, key: str, post=None) -> np.ndarray:
