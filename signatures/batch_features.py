@@ -111,17 +111,20 @@ def _default_budget() -> int:
 
 def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] | None = None, *,
                  memory_bytes: int | None = None) -> list[F.FeatureResult]:
-    """Features of any mix of recordings, in input order: rows that share (config, cube shape,
-    dtype, domain) run through `extract_batch` in chunks of `batch_size`; `cw` rows through
-    `features.extract`. A bad row raises `SignaturesError` naming its input index."""
+    """Features of any mix of recordings, in input order: rows that share (waveform, cube shape,
+    dtype, domain) run batched in chunks of `batch_size`, whatever their range offsets (only
+    absolute ranges depend on it: a simulated recording's window is centred on its target);
+    `cw` rows through `features.extract`. A bad row raises `SignaturesError` naming its input
+    index."""
     n = len(recordings)
     expected = _expected(expected_range_m, n)
     out: list[F.FeatureResult | None] = [None] * n
     groups: dict[tuple, list[int]] = {}
     for i, rec in enumerate(recordings):
         iq = np.asarray(rec.iq)
-        groups.setdefault((rec.config, iq.shape, iq.dtype.str, rec.domain), []).append(i)
-    for (config, shape, _, domain), rows in groups.items():
+        waveform = rec.config.model_copy(update={"range_offset_m": 0.0})
+        groups.setdefault((waveform, iq.shape, iq.dtype.str, rec.domain), []).append(i)
+    for (_, shape, _, domain), rows in groups.items():
         if domain == "cw" or len(shape) != 2:
             for i in rows:
                 out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i]))
@@ -130,7 +133,8 @@ def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] 
         for s in range(0, len(rows), step):
             part = rows[s:s + step]
             iq = np.stack([np.asarray(recordings[i].iq) for i in part])
-            res = _extract(iq, config, [expected[i] for i in part], F.GATE_BINS, True, domain, part)
+            res = _extract(iq, [recordings[i].config for i in part], [expected[i] for i in part],
+                           F.GATE_BINS, True, domain, part)
             for i, r in zip(part, res):
                 out[i] = r
     return out  # type: ignore[return-value]
@@ -148,7 +152,8 @@ def extract_batch(iq: np.ndarray, config: RadarConfig, expected_range_m: Sequenc
     if a.ndim != 3:
         raise SignaturesError(f"IQ batch must be 3-D (batch, n_chirps, n_samples), got shape {a.shape}")
     expected = _expected(expected_range_m, a.shape[0])
-    return _extract(a, config, expected, gate_bins, clutter_suppression, domain, list(range(a.shape[0])))
+    return _extract(a, [config] * a.shape[0], expected, gate_bins, clutter_suppression, domain,
+                    list(range(a.shape[0])))
 
 
 def _expected(expected_range_m: Sequence[float | None] | None, n: int) -> list[float | None]:
@@ -168,8 +173,9 @@ def _labelled(row: int, fn):
         raise SignaturesError(f"row {row}: {exc}") from None
 
 
-def _extract(iq: np.ndarray, config: RadarConfig, expected: list[float | None], gate_bins: int,
+def _extract(iq: np.ndarray, configs: list[RadarConfig], expected: list[float | None], gate_bins: int,
              suppress: bool, domain: str, labels: list[int]) -> list[F.FeatureResult]:
+    """The rows' features; `configs[b]` differ at most in their range offset."""
     if gate_bins < 1:
         raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
     if domain not in DOMAINS:
@@ -177,19 +183,22 @@ def _extract(iq: np.ndarray, config: RadarConfig, expected: list[float | None], 
     if iq.shape[0] == 0:
         return []
     if domain == "cw" or iq.shape[1] < 1 or iq.shape[2] < 1:  # cw: the single path, row by row
-        return [_labelled(labels[b], lambda b=b: F.extract_iq(iq[b], config, expected[b], gate_bins, suppress,
-                                                              domain=domain)) for b in range(iq.shape[0])]
+        return [_labelled(labels[b], lambda b=b: F.extract_iq(iq[b], configs[b], expected[b], gate_bins,
+                                                              suppress, domain=domain))
+                for b in range(iq.shape[0])]
     if not (np.issubdtype(iq.dtype, np.number) and not np.issubdtype(iq.dtype, np.timedelta64)):
         raise SignaturesError(f"IQ cube must be numeric, got dtype {iq.dtype}")
     n_chirps, n_bins = iq.shape[1:]
-    within = [_within(config, e, gate_bins, n_bins, labels[b]) for b, e in enumerate(expected)]
+    config = configs[0]
+    within = [_within(configs[b], e, gate_bins, n_bins, labels[b]) for b, e in enumerate(expected)]
     cube = _cube_stage(iq, within, gate_bins, suppress, domain, labels)
     live = np.flatnonzero(~cube.zero)
     results: list[F.FeatureResult | None] = [None] * iq.shape[0]
     for b in np.flatnonzero(cube.zero):
         results[b] = F._empty(config, n_chirps, n_bins, within[b])
     if live.size:
-        for b, r in zip(live, _slow_stage(cube, live, config, n_chirps, n_bins, suppress)):
+        offsets = np.array([configs[b].range_offset_m for b in live])
+        for b, r in zip(live, _slow_stage(cube, live, config, offsets, n_chirps, n_bins, suppress)):
             results[b] = r
     return results  # type: ignore[return-value]
 
@@ -395,9 +404,10 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 
 # --- slow-time stage -----------------------------------------------------------------------------
 
-def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, n_chirps: int, n_bins: int,
-                suppress: bool) -> list[F.FeatureResult]:
-    """`features._features` of the rows `live` (not all-zero), vectorised over rows."""
+def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_chirps: int,
+                n_bins: int, suppress: bool) -> list[F.FeatureResult]:
+    """`features._features` of the rows `live` (not all-zero; range offsets `offsets`), vectorised
+    over rows."""
     n = n_chirps
     slow = cube.slow[live]
     size = slow.shape[2]
@@ -429,7 +439,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, n_chirps: in
     dwell = n * config.pri_s
     snr_db = cube.snr_db[live]
     snr = np.maximum(10.0 ** (snr_db / 10.0), 1e-3)
-    range_mid = config.range_offset_m + cube.peak_bin_frac[live] * bin_m
+    range_mid = offsets + cube.peak_bin_frac[live] * bin_m
     range_std = bin_m * (0.05 + 1.0 / np.sqrt(snr))
 
     rel_bins = np.mod(np.arange(n)[None, :] - body_idx[:, None] + n // 2, n) - n // 2

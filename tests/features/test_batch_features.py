@@ -125,6 +125,21 @@ def test_extract_many_keeps_order_over_a_mixed_list(paper, wide):
         assert_same(results[i], res, f"item {i}, default batch size")
 
 
+def test_extract_many_batches_recordings_whose_range_offsets_differ(paper, monkeypatch):
+    """Simulated recordings centre their window on the target: one batch all the same, and
+    each row keeps its own absolute ranges and window (for the expected range)."""
+    recs = [r for _, r in paper]
+    assert len({r.config.range_offset_m for r in recs}) > 1
+    expected = [s.range_m if i % 2 else None for i, (s, _) in enumerate(paper)]
+    calls = []
+    inner = bf._extract
+    monkeypatch.setattr(bf, "_extract", lambda iq, *a: calls.append(len(iq)) or inner(iq, *a))
+    results = bf.extract_many(recs, expected)
+    assert calls == [len(recs)]
+    for i, (rec, res) in enumerate(zip(recs, results)):
+        assert_same(F.extract(rec, expected[i]), res, f"recording {i}")
+
+
 def test_bad_rows_raise_the_single_path_error_naming_the_row(paper):
     config = paper[0][1].config
     iq = np.stack([r.iq for _, r in paper[:3]])
