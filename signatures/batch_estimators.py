@@ -397,15 +397,18 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     compat = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[:, None, :] | ~informative[:, :, None]
     share_compat = (compat.sum(axis=(1, 2)) - k) / max(k * (k - 1), 1)
     tol = TOL_SAMPLES + TOL_FRACTION * lags
-    t3 = tol[None, :, None]
-    target = times[:, None, None, :] + (_SIGNS[:, None, None] * lags[None, :, None])[None]
-    valid = (target >= t3) & (target <= n - 1 - t3)
-    found = _found(times, compat, lags, n)
-    found_f, valid_f = found.astype(np.float64), valid.astype(np.float64)
+    t2 = tol[None, :, None]
+    upper = n - 1 - t2
+    valid_f = np.empty((g, 2, lags.size, k))  # 0/1 as the float64 copy the single path's matmul makes
+    for s, sign in enumerate(_SIGNS.tolist()):
+        target = times[:, None, :] + (sign * lags)[None, :, None]
+        np.logical_and(target >= t2, target <= upper, out=valid_f[:, s])
+    found_f = _found(times, compat, lags, n)
     found_w = _weighted_sums(found_f, weight)
     valid_w = _weighted_sums(valid_f, weight)
-    found_n = found_f.sum(axis=(1, 3))  # sums of 0/1: exact in any order
-    valid_n = valid_f.sum(axis=(1, 3))
+    ones = np.ones((g, k))
+    found_n = _weighted_sums(found_f, ones)  # sums of 0/1: exact in any order
+    valid_n = _weighted_sums(valid_f, ones)
     chance = np.minimum(np.maximum(1.0 - np.exp((-(k - 1) / n * 2.0 * tol)[None, :] * share_compat[:, None]),
                                    1e-3), 0.999)
     share = np.minimum(np.maximum(found_w / np.maximum(valid_w, 1e-12), 1e-9), 1.0 - 1e-9)
@@ -414,9 +417,9 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
 
 
 def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
-    """(g, 2, lags, k): does event i find a position-compatible partner at t_i +- L (`_votes`)."""
+    """(g, 2, lags, k), 1.0 where event i finds a position-compatible partner at t_i +- L (`_votes`)."""
     g, k = times.shape
-    found = np.zeros((g, 2, lags.size, k), bool)
+    found = np.zeros((g, 2, lags.size, k))
     lag0, lag1 = float(lags[0]), float(lags[-1])
     reach = TOL_SAMPLES + TOL_FRACTION * lag1
     dt = times[:, None, :] - times[:, :, None]
@@ -440,7 +443,7 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int) -> n
     hit = (inside & (target >= tol) & (target <= n - 1 - tol) & (t_prev[:, None] < target)
            & (target <= t_next[:, None]) & (np.abs(tj[:, None] - target) <= tol))
     p, w = np.nonzero(hit)
-    found[gi[p], (sign[p] < 0).astype(int), (lag[p, w] - lag0).astype(int), ii[p]] = True
+    found[gi[p], (sign[p] < 0).astype(int), (lag[p, w] - lag0).astype(int), ii[p]] = 1.0
     return found
 
 
