@@ -57,8 +57,8 @@ class FlashSeriesBatch:
     per_bin: np.ndarray  # float64 (B, n, bins): energy before the noise cut, per range bin
     threshold: np.ndarray  # float64 (B,): detection level subtracted from the energy
     drift_bins_per_sample: np.ndarray  # float64 (B,): body range migration
-    field: np.ndarray | None  # complex (B, chirps, positions); None where the coherent checks never run
-    field_power: np.ndarray | None  # |field|^2 (B, chirps, positions), as `_coherent` computes it
+    field: np.ndarray | None  # complex (B, positions, chirps); None where the coherent checks never run
+    field_power: np.ndarray | None  # |field|^2 (B, positions, chirps), as `_coherent` computes it
     field_peak: np.ndarray | None  # (B, chirps): its maximum over positions
     rate_hz: float
     radius: int
@@ -68,7 +68,7 @@ class FlashSeriesBatch:
         """Row b as the single-return series (what `estimators.flash_series` gives for it)."""
         return est.FlashSeries(self.energy[b], self.per_bin[b], self.rate_hz, self.radius,
                                float(self.drift_bins_per_sample[b]), float(self.threshold[b]),
-                               None if self.field is None else self.field[b], self.decimation)
+                               None if self.field is None else self.field[b].T, self.decimation)
 
 
 @dataclass(frozen=True)
@@ -105,9 +105,10 @@ def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarra
     energy = np.empty((b_rows, n_out))
     per_bin = np.empty((b_rows, n_out, n_bins))
     threshold = np.empty(b_rows)
-    field = np.empty((b_rows, n, n_pos), cdt) if keep_field else None
+    # positions x chirps: `_coherent` reads whole chirp rows of one position
+    field = np.empty((b_rows, n_pos, n), cdt) if keep_field else None
     rdt = np.empty(0, cdt).real.dtype
-    field_power = np.empty((b_rows, n, n_pos), rdt) if keep_field else None
+    field_power = np.empty((b_rows, n_pos, n), rdt) if keep_field else None
     field_peak = np.empty((b_rows, n), rdt) if keep_field else None
     per_row = n * (n_bins * cdt.itemsize * 10 + n_pos * (cdt.itemsize + 16))
     step = max(1, min(MEMORY_BUDGET_BYTES, CHUNK_BYTES) // max(per_row, 1))
@@ -116,7 +117,7 @@ def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarra
         y, power, peak = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl],
                                       threshold[sl])
         if field is not None:
-            field[sl], field_power[sl], field_peak[sl] = y, power, peak
+            field[sl], field_power[sl], field_peak[sl] = y.transpose(0, 2, 1), power.transpose(0, 2, 1), peak
     drift = body * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
     return FlashSeriesBatch(energy, per_bin, threshold, drift, field, field_power, field_peak, config.prf_hz / dec,
                             EVENT_RADIUS, dec)
@@ -263,7 +264,7 @@ def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> Periodi
             work = live & (k >= 2)
             for kk in np.unique(k[work]).tolist():
                 rows = np.flatnonzero(work & (k == kk))
-                per_row = 2 * lags.size * kk * 48 + (kk * series.field.shape[1] * 40 if series.field is not None else 0)
+                per_row = 2 * lags.size * kk * 48 + (kk * series.field.shape[2] * 40 if series.field is not None else 0)
                 step = max(1, MEMORY_BUDGET_BYTES // per_row)
                 for a in range(0, rows.size, step):
                     r = rows[a:a + step]
@@ -282,7 +283,9 @@ def _flash_events(e: np.ndarray, threshold: np.ndarray, per_bin: np.ndarray, rad
     b_rows, n = e.shape
     pad = np.zeros((b_rows, n + 2 * radius))
     pad[:, radius:radius + n] = e
-    wmax = np.lib.stride_tricks.sliding_window_view(pad, 2 * radius + 1, axis=1).max(axis=2)
+    wmax = pad[:, :n].copy()  # maximum over the window of +-radius (exact in any order)
+    for j in range(1, 2 * radius + 1):
+        np.maximum(wmax, pad[:, j:j + n], out=wmax)
     rows, cols = np.nonzero((e > 0.0) & (e >= wmax))
     order = np.lexsort((cols, -e[rows, cols], rows))  # per row: strongest first, ties by time
     rows, cols = rows[order], cols[order]
@@ -357,7 +360,7 @@ def _periodicity_group(series: FlashSeriesBatch, rows: np.ndarray, times: np.nda
     after = (idx[None, :] > i0[:, None]) & (vote != best[:, None])
     i1 = np.where(after.any(axis=1), np.argmax(after, axis=1), lags.size) - 1
     lag0 = 0.5 * (lags[i0] + lags[i1])
-    if (series.field is not None and series.field.shape[1] >= n * max(1, series.decimation)
+    if (series.field is not None and series.field.shape[2] >= n * max(1, series.decimation)
             and series.rate_hz * series.decimation * FLASH_LOBE_S <= 1.0):
         sel = rows[ok]
         counts, share = _coherent(series.field[sel], series.field_power[sel], series.field_peak[sel], times, n,
@@ -449,21 +452,23 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int) -> n
 
 def _coherent(field: np.ndarray, energy: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
               dec: int) -> tuple[np.ndarray, np.ndarray]:
-    """`estimators._coherent` of a group: hit counts (g, k, n + 1) and the chance share (g,);
-    `energy` is |field|^2 and `total` its maximum over positions (`FlashSeriesBatch`)."""
+    """`estimators._coherent` of a group: hit counts (g, k, n + 1) and the chance share (g,).
+    `field` and its power `energy` are (g, positions, chirps), `total` the power's maximum over
+    positions (`FlashSeriesBatch`)."""
     g, k = times.shape
-    field, energy, total = field[:, :n * dec], energy[:, :n * dec], total[:, :n * dec]
+    field, energy, total = field[:, :, :n * dec], energy[:, :, :n * dec], total[:, :n * dec]
     gi = np.arange(g)[:, None]
     ti = np.minimum(np.maximum(np.rint(times).astype(int), 0), n - 1)
     rows = ti * dec
     if dec > 1:
-        block = field.reshape(g, n, dec, -1)[gi, rows // dec]  # (g, k, dec, positions)
+        block = field.reshape(g, -1, n, dec)[gi, :, rows // dec]  # (g, k, positions, dec)
+        block = np.ascontiguousarray(block.transpose(0, 1, 3, 2))  # (g, k, dec, positions) as the single path
         rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=3), axis=2)
-    at = np.argmax(energy[gi, rows], axis=2)
-    own = field[gi, rows, at]
+    at = np.argmax(np.take_along_axis(energy, rows[:, None, :], axis=2), axis=1)  # (g, k)
+    own = field[gi, at, rows]
     phase = own / np.maximum(np.abs(own), 1e-30)
-    cols = np.take_along_axis(field, at[:, None, :], axis=2)  # (g, n * dec, k)
-    power = np.square((cols * phase.conj()[:, None, :]).real.transpose(0, 2, 1), order="C")  # (g, k, n * dec)
+    # (g, k, n * dec): the same products as the single path's (n * dec, k) layout, to the bit
+    power = np.square((field[gi, at] * phase.conj()[:, :, None]).real)
     coherent = power >= np.float32(COHERENT_SHARE) * total[:, None, :]
     if dec > 1:
         coherent = coherent.reshape(g, k, n, dec)
