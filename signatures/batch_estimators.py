@@ -58,8 +58,7 @@ class FlashSeriesBatch:
     threshold: np.ndarray  # float64 (B,): detection level subtracted from the energy
     drift_bins_per_sample: np.ndarray  # float64 (B,): body range migration
     field: np.ndarray | None  # complex (B, positions, chirps); None where the coherent checks never run
-    field_power: np.ndarray | None  # |field|^2 (B, positions, chirps), as `_coherent` computes it
-    field_peak: np.ndarray | None  # (B, chirps): its maximum over positions
+    field_peak: np.ndarray | None  # (B, chirps): the maximum over positions of |field|^2
     rate_hz: float
     radius: int
     decimation: int
@@ -108,26 +107,25 @@ def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarra
     # positions x chirps: `_coherent` reads whole chirp rows of one position
     field = np.empty((b_rows, n_pos, n), cdt) if keep_field else None
     rdt = np.empty(0, cdt).real.dtype
-    field_power = np.empty((b_rows, n_pos, n), rdt) if keep_field else None
     field_peak = np.empty((b_rows, n), rdt) if keep_field else None
     per_row = n * (n_bins * cdt.itemsize * 10 + n_pos * (cdt.itemsize + 16))
     step = max(1, min(MEMORY_BUDGET_BYTES, CHUNK_BYTES) // max(per_row, 1))
     for a in range(0, b_rows, step):
         sl = slice(a, min(a + step, b_rows))
-        y, power, peak = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl],
+        y, peak = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl],
                                       threshold[sl])
         if field is not None:
-            field[sl], field_power[sl], field_peak[sl] = y.transpose(0, 2, 1), power.transpose(0, 2, 1), peak
+            field[sl], field_peak[sl] = y.transpose(0, 2, 1), peak
     drift = body * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
-    return FlashSeriesBatch(energy, per_bin, threshold, drift, field, field_power, field_peak, config.prf_hz / dec,
+    return FlashSeriesBatch(energy, per_bin, threshold, drift, field, field_peak, config.prf_hz / dec,
                             EVENT_RADIUS, dec)
 
 
 def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft: int, dec: int,
                  energy: np.ndarray, per_bin: np.ndarray,
-                 threshold: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 threshold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """`estimators.flash_series` of a chunk of rows, written into the output views; returns the
-    matched-filter field, its power and the power's maximum over positions per chirp. Same
+    matched-filter field and its power's maximum over positions per chirp. Same
     expressions as the single path with a leading batch axis."""
     g, n, n_bins = slow.shape
     t = np.arange(n)
@@ -158,7 +156,7 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     energy[:] = np.maximum(e - level[:, None], 0.0)
     per_bin[:] = eb
     threshold[:] = level
-    return y, py, peak
+    return y, peak
 
 
 def _power(z: np.ndarray) -> np.ndarray:
@@ -363,8 +361,7 @@ def _periodicity_group(series: FlashSeriesBatch, rows: np.ndarray, times: np.nda
     if (series.field is not None and series.field.shape[2] >= n * max(1, series.decimation)
             and series.rate_hz * series.decimation * FLASH_LOBE_S <= 1.0):
         sel = rows[ok]
-        counts, share = _coherent(series.field[sel], series.field_power[sel], series.field_peak[sel], times, n,
-                                  max(1, series.decimation))
+        counts, share = _coherent(series.field[sel], series.field_peak[sel], times, n, max(1, series.decimation))
         lag0 = _rerank(counts, share, times, weight, lags, vote, lag0, n)
     else:
         lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
@@ -402,16 +399,16 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     tol = TOL_SAMPLES + TOL_FRACTION * lags
     t2 = tol[None, :, None]
     upper = n - 1 - t2
-    valid_f = np.empty((g, 2, lags.size, k))  # 0/1 as the float64 copy the single path's matmul makes
+    # checks as the float64 0/1 copies the single path's matmul makes: found (+, -), valid (+, -)
+    checks = np.zeros((g, 4, lags.size, k))
     for s, sign in enumerate(_SIGNS.tolist()):
         target = times[:, None, :] + (sign * lags)[None, :, None]
-        np.logical_and(target >= t2, target <= upper, out=valid_f[:, s])
-    found_f = _found(times, compat, lags, n)
-    found_w = _weighted_sums(found_f, weight)
-    valid_w = _weighted_sums(valid_f, weight)
-    ones = np.ones((g, k))
-    found_n = _weighted_sums(found_f, ones)  # sums of 0/1: exact in any order
-    valid_n = _weighted_sums(valid_f, ones)
+        np.logical_and(target >= t2, target <= upper, out=checks[:, 2 + s])
+    _found(times, compat, lags, n, checks)
+    w = np.matmul(checks, weight[:, None, :, None])[..., 0]  # per row the single path's (2, L, k) @ (k,)
+    c = np.matmul(checks, np.ones((g, 1, k, 1)))[..., 0]  # sums of 0/1: exact in any order
+    found_w, valid_w = w[:, 0] + w[:, 1], w[:, 2] + w[:, 3]
+    found_n, valid_n = c[:, 0] + c[:, 1], c[:, 2] + c[:, 3]
     chance = np.minimum(np.maximum(1.0 - np.exp((-(k - 1) / n * 2.0 * tol)[None, :] * share_compat[:, None]),
                                    1e-3), 0.999)
     share = np.minimum(np.maximum(found_w / np.maximum(valid_w, 1e-12), 1e-9), 1.0 - 1e-9)
@@ -419,44 +416,44 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     return np.where(share > chance, llr * share, 0.0), found_n, valid_n
 
 
-def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
-    """(g, 2, lags, k), 1.0 where event i finds a position-compatible partner at t_i +- L (`_votes`)."""
+def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out: np.ndarray) -> None:
+    """Set out[:, 0 or 1, L, i] = 1.0 where event i finds a position-compatible partner at t_i +- L
+    (`_votes`)."""
     g, k = times.shape
-    found = np.zeros((g, 2, lags.size, k))
     lag0, lag1 = float(lags[0]), float(lags[-1])
     reach = TOL_SAMPLES + TOL_FRACTION * lag1
     dt = times[:, None, :] - times[:, :, None]
     gi, ii, jj = np.nonzero(compat & (np.abs(dt) >= lag0 - reach) & (np.abs(dt) <= lag1 + reach))
     if gi.size == 0:
-        return found
+        return
     ti, tj = times[gi, ii], times[gi, jj]
-    inf = np.full((g, 1), np.inf)
-    t_prev = np.concatenate([-inf, times], axis=1)[gi, jj]
-    t_next = np.concatenate([times, inf], axis=1)[gi, jj + 1]
-    sign = np.where(tj > ti, 1.0, -1.0)
     span = np.abs(tj - ti)
-    # |span - L| <= TOL_SAMPLES + TOL_FRACTION L  =>  L in [(span - 1) / 1.01, (span + 1) / 0.99]
-    first = np.floor((span - TOL_SAMPLES) / (1.0 + TOL_FRACTION)) - 1.0
-    width = int(math.ceil(2.0 * TOL_SAMPLES + 2.0 * TOL_FRACTION * (lag1 + reach) + 4.0))
-    lag = first[:, None] + np.arange(width)[None, :]  # (pairs, width) candidate lags
-    inside = (lag >= lag0) & (lag <= lag1)
-    lag = np.minimum(np.maximum(lag, lag0), lag1)
+    # |span - L| <= TOL_SAMPLES + TOL_FRACTION L  =>  L in [(span - 1) / 1.01, (span + 1) / 0.99]; one lag
+    # of margin either side for rounding: the exact test below decides
+    first = np.maximum(np.floor((span - TOL_SAMPLES) / (1.0 + TOL_FRACTION)) - 1.0, lag0)
+    last = np.minimum(np.ceil((span + TOL_SAMPLES) / (1.0 - TOL_FRACTION)) + 1.0, lag1)
+    count = np.maximum(last - first + 1.0, 0.0).astype(int)
+    pair = np.repeat(np.arange(gi.size), count)
+    lag = first[pair] + (np.arange(pair.size) - np.repeat(np.cumsum(count) - count, count))
+    gp, jp = gi[pair], jj[pair]
+    t_i, t_j = ti[pair], tj[pair]
+    sign = np.where(t_j > t_i, 1.0, -1.0)
     tol = TOL_SAMPLES + TOL_FRACTION * lag
-    target = ti[:, None] + sign[:, None] * lag
-    hit = (inside & (target >= tol) & (target <= n - 1 - tol) & (t_prev[:, None] < target)
-           & (target <= t_next[:, None]) & (np.abs(tj[:, None] - target) <= tol))
-    p, w = np.nonzero(hit)
-    found[gi[p], (sign[p] < 0).astype(int), (lag[p, w] - lag0).astype(int), ii[p]] = 1.0
-    return found
+    target = t_i + sign * lag
+    inf = np.full((g, 1), np.inf)
+    t_prev = np.concatenate([-inf, times], axis=1)[gp, jp]  # event j is next to the target exactly
+    t_next = np.concatenate([times, inf], axis=1)[gp, jp + 1]  # when t[j-1] < target <= t[j+1]
+    hit = np.flatnonzero((target >= tol) & (target <= n - 1 - tol) & (t_prev < target) & (target <= t_next)
+                         & (np.abs(t_j - target) <= tol))
+    out[gp[hit], (sign[hit] < 0).astype(int), (lag[hit] - lag0).astype(int), ii[pair[hit]]] = 1.0
 
 
-def _coherent(field: np.ndarray, energy: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
+def _coherent(field: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
               dec: int) -> tuple[np.ndarray, np.ndarray]:
     """`estimators._coherent` of a group: hit counts (g, k, n + 1) and the chance share (g,).
-    `field` and its power `energy` are (g, positions, chirps), `total` the power's maximum over
-    positions (`FlashSeriesBatch`)."""
+    `field` is (g, positions, chirps), `total` its power's maximum over positions (`FlashSeriesBatch`)."""
     g, k = times.shape
-    field, energy, total = field[:, :, :n * dec], energy[:, :, :n * dec], total[:, :n * dec]
+    field, total = field[:, :, :n * dec], total[:, :n * dec]
     gi = np.arange(g)[:, None]
     ti = np.minimum(np.maximum(np.rint(times).astype(int), 0), n - 1)
     rows = ti * dec
@@ -464,7 +461,8 @@ def _coherent(field: np.ndarray, energy: np.ndarray, total: np.ndarray, times: n
         block = field.reshape(g, -1, n, dec)[gi, :, rows // dec]  # (g, k, positions, dec)
         block = np.ascontiguousarray(block.transpose(0, 1, 3, 2))  # (g, k, dec, positions) as the single path
         rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=3), axis=2)
-    at = np.argmax(np.take_along_axis(energy, rows[:, None, :], axis=2), axis=1)  # (g, k)
+    at_rows = np.take_along_axis(field, rows[:, None, :], axis=2)  # (g, positions, k)
+    at = np.argmax(at_rows.real ** 2 + at_rows.imag ** 2, axis=1)  # (g, k): each event's best position
     own = field[gi, at, rows]
     phase = own / np.maximum(np.abs(own), 1e-30)
     # (g, k, n * dec): the same products as the single path's (n * dec, k) layout, to the bit
