@@ -6,12 +6,13 @@ interpreter, not the arithmetic, sets its cost. Here every stage runs once per b
 row (same `detected`, `gate` and counts; features to float32 rounding;
 tests/features/test_batch_features.py).
 
-Layout: the cube stage (scaling, clutter suppression, range FFT, range profile, CFAR,
-gate) runs in blocks of rows that fit the cache (`_CUBE_BLOCK_BYTES`), because the
-passes over the cube are the cost floor on big cubes; everything after it works on the
-(B, chirps, gate bins) slow-time gates of the whole batch. Only the columns the CNN patch
-needs are kept per row, and the patch itself is built lazily by `features._patch`.
-`cw` cubes (no range axis) go through the single-return path row by row.
+Layout: the cube stage (scaling, clutter suppression, range FFT, range profile) runs in
+blocks of rows through reused workspaces (`_CUBE_BLOCK_BYTES`: the passes over the cube
+are the cost floor, and fresh large arrays cost page faults), CFAR and gating once per
+`_SPECTRA_BYTES` of spectra; everything after it works on the (B, chirps, gate bins)
+slow-time gates of the whole batch. Only the columns the CNN patch needs are kept per row,
+and the patch itself is built lazily by `features._patch`. `cw` cubes (no range axis) go
+through the single-return path row by row.
 """
 
 from __future__ import annotations
@@ -43,7 +44,8 @@ MAX_BATCH = 1024
 #: `extract_many` runs smaller groups through the single path: below ~4 rows the batch's fixed
 #: cost (vectorised estimators, range tables) exceeds the per-row calls it saves (paper preset)
 MIN_BATCH = 4
-#: rows of the cube stage run together while their complex128 FFT workspace fits in this (cache-sized)
+#: rows of the cube stage run together while their complex128 FFT workspace fits in this (4 MiB:
+#: fastest of 0.5-32 MiB on the paper cube)
 _CUBE_BLOCK_BYTES = 4 << 20
 #: default memory budget: this share of the available memory, capped at _BUDGET_CAP
 _BUDGET_SHARE = 0.25
