@@ -89,6 +89,20 @@ def test_batch_equals_single_on_simulated_returns(request, preset, gated):
         assert_same(single, res, f"{preset} row {b} ({scenes[b].label}, {scenes[b].snr_db:.0f} dB)")
 
 
+@pytest.mark.parametrize("options", [dict(clutter_suppression=False), dict(gate_bins=1), dict(gate_bins=9),
+                                     dict(domain="range"), dict(domain="cw")], ids=str)
+def test_batch_equals_single_with_options(paper, options):
+    config = paper[0][1].config
+    iq = np.stack([r.iq for _, r in paper[:8]])
+    domain = options.get("domain", "if")
+    if domain != "if":
+        iq = np.stack([as_recorded(r, domain).iq for _, r in paper[:8]])
+    results = bf.extract_batch(iq, config, **options)
+    single_opts = {k: v for k, v in options.items() if k != "domain"}
+    for b, res in enumerate(results):
+        assert_same(F.extract_iq(iq[b], config, domain=domain, **single_opts), res, f"{options} row {b}")
+
+
 @pytest.mark.parametrize("preset", ["paper", "wide"])
 def test_stress_cases_batched_as_single(preset):
     """Every numerical stress case that gives features (scales 1e-30..1e30, ADC dtypes,
