@@ -242,7 +242,11 @@ def _window_diff(c: np.ndarray, half: int, n: int) -> np.ndarray:
 # --- periodicity ----------------------------------------------------------------------------
 
 def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> PeriodicityBatch:
-    """`estimators.periodicity` and `estimators.rotor_count` of every row."""
+    """`estimators.periodicity` and `estimators.rotor_count` of every row.
+
+    Stages that depend on the number of events k run per group of rows with the same k (the
+    votes, the coherent hits and checks, the period); those on the lag axis alone (plateau,
+    re-rank candidates, halving rule) run over the whole batch at once."""
     e = series.energy
     b_rows, n = e.shape
     out = {name: np.zeros(b_rows) for name in ("rate", "std", "score", "par", "rotors", "rotors_std")}
@@ -259,18 +263,73 @@ def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> Periodi
         lag_max = min(n * (1.0 - MIN_OVERLAP), series.rate_hz / FLASH_RATE_MIN_HZ)
         if lag_max > lag_min:
             lags = np.arange(math.ceil(lag_min), math.floor(lag_max) + 1, dtype=float)
-            work = live & (k >= 2)
-            for kk in np.unique(k[work]).tolist():
-                rows = np.flatnonzero(work & (k == kk))
-                per_row = 2 * lags.size * kk * 48 + (kk * series.field.shape[2] * 40 if series.field is not None else 0)
-                step = max(1, MEMORY_BUDGET_BYTES // per_row)
-                for a in range(0, rows.size, step):
-                    r = rows[a:a + step]
-                    res = _periodicity_group(series, r, times[r, :kk], pos[r, :kk], lags)
-                    for name, values in res.items():
-                        out[name][r] = values
+            _periodic_rows(series, times, pos, k, live & (k >= 2), lags, out)
     return PeriodicityBatch(out["rate"], out["std"], out["score"], n_events, out["par"], out["rotors"],
                             out["rotors_std"])
+
+
+def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray, k: np.ndarray,
+                   work: np.ndarray, lags: np.ndarray, out: dict[str, np.ndarray]) -> None:
+    """The lag vote and everything after it for the rows in `work` (k >= 2 events), into `out`."""
+    b_rows, n = series.energy.shape
+    n_bins = series.per_bin.shape[2]
+    dec = max(1, series.decimation)
+    coherent = (series.field is not None and series.field.shape[2] >= n * dec
+                and series.rate_hz * dec * FLASH_LOBE_S <= 1.0)
+    groups = []  # (k, batch rows) with the scratch of one group within the memory budget
+    for kk in np.unique(k[work]).tolist():
+        rows = np.flatnonzero(work & (k == kk))
+        per_row = 2 * lags.size * kk * 48 + (kk * n * dec * 40 if coherent else 0)
+        step = max(1, MEMORY_BUDGET_BYTES // per_row)
+        groups += [(kk, rows[a:a + step]) for a in range(0, rows.size, step)]
+    vote = np.zeros((b_rows, lags.size))
+    found_n, valid_n = np.zeros_like(vote), np.zeros_like(vote)
+    weight = np.zeros(times.shape)
+    for kk, r in groups:
+        t = times[r, :kk]
+        ti = np.minimum(np.maximum(np.round(t).astype(int), 0), n - 1)
+        strength = np.take_along_axis(series.energy[r], ti, axis=1) / np.maximum(series.threshold[r], 1e-300)[:, None]
+        w = np.minimum(np.maximum(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT), 1.0)
+        weight[r, :kk] = w
+        vote[r], found_n[r], valid_n[r] = _votes(t, pos[r, :kk], w, lags, n, series.drift_bins_per_sample[r],
+                                                 n_bins)
+    best = vote.max(axis=1)
+    ok = work & (best > 0.0) & (found_n.max(axis=1) > 0.0)
+    rows = np.flatnonzero(ok)
+    if rows.size == 0:
+        return
+    at = np.full(b_rows, -1)
+    at[rows] = np.arange(rows.size)
+    v = vote[rows]
+    i0 = np.argmax(v, axis=1)
+    after = (np.arange(lags.size)[None, :] > i0[:, None]) & (v != best[rows, None])
+    i1 = np.where(after.any(axis=1), np.argmax(after, axis=1), lags.size) - 1
+    lag = 0.5 * (lags[i0] + lags[i1])  # the vote's best lag (centre of its plateau)
+    if coherent:
+        cands, scores, n_c = _rerank_candidates(v, lag, lags)
+        for kk, r in groups:
+            sub = r[ok[r]]
+            if sub.size == 0:
+                continue
+            counts, share = _coherent(series.field[sub], series.field_peak[sub], times[sub, :kk], n, dec)
+            c_sub = n_c[at[sub]]
+            for c in np.unique(c_sub).tolist():
+                loc = np.flatnonzero(c_sub == c)
+                b = sub[loc]
+                lag[at[b]] = _rerank_choose(counts[loc], share[loc], times[b, :kk], weight[b, :kk],
+                                            cands[at[b], :c], scores[at[b], :c], lags, n)
+    else:
+        lag = _event_half_rule(lags, v, found_n[rows], valid_n[rows], lag)
+    for kk, r in groups:
+        sub = r[ok[r]]
+        if sub.size == 0:
+            continue
+        rate, std, score, phases, tol = _period(times[sub, :kk], pos[sub, :kk], series.drift_bins_per_sample[sub],
+                                                lag[at[sub]], series.rate_hz, n_bins)
+        rotors, rotors_std = _rotor_count(phases, tol)
+        for name, values in (("rate", rate), ("std", std), ("score", score), ("rotors", rotors),
+                             ("rotors_std", rotors_std)):
+            out[name][sub] = values
 
 
 def _flash_events(e: np.ndarray, threshold: np.ndarray, per_bin: np.ndarray, radius: int,
@@ -331,46 +390,6 @@ def _flash_events(e: np.ndarray, threshold: np.ndarray, per_bin: np.ndarray, rad
     order = np.argsort(np.where(valid, centroid, np.inf), axis=1)
     times = np.where(valid, np.take_along_axis(centroid, order, axis=1), np.inf)
     return times, np.take_along_axis(positions, order, axis=1), k
-
-
-def _periodicity_group(series: FlashSeriesBatch, rows: np.ndarray, times: np.ndarray, pos: np.ndarray,
-                       lags: np.ndarray) -> dict[str, np.ndarray]:
-    """Periodicity and rotor count of rows that all have k = times.shape[1] >= 2 events."""
-    g, k = times.shape
-    e = series.energy[rows]
-    n = e.shape[1]
-    threshold = series.threshold[rows]
-    drift = series.drift_bins_per_sample[rows]
-    n_bins = series.per_bin.shape[2]
-    ti = np.minimum(np.maximum(np.round(times).astype(int), 0), n - 1)
-    strength = np.take_along_axis(e, ti, axis=1) / np.maximum(threshold, 1e-300)[:, None]
-    weight = np.minimum(np.maximum(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT), 1.0)
-    vote, found_n, valid_n = _votes(times, pos, weight, lags, n, drift, n_bins)
-    res = {name: np.zeros(g) for name in ("rate", "std", "score", "rotors", "rotors_std")}
-    best = vote.max(axis=1)
-    ok = np.flatnonzero((best > 0.0) & (found_n.max(axis=1) > 0.0))
-    if ok.size == 0:
-        return res
-    vote, found_n, valid_n, best = vote[ok], found_n[ok], valid_n[ok], best[ok]
-    times, pos, weight, drift = times[ok], pos[ok], weight[ok], drift[ok]
-    i0 = np.argmax(vote, axis=1)
-    idx = np.arange(lags.size)
-    after = (idx[None, :] > i0[:, None]) & (vote != best[:, None])
-    i1 = np.where(after.any(axis=1), np.argmax(after, axis=1), lags.size) - 1
-    lag0 = 0.5 * (lags[i0] + lags[i1])
-    if (series.field is not None and series.field.shape[2] >= n * max(1, series.decimation)
-            and series.rate_hz * series.decimation * FLASH_LOBE_S <= 1.0):
-        sel = rows[ok]
-        counts, share = _coherent(series.field[sel], series.field_peak[sel], times, n, max(1, series.decimation))
-        lag0 = _rerank(counts, share, times, weight, lags, vote, lag0, n)
-    else:
-        lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
-    rate, std, score, phases, tol = _period(times, pos, drift, lag0, series.rate_hz, n_bins)
-    rotors, rotors_std = _rotor_count(phases, tol)
-    for name, values in (("rate", rate), ("std", std), ("score", score), ("rotors", rotors),
-                         ("rotors_std", rotors_std)):
-        res[name][ok] = values
-    return res
 
 
 def _weighted_sums(mask: np.ndarray, weight: np.ndarray) -> np.ndarray:
@@ -505,11 +524,10 @@ def _coherent_checks(counts: np.ndarray, share: np.ndarray, times: np.ndarray, w
     return _weighted_sums(hit, weight), _weighted_sums(ok, weight), chance
 
 
-def _rerank(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
-            vote: np.ndarray, lag0: np.ndarray, n: int) -> np.ndarray:
-    """`estimators._rerank` of a group, halving applied: the chosen lag per row. The greedy
-    candidate choice runs over its RERANK_N ranks; the checks over rows with the same number
-    of candidates (the single path's shapes)."""
+def _rerank_candidates(vote: np.ndarray, lag0: np.ndarray,
+                       lags: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators._rerank`'s greedy candidates for every row: (lags, vote scores) (rows, RERANK_N)
+    and their number per row; a loop over the RERANK_N ranks."""
     g = vote.shape[0]
     gi = np.arange(g)
     left = np.where(vote > 0.0, vote, -np.inf)
@@ -532,22 +550,25 @@ def _rerank(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np
         near = np.minimum(np.maximum(j[act, None] + offsets[None, :], 0), lags.size - 1)
         drop = np.abs(lags[near] - lags[j[act], None]) <= reach[near]
         left[np.repeat(gi[act], offsets.size)[drop.ravel()], near[drop]] = -np.inf
-    out = lag0.copy()
-    for c in np.unique(n_c[n_c > 0]).tolist():
-        sel = np.flatnonzero(n_c == c)
-        cl = cands[sel, :c]
-        found, made, chance = _coherent_checks(counts[sel], share[sel], times[sel], weight[sel],
-                                               np.concatenate([cl, 2.0 * cl, cl / 2.0], axis=1), n)
-        s = (found[:, :c] + found[:, c:2 * c]) / np.maximum(made[:, :c] + made[:, c:2 * c], 1e-12)
-        llr = (est._binomial_llr(found[:, :c], made[:, :c], s, chance[:, :c])
-               + est._binomial_llr(found[:, c:2 * c], made[:, c:2 * c], s, chance[:, c:2 * c]))
-        best = np.argmax(scores[sel, :c] + RERANK_WEIGHT * s * llr, axis=1)
-        si = np.arange(sel.size)
-        lag = cl[si, best]
-        half = (lag / 2.0 >= lags[0]) & _half_is_period(found[si, best], made[si, best], found[si, 2 * c + best],
-                                                        made[si, 2 * c + best], chance[si, 2 * c + best])
-        out[sel] = np.where(half, lag / 2.0, lag)
-    return out
+    return cands, scores, n_c
+
+
+def _rerank_choose(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray,
+                   cands: np.ndarray, scores: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
+    """`estimators._rerank`'s choice among c = cands.shape[1] candidates for rows with the same k
+    and c (the single path's check shapes), halving applied: the chosen lag per row."""
+    c = cands.shape[1]
+    found, made, chance = _coherent_checks(counts, share, times, weight,
+                                           np.concatenate([cands, 2.0 * cands, cands / 2.0], axis=1), n)
+    s = (found[:, :c] + found[:, c:2 * c]) / np.maximum(made[:, :c] + made[:, c:2 * c], 1e-12)
+    llr = (est._binomial_llr(found[:, :c], made[:, :c], s, chance[:, :c])
+           + est._binomial_llr(found[:, c:2 * c], made[:, c:2 * c], s, chance[:, c:2 * c]))
+    best = np.argmax(scores + RERANK_WEIGHT * s * llr, axis=1)
+    si = np.arange(cands.shape[0])
+    lag = cands[si, best]
+    half = (lag / 2.0 >= lags[0]) & _half_is_period(found[si, best], made[si, best], found[si, 2 * c + best],
+                                                    made[si, 2 * c + best], chance[si, 2 * c + best])
+    return np.where(half, lag / 2.0, lag)
 
 
 def _half_is_period(found: np.ndarray, made: np.ndarray, found_h: np.ndarray, made_h: np.ndarray,
