@@ -2,7 +2,8 @@
 against batch size, both presets, beside the FFT floor of one return
 (`authn.bench.perf.fft_floor`).
 
-    python -m pytest benchmarks/test_bench_batch_features.py --benchmark-enable
+    python -m pytest benchmarks/test_bench_batch_features.py --benchmark-enable \
+        --benchmark-json=batch.json   # extra_info: ms_per_return, fft_floor_ms, x_floor
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from authn.bench.perf import fft_floor
 from signatures.batch_features import extract_batch
 from signatures.dataset import DatasetSpec, draw_scene
 from signatures.profiles import shipped_profiles
@@ -36,4 +38,7 @@ def test_extract_batch(benchmark, preset, rows):
     results = benchmark(extract_batch, iq, config)
     assert len(results) == rows
     if benchmark.stats:  # None with --benchmark-disable
-        benchmark.extra_info["ms_per_return"] = benchmark.stats.stats.median * 1e3 / rows
+        per_return = benchmark.stats.stats.median * 1e3 / rows
+        floor = fft_floor(preset)["fft_ms"]
+        benchmark.extra_info.update(ms_per_return=round(per_return, 3), fft_floor_ms=round(floor, 3),
+                                    x_floor=round(per_return / floor, 2))
