@@ -50,7 +50,8 @@ _CUBE_BLOCK_BYTES = 4 << 20
 #: default memory budget: this share of the available memory, capped at _BUDGET_CAP
 _BUDGET_SHARE = 0.25
 _BUDGET_CAP = 1 << 30
-#: a block's chirps run in chunks of at most this many bytes of complex128 (bounds the workspaces: one `wide` cube is 8 MiB)
+#: a block's chirps run in chunks of at most this many bytes of complex128 (bounds the
+#: workspaces: one `wide` cube is 8 MiB)
 _CHUNK_BYTES = 4 << 20
 #: complex64 spectra of this many bytes are detected and gated together (`_cube_stage`)
 _SPECTRA_BYTES = 32 << 20
@@ -389,11 +390,11 @@ def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):
 def _interp_peak(y: np.ndarray, k: np.ndarray) -> np.ndarray:
     """`rd._interp_peak` per row: log-parabolic sub-bin peak of y[b] around k[b]."""
     b, n = y.shape
-    inner = (k > 0) & (k < n - 1)
-    kc = np.clip(k, 1, max(n - 2, 1)) if n >= 3 else k
-    rows = np.arange(b)
     if n < 3:
         return k.astype(np.float64)
+    inner = (k > 0) & (k < n - 1)
+    kc = np.clip(k, 1, n - 2)  # edge rows keep k (below); clipped only to index safely
+    rows = np.arange(b)
     a, m, c = (np.log(np.maximum(y[rows, kc + j].astype(np.float64), 1e-37)) for j in (-1, 0, 1))
     den = a - 2.0 * m + c
     with np.errstate(divide="ignore", invalid="ignore"):
