@@ -418,11 +418,13 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     tol = TOL_SAMPLES + TOL_FRACTION * lags
     t2 = tol[None, :, None]
     upper = n - 1 - t2
-    # checks as the float64 0/1 copies the single path's matmul makes: found (+, -), valid (+, -)
-    checks = np.zeros((g, 4, lags.size, k))
-    for s, sign in enumerate(_SIGNS.tolist()):
-        target = times[:, None, :] + (sign * lags)[None, :, None]
-        np.logical_and(target >= t2, target <= upper, out=checks[:, 2 + s])
+    # checks as the float64 0/1 copies the single path's matmul makes: found (+, -), valid (+, -).
+    # Valid is `tol <= t +- L <= n - 1 - tol`; with 0 <= t <= n - 1 (centroids) and L >= 2 > tol + 0.98
+    # one side always holds: t + L >= tol and t - L <= n - 1 - tol, so only the other is tested
+    checks = np.empty((g, 4, lags.size, k))
+    checks[:, :2] = 0.0
+    np.less_equal(times[:, None, :] + lags[None, :, None], upper, out=checks[:, 2])
+    np.greater_equal(times[:, None, :] + (-1.0 * lags)[None, :, None], t2, out=checks[:, 3])
     _found(times, compat, lags, n, checks)
     w = np.matmul(checks, weight[:, None, :, None])[..., 0]  # per row the single path's (2, L, k) @ (k,)
     c = np.matmul(checks, np.ones((g, 1, k, 1)))[..., 0]  # sums of 0/1: exact in any order
@@ -449,8 +451,8 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out:
     span = np.abs(tj - ti)
     # |span - L| <= TOL_SAMPLES + TOL_FRACTION L  =>  L in [(span - 1) / 1.01, (span + 1) / 0.99]; one lag
     # of margin either side for rounding: the exact test below decides
-    first = np.maximum(np.floor((span - TOL_SAMPLES) / (1.0 + TOL_FRACTION)) - 1.0, lag0)
-    last = np.minimum(np.ceil((span + TOL_SAMPLES) / (1.0 - TOL_FRACTION)) + 1.0, lag1)
+    first = np.maximum(np.ceil((span - TOL_SAMPLES) / (1.0 + TOL_FRACTION)) - 1.0, lag0)
+    last = np.minimum(np.floor((span + TOL_SAMPLES) / (1.0 - TOL_FRACTION)) + 1.0, lag1)
     count = np.maximum(last - first + 1.0, 0.0).astype(int)
     pair = np.repeat(np.arange(gi.size), count)
     lag = first[pair] + (np.arange(pair.size) - np.repeat(np.cumsum(count) - count, count))
