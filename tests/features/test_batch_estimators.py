@@ -5,6 +5,7 @@ and on edge cases (all zero, no events, one row, chirps shorter than the high-pa
 from __future__ import annotations
 
 import math
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -130,7 +131,10 @@ def test_small_chunks_give_the_same_rows(paper_gates, monkeypatch):
         np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
 
 
-def test_edge_cases(paper_gates):
+@pytest.mark.parametrize("small_batch", [1, 8], ids=["rank-loop", "row-by-row"])
+def test_edge_cases(paper_gates, small_batch, monkeypatch):
+    """All zero, real, noise only, one flash; flash events by both strategies."""
+    monkeypatch.setattr(be, "SMALL_BATCH", small_batch)
     g = three_columns(paper_gates)[0]
     real = g.slow
     zero = np.zeros_like(real)
@@ -211,4 +215,6 @@ def test_synthetic_flash_trains(seed, n_rows, flashes, period, amp, body):
             slow[b, c] += amp * np.exp(1j * rng.uniform(0, 2 * math.pi)) * np.array([0.5, 1.0, 0.4])
         slow[b] *= np.exp(2j * math.pi * body * config.pri_s * t)[:, None]
     body_hz = body + np.arange(n_rows) * 17.0
-    assert_batch_matches(slow.astype(np.complex64), config, body_hz, 0.2, 80)
+    for small_batch in (1, 8):  # flash events by the rank loop and row by row
+        with mock.patch.object(be, "SMALL_BATCH", small_batch):
+            assert_batch_matches(slow.astype(np.complex64), config, body_hz, 0.2, 80)
