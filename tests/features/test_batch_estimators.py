@@ -45,7 +45,8 @@ def reference(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float, n_fft
     return {name: np.array([r[i] for r in rows]) for i, name in enumerate(names)}
 
 
-def assert_batch_matches(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float, n_fft: int) -> be.PeriodicityBatch:
+def assert_batch_matches(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float,
+                         n_fft: int) -> be.PeriodicityBatch:
     series = be.flash_series_batch(slow, config, body_hz, bin_m, n_fft)
     got = be.periodicity_batch(series)
     want = reference(slow, config, body_hz, bin_m, n_fft)

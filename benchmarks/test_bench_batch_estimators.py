@@ -1,0 +1,51 @@
+"""Blade-flash estimators (flash series + periodicity + rotor count) per batch of gates: the
+batched module against the single-return loop, per batch size and preset.
+
+    python -m pytest benchmarks/test_bench_batch_estimators.py --benchmark-enable
+
+Per-return time is the reported time / B (the group names carry B). The gates are real
+simulated dataset scenes (tests/features/flash_gates.py), repeated to fill the batch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from signatures import batch_estimators as be
+from signatures import estimators as est
+from tests.features.flash_gates import simulated_gates
+
+SIZES = {"paper": (1, 8, 64, 256), "wide": (1, 8, 64)}
+CASES = [(p, b) for p, sizes in SIZES.items() for b in sizes]
+
+
+@pytest.fixture(scope="module", params=["paper", "wide"])
+def gates(request):
+    found = simulated_gates(request.param, 20 if request.param == "paper" else 10)
+    return request.param, [g for g in found if g.slow.shape[1] == 3]
+
+
+def _batch(gates, size: int):
+    picks = [gates[i % len(gates)] for i in range(size)]
+    return np.stack([g.slow for g in picks]), np.array([g.body_hz for g in picks]), picks[0]
+
+
+@pytest.mark.parametrize("size", sorted({b for _, b in CASES}))
+@pytest.mark.parametrize("path", ["batched", "loop"])
+def test_flash_estimators(benchmark, gates, size: int, path: str) -> None:
+    preset, found = gates
+    if size not in SIZES[preset]:
+        pytest.skip(f"{preset}: batch sizes {SIZES[preset]}")
+    slow, body, g = _batch(found, size)
+    benchmark.group = f"flash estimators {preset} B={size}"
+
+    def batched():
+        return be.periodicity_batch(be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
+
+    def loop():
+        return [est.rotor_count(est.periodicity(est.flash_series(slow[b], g.config, float(body[b]), g.range_bin_m,
+                                                                 g.n_fft))) for b in range(size)]
+
+    result = benchmark(batched if path == "batched" else loop)
+    assert len(result.n_events if path == "batched" else result) == size
