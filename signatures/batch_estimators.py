@@ -295,7 +295,7 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
         w = np.minimum(np.maximum(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT), 1.0)
         weight[r, :kk] = w
         vote[r], found_n[r], valid_n[r] = _votes(t, pos[r, :kk], w, lags, n, series.drift_bins_per_sample[r],
-                                                 n_bins)
+                                                 n_bins, counts=not coherent)
     best = vote.max(axis=1)
     ok = work & (best > 0.0) & (found_n.max(axis=1) > 0.0)
     rows = np.flatnonzero(ok)
@@ -413,8 +413,10 @@ def _weighted_sums(mask: np.ndarray, weight: np.ndarray) -> np.ndarray:
 
 
 def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndarray, n: int,
-           drift: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`estimators._votes` of a group: (vote, found_n, valid_n), each (g, lags).
+           drift: np.ndarray, n_bins: int, counts: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators._votes` of a group: (vote, found_n, valid_n), each (g, lags). Without `counts`
+    (only the halving rule reads them) found_n is the weighted count (zero where found_n is: every
+    weight is >= MIN_VOTE_WEIGHT) and valid_n zero.
 
     The single path looks up, for every event, sign and lag, the two events next to the target
     t +- L (`searchsorted`). Here the lookup runs the other way round: event j is one of those two
@@ -440,9 +442,12 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     np.greater_equal(times[:, None, :] + (-1.0 * lags)[None, :, None], t2, out=checks[:, 3])
     _found(times, compat, lags, n, checks)
     w = np.matmul(checks, weight[:, None, :, None])[..., 0]  # per row the single path's (2, L, k) @ (k,)
-    c = np.matmul(checks, np.ones((g, 1, k, 1)))[..., 0]  # sums of 0/1: exact in any order
     found_w, valid_w = w[:, 0] + w[:, 1], w[:, 2] + w[:, 3]
-    found_n, valid_n = c[:, 0] + c[:, 1], c[:, 2] + c[:, 3]
+    if counts:
+        c = np.matmul(checks, np.ones((g, 1, k, 1)))[..., 0]  # sums of 0/1: exact in any order
+        found_n, valid_n = c[:, 0] + c[:, 1], c[:, 2] + c[:, 3]
+    else:
+        found_n, valid_n = found_w, np.zeros_like(valid_w)
     chance = np.minimum(np.maximum(1.0 - np.exp((-(k - 1) / n * 2.0 * tol)[None, :] * share_compat[:, None]),
                                    1e-3), 0.999)
     share = np.minimum(np.maximum(found_w / np.maximum(valid_w, 1e-12), 1e-9), 1.0 - 1e-9)
