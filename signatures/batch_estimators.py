@@ -438,8 +438,8 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     # one side always holds: t + L >= tol and t - L <= n - 1 - tol, so only the other is tested
     checks = np.empty((g, 4, lags.size, k))
     checks[:, :2] = 0.0
-    np.less_equal(times[:, None, :] + lags[None, :, None], upper, out=checks[:, 2])
-    np.greater_equal(times[:, None, :] + (-1.0 * lags)[None, :, None], t2, out=checks[:, 3])
+    checks[:, 2] = times[:, None, :] + lags[None, :, None] <= upper
+    checks[:, 3] = times[:, None, :] + (-1.0 * lags)[None, :, None] >= t2
     _found(times, compat, lags, n, checks)
     w = np.matmul(checks, weight[:, None, :, None])[..., 0]  # per row the single path's (2, L, k) @ (k,)
     found_w, valid_w = w[:, 0] + w[:, 1], w[:, 2] + w[:, 3]
@@ -474,17 +474,19 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out:
     count = np.maximum(last - first + 1.0, 0.0).astype(int)
     pair = np.repeat(np.arange(gi.size), count)
     lag = first[pair] + (np.arange(pair.size) - np.repeat(np.cumsum(count) - count, count))
-    gp, jp = gi[pair], jj[pair]
-    t_i, t_j = ti[pair], tj[pair]
-    sign = np.where(t_j > t_i, 1.0, -1.0)
-    tol = TOL_SAMPLES + TOL_FRACTION * lag
-    target = t_i + sign * lag
     inf = np.full((g, 1), np.inf)
-    t_prev = np.concatenate([-inf, times], axis=1)[gp, jp]  # event j is next to the target exactly
-    t_next = np.concatenate([times, inf], axis=1)[gp, jp + 1]  # when t[j-1] < target <= t[j+1]
+    padded = np.concatenate([-inf, times, inf], axis=1)
+    sign = np.where(tj > ti, 1.0, -1.0)
+    # per pair: t_i, t_j, sign, and the times around t_j (event j is next to the target T exactly
+    # when t[j-1] < T <= t[j+1]), gathered for every candidate lag in one go
+    t_i, t_j, sgn, t_prev, t_next = np.stack([ti, tj, sign, padded[gi, jj], padded[gi, jj + 2]])[:, pair]
+    tol = TOL_SAMPLES + TOL_FRACTION * lag
+    target = t_i + sgn * lag
     hit = np.flatnonzero((target >= tol) & (target <= n - 1 - tol) & (t_prev < target) & (target <= t_next)
                          & (np.abs(t_j - target) <= tol))
-    out[gp[hit], (sign[hit] < 0).astype(int), (lag[hit] - lag0).astype(int), ii[pair[hit]]] = 1.0
+    at = pair[hit]
+    row = (gi[at] * out.shape[1] + (sign[at] < 0)) * lags.size + (lag[hit] - lag0).astype(int)
+    out.reshape(-1)[row * k + ii[at]] = 1.0
 
 
 def _coherent(field: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
