@@ -3,23 +3,26 @@
 The same estimates as `signatures.estimators` (flash series, periodicity, rotor count)
 for B gates at once: `flash_series_batch(slow[B, chirps, bins], ...)` then
 `periodicity_batch(series)`. Row b equals the single-return functions applied to
-`slow[b]` and `body_hz[b]` (tests/features/test_batch_estimators.py), with the same
-arithmetic in the same order, so that no discrete decision (an event, a lag, a halving)
-can differ by rounding:
+`slow[b]` and `body_hz[b]` to the bit (tests/features/test_batch_estimators.py): the same
+float operations on the same values in the same order, so that no discrete decision (an
+event, a lag, a halving, a rotor group) can differ by rounding. How:
 
-* the flash series is computed with a batch axis in front of the single path's arrays
-  (cumulative sums, matched filters and reductions run along the same axes);
-* flash events: the greedy sinc-skirt suppression is a loop over the candidates' rank,
-  vectorised over the batch;
-* everything after the events runs on groups of rows with the same number of events k
-  (no padding: (G, 2, lags, k) arrays), and the weighted check sums are stacked matrix
-  products with the single path's per-row shapes (BLAS sums in a shape-dependent order);
-  the greedy re-rank is a loop over its RERANK_N ranks, the halving rule a loop over
-  halvings, both vectorised over the group.
+* flash series: the single path's expressions with a batch axis in front (cumulative sums,
+  reductions and the matched-filter product along the same axes; the product stacked, so
+  BLAS sees the single path's per-row shape); rows in cache-sized chunks (CHUNK_BYTES);
+* flash events: the greedy sinc-skirt suppression is a loop over the candidates' rank
+  (strongest first), vectorised over the rows still choosing;
+* lag vote: rows grouped by their number of events k (no padding: (G, sign, lag, k)
+  arrays); the partner lookup runs from event pairs (`_found`) instead of a `searchsorted`
+  per event, and the weighted check sums are stacked matrix products with the single path's
+  per-row shapes (BLAS sums in a shape-dependent order);
+* plateau, re-rank candidates (a loop over the RERANK_N ranks) and the halving rule (a loop
+  over halvings) over the whole batch; the coherent hits and checks per group of equal k
+  (and equal candidate count); period statistics per group of equal match count (numpy's
+  pairwise sums depend on the length).
 
-The few per-row calls left (a `searchsorted` per row, period statistics per match count)
-cost a few microseconds a row; scratch memory is bounded by processing rows in chunks
-(MEMORY_BUDGET_BYTES).
+Scratch memory stays under MEMORY_BUDGET_BYTES (row chunks); the outputs grow with B (the
+matched-filter field, kept only where the coherent checks run: ~53 kB a row in `paper`).
 """
 
 from __future__ import annotations
