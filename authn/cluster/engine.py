@@ -35,7 +35,7 @@ def connect(address: str, workers: int | None = None) -> Iterator[Any]:
     if address == "local":
         n = workers or os.cpu_count() or 1
         with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                      silence_logs=logging.ERROR) as cluster, distributed.Client(cluster) as client:
+                                      silence_logs=logging.CRITICAL) as cluster, distributed.Client(cluster) as client:
             yield client
         return
     if "://" not in address and ":" not in address:

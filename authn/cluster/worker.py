@@ -76,22 +76,21 @@ def _from_entry(entry: Any) -> Outcome | Failure:
 
 
 def check_partition(args: CheckerArgs, part: Partition) -> PartitionResult:
-    """Check every file of the partition (a bad file is a Failure entry, as in batch mode)
-    and append all of them in one transaction keyed by `part.key`."""
+    """Check the partition's files as one batch (`Checker.evaluate_many`: a bad file is a
+    Failure entry, as in batch mode) and append all of them in one transaction keyed by
+    `part.key`. A system fault (database, policy engine) raises before anything is
+    appended: the task is retried, then the client records the partition as errors."""
     from authn.audit import batch_entries
 
     checker = checker_for(args)
     done = batch_entries(checker.db, part.key)
     if done is not None:
         return PartitionResult(part.key, tuple(_item(_from_entry(e)) for e in done), replayed=True)
-    results: list[Outcome | Failure] = []
-    for file, claim in zip(part.files, part.claims):
-        try:
-            results.append(checker.evaluate(Path(file), claim))
-        except Exception as exc:  # noqa: BLE001 - one bad or crashing file must not stop the partition
-            results.append(Failure.of(file, claim, exc))
-    checker.record(results, idempotency_key=part.key)
-    return PartitionResult(part.key, tuple(_item(r) for r in results))
+    batch = checker.evaluate_many([(Path(f), claim) for f, claim in zip(part.files, part.claims)])
+    if batch.fault is not None:
+        raise batch.fault
+    checker.record(batch.items, idempotency_key=part.key)
+    return PartitionResult(part.key, tuple(_item(r) for r in batch.items))
 
 
 def record_lost(checker: Checker, part: Partition, error: str) -> PartitionResult:
