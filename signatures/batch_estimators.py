@@ -318,12 +318,8 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
             if sub.size == 0:
                 continue
             counts, share = _coherent(series.field[sub], series.field_peak[sub], times[sub, :kk], n, dec)
-            c_sub = n_c[at[sub]]
-            for c in np.unique(c_sub).tolist():
-                loc = np.flatnonzero(c_sub == c)
-                b = sub[loc]
-                lag[at[b]] = _rerank_choose(counts[loc], share[loc], times[b, :kk], weight[b, :kk],
-                                            cands[at[b], :c], scores[at[b], :c], lags, n)
+            lag[at[sub]] = _rerank_choose(counts, share, times[sub, :kk], weight[sub, :kk], cands[at[sub]],
+                                          scores[at[sub]], n_c[at[sub]], lags, n)
     else:
         lag = _event_half_rule(lags, v, found_n[rows], valid_n[rows], lag)
     for kk, r in groups:
@@ -530,9 +526,10 @@ def _coherent(field: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
     return counts, np.maximum(counts[:, :, -1].sum(axis=1).astype(float) - own_hits, 0.0) / others
 
 
-def _coherent_checks(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray,
-                     lags: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`estimators._coherent_checks` with per-row lags (g, m): (found, made, chance), each (g, m)."""
+def _coherent_checks(counts: np.ndarray, share: np.ndarray, times: np.ndarray, lags: np.ndarray,
+                     n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators._coherent_checks` with per-row lags (g, m), before the weighted sums: the checks
+    made and succeeded (g, 2, m, k) and the chance (g, m)."""
     g, k = times.shape
     tol = TOL_SAMPLES + TOL_FRACTION * lags
     w = np.floor(tol + 0.5).astype(int)
@@ -545,8 +542,7 @@ def _coherent_checks(counts: np.ndarray, share: np.ndarray, times: np.ndarray, w
     hi = np.minimum(np.maximum(centre + w3 + 1, 0), n)
     flat = counts.ravel()
     base = (np.arange(g) * k * (n + 1))[:, None, None, None] + (np.arange(k) * (n + 1))[None, None, None, :]
-    hit = ok & (flat[base + hi] > flat[base + lo])
-    return _weighted_sums(hit, weight), _weighted_sums(ok, weight), chance
+    return ok, ok & (flat[base + hi] > flat[base + lo]), chance
 
 
 def _rerank_candidates(vote: np.ndarray, lag0: np.ndarray,
@@ -579,20 +575,31 @@ def _rerank_candidates(vote: np.ndarray, lag0: np.ndarray,
 
 
 def _rerank_choose(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray,
-                   cands: np.ndarray, scores: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
-    """`estimators._rerank`'s choice among c = cands.shape[1] candidates for rows with the same k
-    and c (the single path's check shapes), halving applied: the chosen lag per row."""
-    c = cands.shape[1]
-    found, made, chance = _coherent_checks(counts, share, times, weight,
-                                           np.concatenate([cands, 2.0 * cands, cands / 2.0], axis=1), n)
-    s = (found[:, :c] + found[:, c:2 * c]) / np.maximum(made[:, :c] + made[:, c:2 * c], 1e-12)
-    llr = (est._binomial_llr(found[:, :c], made[:, :c], s, chance[:, :c])
-           + est._binomial_llr(found[:, c:2 * c], made[:, c:2 * c], s, chance[:, c:2 * c]))
-    best = np.argmax(scores + RERANK_WEIGHT * s * llr, axis=1)
-    si = np.arange(cands.shape[0])
-    lag = cands[si, best]
-    half = (lag / 2.0 >= lags[0]) & _half_is_period(found[si, best], made[si, best], found[si, 2 * c + best],
-                                                    made[si, 2 * c + best], chance[si, 2 * c + best])
+                   cands: np.ndarray, scores: np.ndarray, n_c: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
+    """`estimators._rerank`'s choice among each row's n_c candidates (rows with the same k),
+    halving applied: the chosen lag per row. The checks run at the candidates padded to the
+    most any row has; their weighted sums per number of candidates c, with the single path's
+    (2, 3c, k) shapes (BLAS sums depend on the shape)."""
+    g = cands.shape[0]
+    cm = int(n_c.max())
+    cl = np.where(np.arange(cm)[None, :] < n_c[:, None], cands[:, :cm], lags[0])  # padding: any lag
+    ok, hit, chance = _coherent_checks(counts, share, times, np.concatenate([cl, 2.0 * cl, cl / 2.0], axis=1), n)
+    found, made = np.zeros((g, 3 * cm)), np.zeros((g, 3 * cm))
+    for c in np.unique(n_c).tolist():
+        sel = np.flatnonzero(n_c == c)
+        cols = np.concatenate([np.arange(c), cm + np.arange(c), 2 * cm + np.arange(c)])
+        found[sel[:, None], cols] = _weighted_sums(hit[sel][:, :, cols], weight[sel])
+        made[sel[:, None], cols] = _weighted_sums(ok[sel][:, :, cols], weight[sel])
+    f1, f2, fh = found[:, :cm], found[:, cm:2 * cm], found[:, 2 * cm:]
+    m1, m2, mh = made[:, :cm], made[:, cm:2 * cm], made[:, 2 * cm:]
+    s = (f1 + f2) / np.maximum(m1 + m2, 1e-12)
+    llr = est._binomial_llr(f1, m1, s, chance[:, :cm]) + est._binomial_llr(f2, m2, s, chance[:, cm:2 * cm])
+    total = np.where(np.arange(cm)[None, :] < n_c[:, None], scores[:, :cm] + RERANK_WEIGHT * s * llr, -np.inf)
+    best = np.argmax(total, axis=1)
+    si = np.arange(g)
+    lag = cl[si, best]
+    half = (lag / 2.0 >= lags[0]) & _half_is_period(f1[si, best], m1[si, best], fh[si, best], mh[si, best],
+                                                    chance[si, 2 * cm + best])
     return np.where(half, lag / 2.0, lag)
 
 
