@@ -3,8 +3,9 @@ batched module against the single-return loop, per batch size and preset.
 
     python -m pytest benchmarks/test_bench_batch_estimators.py --benchmark-enable
 
-Per-return time is the reported time / B (the group names carry B). The gates are real
-simulated dataset scenes (tests/features/flash_gates.py), repeated to fill the batch.
+Per-return time is the reported time / B (the group names carry B). The gates are distinct
+simulated dataset scenes (tests/features/flash_gates.py; ~10 s to simulate), as many as the
+largest batch, so the batches hold the realistic spread of event counts.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ CASES = [(p, b) for p, sizes in SIZES.items() for b in sizes]
 
 @pytest.fixture(scope="module", params=["paper", "wide"])
 def gates(request):
-    found = simulated_gates(request.param, 20 if request.param == "paper" else 10)
+    found = simulated_gates(request.param, int(max(SIZES[request.param]) * 1.1))
     return request.param, [g for g in found if g.slow.shape[1] == 3]
 
 
