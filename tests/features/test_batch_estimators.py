@@ -24,7 +24,7 @@ EXACT = ("n_events", "rotor_count")
 
 @pytest.fixture(scope="module")
 def paper_gates() -> list[Gate]:
-    return simulated_gates("paper", 40)
+    return simulated_gates("paper", 120)
 
 
 @pytest.fixture(scope="module")
