@@ -38,7 +38,7 @@ from signatures.radar import RadarConfig
 from signatures.recording import DOMAINS
 from signatures.stats import median
 
-__all__ = ["MAX_BATCH", "MIN_BATCH", "batch_size", "extract_batch", "extract_many"]
+__all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "MIN_BATCH", "batch_size", "extract_batch", "extract_many"]
 
 MAX_BATCH = 1024
 #: `extract_many` runs smaller groups through the single path: below ~4 rows the batch's fixed
@@ -57,6 +57,11 @@ _CHUNK_BYTES = 4 << 20
 _SPECTRA_BYTES = 32 << 20
 #: cubes whose peak lies within 2**+-this of 1 are scaled on the window (`_range_spectra`)
 _SAFE_EXPONENT = 20
+#: the batched path's FFT backend: scipy's single-precision transforms (~2-4x numpy's complex128
+#: on these cubes; its 0.2-0.4 s import is paid once per batch job)
+DEFAULT_FFT_BACKEND = "scipy"
+#: threads per scipy transform: one (a fleet runs one batch process per core)
+_WORKERS = 1
 _TINY = F._TINY
 _local = threading.local()
 
@@ -116,14 +121,17 @@ def _default_budget() -> int:
 
 
 def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] | None = None, *,
-                 memory_bytes: int | None = None) -> list[F.FeatureResult]:
+                 memory_bytes: int | None = None, fft_backend: str = DEFAULT_FFT_BACKEND,
+                 device: str | None = None) -> list[F.FeatureResult]:
     """Features of any mix of recordings, in input order: rows that share (waveform, cube shape,
     dtype, domain) run batched in chunks of `batch_size`, whatever their range offsets (only
     absolute ranges depend on it: a simulated recording's window is centred on its target);
-    `cw` rows and groups under MIN_BATCH through `features.extract`. A bad row raises `SignaturesError` naming its input
-    index."""
+    `cw` rows and groups under MIN_BATCH through `features.extract`. A bad row raises
+    `SignaturesError` naming its input index. `fft_backend` and `device` as `extract_batch`."""
     n = len(recordings)
     expected = _expected(expected_range_m, n)
+    fft_backend = _backend(fft_backend)
+    torch_device = _device(device)
     out: list[F.FeatureResult | None] = [None] * n
     groups: dict[tuple, list[int]] = {}
     for i, rec in enumerate(recordings):
@@ -133,18 +141,19 @@ def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] 
     for (_, shape, _, domain), rows in groups.items():
         if domain == "cw" or len(shape) != 2:
             for i in rows:
-                out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i]))
+                out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i], fft_backend=fft_backend))
             continue
         step = batch_size(shape[0], shape[1], memory_bytes)
         for s in range(0, len(rows), step):
             part = rows[s:s + step]
             if len(part) < MIN_BATCH:
                 for i in part:
-                    out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i]))
+                    out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i],
+                                                                fft_backend=fft_backend))
                 continue
             iq = np.stack([np.asarray(recordings[i].iq) for i in part])
             res = _extract(iq, [recordings[i].config for i in part], [expected[i] for i in part],
-                           F.GATE_BINS, True, domain, part)
+                           F.GATE_BINS, True, domain, part, fft_backend, torch_device)
             for i, r in zip(part, res):
                 out[i] = r
     return out  # type: ignore[return-value]
@@ -152,10 +161,17 @@ def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] 
 
 def extract_batch(iq: np.ndarray, config: RadarConfig, expected_range_m: Sequence[float | None] | None = None,
                   *, gate_bins: int = F.GATE_BINS, clutter_suppression: bool = True,
-                  domain: str = "if") -> list[F.FeatureResult]:
+                  domain: str = "if", fft_backend: str = DEFAULT_FFT_BACKEND,
+                  device: str | None = None) -> list[F.FeatureResult]:
     """`features.extract_iq(iq[b], config, expected_range_m[b], gate_bins, clutter_suppression,
-    domain=domain)` for every row b of `iq` (B, chirps, samples; any numeric dtype).
+    domain=domain, fft_backend=fft_backend)` for every row b of `iq` (B, chirps, samples; any
+    numeric dtype).
 
+    `fft_backend`: 'scipy' (default: single-precision pocketfft, the faster; a batch job pays
+    scipy's import once) or 'numpy' (complex128 transforms, the single path's default). `device`
+    runs the cube stage in torch (`signatures.batch_torch`; the optional `cnn` extra): None
+    (numpy), 'cpu', 'cuda' or 'auto' (cuda when available, else numpy); features then match
+    the numpy path's to float32 rounding, not bit for bit.
     Bad input in any row raises the single path's `SignaturesError`, prefixed with "row b: ".
     """
     a = np.asarray(iq)
@@ -163,7 +179,26 @@ def extract_batch(iq: np.ndarray, config: RadarConfig, expected_range_m: Sequenc
         raise SignaturesError(f"IQ batch must be 3-D (batch, n_chirps, n_samples), got shape {a.shape}")
     expected = _expected(expected_range_m, a.shape[0])
     return _extract(a, [config] * a.shape[0], expected, gate_bins, clutter_suppression, domain,
-                    list(range(a.shape[0])))
+                    list(range(a.shape[0])), _backend(fft_backend), _device(device))
+
+
+def _backend(fft_backend: str) -> str:
+    if fft_backend not in _fft.BACKENDS:
+        raise SignaturesError(f"unknown FFT backend {fft_backend!r} (known: {', '.join(_fft.BACKENDS)})")
+    return fft_backend
+
+
+def _device(device: str | None):
+    """The torch device the cube stage runs on, or None for numpy ('auto' without CUDA)."""
+    if device is None:
+        return None
+    try:
+        from signatures import batch_torch
+    except ImportError:
+        if device == "auto":
+            return None
+        raise SignaturesError(f"device {device!r} needs torch (the optional 'cnn' extra)") from None
+    return batch_torch.resolve(device)
 
 
 def _expected(expected_range_m: Sequence[float | None] | None, n: int) -> list[float | None]:
@@ -184,7 +219,8 @@ def _labelled(row: int, fn):
 
 
 def _extract(iq: np.ndarray, configs: list[RadarConfig], expected: list[float | None], gate_bins: int,
-             suppress: bool, domain: str, labels: list[int]) -> list[F.FeatureResult]:
+             suppress: bool, domain: str, labels: list[int], fft_backend: str = DEFAULT_FFT_BACKEND,
+             device=None) -> list[F.FeatureResult]:
     """The rows' features; `configs[b]` differ at most in their range offset."""
     if gate_bins < 1:
         raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
@@ -194,21 +230,22 @@ def _extract(iq: np.ndarray, configs: list[RadarConfig], expected: list[float | 
         return []
     if domain == "cw" or iq.shape[1] < 1 or iq.shape[2] < 1:  # cw: the single path, row by row
         return [_labelled(labels[b], lambda b=b: F.extract_iq(iq[b], configs[b], expected[b], gate_bins,
-                                                              suppress, domain=domain))
+                                                              suppress, domain=domain, fft_backend=fft_backend))
                 for b in range(iq.shape[0])]
     if not (np.issubdtype(iq.dtype, np.number) and not np.issubdtype(iq.dtype, np.timedelta64)):
         raise SignaturesError(f"IQ cube must be numeric, got dtype {iq.dtype}")
     n_chirps, n_bins = iq.shape[1:]
     config = configs[0]
     within = [_within(configs[b], e, gate_bins, n_bins, labels[b]) for b, e in enumerate(expected)]
-    cube = _cube_stage(iq, within, gate_bins, suppress, domain, labels)
+    cube = _cube_stage(iq, within, gate_bins, suppress, domain, labels, fft_backend, device)
     live = np.flatnonzero(~cube.zero)
     results: list[F.FeatureResult | None] = [None] * iq.shape[0]
     for b in np.flatnonzero(cube.zero):
         results[b] = F._empty(config, n_chirps, n_bins, within[b])
     if live.size:
         offsets = np.array([configs[b].range_offset_m for b in live])
-        for b, r in zip(live, _slow_stage(cube, live, config, offsets, n_chirps, n_bins, suppress)):
+        for b, r in zip(live, _slow_stage(cube, live, config, offsets, n_chirps, n_bins, suppress,
+                                                  fft_backend)):
             results[b] = r
     return results  # type: ignore[return-value]
 
@@ -229,9 +266,9 @@ def _within(config: RadarConfig, expected: float | None, gate_bins: int, n_bins:
 # --- cube stage ---------------------------------------------------------------------------------
 
 def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins: int, suppress: bool,
-                domain: str, labels: list[int]) -> _Cube:
-    """Scale, suppress clutter, range-FFT, profile and detect in cache-sized blocks of rows;
-    keep each row's gate and patch columns."""
+                domain: str, labels: list[int], fft_backend: str, device=None) -> _Cube:
+    """Scale, suppress clutter, range-FFT, profile and detect in cache-sized blocks of rows (on
+    `fft_backend`, or in torch on `device`); keep each row's gate and patch columns."""
     n_rows, n_chirps, n_bins = iq.shape
     size = min(gate_bins, n_bins)
     p_size = min(F.PATCH_SHAPE[1], n_bins)
@@ -244,39 +281,56 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
                peak_bin_frac=np.zeros(n_rows), snr_db=np.zeros(n_rows), gate_lo=np.zeros(n_rows, int),
                slow=np.empty((n_rows, n_chirps, size), np.complex64), patch_lo=np.zeros(n_rows, int),
                patch_cols=np.empty((n_rows, n_chirps, p_size), np.complex64))
-    block = max(1, _CUBE_BLOCK_BYTES // (16 * n_chirps * n_bins))
+    block = max(1, _CUBE_BLOCK_BYTES // ((16 if fft_backend == "numpy" else 8) * n_chirps * n_bins))
     group = max(1, _SPECTRA_BYTES // (8 * n_chirps * n_bins) // block) * block
     for s in range(0, n_rows, group):  # detection and gating once per group of blocks
         e = min(n_rows, s + group)
-        spectra = _scratch("spectra", (e - s, n_chirps, n_bins), np.complex64)
-        for b0 in range(s, e, block):
-            b1 = min(e, b0 + block)
-            spec = spectra[b0 - s:b1 - s]
-            out["mu"][b0:b1], out["log2_scale"][b0:b1], out["zero"][b0:b1] = _range_spectra(
-                iq[b0:b1], suppress, domain, labels[b0:b1], spec)
-            out["profile"][b0:b1] = _range_profile(spec)
+        if device is None:
+            spectra = _scratch("spectra", (e - s, n_chirps, n_bins), np.complex64)
+            for b0 in range(s, e, block):
+                b1 = min(e, b0 + block)
+                spec = spectra[b0 - s:b1 - s]
+                out["mu"][b0:b1], out["log2_scale"][b0:b1], out["zero"][b0:b1] = _range_spectra(
+                    iq[b0:b1], suppress, domain, labels[b0:b1], spec, fft_backend)
+                out["profile"][b0:b1] = _range_profile(spec)
+            columns = _row_columns
+        else:
+            from signatures import batch_torch
+
+            spectra, out["mu"][s:e], out["log2_scale"][s:e], out["zero"][s:e], out["profile"][s:e] = (
+                batch_torch.range_spectra(iq[s:e], suppress, domain, labels[s:e], device))
+            columns = batch_torch.columns
         det, frac, snr, peak = _detect(out["profile"][s:e], looks, lo_w[s:e], hi_w[s:e])
         g_lo = _window(peak, size, n_bins)
         p_lo = _window(peak, p_size, n_bins)
-        for j in range(e - s):
-            out["slow"][s + j] = spectra[j, :, g_lo[j]:g_lo[j] + size]
-            out["patch_cols"][s + j] = spectra[j, :, p_lo[j]:p_lo[j] + p_size]
+        out["slow"][s:e] = columns(spectra, g_lo, size)
+        out["patch_cols"][s:e] = columns(spectra, p_lo, p_size)
         for key, val in (("detected", det), ("peak_bin", peak), ("peak_bin_frac", frac), ("snr_db", snr),
                          ("gate_lo", g_lo), ("patch_lo", p_lo)):
             out[key][s:e] = val
     return _Cube(**out)
 
 
-def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int],
-                   out: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int], out: np.ndarray,
+                   fft_backend: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`rd.prepare` then `features._range_spectrum` of every row with the single path's
-    arithmetic: the complex64 spectrum into `out`; returns (mu (the spectrum of the slow-time
-    mean, complex64), log2 scale, all-zero flag).
+    arithmetic on `fft_backend`: the complex64 spectrum into `out`; returns (mu (the spectrum
+    of the slow-time mean, complex64), log2 scale, all-zero flag)."""
+    x, scale, exponent, zero = prepared(a, labels)
+    if fft_backend == "scipy":
+        mu = _spectra32(x, scale, suppress, domain, out)
+    else:
+        mu = _spectra64(x, scale, suppress, domain, out)
+    return mu, exponent, zero
+
+
+def prepared(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`rd.prepare` of every row, but for the scale: (x complex64, scale (B, 1, 1) float64 that is
+    still to apply, log2 scale, all-zero flag); a NaN or Inf raises naming its row.
 
     The exact power-of-two scale s commutes with every rounding while nothing under- or
     overflows, so for cubes within 2**+-_SAFE_EXPONENT of unit scale it rides on the window,
-    (x - m) * (w * s), saving a pass over the cube; other cubes are scaled first. Chirps run
-    in chunks (`_CHUNK_BYTES`) to bound the workspaces on big cubes.
+    (x - m) * (w * s), saving a pass over the cube; other cubes are scaled here (scale 1).
     """
     if a.dtype in (np.complex64, np.float32, np.float16) or np.issubdtype(a.dtype, np.integer):
         work = np.ascontiguousarray(a, dtype=np.complex64)
@@ -291,11 +345,17 @@ def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int]
     exponent = np.where(zero, 0, np.frexp(np.where(zero, 1.0, peak))[1])
     scale = np.ldexp(1.0, -exponent)[:, None, None]
     if np.all(np.abs(exponent) <= _SAFE_EXPONENT):
-        x = work.astype(np.complex64, copy=False)
-    else:  # as rd.prepare: exact in complex64 where it can, else via complex128
-        small = work.dtype == np.complex64 and bool(np.all((exponent >= -127) & (exponent <= 126)))
-        x = work * scale.astype(np.float32) if small else (work.astype(np.complex128) * scale).astype(np.complex64)
-        scale = np.ones_like(scale)
+        return work.astype(np.complex64, copy=False), scale, exponent, zero
+    # as rd.prepare: exact in complex64 where it can, else via complex128
+    small = work.dtype == np.complex64 and bool(np.all((exponent >= -127) & (exponent <= 126)))
+    x = work * scale.astype(np.float32) if small else (work.astype(np.complex128) * scale).astype(np.complex64)
+    return x, np.ones_like(scale), exponent, zero
+
+
+def _spectra64(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, out: np.ndarray) -> np.ndarray:
+    """The numpy backend's range spectra (`signatures.fft`: complex128 transforms of the
+    complex64 data times the float64 window, rounded to complex64) into `out`; returns mu.
+    Chirps run in chunks (`_CHUNK_BYTES`) to bound the complex128 workspaces on big cubes."""
     mean = x.mean(axis=1, keepdims=True)
     n_chirps, n_bins = x.shape[1:]
     weight = scale * (rd.hann(n_bins) if domain == "if" else 1.0)  # (rows, 1, bins): exact products
@@ -308,14 +368,43 @@ def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int]
         if domain != "if":  # a range cube already is a range spectrum
             np.copyto(out[:, c0:c0 + step], src, casting="same_kind")
             continue
-        if _fft.backend() == "scipy":
-            spec = _fft.fft(src, axis=-1)
-        else:
-            spec = np.fft.fft(src, axis=-1, out=_scratch("out", part.shape, np.complex128))
+        spec = np.fft.fft(src, axis=-1, out=_scratch("out", part.shape, np.complex128))
         np.copyto(out[:, c0:c0 + step], spec, casting="same_kind")  # the single path's complex64 spectrum
     if domain != "if":
-        return mu.astype(np.complex64), exponent, zero
-    return np.fft.fft(mu, axis=-1).astype(np.complex64), exponent, zero
+        return mu.astype(np.complex64)
+    return np.fft.fft(mu, axis=-1).astype(np.complex64)
+
+
+def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, out: np.ndarray) -> np.ndarray:
+    """The scipy backend's range spectra (`signatures.fft`: complex64 data times the float32
+    window, single-precision pocketfft) into `out`, in three in-place passes over it (subtract,
+    window, transform); returns mu. Same values as the single path with `fft_backend='scipy'`."""
+    import scipy.fft as sfft
+
+    mean = x.mean(axis=1, keepdims=True)
+    n_bins = x.shape[2]
+    window = rd.hann(n_bins).astype(np.float32) if domain == "if" else np.ones(n_bins, np.float32)
+    weight = window * scale.astype(np.float32)  # (rows, 1, bins): exact products
+    if suppress:
+        np.subtract(x, mean, out=out)
+    else:
+        np.copyto(out, x)
+    if domain == "if" or np.any(scale != 1.0):
+        pairs = out.view(np.float32).reshape(*out.shape, 2)  # (re, im): complex x real, one pass
+        np.multiply(pairs, weight[..., None], out=pairs)
+    mu = mean[:, 0] * weight[:, 0]
+    if domain != "if":  # a range cube already is a range spectrum
+        return mu
+    sfft.fft(out, axis=-1, overwrite_x=True, workers=_WORKERS)
+    return sfft.fft(mu, axis=-1, workers=_WORKERS)
+
+
+def _row_columns(spectra: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
+    """spectra[b, :, lo[b]:lo[b] + size] of every row b (a copy: the spectra are a workspace)."""
+    out = np.empty((spectra.shape[0], spectra.shape[1], size), spectra.dtype)
+    for b in range(spectra.shape[0]):
+        out[b] = spectra[b, :, lo[b]:lo[b] + size]
+    return out
 
 
 def _scratch(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
@@ -331,16 +420,20 @@ def _scratch(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
     return buf[:size].reshape(shape)
 
 
-def _fft_rows(x: np.ndarray, axis: int, window: np.ndarray, key: str, post=None) -> np.ndarray:
-    """`signatures.fft.fft(x[b], axis - 1, window)` of every row b (complex64, same arithmetic),
-    in cache-sized blocks of rows through reused workspaces; `post` maps each block's
-    transform to what is kept (default: the transform itself)."""
+def _fft_rows(x: np.ndarray, axis: int, window: np.ndarray, key: str, fft_backend: str,
+              post=None) -> np.ndarray:
+    """`signatures.fft.fft(x[b], axis - 1, window, backend=fft_backend)` of every row b
+    (complex64, same arithmetic), in cache-sized blocks of rows through reused workspaces;
+    `post` maps each block's transform to what is kept (default: the transform itself)."""
     step = max(1, _CUBE_BLOCK_BYTES // (16 * max(1, math.prod(x.shape[1:]))))
     parts = []
     for s in range(0, x.shape[0], step):
         blk = x[s:s + step]
-        if _fft.backend() == "scipy":
-            spec = _fft.fft(blk, axis=axis, window=window)
+        if fft_backend == "scipy":
+            import scipy.fft as sfft
+
+            spec = np.multiply(blk, window.astype(np.float32), out=_scratch(key + "64", blk.shape, np.complex64))
+            sfft.fft(spec, axis=axis, overwrite_x=True, workers=_WORKERS)
         else:
             src = np.multiply(blk, window, out=_scratch(key + "in", blk.shape, np.complex128))
             out = np.fft.fft(src, axis=axis, out=_scratch(key + "out", blk.shape, np.complex128))
@@ -415,7 +508,7 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 # --- slow-time stage -----------------------------------------------------------------------------
 
 def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_chirps: int,
-                n_bins: int, suppress: bool) -> list[F.FeatureResult]:
+                n_bins: int, suppress: bool, fft_backend: str) -> list[F.FeatureResult]:
     """`features._features` of the rows `live` (not all-zero; range offsets `offsets`), vectorised
     over rows."""
     n = n_chirps
@@ -423,7 +516,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     size = slow.shape[2]
     g_lo = cube.gate_lo[live]
     peak_bin = cube.peak_bin[live]
-    dop = _fft_rows(slow, 1, rd.hann(n)[:, None], "doppler", lambda z: np.fft.fftshift(z, axes=1))
+    dop = _fft_rows(slow, 1, rd.hann(n)[:, None], "doppler", fft_backend, lambda z: np.fft.fftshift(z, axes=1))
     power = _power(dop)
     if suppress:
         raw_power, stationary = _unsuppressed(cube.mu[live], dop, power, g_lo, size)
@@ -496,7 +589,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         length_std = np.where(has_length, length * np.hypot(tip_std / tip, rotor_std / rotor), 0.0)
 
     win, hop = tf.stft_params(config, n)
-    cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop)), flash)
+    cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend)), flash)
 
     cols = dict(
         mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
@@ -516,15 +609,16 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     gates = (g_lo + 0).tolist()
     out = []
     for j, b in enumerate(live.tolist()):
-        make = _patch_maker(cube.patch_cols[b], config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]))
+        make = _patch_maker(cube.patch_cols[b], config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]),
+                            fft_backend)
         out.append(F.FeatureResult(detected[j], F.Features(*table[j]), make, (gates[j], gates[j] + size)))
     return out
 
 
-def _patch_maker(cols: np.ndarray, config: RadarConfig, peak: int, body_idx: float):
+def _patch_maker(cols: np.ndarray, config: RadarConfig, peak: int, body_idx: float, fft_backend: str):
     """The lazy CNN patch of one row: `features._patch` of its kept columns (the same window)."""
     def make() -> np.ndarray:
-        return F._patch(cols, config, peak, body_idx)
+        return F._patch(cols, config, peak, body_idx, fft_backend)
     return make
 
 
@@ -670,14 +764,15 @@ def _flash(slow: np.ndarray, peak_rel: np.ndarray, config: RadarConfig, body_hz:
     return best.PeriodicityBatch(**fields)
 
 
-def _spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int) -> tuple[np.ndarray, np.ndarray]:
+def _spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int,
+                 fft_backend: str) -> tuple[np.ndarray, np.ndarray]:
     """`timefreq.spectrogram` (summed over the gate's columns) per row: (power (B, time, Doppler),
     frame times)."""
     x = slow
     if x.shape[1] < win:
         x = np.concatenate([x, np.zeros((x.shape[0], win - x.shape[1], x.shape[2]), x.dtype)], axis=1)
     frames = sliding_window_view(x, win, axis=1)[:, ::hop]  # (B, frames, bins, win)
-    power = _fft_rows(frames, -1, rd.hann(win), "stft",
+    power = _fft_rows(frames, -1, rd.hann(win), "stft", fft_backend,
                       lambda z: np.fft.fftshift(_power(z).sum(axis=2), axes=-1))
     t = (np.arange(power.shape[1]) * hop + win / 2) * config.pri_s
     return power, t

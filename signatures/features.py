@@ -22,6 +22,7 @@ from functools import cached_property
 import numpy as np
 
 from signatures import estimators as est
+from signatures import fft as _fft
 from signatures import rd
 from signatures import timefreq as tf
 from signatures.errors import SignaturesError
@@ -135,16 +136,17 @@ class FeatureResult:
 
 
 def extract(recording, expected_range_m: float | None = None, gate_bins: int = GATE_BINS,
-            clutter_suppression: bool = True, quick: bool = False, float64: bool = False) -> FeatureResult:
+            clutter_suppression: bool = True, quick: bool = False, float64: bool = False,
+            fft_backend: str | None = None) -> FeatureResult:
     """Features of a `Recording` (see `extract_iq`)."""
     return extract_iq(recording.iq, recording.config, expected_range_m, gate_bins, clutter_suppression,
-                      quick=quick, float64=float64, domain=recording.domain)
+                      quick=quick, float64=float64, domain=recording.domain, fft_backend=fft_backend)
 
 
 def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | None = None,
                gate_bins: int = GATE_BINS, clutter_suppression: bool = True,
                full_cube: bool = False, quick: bool = False, float64: bool = False,
-               domain: str = "if") -> FeatureResult:
+               domain: str = "if", fft_backend: str | None = None) -> FeatureResult:
     """Features of a bare cube (chirps x samples, any numeric dtype).
 
     `expected_range_m` (range at the dwell, e.g. from Remote ID) centres the gate
@@ -161,7 +163,11 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
     mean of every bin); a `cw` cube's one bin is the gate (no CFAR over range: the Doppler
     bins are the reference cells, `_cw_detection`), takes no `expected_range_m` and gives
     range features of 0 (docs/features.md).
+
+    `fft_backend` ('numpy', 'scipy'; None: the process default, `signatures.fft.backend()`)
+    runs every transform, the lazy patch's included, on that backend.
     """
+    _fft.resolve(fft_backend)
     if gate_bins < 1:
         raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
     if domain not in DOMAINS:
@@ -181,7 +187,7 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
         within = (max(0, k - gate_bins // 2), min(n_bins, k + gate_bins // 2 + 1))
     if prep.all_zero:
         return _empty(config, n_chirps, n_bins, within)
-    spectrum = _range_spectrum(prep.iq, clutter_suppression, domain)
+    spectrum = _range_spectrum(prep.iq, clutter_suppression, domain, fft_backend)
     profile = rd.range_profile(spectrum)
     if domain == "cw":
         gate = (0, 1)
@@ -190,30 +196,31 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
         det = rd.detect(profile, looks, within=within)
         gate = _window(det.peak_bin, gate_bins, n_bins)
     if full_cube:  # what an ungated implementation computes before looking at the target
-        rd.rd_map(spectrum, config)
-        tf.spectrogram(spectrum, config, *tf.stft_params(config, n_chirps))
+        rd.rd_map(spectrum, config, fft_backend=fft_backend)
+        tf.spectrogram(spectrum, config, *tf.stft_params(config, n_chirps), fft_backend=fft_backend)
     slow = spectrum[:, gate[0]:gate[1]]
-    dop = rd.doppler_spectrum(slow)
+    dop = rd.doppler_spectrum(slow, fft_backend=fft_backend)
     power = _power(dop)
-    raw_power, stationary = (_unsuppressed(prep.iq, dop, power, gate, domain) if clutter_suppression
+    raw_power, stationary = (_unsuppressed(prep.iq, dop, power, gate, domain, fft_backend) if clutter_suppression
                              else (power, 0.0))
     if domain == "cw":
         noise_doppler = max(float(median(power[:, 0])), _TINY)
         det = _cw_detection(power[:, 0], float(profile[0]), noise_doppler)
         return _without_range(_features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
-                                         noise_doppler, clutter_suppression, stationary, quick))
+                                         noise_doppler, clutter_suppression, stationary, quick, fft_backend))
     noise_bin = float(median(profile))  # mean noise power per chirp in one range bin
     noise_doppler = max(noise_bin * n_chirps * float(np.mean(rd.hann(n_chirps) ** 2)), _TINY)
     return _features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
-                     noise_doppler, clutter_suppression, stationary, quick)
+                     noise_doppler, clutter_suppression, stationary, quick, fft_backend)
 
 
-def _range_spectrum(iq: np.ndarray, suppress_clutter: bool, domain: str) -> np.ndarray:
+def _range_spectrum(iq: np.ndarray, suppress_clutter: bool, domain: str,
+                    fft_backend: str | None = None) -> np.ndarray:
     """The cube as range bins: the range FFT of IF (`rd.range_fft`); a `range` or `cw` cube
     already is one, so only its slow-time mean is removed when clutter is suppressed (what
     `rd.range_fft` removes before its FFT, removed after it: the same, by linearity)."""
     if domain == "if":
-        return rd.range_fft(iq, suppress_clutter)
+        return rd.range_fft(iq, suppress_clutter, fft_backend)
     return iq - iq.mean(axis=0, keepdims=True) if suppress_clutter else iq
 
 
@@ -237,7 +244,8 @@ def _without_range(result: FeatureResult) -> FeatureResult:
 
 
 def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
-                  gate: tuple[int, int], domain: str = "if") -> tuple[np.ndarray, float]:
+                  gate: tuple[int, int], domain: str = "if",
+                  fft_backend: str | None = None) -> tuple[np.ndarray, float]:
     """Doppler power of the gate before mean removal, and the stationary excess power.
 
     The removed mean mu (per range bin) adds mu * FFT(window) to the spectrum: for
@@ -246,7 +254,7 @@ def _unsuppressed(iq: np.ndarray, dop: np.ndarray, power: np.ndarray,
     |mu|^2): the zero-Doppler line power beyond the window's typical clutter.
     """
     n = iq.shape[0]
-    mu = _range_spectrum(iq.mean(axis=0, keepdims=True), False, domain)[0]
+    mu = _range_spectrum(iq.mean(axis=0, keepdims=True), False, domain, fft_backend)[0]
     mu2 = mu.real ** 2 + mu.imag ** 2
     excess = float(np.sum(np.maximum(mu2[gate[0]:gate[1]] - median(mu2), 0.0))) * n * n
     mu = mu[gate[0]:gate[1]]
@@ -271,7 +279,7 @@ def _window(centre: int, size: int, n: int) -> tuple[int, int]:
 def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, profile: np.ndarray,
               det: rd.Detection, gate: tuple[int, int], slow: np.ndarray, power: np.ndarray,
               raw_power: np.ndarray, noise_doppler: float, suppressed: bool,
-              stationary: float, quick: bool = False) -> FeatureResult:
+              stationary: float, quick: bool = False, fft_backend: str | None = None) -> FeatureResult:
     n_chirps, n_bins = spectrum.shape
     bin_m = config.range_bin_m(n_bins)
     dop_bin_hz = config.prf_hz / n_chirps
@@ -352,7 +360,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
 
     # --- cadence -----------------------------------------------------------------
     win, hop = tf.stft_params(config, n_chirps)
-    cad = tf.cadence(tf.spectrogram(slow, config, win, hop))
+    cad = tf.cadence(tf.spectrogram(slow, config, win, hop, fft_backend=fft_backend))
     cad_peak, cad_ratio = _cadence_features(cad, flash.value)
 
     feats = Features(
@@ -362,7 +370,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
         blade_length_std_m=blade.std, flash_score=per.score, flash_count=float(per.n_events),
         flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
     def patch() -> np.ndarray:
-        return _patch(spectrum, config, det.peak_bin, body_idx)
+        return _patch(spectrum, config, det.peak_bin, body_idx, fft_backend)
     return FeatureResult(det.detected, feats, patch, gate)
 
 
@@ -470,7 +478,8 @@ def _cadence_features(cad: tf.Cadence, flash_hz: float) -> tuple[float, float]:
     return peak, float(spec[use & harm].sum()) / total
 
 
-def _patch(spectrum: np.ndarray, config: RadarConfig, peak_bin: int, body_idx: float) -> np.ndarray:
+def _patch(spectrum: np.ndarray, config: RadarConfig, peak_bin: int, body_idx: float,
+           fft_backend: str | None = None) -> np.ndarray:
     """CNN input: Doppler x range power of PATCH_SHAPE[1] range bins around the target, in
     PATCH_SHAPE[0] Doppler bands (Welch: Hann frames of PATCH_SHAPE[0] chirps, averaged;
     as informative as pooling a full-resolution spectrum into bands and several times
@@ -479,7 +488,7 @@ def _patch(spectrum: np.ndarray, config: RadarConfig, peak_bin: int, body_idx: f
     n_dop, n_rng = PATCH_SHAPE
     n_chirps, n_bins = spectrum.shape
     lo, hi = _window(peak_bin, n_rng, n_bins)
-    spec = tf.spectrogram(spectrum[:, lo:hi], config, n_dop, n_dop, per_column=True)
+    spec = tf.spectrogram(spectrum[:, lo:hi], config, n_dop, n_dop, per_column=True, fft_backend=fft_backend)
     bands = spec.power.mean(axis=0)  # (n_dop, range)
     body_band = int(round((body_idx - n_chirps // 2) * n_dop / n_chirps))
     bands = np.roll(bands, -body_band, axis=0)

@@ -9,7 +9,10 @@ pages for every large temporary (glibc returns >128 KiB blocks to the OS). So
 the default backend is numpy, transforming in complex128 into per-thread
 workspaces that are reused between calls, and handing back complex64. Set
 `AUTHN_FFT=scipy` (read once, at import) in long batch jobs where scipy is
-imported anyway: it is ~2x faster on the 8192x64 `wide` cube.
+imported anyway: it is ~2x faster on the 8192x64 `wide` cube. A caller that knows its
+workload picks per call (`fft(..., backend=...)`): the batched front end
+(`signatures.batch_features`) runs scipy's single-precision transforms whatever the
+process default, since a batch job does not care about the import.
 """
 
 from __future__ import annotations
@@ -19,7 +22,9 @@ import threading
 
 import numpy as np
 
-__all__ = ["BACKENDS", "backend", "fft"]
+from signatures.errors import SignaturesError
+
+__all__ = ["BACKENDS", "backend", "fft", "resolve"]
 
 BACKENDS = ("numpy", "scipy")
 #: 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s import); anything else: numpy
@@ -34,6 +39,15 @@ def backend() -> str:
     return _BACKEND
 
 
+def resolve(backend: str | None) -> str:
+    """`backend`, or the process default for None; an unknown name raises `SignaturesError`."""
+    if backend is None:
+        return _BACKEND
+    if backend not in BACKENDS:
+        raise SignaturesError(f"unknown FFT backend {backend!r} (known: {', '.join(BACKENDS)})")
+    return backend
+
+
 def _workspace(key: str, shape: tuple[int, ...]) -> np.ndarray:
     """A complex128 scratch array reused across calls (no page faults on warm calls)."""
     spaces = getattr(_local, "spaces", None)
@@ -46,14 +60,15 @@ def _workspace(key: str, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
-        inverse: bool = False) -> np.ndarray:
+        inverse: bool = False, backend: str | None = None) -> np.ndarray:
     """(I)FFT of complex `x` along `axis`, optionally windowed first; complex64 result
     (complex128 for complex128 input: the float64 reference pipeline).
 
     `window` broadcasts against `x` (e.g. shape (n,) for the last axis or (n, 1)
-    for axis 0). The result is a new array; the workspaces never escape.
+    for axis 0). The result is a new array; the workspaces never escape. `backend`:
+    'numpy' or 'scipy' for this call (None: the process default, `backend()`).
     """
-    if _BACKEND == "scipy":
+    if resolve(backend) == "scipy":
         import scipy.fft as sfft
 
         out = np.complex128 if np.asarray(x).dtype == np.complex128 else np.complex64

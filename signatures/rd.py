@@ -90,14 +90,15 @@ def hann(n: int) -> np.ndarray:
     return w
 
 
-def range_fft(iq: np.ndarray, suppress_clutter: bool = True) -> np.ndarray:
-    """Hann-windowed range FFT (complex64, chirps x range bins), slow-time mean removed if asked.
+def range_fft(iq: np.ndarray, suppress_clutter: bool = True, fft_backend: str | None = None) -> np.ndarray:
+    """Hann-windowed range FFT (complex64, chirps x range bins), slow-time mean removed if asked;
+    `fft_backend` as `signatures.fft.fft`'s `backend`.
 
     The mean over chirps is the zero-Doppler (stationary) part of every range
     bin; removing it before the FFT is the same as removing it after (linear).
     """
     data = iq - iq.mean(axis=0, keepdims=True) if suppress_clutter else iq
-    return _fft.fft(data, axis=1, window=hann(iq.shape[1]))
+    return _fft.fft(data, axis=1, window=hann(iq.shape[1]), backend=fft_backend)
 
 
 def range_profile(spectrum: np.ndarray) -> np.ndarray:
@@ -201,10 +202,10 @@ def _interp_peak(y: np.ndarray, k: int) -> float:
     return float(k + min(0.5, max(-0.5, 0.5 * (a - c) / den)))
 
 
-def doppler_spectrum(slow: np.ndarray, window: bool = True) -> np.ndarray:
+def doppler_spectrum(slow: np.ndarray, window: bool = True, fft_backend: str | None = None) -> np.ndarray:
     """Doppler FFT along slow time (axis 0), fftshifted; Hann-windowed unless asked not to."""
     w = hann(slow.shape[0])[:, None] if window else None
-    return np.fft.fftshift(_fft.fft(slow, axis=0, window=w), axes=0)
+    return np.fft.fftshift(_fft.fft(slow, axis=0, window=w, backend=fft_backend), axes=0)
 
 
 @dataclass(frozen=True)
@@ -223,10 +224,11 @@ class RdMap:
         return np.maximum(out, np.float32(floor_db))
 
 
-def rd_map(spectrum: np.ndarray, config: RadarConfig, bins: slice | None = None) -> RdMap:
+def rd_map(spectrum: np.ndarray, config: RadarConfig, bins: slice | None = None,
+           fft_backend: str | None = None) -> RdMap:
     """RD map of the range bins `bins` (all by default) from a range spectrum."""
     sl = bins if bins is not None else slice(0, spectrum.shape[1])
-    dop = doppler_spectrum(spectrum[:, sl])
+    dop = doppler_spectrum(spectrum[:, sl], fft_backend=fft_backend)
     power = dop.real ** 2 + dop.imag ** 2
     rng = range_axis_m(config, spectrum.shape[1])[sl]
     return RdMap(power, rng, velocity_axis_mps(config, spectrum.shape[0]))

@@ -39,9 +39,10 @@ class Spectrogram:
 
 
 def spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int,
-                per_column: bool = False) -> Spectrogram:
+                per_column: bool = False, fft_backend: str | None = None) -> Spectrogram:
     """Hann STFT of each column of `slow` (chirps x bins), power summed over the columns
-    (power[t, f]) or kept per column (power[t, f, column]) with `per_column`.
+    (power[t, f]) or kept per column (power[t, f, column]) with `per_column`; `fft_backend`
+    as `signatures.fft.fft`'s `backend`.
 
     A dwell shorter than the window is zero-padded to one frame.
     """
@@ -49,7 +50,7 @@ def spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int,
     if x.shape[0] < win:
         x = np.concatenate([x, np.zeros((win - x.shape[0], x.shape[1]), x.dtype)])
     frames = sliding_window_view(x, win, axis=0)[::hop]  # (n_frames, bins, win)
-    spec = _fft.fft(frames, axis=-1, window=hann(win))
+    spec = _fft.fft(frames, axis=-1, window=hann(win), backend=fft_backend)
     cell = spec.real ** 2 + spec.imag ** 2  # (frames, bins, win)
     if per_column:
         power = np.fft.fftshift(cell.transpose(0, 2, 1), axes=1)

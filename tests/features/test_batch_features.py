@@ -1,6 +1,7 @@
 """The batched feature front end (`signatures.batch_features`) gives the single-return path's
-results row by row: same detection, gate and counts, every feature within REL of
-max(|value|, 1), the same CNN patch."""
+results row by row, on either FFT backend (the single path run with the same `fft_backend`):
+the cube stage's outputs bit for bit; same detection, gate and counts, every feature within
+REL of max(|value|, 1) (the slow-time stage sums in another order), the same CNN patch."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 from authn.bench.stress import cases
 from signatures import batch_features as bf
 from signatures import features as F
+from signatures import rd
 from signatures.dataset import DatasetSpec, draw_scene
 from signatures.domain import as_recorded
 from signatures.errors import SignaturesError
@@ -21,6 +23,7 @@ from signatures.profiles import shipped_profiles
 from signatures.simulate import simulate
 
 REL = 1e-5
+BACKENDS = ("numpy", "scipy")
 #: features that are counts or flags: equal, not close
 EXACT = ("num_peaks", "flash_count", "rotor_count", "tip_aliased", "detected")
 
@@ -67,9 +70,10 @@ def _expected(config, n: int, detected: list[float]) -> list[float | None]:
     return out
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("preset", ["paper", "wide"])
 @pytest.mark.parametrize("gated", [False, True], ids=["no-expected-range", "expected-ranges"])
-def test_batch_equals_single_on_simulated_returns(request, preset, gated):
+def test_batch_equals_single_on_simulated_returns(request, preset, gated, backend):
     drawn = request.getfixturevalue(preset)
     scenes = [s for s, _ in drawn]
     if preset == "paper":  # the draw covers what the features must handle
@@ -82,11 +86,54 @@ def test_batch_equals_single_on_simulated_returns(request, preset, gated):
     expected = None
     if gated:
         expected = _expected(config, len(drawn), [F.extract_iq(c, config).range_m for c in iq])
-    results = bf.extract_batch(iq, config, expected)
+    results = bf.extract_batch(iq, config, expected, fft_backend=backend)
     assert len(results) == len(drawn)
     for b, res in enumerate(results):
-        single = F.extract_iq(iq[b], config, None if expected is None else expected[b])
+        single = F.extract_iq(iq[b], config, None if expected is None else expected[b], fft_backend=backend)
         assert_same(single, res, f"{preset} row {b} ({scenes[b].label}, {scenes[b].snr_db:.0f} dB)")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("options", [dict(), dict(suppress=False), dict(domain="range")], ids=str)
+def test_cube_stage_is_the_single_paths_bit_for_bit(paper, backend, options):
+    """Spectra of the gate and patch columns, range profile and mu of every row equal the single
+    path's own arrays on the same backend exactly (the scale riding on the window is exact)."""
+    suppress, domain = options.get("suppress", True), options.get("domain", "if")
+    recs = [r if domain == "if" else as_recorded(r, domain) for _, r in paper[:8]]
+    on_window = np.stack([r.iq for r in recs])
+    on_window[3] *= np.float32(2.0 ** -19)  # the scale rides on the window ...
+    first = on_window.copy()
+    first[5] *= np.float32(2.0 ** 40)  # ... or, with a row far from unit scale, is applied first
+    for iq in (on_window, first):
+        _assert_cube_is_single(bf._cube_stage(iq, [None] * len(iq), F.GATE_BINS, suppress, domain,
+                                              list(range(len(iq))), backend), iq, suppress, domain, backend)
+
+
+def _assert_cube_is_single(cube, iq: np.ndarray, suppress: bool, domain: str, backend: str) -> None:
+    for b in range(len(iq)):
+        prep = rd.prepare(iq[b])
+        spectrum = F._range_spectrum(prep.iq, suppress, domain, backend)
+        mu = F._range_spectrum(prep.iq.mean(axis=0, keepdims=True), False, domain, backend)[0]
+        g, p = cube.gate_lo[b], cube.patch_lo[b]
+        assert cube.log2_scale[b] == prep.log2_scale and not cube.zero[b]
+        assert np.array_equal(cube.profile[b], rd.range_profile(spectrum)), f"row {b} profile"
+        assert np.array_equal(cube.mu[b], mu), f"row {b} mu"
+        assert np.array_equal(cube.slow[b], spectrum[:, g:g + F.GATE_BINS]), f"row {b} gate"
+        assert np.array_equal(cube.patch_cols[b], spectrum[:, p:p + F.PATCH_SHAPE[1]]), f"row {b} patch"
+
+
+def test_backends_differ_only_by_float32_rounding(paper):
+    """scipy's single-precision transforms move no count, gate or detection against numpy's
+    complex128 ones on these returns, and the spectra by float32 rounding only."""
+    config = paper[0][1].config
+    iq = np.stack([r.iq for _, r in paper[:8]])
+    ours = bf.extract_batch(iq, config, fft_backend="scipy")
+    for b, res in enumerate(bf.extract_batch(iq, config, fft_backend="numpy")):
+        assert (res.detected, res.gate) == (ours[b].detected, ours[b].gate)
+    prep = rd.prepare(iq[0])
+    s32, s64 = (F._range_spectrum(prep.iq, True, "if", be) for be in ("scipy", "numpy"))
+    assert not np.array_equal(s32, s64)  # really two backends
+    assert np.abs(s32 - s64).max() <= 1e-5 * np.abs(s64).max()
 
 
 @pytest.mark.parametrize("options", [dict(clutter_suppression=False), dict(gate_bins=1), dict(gate_bins=9),
@@ -97,10 +144,11 @@ def test_batch_equals_single_with_options(paper, options):
     domain = options.get("domain", "if")
     if domain != "if":
         iq = np.stack([as_recorded(r, domain).iq for _, r in paper[:8]])
-    results = bf.extract_batch(iq, config, **options)
+    results = bf.extract_batch(iq, config, **options)  # the default backend: scipy
     single_opts = {k: v for k, v in options.items() if k != "domain"}
     for b, res in enumerate(results):
-        assert_same(F.extract_iq(iq[b], config, domain=domain, **single_opts), res, f"{options} row {b}")
+        assert_same(F.extract_iq(iq[b], config, domain=domain, fft_backend=bf.DEFAULT_FFT_BACKEND, **single_opts),
+                    res, f"{options} row {b}")
 
 
 @pytest.mark.parametrize("preset", ["paper", "wide"])
@@ -112,7 +160,7 @@ def test_stress_cases_batched_as_single(preset):
     for group, name, make in cases(preset, quick=True):
         rec = make()
         try:
-            singles.append((f"{group}/{name}", F.extract(rec)))
+            singles.append((f"{group}/{name}", F.extract(rec, fft_backend=bf.DEFAULT_FFT_BACKEND)))
         except SignaturesError:
             continue
         recs.append(rec)
@@ -132,7 +180,7 @@ def test_extract_many_keeps_order_over_a_mixed_list(paper, wide):
     results = bf.extract_many(recs, expected, memory_bytes=1)  # batches of one row
     assert len(results) == len(recs)
     for i, (rec, res) in enumerate(zip(recs, results)):
-        assert_same(F.extract(rec, expected[i]), res, f"item {i} ({rec.domain})")
+        assert_same(F.extract(rec, expected[i], fft_backend="scipy"), res, f"item {i} ({rec.domain})")
     assert results[0].as_array().tolist() != results[6].as_array().tolist()  # gated away from the target
     by_default = bf.extract_many(recs, expected)
     for i, res in enumerate(by_default):
@@ -151,7 +199,7 @@ def test_extract_many_batches_recordings_whose_range_offsets_differ(paper, monke
     results = bf.extract_many(recs, expected)
     assert calls == [len(recs)]
     for i, (rec, res) in enumerate(zip(recs, results)):
-        assert_same(F.extract(rec, expected[i]), res, f"recording {i}")
+        assert_same(F.extract(rec, expected[i], fft_backend="scipy"), res, f"recording {i}")
 
 
 def test_bad_rows_raise_the_single_path_error_naming_the_row(paper):
@@ -179,6 +227,11 @@ def test_bad_rows_raise_the_single_path_error_naming_the_row(paper):
     with pytest.raises(SignaturesError, match="gate_bins"):
         bf.extract_batch(iq, config, gate_bins=0)
     assert bf.extract_batch(iq[:0], config) == []
+    for call in (lambda: bf.extract_batch(iq, config, fft_backend="fftw"),
+                 lambda: bf.extract_many([paper[0][1]], fft_backend="fftw"),
+                 lambda: F.extract_iq(iq[0], config, fft_backend="fftw")):
+        with pytest.raises(SignaturesError, match="unknown FFT backend 'fftw'"):
+            call()
 
 
 def test_batch_size_follows_memory(paper):
