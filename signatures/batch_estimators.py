@@ -317,8 +317,8 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
             sub = r[ok[r]]
             if sub.size == 0:
                 continue
-            keys, share = _coherent(series.field[sub], series.field_peak[sub], times[sub, :kk], n, dec)
-            lag[at[sub]] = _rerank_choose(keys, share, times[sub, :kk], weight[sub, :kk], cands[at[sub]],
+            counts, share = _coherent(series.field[sub], series.field_peak[sub], times[sub, :kk], n, dec)
+            lag[at[sub]] = _rerank_choose(counts, share, times[sub, :kk], weight[sub, :kk], cands[at[sub]],
                                           scores[at[sub]], n_c[at[sub]], lags, n)
     else:
         lag = _event_half_rule(lags, v, found_n[rows], valid_n[rows], lag)
@@ -490,8 +490,7 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out:
 
 def _coherent(field: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
               dec: int) -> tuple[np.ndarray, np.ndarray]:
-    """`estimators._coherent` of a group: the coherent hits as sorted keys (row k + i) n + t of
-    event i's hit at sample t, and the chance share (g,).
+    """`estimators._coherent` of a group: hit counts (g, k, n + 1) and the chance share (g,).
     `field` is (g, positions, chirps), `total` its power's maximum over positions (`FlashSeriesBatch`)."""
     g, k = times.shape
     field, total = field[:, :, :n * dec], total[:, :n * dec]
@@ -518,18 +517,16 @@ def _coherent(field: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
     half = n // 2
     med = np.partition(power, half, axis=2)[:, :, half:half + 1]
     hit = coherent & (power > np.float32(COHERENT_LEVEL / 0.455) * np.maximum(med, np.float32(1e-30)))
-    # the single path's running counts, as the sorted hit positions: hits of event (row, i) before
-    # sample t = (number of keys below (row k + i) n + t) - (number below (row k + i) n)
-    keys = np.flatnonzero(hit)
+    counts = np.zeros((g, k, n + 1), np.int32)
+    np.cumsum(hit, axis=2, out=counts[:, :, 1:])
     lo, hi = np.maximum(ti - 2, 0), np.minimum(ti + 3, n)
-    cell = (np.arange(g)[:, None] * k + np.arange(k)[None, :]) * n
-    own_hits = (np.searchsorted(keys, cell + hi) - np.searchsorted(keys, cell + lo)).sum(axis=1).astype(float)
+    own_hits = (np.take_along_axis(counts, hi[:, :, None], axis=2)
+                - np.take_along_axis(counts, lo[:, :, None], axis=2)).sum(axis=(1, 2)).astype(float)
     others = np.maximum((k * n - (hi - lo).sum(axis=1)).astype(float), 1.0)
-    total = np.diff(np.searchsorted(keys, np.arange(g + 1) * k * n)).astype(float)  # hits per row
-    return keys, np.maximum(total - own_hits, 0.0) / others
+    return counts, np.maximum(counts[:, :, -1].sum(axis=1).astype(float) - own_hits, 0.0) / others
 
 
-def _coherent_checks(keys: np.ndarray, share: np.ndarray, times: np.ndarray, lags: np.ndarray,
+def _coherent_checks(counts: np.ndarray, share: np.ndarray, times: np.ndarray, lags: np.ndarray,
                      n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`estimators._coherent_checks` with per-row lags (g, m), before the weighted sums: the checks
     made and succeeded (g, 2, m, k) and the chance (g, m)."""
@@ -543,8 +540,9 @@ def _coherent_checks(keys: np.ndarray, share: np.ndarray, times: np.ndarray, lag
     centre = np.rint(target).astype(int)
     lo = np.minimum(np.maximum(centre - w3, 0), n)
     hi = np.minimum(np.maximum(centre + w3 + 1, 0), n)
-    cell = (np.arange(g)[:, None, None, None] * k + np.arange(k)[None, None, None, :]) * n  # `_coherent` keys
-    return ok, ok & (np.searchsorted(keys, cell + hi) > np.searchsorted(keys, cell + lo)), chance
+    flat = counts.ravel()
+    base = (np.arange(g) * k * (n + 1))[:, None, None, None] + (np.arange(k) * (n + 1))[None, None, None, :]
+    return ok, ok & (flat[base + hi] > flat[base + lo]), chance
 
 
 def _rerank_candidates(vote: np.ndarray, lag0: np.ndarray,
@@ -576,7 +574,7 @@ def _rerank_candidates(vote: np.ndarray, lag0: np.ndarray,
     return cands, scores, n_c
 
 
-def _rerank_choose(keys: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray,
+def _rerank_choose(counts: np.ndarray, share: np.ndarray, times: np.ndarray, weight: np.ndarray,
                    cands: np.ndarray, scores: np.ndarray, n_c: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
     """`estimators._rerank`'s choice among each row's n_c candidates (rows with the same k),
     halving applied: the chosen lag per row. The checks run at the candidates padded to the
@@ -585,7 +583,7 @@ def _rerank_choose(keys: np.ndarray, share: np.ndarray, times: np.ndarray, weigh
     g = cands.shape[0]
     cm = int(n_c.max())
     cl = np.where(np.arange(cm)[None, :] < n_c[:, None], cands[:, :cm], lags[0])  # padding: any lag
-    ok, hit, chance = _coherent_checks(keys, share, times, np.concatenate([cl, 2.0 * cl, cl / 2.0], axis=1), n)
+    ok, hit, chance = _coherent_checks(counts, share, times, np.concatenate([cl, 2.0 * cl, cl / 2.0], axis=1), n)
     found, made = np.zeros((g, 3 * cm)), np.zeros((g, 3 * cm))
     for c in np.unique(n_c).tolist():
         sel = np.flatnonzero(n_c == c)
