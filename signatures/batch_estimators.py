@@ -49,8 +49,8 @@ MEMORY_BUDGET_BYTES = 256 * 2**20
 #: Rows are processed in chunks of about this much scratch memory: arrays that stay in the
 #: CPU cache make the batched arithmetic ~1.5x faster than one pass over a large batch.
 CHUNK_BYTES = 4 * 2**20
-#: Batches smaller than this find their flash events row by row (the single path's greedy loop
-#: is cheaper than a rank loop over few rows).
+#: Batches smaller than this run `periodicity_batch` row by row through the single path (the
+#: same values; its per-call overhead is lower than the grouped stages' over a few rows).
 SMALL_BATCH = 8
 _SIGNS = np.array([1.0, -1.0])
 
@@ -255,9 +255,18 @@ def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> Periodi
     re-rank candidates, halving rule) run over the whole batch at once."""
     e = series.energy
     b_rows, n = e.shape
+    if b_rows < SMALL_BATCH:
+        pers = [est.periodicity(series.row(b)) for b in range(b_rows)]
+        rot = [est.rotor_count(p) for p in pers]
+        f = np.array
+        return PeriodicityBatch(f([p.flash_rate.value for p in pers], float),
+                                f([p.flash_rate.std for p in pers], float),
+                                f([p.score for p in pers], float), f([p.n_events for p in pers], int),
+                                f([p.flash_par_db for p in pers], float), f([r.value for r in rot], float),
+                                f([r.std for r in rot], float))
     out = {name: np.zeros(b_rows) for name in ("rate", "std", "score", "par", "rotors", "rotors_std")}
     n_events = np.zeros(b_rows, dtype=int)
-    if n >= 8 and b_rows:
+    if n >= 8:
         emax = e.max(axis=1)
         live = emax > 0.0
         mean = e.mean(axis=1)
@@ -338,18 +347,8 @@ def _flash_events(e: np.ndarray, threshold: np.ndarray, per_bin: np.ndarray, rad
                   max_events: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`estimators.flash_events` of every row: times and positions (B, K) sorted by time in the
     first k[b] columns (inf after), and k (B,). The greedy skirt suppression runs over the
-    candidates' rank (strongest first), vectorised over rows; below SMALL_BATCH rows, where that
-    loop costs more than the single path's, row by row with `estimators.flash_events`."""
+    candidates' rank (strongest first), vectorised over rows."""
     b_rows, n = e.shape
-    if b_rows < SMALL_BATCH:
-        found = [est.flash_events(est.FlashSeries(e[b], per_bin[b], 0.0, radius, 0.0, float(threshold[b])),
-                                  radius, max_events) for b in range(b_rows)]
-        k = np.array([t.size for t, _ in found], dtype=int)
-        times = np.full((b_rows, int(k.max(initial=0))), np.inf)
-        pos = np.zeros(times.shape)
-        for b, (t, q) in enumerate(found):
-            times[b, :t.size], pos[b, :t.size] = t, q
-        return times, pos, k
     pad = np.zeros((b_rows, n + 2 * radius))
     pad[:, radius:radius + n] = e
     wmax = pad[:, :n].copy()  # maximum over the window of +-radius (exact in any order)

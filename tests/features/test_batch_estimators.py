@@ -47,14 +47,17 @@ def reference(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float, n_fft
 
 def assert_batch_matches(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float,
                          n_fft: int) -> be.PeriodicityBatch:
-    series = be.flash_series_batch(slow, config, body_hz, bin_m, n_fft)
-    got = be.periodicity_batch(series)
+    """Both ways `periodicity_batch` can run (batched stages; row by row below SMALL_BATCH rows)."""
     want = reference(slow, config, body_hz, bin_m, n_fft)
-    for name in EXACT:
-        np.testing.assert_array_equal(getattr(got, name), want[name], err_msg=name)
-    for name in CONTINUOUS:
-        v, w = getattr(got, name), want[name]
-        assert np.all(np.abs(v - w) <= 1e-6 * np.maximum(np.abs(w), 1.0)), (name, v, w)
+    series = be.flash_series_batch(slow, config, body_hz, bin_m, n_fft)
+    for small_batch in (1, be.SMALL_BATCH):
+        with mock.patch.object(be, "SMALL_BATCH", small_batch):
+            got = be.periodicity_batch(series)
+        for name in EXACT:
+            np.testing.assert_array_equal(getattr(got, name), want[name], err_msg=name)
+        for name in CONTINUOUS:
+            v, w = getattr(got, name), want[name]
+            assert np.all(np.abs(v - w) <= 1e-6 * np.maximum(np.abs(w), 1.0)), (name, v, w)
     return got
 
 
@@ -113,9 +116,10 @@ def test_row_order_and_batch_size_do_not_change_a_row(paper_gates):
                                                           g.n_fft))
     np.testing.assert_array_equal(shuffled.flash_rate_hz, whole.flash_rate_hz[order])
     np.testing.assert_array_equal(shuffled.rotor_count, whole.rotor_count[order])
-    for b in (0, len(gates) // 2):  # B = 1
-        one = be.periodicity_batch(be.flash_series_batch(slow[b:b + 1], g.config, body[b:b + 1], g.range_bin_m,
-                                                         g.n_fft))
+    for b in (0, len(gates) // 2):  # B = 1 through the batched stages
+        with mock.patch.object(be, "SMALL_BATCH", 1):
+            one = be.periodicity_batch(be.flash_series_batch(slow[b:b + 1], g.config, body[b:b + 1],
+                                                             g.range_bin_m, g.n_fft))
         assert one.flash_rate_hz[0] == whole.flash_rate_hz[b]
         assert one.n_events[0] == whole.n_events[b]
 
@@ -132,10 +136,8 @@ def test_small_chunks_give_the_same_rows(paper_gates, monkeypatch):
         np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
 
 
-@pytest.mark.parametrize("small_batch", [1, 8], ids=["rank-loop", "row-by-row"])
-def test_edge_cases(paper_gates, small_batch, monkeypatch):
-    """All zero, real, noise only, one flash; flash events by both strategies."""
-    monkeypatch.setattr(be, "SMALL_BATCH", small_batch)
+def test_edge_cases(paper_gates):
+    """All zero, real, noise only, one flash."""
     g = three_columns(paper_gates)[0]
     real = g.slow
     zero = np.zeros_like(real)
@@ -216,6 +218,4 @@ def test_synthetic_flash_trains(seed, n_rows, flashes, period, amp, body):
             slow[b, c] += amp * np.exp(1j * rng.uniform(0, 2 * math.pi)) * np.array([0.5, 1.0, 0.4])
         slow[b] *= np.exp(2j * math.pi * body * config.pri_s * t)[:, None]
     body_hz = body + np.arange(n_rows) * 17.0
-    for small_batch in (1, 8):  # flash events by the rank loop and row by row
-        with mock.patch.object(be, "SMALL_BATCH", small_batch):
-            assert_batch_matches(slow.astype(np.complex64), config, body_hz, 0.2, 80)
+    assert_batch_matches(slow.astype(np.complex64), config, body_hz, 0.2, 80)
