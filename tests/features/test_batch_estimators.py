@@ -219,3 +219,13 @@ def test_synthetic_flash_trains(seed, n_rows, flashes, period, amp, body):
         slow[b] *= np.exp(2j * math.pi * body * config.pri_s * t)[:, None]
     body_hz = body + np.arange(n_rows) * 17.0
     assert_batch_matches(slow.astype(np.complex64), config, body_hz, 0.2, 80)
+
+
+def test_complex128_gates(paper_gates):
+    """The float64 reference path (`features.extract_iq(float64=True)`) hands complex128 gates."""
+    gates = three_columns(paper_gates)[:10]
+    slow, body = stack(gates)
+    g = gates[0]
+    series = be.flash_series_batch(slow.astype(np.complex128), g.config, body, g.range_bin_m, g.n_fft)
+    assert series.field is not None and series.field.dtype == np.complex128
+    assert_batch_matches(slow.astype(np.complex128), g.config, body, g.range_bin_m, g.n_fft)
