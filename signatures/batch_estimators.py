@@ -118,8 +118,7 @@ def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarra
     step = max(1, min(MEMORY_BUDGET_BYTES, CHUNK_BYTES) // max(per_row, 1))
     for a in range(0, b_rows, step):
         sl = slice(a, min(a + step, b_rows))
-        y, peak = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl],
-                                      threshold[sl])
+        y, peak = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl], threshold[sl])
         if field is not None:
             field[sl], field_peak[sl] = y.transpose(0, 2, 1), peak
     drift = body * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
