@@ -17,6 +17,11 @@ CONNECT_TIMEOUT_S = 30
 #: Times a task that raised is re-run; a task whose worker died is re-run by the scheduler
 #: itself (`distributed.scheduler.allowed-failures`, 3 by default).
 RETRIES = 2
+#: Dask settings of a local cluster's workers. The statistical profiler samples every task's
+#: stack every 10 ms under the GIL: 15-25 % of a worker's CPU time on a re-check (measured),
+#: and we never read its profiles. Set DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False on
+#: the workers of a real cluster for the same (docs/cluster.md).
+LOCAL_CONFIG = {"distributed.worker.profile.enabled": False}
 
 
 def _distributed() -> Any:
@@ -33,9 +38,13 @@ def connect(address: str, workers: int | None = None) -> Iterator[Any]:
     after the block (a local cluster is shut down with it)."""
     distributed = _distributed()
     if address == "local":
+        import dask
+
         n = workers or os.cpu_count() or 1
-        with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                      silence_logs=logging.CRITICAL) as cluster, distributed.Client(cluster) as client:
+        with (dask.config.set(LOCAL_CONFIG),
+              distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                       silence_logs=logging.CRITICAL) as cluster,
+              distributed.Client(cluster) as client):
             yield client
         return
     if "://" not in address and ":" not in address:

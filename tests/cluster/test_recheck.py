@@ -123,3 +123,18 @@ def test_a_cold_check_does_not_import_the_engine(archive, tmp_path) -> None:
                           capture_output=True, text=True, timeout=120)
     line = next((x for x in proc.stdout.splitlines() if x.startswith("IMPORTS ")), proc.stdout[-300:] + proc.stderr)
     assert line in ("IMPORTS 0 [] False", "IMPORTS 1 [] False")
+
+
+def test_a_partition_that_fails_every_retry_is_audited_as_errors(client, archive, registry_url, tmp_path) -> None:
+    """A worker that cannot build its Checker (here: a policy file the workers cannot read) fails
+    the task on every retry; the client then writes one error entry per file (exit 3)."""
+    checker = Checker(registry_url)
+    parts = plan(archive[:4], [None] * 4, 2)
+    args = CheckerArgs(checker.db.url, policy=str(tmp_path / "not-on-the-workers.cedar"))
+    results = list(run_partitions(client, checker, args, parts))
+    items = [item for r in results for item in r.items]
+    assert sorted(doc["file"] for doc, _ in items) == sorted(str(p.resolve()) for p in archive[:4])
+    assert all(code == 3 and doc["error"].startswith("cluster: ") and "not-on-the-workers.cedar" in doc["error"]
+               for doc, code in items)
+    assert _entries_per_file(registry_url) == Counter(doc["file"] for doc, _ in items)
+    assert main(["--db", registry_url, "audit", "verify"]) == 0
