@@ -40,6 +40,7 @@ def test_flash_estimators(benchmark, gates, size: int, path: str) -> None:
         pytest.skip(f"{preset}: batch sizes {SIZES[preset]}")
     slow, body, g = _batch(found, size)
     benchmark.group = f"flash estimators {preset} B={size}"
+    benchmark.extra_info["returns"] = size  # per-return time = time / returns (--benchmark-json keeps it)
 
     def batched():
         return be.periodicity_batch(be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
