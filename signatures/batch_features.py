@@ -303,8 +303,8 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
         det, frac, snr, peak = _detect(out["profile"][s:e], looks, lo_w[s:e], hi_w[s:e])
         g_lo = _window(peak, size, n_bins)
         p_lo = _window(peak, p_size, n_bins)
-        out["slow"][s:e] = columns(spectra, g_lo, size)
-        out["patch_cols"][s:e] = columns(spectra, p_lo, p_size)
+        columns(spectra, g_lo, size, out["slow"][s:e])
+        columns(spectra, p_lo, p_size, out["patch_cols"][s:e])
         for key, val in (("detected", det), ("peak_bin", peak), ("peak_bin_frac", frac), ("snr_db", snr),
                          ("gate_lo", g_lo), ("patch_lo", p_lo)):
             out[key][s:e] = val
@@ -390,8 +390,7 @@ def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, ou
     else:
         np.copyto(out, x)
     if domain == "if" or np.any(scale != 1.0):
-        pairs = out.view(np.float32).reshape(*out.shape, 2)  # (re, im): complex x real, one pass
-        np.multiply(pairs, weight[..., None], out=pairs)
+        np.multiply(out, weight, out=out)
     mu = mean[:, 0] * weight[:, 0]
     if domain != "if":  # a range cube already is a range spectrum
         return mu
@@ -399,12 +398,10 @@ def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, ou
     return sfft.fft(mu, axis=-1, workers=_WORKERS)
 
 
-def _row_columns(spectra: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
-    """spectra[b, :, lo[b]:lo[b] + size] of every row b (a copy: the spectra are a workspace)."""
-    out = np.empty((spectra.shape[0], spectra.shape[1], size), spectra.dtype)
+def _row_columns(spectra: np.ndarray, lo: np.ndarray, size: int, out: np.ndarray) -> None:
+    """spectra[b, :, lo[b]:lo[b] + size] of every row b into `out` (the spectra are a workspace)."""
     for b in range(spectra.shape[0]):
         out[b] = spectra[b, :, lo[b]:lo[b] + size]
-    return out
 
 
 def _scratch(key: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:

@@ -294,3 +294,27 @@ def test_peak_count_equals_the_single_path_with_ties_and_plateaus(profiles, nois
     d = np.array([p[:size] for p in profiles], dtype=np.float32)
     counts = bf._count_peaks(d, np.full(len(d), noise))
     assert counts.tolist() == [F._count_peaks(row, noise) for row in d]
+
+
+def test_torch_stays_optional(paper, monkeypatch):
+    """Without torch, device='auto' is the numpy path and a named device says what is missing;
+    the default path never imports torch."""
+    import subprocess
+    import sys
+
+    import signatures
+
+    config = paper[0][1].config
+    iq = np.stack([r.iq for _, r in paper[:4]])
+    monkeypatch.setitem(sys.modules, "signatures.batch_torch", None)  # its import now fails
+    monkeypatch.delattr(signatures, "batch_torch", raising=False)
+    auto = bf.extract_batch(iq, config, device="auto")
+    for b, res in enumerate(bf.extract_batch(iq, config)):
+        assert np.array_equal(res.as_array(), auto[b].as_array())
+    with pytest.raises(SignaturesError, match="device 'cpu' needs torch"):
+        bf.extract_batch(iq, config, device="cpu")
+    code = ("import sys, numpy as np; from signatures import batch_features as bf; "
+            "from signatures.radar import get_preset; "
+            "bf.extract_batch(np.ones((4, 64, 16), np.complex64), get_preset('paper').config); "
+            "assert 'torch' not in sys.modules, 'torch imported'")
+    subprocess.run([sys.executable, "-c", code], check=True)
