@@ -1,6 +1,7 @@
 """Batched feature extraction (`signatures.batch_features.extract_batch`): time per return
-against batch size, both presets, beside the FFT floor of one return
-(`authn.bench.perf.fft_floor`).
+against batch size, both presets, both FFT backends, the whole extraction and its cube stage
+(scaling, clutter suppression, range FFT, profile, detection, gating) alone, beside the FFT
+floor of one return (`authn.bench.perf.fft_floor`).
 
     python -m pytest benchmarks/test_bench_batch_features.py --benchmark-enable \
         --benchmark-json=batch.json   # extra_info: ms_per_return, fft_floor_ms, x_floor
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 
 from authn.bench.perf import fft_floor
-from signatures.batch_features import extract_batch
+from signatures import batch_features as bf
 from signatures.dataset import DatasetSpec, draw_scene
 from signatures.profiles import shipped_profiles
 from signatures.simulate import simulate
@@ -30,13 +31,29 @@ def _batch(preset: str, rows: int):
     return np.stack([recs[i % len(recs)].iq for i in range(rows)]), recs[0].config
 
 
-@pytest.mark.parametrize("preset,rows", [(p, b) for p, sizes in SIZES.items() for b in sizes])
-def test_extract_batch(benchmark, preset, rows):
+CASES = [(p, b, backend) for p, sizes in SIZES.items() for b in sizes for backend in ("numpy", "scipy")]
+
+
+@pytest.mark.parametrize("preset,rows,backend", CASES)
+def test_extract_batch(benchmark, preset, rows, backend):
     iq, config = _batch(preset, rows)
     benchmark.group = f"batch features {preset}"
-    benchmark.extra_info["rows"] = rows
-    results = benchmark(extract_batch, iq, config)
+    results = benchmark(bf.extract_batch, iq, config, fft_backend=backend)
     assert len(results) == rows
+    _per_return(benchmark, preset, rows)
+
+
+@pytest.mark.parametrize("preset,rows,backend", CASES)
+def test_cube_stage(benchmark, preset, rows, backend):
+    iq, _ = _batch(preset, rows)
+    benchmark.group = f"batch cube stage {preset}"
+    cube = benchmark(bf._cube_stage, iq, [None] * rows, 5, True, "if", list(range(rows)), backend)
+    assert cube.slow.shape[0] == rows
+    _per_return(benchmark, preset, rows)
+
+
+def _per_return(benchmark, preset: str, rows: int) -> None:
+    benchmark.extra_info["rows"] = rows
     if benchmark.stats:  # None with --benchmark-disable
         per_return = benchmark.stats.stats.median * 1e3 / rows
         floor = fft_floor(preset)["fft_ms"]
