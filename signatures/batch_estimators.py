@@ -215,7 +215,11 @@ def _median_rows(x: np.ndarray) -> np.ndarray:
 def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.ndarray:
     """`estimators._highpass` along axis 1 of (rows, chirps, bins), `keep` (rows, chirps)."""
     g, n, n_bins = z.shape
-    zk = z if keep is None else np.where(keep[:, :, None], z, 0)
+    if keep is None:
+        zk = z
+    else:  # np.where(keep, z, 0) by zeroing the few chirps left out
+        zk = z.copy()
+        zk[~keep] = 0
     c = np.empty((g, n + 1, n_bins), z.dtype)
     c[:, 0] = 0
     np.cumsum(zk, axis=1, out=c[:, 1:])
