@@ -484,14 +484,15 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out:
     sign = np.where(tj > ti, 1.0, -1.0)
     # per pair: t_i, t_j, sign, and the times around t_j (event j is next to the target T exactly
     # when t[j-1] < T <= t[j+1]), gathered for every candidate lag in one go
-    t_i, t_j, sgn, t_prev, t_next = np.stack([ti, tj, sign, padded[gi, jj], padded[gi, jj + 2]])[:, pair]
+    t_i, t_j, sgn, t_prev, t_next = np.take(np.stack([ti, tj, sign, padded[gi, jj], padded[gi, jj + 2]]), pair,
+                                            axis=1)
     tol = TOL_SAMPLES + TOL_FRACTION * lag
     target = t_i + sgn * lag
     hit = np.flatnonzero((target >= tol) & (target <= n - 1 - tol) & (t_prev < target) & (target <= t_next)
                          & (np.abs(t_j - target) <= tol))
-    at = pair[hit]
-    row = (gi[at] * out.shape[1] + (sign[at] < 0)) * lags.size + (lag[hit] - lag0).astype(int)
-    out.reshape(-1)[row * k + ii[at]] = 1.0
+    # flat index into out (g, 4, lags, k): ((row 4 + sign) lags + L - lag0) k + i, per pair up to L
+    base = ((gi * out.shape[1] + (sign < 0)) * lags.size - int(lag0)) * k + ii
+    out.reshape(-1)[np.take(base, pair[hit]) + lag[hit].astype(int) * k] = 1.0
 
 
 def _coherent(field: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
