@@ -13,6 +13,13 @@ are the cost floor, and fresh large arrays cost page faults), CFAR and gating on
 slow-time gates of the whole batch. Only the columns the CNN patch needs are kept per row,
 and the patch itself is built lazily by `features._patch`. `cw` cubes (no range axis) go
 through the single-return path row by row.
+
+FFT backends (`fft_backend`): 'scipy' by default, scipy's single-precision transforms with the
+cube stage in complex64 in place (subtract the slow-time mean, multiply by the float32 window,
+transform: three passes); 'numpy', the single path's default complex128 transforms. Either way
+the cube stage's arrays are the single path's (same `fft_backend`) bit for bit
+(tests/features/test_batch_features.py). `device` moves the cube stage to torch
+(`signatures.batch_torch`, e.g. a GPU).
 """
 
 from __future__ import annotations
@@ -290,9 +297,9 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
             for b0 in range(s, e, block):
                 b1 = min(e, b0 + block)
                 spec = spectra[b0 - s:b1 - s]
-                out["mu"][b0:b1], out["log2_scale"][b0:b1], out["zero"][b0:b1] = _range_spectra(
-                    iq[b0:b1], suppress, domain, labels[b0:b1], spec, fft_backend)
-                out["profile"][b0:b1] = _range_profile(spec)
+                (out["mu"][b0:b1], out["log2_scale"][b0:b1], out["zero"][b0:b1],
+                 out["profile"][b0:b1]) = _range_spectra(iq[b0:b1], suppress, domain, labels[b0:b1], spec,
+                                                         fft_backend)
             columns = _row_columns
         else:
             from signatures import batch_torch
@@ -312,16 +319,17 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
 
 
 def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int], out: np.ndarray,
-                   fft_backend: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`rd.prepare` then `features._range_spectrum` of every row with the single path's
-    arithmetic on `fft_backend`: the complex64 spectrum into `out`; returns (mu (the spectrum
-    of the slow-time mean, complex64), log2 scale, all-zero flag)."""
+                   fft_backend: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`rd.prepare`, `features._range_spectrum` and `rd.range_profile` of every row with the
+    single path's arithmetic on `fft_backend`: the complex64 spectrum into `out`; returns (mu
+    (the spectrum of the slow-time mean, complex64), log2 scale, all-zero flag, profile)."""
     x, scale, exponent, zero = prepared(a, labels)
     if fft_backend == "scipy":
-        mu = _spectra32(x, scale, suppress, domain, out)
+        mu, profile = _spectra32(x, scale, suppress, domain, out)
     else:
         mu = _spectra64(x, scale, suppress, domain, out)
-    return mu, exponent, zero
+        profile = _range_profile(out)
+    return mu, exponent, zero, profile
 
 
 def prepared(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -375,10 +383,13 @@ def _spectra64(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, ou
     return np.fft.fft(mu, axis=-1).astype(np.complex64)
 
 
-def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, out: np.ndarray) -> np.ndarray:
+def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str,
+               out: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The scipy backend's range spectra (`signatures.fft`: complex64 data times the float32
     window, single-precision pocketfft) into `out`, in three in-place passes over it (subtract,
-    window, transform); returns mu. Same values as the single path with `fft_backend='scipy'`."""
+    window, transform), and their range profile; returns (mu, profile). Same values as the
+    single path with `fft_backend='scipy'`, bit for bit. (Chunks of chirps kept in cache through
+    all passes measured 5-10 % slower: the passes are not memory-bound here.)"""
     import scipy.fft as sfft
 
     mean = x.mean(axis=1, keepdims=True)
@@ -393,9 +404,20 @@ def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, ou
         np.multiply(out, weight, out=out)
     mu = mean[:, 0] * weight[:, 0]
     if domain != "if":  # a range cube already is a range spectrum
-        return mu
-    sfft.fft(out, axis=-1, overwrite_x=True, workers=_WORKERS)
-    return sfft.fft(mu, axis=-1, workers=_WORKERS)
+        return mu, _range_profile(out)
+    _fft_in_place(out, -1)
+    return sfft.fft(mu, axis=-1, workers=_WORKERS), _range_profile(out)
+
+
+def _fft_in_place(a: np.ndarray, axis: int) -> np.ndarray:
+    """scipy's FFT of complex64 `a` along `axis`, written into `a` (overwrite_x; copied back
+    should scipy decline): no fresh cube-sized array."""
+    import scipy.fft as sfft
+
+    res = sfft.fft(a, axis=axis, overwrite_x=True, workers=_WORKERS)
+    if not np.may_share_memory(res, a):
+        a[...] = res
+    return a
 
 
 def _row_columns(spectra: np.ndarray, lo: np.ndarray, size: int, out: np.ndarray) -> None:
@@ -427,10 +449,8 @@ def _fft_rows(x: np.ndarray, axis: int, window: np.ndarray, key: str, fft_backen
     for s in range(0, x.shape[0], step):
         blk = x[s:s + step]
         if fft_backend == "scipy":
-            import scipy.fft as sfft
-
             spec = np.multiply(blk, window.astype(np.float32), out=_scratch(key + "64", blk.shape, np.complex64))
-            sfft.fft(spec, axis=axis, overwrite_x=True, workers=_WORKERS)
+            _fft_in_place(spec, axis)
         else:
             src = np.multiply(blk, window, out=_scratch(key + "in", blk.shape, np.complex128))
             out = np.fft.fft(src, axis=axis, out=_scratch(key + "out", blk.shape, np.complex128))
