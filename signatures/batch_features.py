@@ -396,12 +396,15 @@ def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str,
     n_bins = x.shape[2]
     window = rd.hann(n_bins).astype(np.float32) if domain == "if" else np.ones(n_bins, np.float32)
     weight = window * scale.astype(np.float32)  # (rows, 1, bins): exact products
+    weighted = domain == "if" or bool(np.any(scale != 1.0))
     if suppress:
         np.subtract(x, mean, out=out)
+        if weighted:
+            np.multiply(out, weight, out=out)
+    elif weighted:
+        np.multiply(x, weight, out=out)
     else:
         np.copyto(out, x)
-    if domain == "if" or np.any(scale != 1.0):
-        np.multiply(out, weight, out=out)
     mu = mean[:, 0] * weight[:, 0]
     if domain != "if":  # a range cube already is a range spectrum
         return mu, _range_profile(out)
