@@ -609,7 +609,8 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         length_std = np.where(has_length, length * np.hypot(tip_std / tip, rotor_std / rotor), 0.0)
 
     win, hop = tf.stft_params(config, n)
-    cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend)), flash)
+    cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend), fft_backend),
+                                            flash)
 
     cols = dict(
         mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
@@ -798,11 +799,11 @@ def _spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int,
     return power, t
 
 
-def _cadence(spec: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def _cadence(spec: tuple[np.ndarray, np.ndarray], fft_backend: str) -> tuple[np.ndarray, np.ndarray]:
     """`timefreq.cadence(...).spectrum()` per row: (cadence spectrum (B, cadence bins), cadence_hz)."""
     power, t = spec
     p = power - power.mean(axis=1, keepdims=True)
-    mag = np.abs(np.fft.rfft(p, axis=1)).astype(p.dtype, copy=False)
+    mag = np.abs(_fft.rfft(p, axis=1, backend=fft_backend, workers=_WORKERS)).astype(p.dtype, copy=False)
     step = float(t[1] - t[0]) if t.size > 1 else 1.0
     return mag.sum(axis=2), np.fft.rfftfreq(p.shape[1], d=step)
 

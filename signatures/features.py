@@ -360,7 +360,7 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
 
     # --- cadence -----------------------------------------------------------------
     win, hop = tf.stft_params(config, n_chirps)
-    cad = tf.cadence(tf.spectrogram(slow, config, win, hop, fft_backend=fft_backend))
+    cad = tf.cadence(tf.spectrogram(slow, config, win, hop, fft_backend=fft_backend), fft_backend)
     cad_peak, cad_ratio = _cadence_features(cad, flash.value)
 
     feats = Features(

@@ -24,7 +24,7 @@ import numpy as np
 
 from signatures.errors import SignaturesError
 
-__all__ = ["BACKENDS", "backend", "fft", "resolve"]
+__all__ = ["BACKENDS", "backend", "fft", "resolve", "rfft"]
 
 BACKENDS = ("numpy", "scipy")
 #: 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s import); anything else: numpy
@@ -85,3 +85,13 @@ def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
     dst = _workspace("out", x.shape)
     (np.fft.ifft if inverse else np.fft.fft)(src, axis=axis, out=dst)
     return dst.astype(np.complex128 if x.dtype == np.complex128 else np.complex64)
+
+
+def rfft(x: np.ndarray, axis: int = -1, backend: str | None = None, workers: int = -1) -> np.ndarray:
+    """Real FFT of float `x` along `axis`: numpy's (float64 arithmetic, complex128 result) or
+    scipy's (the input's precision: complex64 for float32)."""
+    if resolve(backend) == "scipy":
+        import scipy.fft as sfft
+
+        return sfft.rfft(x, axis=axis, workers=workers)
+    return np.fft.rfft(x, axis=axis)

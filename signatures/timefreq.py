@@ -83,10 +83,11 @@ class Cadence:
         return self.magnitude.sum(axis=1)
 
 
-def cadence(spec: Spectrogram) -> Cadence:
+def cadence(spec: Spectrogram, fft_backend: str | None = None) -> Cadence:
     """CVD of a spectrogram. Periodic blade flashes give lines at multiples of the flash
-    rate whatever the Doppler does, so it survives blade-tip aliasing."""
+    rate whatever the Doppler does, so it survives blade-tip aliasing. `fft_backend` as
+    `signatures.fft.fft`'s `backend` (numpy: float64 transform; scipy: float32)."""
     p = spec.power - spec.power.mean(axis=0, keepdims=True)
-    mag = np.abs(np.fft.rfft(p, axis=0)).astype(p.dtype, copy=False)
+    mag = np.abs(_fft.rfft(p, axis=0, backend=fft_backend)).astype(p.dtype, copy=False)
     step = float(spec.time_s[1] - spec.time_s[0]) if spec.time_s.size > 1 else 1.0
     return Cadence(mag, np.fft.rfftfreq(p.shape[0], d=step), spec.doppler_hz)
