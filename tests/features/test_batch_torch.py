@@ -58,8 +58,12 @@ def _features_match(drawn, device: str) -> None:
 
 
 @pytest.mark.parametrize("preset", ["paper", "wide"])
-def test_cpu_device_features_equal_the_numpy_path(request, preset):
+def test_cpu_device_features_equal_the_numpy_path(request, preset, monkeypatch):
+    calls = []
+    inner = batch_torch.range_spectra
+    monkeypatch.setattr(batch_torch, "range_spectra", lambda iq, *a: calls.append(len(iq)) or inner(iq, *a))
     _features_match(request.getfixturevalue(preset), "cpu")
+    assert sum(calls) == len(request.getfixturevalue(preset))  # every row's cube went through torch
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason=NO_GPU)
