@@ -91,6 +91,8 @@ class PeriodicityBatch:
     flash_par_db: np.ndarray
     rotor_count: np.ndarray
     rotor_count_std: np.ndarray
+    rotors_seen: np.ndarray  # `estimators.rotors_seen`: distinct flashes per flash period
+    rotors_seen_std: np.ndarray
 
 
 # --- flash series ---------------------------------------------------------------------------
@@ -270,8 +272,10 @@ def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> Periodi
                                 f([p.flash_rate.std for p in pers], float),
                                 f([p.score for p in pers], float), f([p.n_events for p in pers], int),
                                 f([p.flash_par_db for p in pers], float), f([r.value for r in rot], float),
-                                f([r.std for r in rot], float))
-    out = {name: np.zeros(b_rows) for name in ("rate", "std", "score", "par", "rotors", "rotors_std")}
+                                f([r.std for r in rot], float), f([p.rotors_seen.value for p in pers], float),
+                                f([p.rotors_seen.std for p in pers], float))
+    out = {name: np.zeros(b_rows) for name in ("rate", "std", "score", "par", "rotors", "rotors_std", "seen",
+                                               "seen_std")}
     n_events = np.zeros(b_rows, dtype=int)
     if n >= 8:
         emax = e.max(axis=1)
@@ -287,7 +291,7 @@ def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> Periodi
             lags = np.arange(math.ceil(lag_min), math.floor(lag_max) + 1, dtype=float)
             _periodic_rows(series, times, pos, k, live & (k >= 2), lags, out)
     return PeriodicityBatch(out["rate"], out["std"], out["score"], n_events, out["par"], out["rotors"],
-                            out["rotors_std"])
+                            out["rotors_std"], out["seen"], out["seen_std"])
 
 
 def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray, k: np.ndarray,
@@ -342,11 +346,14 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
         sub = r[ok[r]]
         if sub.size == 0:
             continue
-        rate, std, score, phases, tol = _period(times[sub, :kk], pos[sub, :kk], series.drift_bins_per_sample[sub],
-                                                lag[at[sub]], series.rate_hz, n_bins)
+        rate, std, score, phases, tol, period = _period(times[sub, :kk], pos[sub, :kk],
+                                                        series.drift_bins_per_sample[sub], lag[at[sub]],
+                                                        series.rate_hz, n_bins)
         rotors, rotors_std = _rotor_count(phases, tol)
+        seen = [est.rotors_seen(est.flash_groups(t, p), p, n) for t, p in zip(times[sub, :kk], period.tolist())]
         for name, values in (("rate", rate), ("std", std), ("score", score), ("rotors", rotors),
-                             ("rotors_std", rotors_std)):
+                             ("rotors_std", rotors_std), ("seen", [e.value for e in seen]),
+                             ("seen_std", [e.std for e in seen])):
             out[name][sub] = values
 
 
@@ -644,9 +651,9 @@ def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, va
 
 
 def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndarray, rate_hz: float,
-            n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The tail of `estimators.periodicity` for a group: rate, rate std, score, phases, tolerance
-    (in periods). Mean and std of the matched intervals run per match count (numpy's pairwise
+    (in periods), period (series samples). Mean and std of the matched intervals run per match count (numpy's pairwise
     sums depend on the length); the scalar tail in Python floats, as the single path."""
     g, k = times.shape
     diff = times[:, None, :] - times[:, :, None]
@@ -679,7 +686,7 @@ def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndar
     same_place = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[:, None, :] | ~informative[:, :, None]
     score = (np.sum(matched & same_place & (mult == 1), axis=(1, 2))
              + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2), axis=(1, 2)))
-    return rate, std, score.astype(float), phases, tol
+    return rate, std, score.astype(float), phases, tol, mean
 
 
 def _rotor_count(phases: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -627,12 +627,14 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
     table = np.stack([np.asarray(cols[name], dtype=np.float64) for name in F.FEATURE_NAMES], axis=1).tolist()
     detected = cube.detected[live].tolist()
+    seen, seen_std = per.rotors_seen.tolist(), per.rotors_seen_std.tolist()
     gates = (g_lo + 0).tolist()
     out = []
     for j, b in enumerate(live.tolist()):
         make = _patch_maker(cube.patch_cols[b], config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]),
                             fft_backend)
-        out.append(F.FeatureResult(detected[j], F.Features(*table[j]), make, (gates[j], gates[j] + size)))
+        out.append(F.FeatureResult(detected[j], F.Features(*table[j]), make, (gates[j], gates[j] + size),
+                                   physics=F.physics_estimates(seen[j], seen_std[j])))
     return out
 
 

@@ -1,4 +1,4 @@
-"""Blade-flash estimators with uncertainties: flash rate, rotor rate, rotor count (tip speed: features).
+"""Blade-flash estimators with uncertainties: flash rate, rotor rate, rotor count, rotors seen (tip speed: features).
 
 Blade flashes: a blade seen broadside returns all its length in phase for ~30 us
 (Chen's sinc); two opposite blades flash together, twice per turn, so one rotor
@@ -118,6 +118,11 @@ COHERENT_SHARE = 0.5
 #: tips. The coherent checks run only where the PRI is longer: a flash is then seen in at
 #: most one chirp, or missed between two, and the energy events miss many partners.
 FLASH_LOBE_S = 18e-6
+#: Rotors seen: events closer than this share of the flash period (at least GROUP_GAP_SAMPLES)
+#: are one flash. A blade made of several scatterers flashes as a cluster of peaks, while one
+#: rotor flashes once per period and per-rotor rates differ by a few per cent.
+GROUP_GAP_PERIODS = 0.03
+GROUP_GAP_SAMPLES = 3.0
 
 
 @dataclass(frozen=True)
@@ -241,6 +246,7 @@ class Periodicity:
     phases: np.ndarray  # flash times modulo the period, in periods [0, 1)
     tolerance: float  # matching tolerance in periods
     flash_par_db: float  # peak-to-average power ratio of the flash series (impulsiveness)
+    rotors_seen: Estimate = Estimate(0.0, 0.0)  # distinct flashes per flash period (`rotors_seen`)
 
 
 def flash_events(series: FlashSeries, radius: int,
@@ -528,7 +534,7 @@ def periodicity(series: FlashSeries) -> Periodicity:
     score = float(np.sum(matched & same_place & (mult == 1))
                   + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2)))
     return Periodicity(Estimate(rate, rate * period_std / period), score, int(k), phases,
-                       tol0 / period, par_db)
+                       tol0 / period, par_db, rotors_seen(flash_groups(times, period), period, n))
 
 
 def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, valid_n: np.ndarray,
@@ -550,6 +556,28 @@ def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, va
             break
         lag0 = float(lags[j])
     return lag0
+
+
+def flash_groups(times: np.ndarray, period: float) -> int:
+    """Distinct flashes among time-sorted events: a gap wider than GROUP_GAP_PERIODS of the
+    period (and GROUP_GAP_SAMPLES) starts a new one."""
+    if times.size == 0:
+        return 0
+    gap = max(GROUP_GAP_SAMPLES, GROUP_GAP_PERIODS * period)
+    return 1 + int(np.count_nonzero(np.diff(times) > gap))
+
+
+def rotors_seen(groups: int, period: float, n: int) -> Estimate:
+    """Rate-invariant rotor count: distinct flashes over the flash periods the dwell holds.
+
+    Each rotor flashes once per flash period (the period is the time between its blades passing
+    broadside), so flashes per period count the rotors whatever the rotor rate. Two rotors flashing
+    within the group gap count once and missed flashes not at all, so it undercounts a little;
+    its relative uncertainty is that of a count, 1 / sqrt(groups)."""
+    if groups <= 0 or period <= 0.0 or n <= 0:
+        return Estimate(0.0, 0.0)
+    value = groups * period / n
+    return Estimate(value, value / math.sqrt(groups))
 
 
 def rotor_count(per: Periodicity) -> Estimate:

@@ -15,7 +15,7 @@ the peak amplitude's exponent) done in Python floats.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import astuple, dataclass, field, fields, replace
 from functools import cached_property
 
@@ -31,7 +31,7 @@ from signatures.recording import DOMAINS
 from signatures.stats import median
 
 __all__ = ["FEATURE_NAMES", "FEATURE_VERSION", "GATE_BINS", "PATCH_SHAPE", "QUICK_FEATURES", "FeatureResult",
-           "Features", "extract", "extract_iq"]
+           "Features", "extract", "extract_iq", "physics_estimates"]
 
 #: Bump when feature values change: training-set caches key on it, and
 #: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
@@ -117,6 +117,9 @@ class FeatureResult:
     make_patch: Callable[[], np.ndarray]
     gate: tuple[int, int]  # [lo, hi) range bins the slow-time work ran on
     names: tuple[str, ...] = field(default=FEATURE_NAMES)
+    #: physical estimates only 1:1 verification reads (`signatures.verify`), not classifier
+    #: inputs: the bundles' feature vector stays as trained. Empty where not measured.
+    physics: Mapping[str, float] = field(default_factory=dict)
 
     @cached_property
     def rd_patch(self) -> np.ndarray:
@@ -371,7 +374,13 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
         flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
     def patch() -> np.ndarray:
         return _patch(spectrum, config, det.peak_bin, body_idx, fft_backend)
-    return FeatureResult(det.detected, feats, patch, gate)
+    return FeatureResult(det.detected, feats, patch, gate,
+                         physics=physics_estimates(per.rotors_seen.value, per.rotors_seen.std))
+
+
+def physics_estimates(rotors_seen: float, rotors_seen_std: float) -> dict[str, float]:
+    """`FeatureResult.physics` from its estimates (one place for the single and batch paths)."""
+    return {"rotors_seen": float(rotors_seen), "rotors_seen_std": float(rotors_seen_std)}
 
 
 def _db(x: float) -> float:

@@ -14,8 +14,13 @@ independent terms:
     projection, whatever the rotor rate. Over the claim's value it lies in `BLADE_BAND`: never
     above 1 (+5 %), while projection and noise only shrink it, so the test is an upper bound
     (tips too fast for the claimed blades).
+  - rotors: distinct flashes per flash period (`estimators.rotors_seen`, rate-invariant) over
+    the claim's rotor count lies in `ROTOR_BAND` (rotors flashing together count once, weak
+    flashes are missed), blurred by the count's own 1/sqrt(flashes) and `ROTOR_REL_FLOOR`;
+    under the alternative its log is uniform over `ROTOR_ALT_LOG_SPAN`. Left out below
+    `MIN_FLASH_GROUPS` flashes.
   The estimator's known failure, a whole-period slip of the flash rate, keeps `SLIP_WEIGHT` of
-  the claim's mass at the `SLIPS` multiples, both ratios evaluated under the same slip.
+  the claim's mass at the `SLIPS` multiples, every ratio evaluated under the same slip.
 * **classifier**: the bundle's calibrated probability of the claimed class as log-odds against
   its prior 1/K, clipped to +-`CLASSIFIER_CLIP` (a classifier fitted to one simulator is not
   trusted further than that). Absent when the claim is not one of the bundle's classes: a new
@@ -34,7 +39,7 @@ from dataclasses import dataclass, field
 
 from signatures.profiles import UavProfile
 
-__all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "Verification", "verify"]
+__all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "ROTOR_BAND", "Verification", "verify"]
 
 #: Flown rotor rate over the profile's nominal rate (hover to climb, payload, battery sag).
 RATE_BAND = (0.80, 1.20)
@@ -42,6 +47,14 @@ RATE_BAND = (0.80, 1.20)
 BLADE_BAND = (0.05, 1.05)
 #: The alternative hypothesis: a ratio anywhere within a factor 8 either way, log-uniform.
 ALT_LOG_SPAN = math.log(64.0)
+#: Rotors seen over the claimed rotor count. Below 1: two of R rotors with random phases flash
+#: within the 3 % group gap with probability ~0.06 per pair (4 rotors: 0.91 expected, 8: 0.79),
+#: and weak flashes go unseen; above 1: a flash split wider than the gap.
+ROTOR_BAND = (0.70, 1.10)
+ROTOR_REL_FLOOR = 0.10
+#: The alternative: a multirotor with 2 to 12 rotors, log-uniform.
+ROTOR_ALT_LOG_SPAN = math.log(12.0 / 2.0)
+MIN_FLASH_GROUPS = 3
 #: The estimator's relative accuracy floor (5 % demonstrated on known airframes; 3 % floor).
 REL_FLOOR = 0.03
 #: Share of the claim's mass at whole-period slips of the flash-rate estimate: half the rate
@@ -100,6 +113,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
         if tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
             blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
+    rotors = _rotors(features, claimed)
     slips = SLIPS if float(features.get("tip_aliased", 0.0)) >= 0.5 else UNALIASED_SLIPS
     p = 0.0
     for m, w in ((1.0, 1.0 - SLIP_WEIGHT), *((m, SLIP_WEIGHT / len(slips)) for m in slips)):
@@ -107,9 +121,26 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
         if blade is not None:
             y, lo, hi, sigma = blade
             q *= _band_density(y + math.log(m), lo, hi, sigma)
+        if rotors is not None:  # a rate m times the true one counts the rotors 1/m times
+            z, lo, hi, sigma = rotors
+            q *= _band_density(z + math.log(m), lo, hi, sigma)
         p += q
-    alt = 1.0 / ALT_LOG_SPAN ** (2 if blade is not None else 1)
+    alt = 1.0 / ALT_LOG_SPAN ** (2 if blade is not None else 1) / (ROTOR_ALT_LOG_SPAN if rotors is not None else 1.0)
     return max(TERM_FLOOR, math.log(max(p, 1e-300)) - math.log(alt))
+
+
+def _rotors(features: Mapping[str, float], claimed: UavProfile) -> tuple[float, float, float, float] | None:
+    """(log of rotors seen over the claim's rotors, band, sigma), or None when too few flashes
+    were seen (or none were counted: an older extraction, a quick one)."""
+    seen = float(features.get("rotors_seen", 0.0))
+    std = float(features.get("rotors_seen_std", 0.0))
+    if not (seen > 0.0 and std > 0.0):
+        return None
+    rel = std / seen  # a count's relative std, 1 / sqrt(flashes counted)
+    if not rel <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9:  # NaN too
+        return None
+    z = math.log(seen) - math.log(claimed.rotors)
+    return z, math.log(ROTOR_BAND[0]), math.log(ROTOR_BAND[1]), math.hypot(rel, ROTOR_REL_FLOOR)
 
 
 def verify(features: Mapping[str, float], claimed: UavProfile,

@@ -18,7 +18,8 @@ from signatures.errors import SignaturesError
 from signatures.radar import get_preset
 from tests.features.flash_gates import Gate, simulated_gates
 
-CONTINUOUS = ("flash_rate_hz", "flash_rate_std_hz", "score", "flash_par_db", "rotor_count_std")
+CONTINUOUS = ("flash_rate_hz", "flash_rate_std_hz", "score", "flash_par_db", "rotor_count_std", "rotors_seen",
+              "rotors_seen_std")
 EXACT = ("n_events", "rotor_count")
 
 
@@ -39,9 +40,9 @@ def reference(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float, n_fft
         per = est.periodicity(est.flash_series(slow[b], config, float(body_hz[b]), bin_m, n_fft))
         rot = est.rotor_count(per)
         rows.append((per.flash_rate.value, per.flash_rate.std, per.score, per.n_events, per.flash_par_db,
-                     rot.value, rot.std))
+                     rot.value, rot.std, per.rotors_seen.value, per.rotors_seen.std))
     names = ("flash_rate_hz", "flash_rate_std_hz", "score", "n_events", "flash_par_db", "rotor_count",
-             "rotor_count_std")
+             "rotor_count_std", "rotors_seen", "rotors_seen_std")
     return {name: np.array([r[i] for r in rows]) for i, name in enumerate(names)}
 
 

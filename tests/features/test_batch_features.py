@@ -57,6 +57,9 @@ def assert_same(single: F.FeatureResult, batch: F.FeatureResult, where: str) -> 
     err = np.abs(a - b) / np.maximum(np.abs(a), 1.0)
     bad = {n: (a[i], b[i]) for i, n in enumerate(F.FEATURE_NAMES) if not err[i] <= REL}
     assert not bad, f"{where}: {bad}"
+    assert batch.physics.keys() == single.physics.keys(), where
+    for name, value in single.physics.items():
+        assert abs(batch.physics[name] - value) <= REL * max(abs(value), 1.0), (where, name)
     np.testing.assert_allclose(batch.rd_patch, single.rd_patch, rtol=0, atol=1e-5, err_msg=where)
 
 

@@ -27,6 +27,7 @@ def test_features_show_and_accuracy_json(tmp_path, capsys):
     assert main(["features", "show", str(path), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["detected"] and abs(doc["features"]["rotor_rate_hz"] - 36.7) < 1.9
+    assert 6 * 0.7 <= doc["physics"]["rotors_seen"] <= 6 * 1.1
     assert main(["features", "accuracy", "--preset", "paper", "--snr", "10", "--n", "3", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert rows[0]["n"] == 3 and rows[0]["preset"] == "paper"
@@ -35,4 +36,5 @@ def test_features_show_and_accuracy_json(tmp_path, capsys):
 def test_bad_input_is_exit_2(tmp_path, capsys):
     assert main(["plot", str(tmp_path / "missing.h5"), "--out", str(tmp_path)]) == 2
     assert main(["features", "accuracy", "--snr", "x", "--n", "1"]) == 2
+    assert main(["features", "accuracy", "--world", "reality", "--n", "1"]) == 2
     assert "error:" in capsys.readouterr().err

@@ -97,3 +97,28 @@ def test_alternate_flashes_missed_still_give_the_period():
     per = est.periodicity(s)
     period = s.rate_hz / per.flash_rate.value
     assert abs(period - 195.0) <= 2.0
+
+
+def test_flash_groups_merge_a_split_flash_and_count_distinct_ones():
+    """A blade of several scatterers flashes as a cluster of peaks: one flash. Flashes further
+    apart than the gap (3 % of the period, at least 3 samples) are distinct."""
+    period = 200.0
+    assert est.flash_groups(np.array([]), period) == 0
+    assert est.flash_groups(np.array([10.0, 12.0, 15.5]), period) == 1  # within 6 samples
+    assert est.flash_groups(np.array([10.0, 17.0, 100.0, 210.0]), period) == 4
+
+
+def test_rotors_seen_counts_the_rotors_whatever_the_rotor_rate():
+    """R rotors flashing once per period at spread phases, each flash split in two peaks, over a
+    dwell of whole periods: R rotors seen at any period; a count's 1/sqrt uncertainty."""
+    for rotors in (3, 4, 6, 8):
+        for period in (150.0, 284.0, 611.0):
+            periods = 3
+            phases = (np.arange(rotors) + 0.5) / rotors
+            t = np.sort(np.concatenate([(phases + m) * period + split for m in range(periods) for split in (0, 1.5)]))
+            groups = est.flash_groups(t, period)
+            seen = est.rotors_seen(groups, period, int(periods * period))
+            assert groups == rotors * periods
+            assert seen.value == np.float64(rotors) or abs(seen.value - rotors) < 1e-9
+            assert abs(seen.std - rotors / math.sqrt(groups)) < 1e-9
+    assert est.rotors_seen(0, 100.0, 600) == est.Estimate(0.0, 0.0)

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from signatures.profiles import UavProfile, shipped_profiles
-from signatures.verify import CLASSIFIER_CLIP, RATE_BAND, TERM_FLOOR, verify
+from signatures.verify import CLASSIFIER_CLIP, MIN_FLASH_GROUPS, RATE_BAND, TERM_FLOOR, verify
 
 P = shipped_profiles()
 WIDE_MAX_TIP = 156.0  # the wide preset's unambiguous velocity: tips never alias there
@@ -50,6 +50,38 @@ def test_blade_ratio_separates_airframes_whose_rates_overlap() -> None:
     assert verify(aliased, P["m300"], max_tip_mps=22.0).llr > 0
 
 
+def _rotors(seen: float, groups: int) -> dict[str, float]:
+    """`FeatureResult.physics` of `groups` distinct flashes counting `seen` rotors."""
+    return {"rotors_seen": seen, "rotors_seen_std": seen / math.sqrt(groups)}
+
+
+def test_rotors_seen_weigh_against_airframes_whose_rates_and_tips_agree() -> None:
+    """An M300 flown 9 % slow has an M600's flash rate, and its shorter blades pass the blade
+    test's upper bound: only the rotors it shows (about 4, not 6) count against the M600 claim,
+    rate-invariantly. Four of six rotors is at the edge of what collisions and missed flashes
+    explain, so it weakens the claim; eight rotors against a quad's four contradict it."""
+    seen = _seen(P["m300"], rate_scale=P["m600"].blade_flash_rate_hz / P["m300"].blade_flash_rate_hz)
+    without = verify(seen, P["m600"], max_tip_mps=WIDE_MAX_TIP).llr
+    assert without > 0  # the physics without the rotors cannot tell
+    fewer = {**seen, **_rotors(3.0, 12)}
+    assert verify(fewer, P["m600"], max_tip_mps=WIDE_MAX_TIP).llr < without - 0.5
+    with_rotors = {**seen, **_rotors(3.6, 15)}
+    assert verify(with_rotors, P["m300"], max_tip_mps=WIDE_MAX_TIP).llr > verify(
+        with_rotors, P["m600"], max_tip_mps=WIDE_MAX_TIP).llr
+    genuine = _seen(P["m600"])
+    assert verify({**genuine, **_rotors(5.5, 21)}, P["m600"], max_tip_mps=WIDE_MAX_TIP).llr > without
+    # an octocopter's eight rotors against a quad's claim, at a rate the quad could fly
+    octo = {**_seen(P["m300"], rate_scale=1.1), **_rotors(7.2, 28)}
+    assert verify(octo, P["m300"], max_tip_mps=WIDE_MAX_TIP).llr < 0
+
+
+def test_rotors_from_too_few_flashes_abstain() -> None:
+    seen = _seen(P["m300"], aliased=True)
+    base = verify(seen, P["m300"]).llr
+    assert verify({**seen, **_rotors(9.0, MIN_FLASH_GROUPS - 1)}, P["m300"]).llr == base
+    assert verify({**seen, "rotors_seen": 4.0, "rotors_seen_std": 0.0}, P["m300"]).llr == base
+
+
 def test_a_whole_period_slip_weakens_but_does_not_veto() -> None:
     full = verify(_seen(P["m300"], aliased=True), P["m300"]).terms["physics"]
     half = verify(_seen(P["m300"], aliased=True, flash_scale=0.5), P["m300"]).terms["physics"]
@@ -84,10 +116,11 @@ finite = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
 
 @settings(max_examples=200, deadline=None)
 @given(f=finite, f_std=finite, tip=finite, tip_std=finite, score=finite, aliased=st.booleans(),
-       p=st.floats(0.0, 1.0), slug=st.sampled_from(sorted(P)))
-def test_any_estimate_gives_a_finite_bounded_score(f, f_std, tip, tip_std, score, aliased, p, slug) -> None:
+       p=st.floats(0.0, 1.0), slug=st.sampled_from(sorted(P)), rotors=finite, rotors_std=finite)
+def test_any_estimate_gives_a_finite_bounded_score(f, f_std, tip, tip_std, score, aliased, p, slug, rotors,
+                                                   rotors_std) -> None:
     feats = {"flash_rate_hz": f, "flash_rate_std_hz": f_std, "tip_speed_mps": tip, "tip_speed_std_mps": tip_std,
-             "flash_score": score, "tip_aliased": float(aliased)}
+             "flash_score": score, "tip_aliased": float(aliased), "rotors_seen": rotors, "rotors_seen_std": rotors_std}
     v = verify(feats, P[slug], {slug: p, "other": 1.0 - p}, max_tip_mps=WIDE_MAX_TIP)
     assert math.isfinite(v.llr)
     assert TERM_FLOOR - CLASSIFIER_CLIP <= v.llr <= 10.0
@@ -97,5 +130,9 @@ def test_any_estimate_gives_a_finite_bounded_score(f, f_std, tip, tip_std, score
 @given(scale=st.floats(0.82, 1.18), cos_el=st.floats(0.5, 1.0), slug=st.sampled_from(sorted(P)))
 def test_the_physics_of_a_genuine_return_never_contradicts_its_claim(scale: float, cos_el: float, slug: str) -> None:
     """Whatever rotor rate it flies (within the band) and whatever elevation, a clean genuine
-    return's physics favours its claim."""
+    return's physics favours its claim, with or without the rotors it shows (one pair of its
+    rotors flashing together: one fewer seen)."""
     assert verify(_seen(P[slug], scale, cos_el), P[slug], max_tip_mps=WIDE_MAX_TIP).llr > 0
+    rotors = P[slug].rotors - 1 if P[slug].rotors > 4 else P[slug].rotors
+    seen = {**_seen(P[slug], scale, cos_el), **_rotors(rotors, 4 * rotors)}
+    assert verify(seen, P[slug], max_tip_mps=WIDE_MAX_TIP).llr > 0
