@@ -32,8 +32,10 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
           budget_s: float = 20.0) -> dict[str, object]:
     """Per-return ms of batched features + classifier at each batch size (`distinct` simulated
     returns repeated to fill the batch; `extract_many` splits a batch larger than memory allows),
-    beside the single-return path and the FFT floor measured in the same run. Each size is timed
-    until `budget_s / len(sizes)` seconds have passed (at least 3 repeats)."""
+    beside the single-return path and the FFT floor measured in the same run. Measured
+    **interleaved**: each round times the floor, the single path and every batch size once, in
+    turn, so that a shared machine's drift hits them alike; rounds repeat until `budget_s` has
+    passed (at least 3, at most 50), medians over rounds."""
     from authn.bench import pareto, perf
     from signatures.batch_features import batch_size, extract_many
     from signatures.features import extract
@@ -56,31 +58,23 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
     def single() -> object:
         return [clf.predict(f.as_array()) for f in (extract(r, g) for r, g in zip(recs, gates))]
 
-    single()  # warm: FFT workspaces, models
-    per_size = budget_s / (len(sizes) + 1)
-    out: dict[str, float] = {}
-    ms = _timed(single, per_size)
-    out["single"] = ms / len(recs)
-    for b in sizes:
-        run = batched(b)
-        run()
-        out[str(b)] = _timed(run, per_size) / b
-    floor = perf.fft_floor(preset)
-    first = recs[0]
-    return {"ms_per_return": out, "fft_floor_ms": floor["fft_ms"],
-            "x_floor": {k: v / floor["fft_ms"] for k, v in out.items()},
-            "batch_size_from_memory": batch_size(first.n_chirps, first.n_samples), "distinct_returns": len(recs)}
-
-
-def _timed(fn: Callable[[], object], budget_s: float) -> float:
-    """Median ms of `fn`, repeated until the budget is spent (3 to 50 times)."""
-    times: list[float] = []
+    runs: dict[str, tuple[Callable[[], object], int]] = {"single": (single, len(recs))}
+    runs.update({str(b): (batched(b), b) for b in sizes})
+    for fn, _ in runs.values():
+        fn()  # warm: FFT workspaces, models, the allocator
+    times: dict[str, list[float]] = {k: [] for k in runs}
+    floors: list[float] = []
     t_end = time.perf_counter() + budget_s
-    while len(times) < 3 or (time.perf_counter() < t_end and len(times) < 50):
-        t0 = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(times)
+    while len(floors) < 3 or (time.perf_counter() < t_end and len(floors) < 50):
+        floors.append(perf.fft_floor(preset, repeats=5)["fft_ms"])
+        for key, (fn, count) in runs.items():
+            times[key].append(_median_ms(fn, 1) / count)
+    out = {k: statistics.median(v) for k, v in times.items()}
+    floor = statistics.median(floors)
+    first = recs[0]
+    return {"ms_per_return": out, "fft_floor_ms": floor,
+            "x_floor": {k: v / floor for k, v in out.items()}, "rounds": len(floors),
+            "batch_size_from_memory": batch_size(first.n_chirps, first.n_samples), "distinct_returns": len(recs)}
 
 
 def accuracy(preset: str, per_class: int = 20, seed: int = 5) -> dict[str, object]:

@@ -188,7 +188,7 @@ def _batch(presets: tuple[str, ...], quick: bool, seed: int, plot_dir: Path | No
         task = progress.add_task("batch mode", total=3 * len(presets))
         for p in presets:
             progress.update(task, description=f"{p}: per-return time against batch size")
-            curve = batch.curve(p, sizes, distinct=10 if quick else 64, seed=seed, budget_s=5.0 if quick else 30.0)
+            curve = batch.curve(p, sizes, distinct=10 if quick else 64, seed=seed, budget_s=5.0 if quick else 60.0)
             progress.advance(task)
             progress.update(task, description=f"{p}: accuracy, single against batched")
             acc = batch.accuracy(p, per_class=2 if quick else 20, seed=seed)

@@ -116,3 +116,14 @@ def test_bench_quick_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkey
     assert doc["drip_verification_ms"]["paper"]["signed_valid_n"] == 12
     assert {p["name"] for p in doc["pareto"]["paper"]} >= {"gated + ensemble (default)", "full cube + ensemble"}
     assert (tmp_path / "fig" / "error-vs-time-paper.png").stat().st_size > 10_000
+
+
+def test_batch_curve_times_every_size_interleaved_beside_the_floor() -> None:
+    """`authn bench --batch`: one median per size and the floor over the same rounds (at least 3)."""
+    from authn.bench.batch import curve
+
+    c = curve("paper", (1, 8), distinct=5, seed=1, budget_s=0.0)
+    assert c["rounds"] == 3
+    assert set(c["ms_per_return"]) == set(c["x_floor"]) == {"single", "1", "8"}
+    assert c["fft_floor_ms"] > 0 and all(v > 0 for v in c["ms_per_return"].values())
+    assert c["x_floor"]["8"] == c["ms_per_return"]["8"] / c["fft_floor_ms"]
