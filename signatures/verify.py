@@ -77,9 +77,14 @@ class Verification:
 
     llr: float  # sum of the terms, nats: > 0 favours the claim
     terms: dict[str, float] = field(default_factory=dict)  # the terms that did not abstain
+    #: what the physics term compared: measured against claimed, for the operator
+    compared: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, object]:
-        return {"llr": round(self.llr, 4), "terms": {k: round(v, 4) for k, v in self.terms.items()}}
+        doc: dict[str, object] = {"llr": round(self.llr, 4), "terms": {k: round(v, 4) for k, v in self.terms.items()}}
+        if self.compared:
+            doc["compared"] = {k: {n: round(v, 3) for n, v in d.items()} for k, d in self.compared.items()}
+        return doc
 
 
 def _phi(x: float) -> float:
@@ -91,10 +96,12 @@ def _band_density(x: float, lo: float, hi: float, sigma: float) -> float:
     return (_phi((hi - x) / sigma) - _phi((lo - x) / sigma)) / (hi - lo)
 
 
-def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: float | None) -> float | None:
-    """log p(rate, blade | claim) - log p(rate, blade | other), or None when the rate estimate is
-    unreliable. Slip hypotheses m scale the measured rate (f = m r F) and hence the blade ratio
-    (tip / f carries 1/m): both terms are evaluated under the same m."""
+def _physics(features: Mapping[str, float], claimed: UavProfile,
+             max_tip_mps: float | None) -> tuple[float, dict[str, dict[str, float]]] | None:
+    """(log p(rate, blade, rotors | claim) - log p(rate, blade, rotors | other), what was compared),
+    or None when the rate estimate is unreliable. Slip hypotheses m scale the measured rate
+    (f = m r F) and hence the blade ratio (tip / f carries 1/m) and the rotors seen (1/m): all are
+    evaluated under the same m."""
     f = float(features.get("flash_rate_hz", 0.0))
     F = claimed.blade_flash_rate_hz
     if not (f > 0 and F > 0 and float(features.get("flash_score", 0.0)) >= MIN_FLASH_SCORE):
@@ -114,6 +121,11 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
             blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
     rotors = _rotors(features, claimed)
+    compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
+    if blade is not None:  # tip speed over flash rate, over the claim's 2 pi L / N: at most 1.05
+        compared["blade_ratio"] = {"measured": math.exp(blade[0]), "claimed_max": BLADE_BAND[1]}
+    if rotors is not None:
+        compared["rotors"] = {"seen": float(features["rotors_seen"]), "claimed": float(claimed.rotors)}
     slips = SLIPS if float(features.get("tip_aliased", 0.0)) >= 0.5 else UNALIASED_SLIPS
     p = 0.0
     for m, w in ((1.0, 1.0 - SLIP_WEIGHT), *((m, SLIP_WEIGHT / len(slips)) for m in slips)):
@@ -126,7 +138,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
             q *= _band_density(z + math.log(m), lo, hi, sigma)
         p += q
     alt = 1.0 / ALT_LOG_SPAN ** (2 if blade is not None else 1) / (ROTOR_ALT_LOG_SPAN if rotors is not None else 1.0)
-    return max(TERM_FLOOR, math.log(max(p, 1e-300)) - math.log(alt))
+    return max(TERM_FLOOR, math.log(max(p, 1e-300)) - math.log(alt)), compared
 
 
 def _rotors(features: Mapping[str, float], claimed: UavProfile) -> tuple[float, float, float, float] | None:
@@ -152,13 +164,14 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
     radar's `unambiguous_velocity_mps`); the blade term runs only when the claimed airframe's
     fastest tips stay below it, whatever a noisy return's own aliasing flag says."""
     terms: dict[str, float] = {}
+    compared: dict[str, dict[str, float]] = {}
     physics = _physics(features, claimed, max_tip_mps)
     if physics is not None:
-        terms["physics"] = physics
+        terms["physics"], compared = physics
     if probabilities and claimed.slug in probabilities:
         uav = [c for c in probabilities if c not in ("bird", "none")]
         prior = 1.0 / max(len(uav), 2)
         p = min(max(float(probabilities[claimed.slug]), 1e-6), 1.0 - 1e-6)
         odds = math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
         terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP, odds))
-    return Verification(llr=sum(terms.values()), terms=terms)
+    return Verification(llr=sum(terms.values()), terms=terms, compared=compared)

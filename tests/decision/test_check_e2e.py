@@ -121,6 +121,8 @@ def test_the_decision_carries_the_verification_of_the_registered_model(setup, ca
     v = genuine["radar"]["verification"]
     assert v["llr"] > 0 and set(v["terms"]) == {"physics", "classifier"}
     assert v["llr"] == pytest.approx(sum(v["terms"].values()), abs=1e-3)
+    rate = v["compared"]["flash_rate_hz"]  # what the physics compared, for the operator
+    assert rate["claimed"] == pytest.approx(80.0, abs=0.01) and 0.8 <= rate["measured"] / rate["claimed"] <= 1.2
     _, spoof = _check(db, files["type"], capsys)
     assert spoof["radar"]["verification"]["llr"] < 0 and spoof["reasons"] == ["radar-claim-inconsistent"]
 
