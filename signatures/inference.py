@@ -246,12 +246,13 @@ class Classifier:
         giving them, called only when the cascade runs the CNN for some row): every member and
         the open set run once over the batch, so a batch costs little more than one return."""
         X = self._x(features)
-        p, used = self.cascade_proba(X, rd_patches)
-        k = np.argmax(p, axis=1)
-        known = ~self.openset.unknown(X, k)
-        labels = [self.classes[ki] if kn else UNKNOWN for ki, kn in zip(k.tolist(), known.tolist())]
-        uav = [label not in NON_UAV_CLASSES for label in labels]
-        moving = self.moving_proba(X) >= 0.5 if any(uav) else np.zeros(len(X), bool)
+        if len(X) > 1:  # a batch: BLAS on one thread (signatures.threads: same values, no waiting threads)
+            from signatures.threads import one_blas_thread
+
+            with one_blas_thread():
+                p, used, k, known, labels, uav, moving = self._decide(X, rd_patches)
+        else:
+            p, used, k, known, labels, uav, moving = self._decide(X, rd_patches)
         out = []
         for i, label in enumerate(labels):
             ki = int(k[i])
@@ -260,6 +261,16 @@ class Classifier:
                                   probabilities={c: float(v) for c, v in zip(self.classes, p[i])},
                                   operational_state=state, used_cnn=bool(used[i]), nearest=self.classes[ki]))
         return out
+
+    def _decide(self, X: np.ndarray, rd_patches: np.ndarray | Callable[[], np.ndarray] | None):
+        """`predict_many`'s arrays: probabilities, CNN use, best class, known, labels, UAV, moving."""
+        p, used = self.cascade_proba(X, rd_patches)
+        k = np.argmax(p, axis=1)
+        known = ~self.openset.unknown(X, k)
+        labels = [self.classes[ki] if kn else UNKNOWN for ki, kn in zip(k.tolist(), known.tolist())]
+        uav = [label not in NON_UAV_CLASSES for label in labels]
+        moving = self.moving_proba(X) >= 0.5 if any(uav) else np.zeros(len(X), bool)
+        return p, used, k, known, labels, uav, moving
 
 
 def card_waveform(card: dict[str, Any]) -> Preset:

@@ -1,0 +1,67 @@
+"""One BLAS thread for the batch paths.
+
+A batch job runs one process per core (`batch_features._WORKERS`: one thread per scipy
+transform), but OpenBLAS starts a thread per core for every matrix product big enough (the
+kNN distances of a batch, the flash estimators' stacked products). On a machine whose other
+core is busy those threads wait for each other: measured on the shared 2-core machine, the
+`paper` batch of 256 (features + classifier) took 0.97 ms per return with the default BLAS
+threads and 0.72 ms with one (issue 19). The number of threads does not change a product's
+values (OpenBLAS splits the output among threads, not the sums).
+
+`one_blas_thread()` limits the loaded BLAS libraries to one thread for a block of code
+(threadpoolctl, a scikit-learn dependency; nothing happens without it). Its controller is made
+on first use (~15 ms, once per process), after numpy's BLAS is loaded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+
+__all__ = ["one_blas_thread"]
+
+_lock = threading.Lock()
+_controller = None
+_tried = False
+_active = 0  # blocks inside `one_blas_thread`
+_limiter = None
+
+
+def _get_controller():
+    global _controller, _tried
+    if not _tried:
+        with _lock:
+            if not _tried:
+                try:
+                    from threadpoolctl import ThreadpoolController
+
+                    controller = ThreadpoolController()
+                    _controller = controller if controller.select(user_api="blas").lib_controllers else None
+                except Exception:  # no threadpoolctl, or a library it cannot inspect: leave BLAS as it is
+                    _controller = None
+                _tried = True
+    return _controller
+
+
+@contextlib.contextmanager
+def one_blas_thread():
+    """The loaded BLAS libraries use one thread inside this block (a no-op without
+    threadpoolctl). The limit is process-wide: overlapping blocks of several threads share it,
+    set by the first to enter and lifted when the last leaves."""
+    global _active, _limiter
+    controller = _get_controller()
+    if controller is None:
+        yield
+        return
+    with _lock:
+        if _active == 0:
+            _limiter = controller.limit(limits=1, user_api="blas")
+        _active += 1
+    try:
+        yield
+    finally:
+        with _lock:
+            _active -= 1
+            if _active == 0 and _limiter is not None:
+                _limiter.restore_original_limits()
+                _limiter = None
