@@ -10,9 +10,11 @@ Layout: the cube stage (scaling, clutter suppression, range FFT, range profile) 
 blocks of rows through reused workspaces (`_CUBE_BLOCK_BYTES`: the passes over the cube
 are the cost floor, and fresh large arrays cost page faults), CFAR and gating once per
 `_SPECTRA_BYTES` of spectra; everything after it works on the (B, chirps, gate bins)
-slow-time gates of the whole batch. Only the columns the CNN patch needs are kept per row,
-and the patch itself is built lazily by `features._patch`. `cw` cubes (no range axis) go
-through the single-return path row by row.
+slow-time gates of the whole batch. The CNN patch is built lazily by `features._patch`, from
+the row's range spectrum computed again when it is asked for (`_PatchColumns`; a torch device
+keeps the patch columns instead). `extract_many` stacks no batch-sized input: each block of
+rows is stacked into a reused workspace (`_Stack`). BLAS runs on one thread
+(`signatures.threads`). `cw` cubes (no range axis) go through the single-return path row by row.
 
 FFT backends (`fft_backend`): 'scipy' by default, scipy's single-precision transforms with the
 cube stage in complex64 in place (subtract the slow-time mean, multiply by the float32 window,
