@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import astuple, dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 
 import numpy as np
@@ -94,7 +94,8 @@ class Features:
     detected: float
 
     def as_array(self) -> np.ndarray:
-        return np.array(astuple(self), dtype=np.float32)
+        # the fields' values as they are (`astuple` would deep-copy each float first: ~20 us)
+        return np.array([getattr(self, name) for name in FEATURE_NAMES], dtype=np.float32)
 
 
 FEATURE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Features))
