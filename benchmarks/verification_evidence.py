@@ -32,28 +32,14 @@ import numpy as np
 from authn.bench.decisions import CLAIM_SCENES
 from authn.bench.verification import UNVERIFIED, eer
 from authn.bench.worlds import WORLD_CATEGORIES, _pair
-from signatures import heldout
-from signatures import simulate as sim
+from signatures.accuracy import WORLDS, render_in_world
 from signatures.features import extract
 from signatures.heldout import unseen_profiles
 from signatures.inference import classifier_for
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import get_preset
-from signatures.sampling import NuisanceDistribution, sample_nuisance, sample_scene
+from signatures.sampling import sample_scene
 from signatures.verify import verify
-
-WORLDS = ("training", "randomised", "heldout")
-
-
-def _render(world: str, scene, preset, seed: int):
-    if world == "heldout":
-        rec, truth = heldout.simulate(scene, preset, seed)
-        return rec, truth.rotor_rate_hz
-    if world == "randomised":
-        nuisance, fields = sample_nuisance(np.random.default_rng(seed), NuisanceDistribution())
-        scene = scene.model_copy(update={"nuisance": nuisance, **fields})
-    rec, truth = sim.simulate(scene, preset, seed)
-    return rec, truth.rotor_rate_hz
 
 
 def collect(preset_name: str, snr: float, n: int, seed: int) -> list[dict]:
@@ -69,7 +55,7 @@ def collect(preset_name: str, snr: float, n: int, seed: int) -> list[dict]:
             scene = sample_scene(rng, profiles[flies], replace(CLAIM_SCENES, snr_db=snr))
             sim_seed = int(rng.integers(2**31))
             for world in WORLDS:
-                rec, rate = _render(world, scene, preset, sim_seed)
+                rec, rate, _, _ = render_in_world(world, scene, preset, sim_seed)
                 classifier = classifier or classifier_for(rec, None, "bench")
                 result = extract(rec, expected_range_m=scene.range_m)
                 pred = classifier.predict(result.as_array(), lambda: result.rd_patch) if result.detected else None

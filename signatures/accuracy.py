@@ -53,8 +53,11 @@ def scene_for(i: int, snr_db: float, rng: np.random.Generator) -> Scene:
                  radial_speed_mps=float(rng.uniform(-15, 15)) if moving else 0.0, snr_db=snr_db)
 
 
-def _render(world: str, scene: Scene, preset, seed: int):
-    """(recording, mean rotor rate flown, range at the first chirp, radial speed) of `scene` in `world`."""
+def render_in_world(world: str, scene: Scene, preset, seed: int):
+    """(recording, mean rotor rate flown, range at the first chirp, radial speed) of `scene` in
+    `world` (one of WORLDS)."""
+    if world not in WORLDS:
+        raise ValueError(f"world {world!r} is not one of {', '.join(WORLDS)}")
     if world == "heldout":
         from signatures import heldout
 
@@ -75,15 +78,13 @@ def _render(world: str, scene: Scene, preset, seed: int):
 def evaluate(preset_name: str, snr_db: float, n: int, seed: int = 0, world: str = "training") -> Row:
     """Accuracy of the estimators on n simulated UAV returns at one SNR in one world (the same
     scenes and seeds in every world)."""
-    if world not in WORLDS:
-        raise ValueError(f"world {world!r} is not one of {', '.join(WORLDS)}")
     preset = get_preset(preset_name)
     rng = np.random.default_rng([seed, int(round(snr_db * 10)) + 1000])
     det = flash = rotor = rng_ok = vel = rotors_ok = 0
     errs, rotors = [], []
     for i in range(n):
         scene = scene_for(i, snr_db, rng)
-        rec, rate, range_m, speed = _render(world, scene, preset, int(rng.integers(2**31)))
+        rec, rate, range_m, speed = render_in_world(world, scene, preset, int(rng.integers(2**31)))
         profile = scene.profile
         assert profile is not None
         result = extract(rec)

@@ -199,19 +199,19 @@ def _max_last(x: np.ndarray) -> np.ndarray:
 
 def _noise_level(e: np.ndarray) -> np.ndarray:
     """Per row of (rows, samples): `estimators._noise_level` (median + NOISE_MADS MADs), float64."""
-    med = _median_rows(e)
-    mad = _median_rows(np.abs(e - med[:, None]))
+    med = median_last(e)
+    mad = median_last(np.abs(e - med[:, None]))
     return med.astype(np.float64) + NOISE_MADS * 1.4826 * mad.astype(np.float64)
 
 
-def _median_rows(x: np.ndarray) -> np.ndarray:
-    """`stats.median` of every row: one partition at the upper middle; for an even length the
-    lower middle is the largest value below it (the same order statistic, ~4x faster)."""
-    half = x.shape[1] // 2
-    part = np.partition(x, half, axis=1)
-    if x.shape[1] % 2:
-        return part[:, half]
-    return (part[:, :half].max(axis=1) + part[:, half]) / 2
+def median_last(x: np.ndarray) -> np.ndarray:
+    """`stats.median(x, axis=-1)`, the same values: one partition at the upper middle; for an even
+    length the lower middle is the largest value below it (the same order statistic, ~4-6x faster)."""
+    half = x.shape[-1] // 2
+    part = np.partition(x, half, axis=-1)
+    if x.shape[-1] % 2:
+        return part[..., half]
+    return (part[..., :half].max(axis=-1) + part[..., half]) / 2
 
 
 def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.ndarray:
