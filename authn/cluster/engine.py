@@ -17,11 +17,17 @@ CONNECT_TIMEOUT_S = 30
 #: Times a task that raised is re-run; a task whose worker died is re-run by the scheduler
 #: itself (`distributed.scheduler.allowed-failures`, 3 by default).
 RETRIES = 2
-#: Dask settings of a local cluster's workers. The statistical profiler samples every task's
-#: stack every 10 ms under the GIL: 15-25 % of a worker's CPU time on a re-check (measured),
-#: and we never read its profiles. Set DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False on
-#: the workers of a real cluster for the same (docs/cluster.md).
-LOCAL_CONFIG = {"distributed.worker.profile.enabled": False}
+#: Dask settings of a local cluster's workers (set the same on the workers of a real cluster,
+#: docs/cluster.md):
+#: - the statistical profiler samples every task's stack every 10 ms under the GIL: 15-25 % of
+#:   a worker's CPU time on a re-check (measured), and we never read its profiles;
+#: - the nanny's MALLOC_TRIM_THRESHOLD_=65536 (set by Dask in every worker it spawns, to hand
+#:   freed memory back to the OS early) is left unset: setting it freezes glibc's mmap threshold
+#:   at 128 KiB, so every array larger than that (the batch's cubes, spectra, workspaces) is a
+#:   fresh mapping whose pages fault in on every use: measured on a 2,000-return re-check, 10x
+#:   the minor page faults of one process and +30-50 % CPU per worker (issue 19).
+LOCAL_CONFIG = {"distributed.worker.profile.enabled": False,
+                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 
 def _distributed() -> Any:

@@ -110,15 +110,16 @@ def recheck(checker: Any, args: CheckerArgs, paths: Sequence[Path], claims: Sequ
             task = progress.add_task(f"checking {len(paths)} returns on {workers} workers", total=len(paths))
             for result in run_partitions(client, checker, args, parts):
                 summary.replayed += result.replayed
-                for doc, code in result.items:
-                    summary.codes.append(code)
-                    if as_json:  # the JSON array of batch mode, streamed as partitions commit
-                        out.write(("[\n" if first else ",\n") + json.dumps(doc, indent=2))
-                        first = False
+                summary.codes.extend(result.codes)
+                if as_json and result.texts:  # the JSON array of batch mode, streamed as partitions commit
+                    out.write(("[\n" if first else ",\n") + ",\n".join(result.texts))
+                    first = False
+                for text, code in zip(result.texts, result.codes):
                     if code > 1:
+                        doc = json.loads(text)
                         print(f"error: {doc['file']}: {doc['error']}", file=sys.stderr)
                 out.flush()
-                progress.advance(task, len(result.items))
+                progress.advance(task, len(result.codes))
         summary.seconds = time.perf_counter() - t0
     if as_json:
         out.write(("[" if first else "\n") + "]\n")

@@ -10,6 +10,7 @@ in the log once, or none of it is. No Dask import here: the worker calls plain f
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,10 +40,23 @@ class Partition:
 @dataclass(frozen=True)
 class PartitionResult:
     key: str
-    #: per file, what `authn check DIR --json` prints for it and its exit code (0/1/2/3)
-    items: tuple[tuple[dict[str, Any], int], ...]
+    #: per file, the text `authn check DIR --json` prints for it (`json.dumps(doc, indent=2)`,
+    #: made on the worker: the encoder is pure Python with an indent, and the client, which
+    #: shares the machine with the workers in a local cluster, only writes the text)
+    texts: tuple[str, ...]
+    codes: tuple[int, ...]  # per file, its exit code (0/1/2/3)
     #: True when the key had already committed (a re-run after a worker died): nothing was checked
     replayed: bool = False
+
+    @classmethod
+    def of(cls, key: str, results: Any, replayed: bool = False) -> "PartitionResult":
+        items = [_item(r) for r in results]
+        return cls(key, tuple(json.dumps(doc, indent=2) for doc, _ in items), tuple(c for _, c in items), replayed)
+
+    @property
+    def items(self) -> tuple[tuple[dict[str, Any], int], ...]:
+        """Per file, its JSON object (decoded again) and exit code."""
+        return tuple((json.loads(t), c) for t, c in zip(self.texts, self.codes))
 
 
 _CHECKER: list[tuple[CheckerArgs, Checker]] = []  # this worker process's Checker and what built it
@@ -85,12 +99,12 @@ def check_partition(args: CheckerArgs, part: Partition) -> PartitionResult:
     checker = checker_for(args)
     done = batch_entries(checker.db, part.key)
     if done is not None:
-        return PartitionResult(part.key, tuple(_item(_from_entry(e)) for e in done), replayed=True)
+        return PartitionResult.of(part.key, [_from_entry(e) for e in done], replayed=True)
     batch = checker.evaluate_many([(Path(f), claim) for f, claim in zip(part.files, part.claims)])
     if batch.fault is not None:
         raise batch.fault
     checker.record(batch.items, idempotency_key=part.key)
-    return PartitionResult(part.key, tuple(_item(r) for r in batch.items))
+    return PartitionResult.of(part.key, batch.items)
 
 
 def record_lost(checker: Checker, part: Partition, error: str) -> PartitionResult:
@@ -102,4 +116,4 @@ def record_lost(checker: Checker, part: Partition, error: str) -> PartitionResul
     failures = [Failure(file, claim, f"cluster: {error}", EXIT_SYSTEM) for file, claim in zip(part.files, part.claims)]
     checker.record(failures, idempotency_key=part.key)  # writes nothing if the key committed
     committed = batch_entries(checker.db, part.key) or []
-    return PartitionResult(part.key, tuple(_item(_from_entry(e)) for e in committed))
+    return PartitionResult.of(part.key, [_from_entry(e) for e in committed])

@@ -75,6 +75,15 @@ def test_a_killed_worker_loses_no_entry(client, archive, registry_url) -> None:
     assert victim not in client.run(os.getpid).values()  # the kill happened: the nanny restarted it
 
 
+def test_local_workers_keep_glibc_dynamic_mmap_threshold(client) -> None:
+    """Dask's nanny would set MALLOC_TRIM_THRESHOLD_ in every worker, which fixes glibc's mmap
+    threshold at 128 KiB (fresh page faults for every batch array): the local cluster unsets it."""
+    if "MALLOC_TRIM_THRESHOLD_" in os.environ:  # the user's own setting is passed on, as Dask does
+        return
+    assert set(client.run(lambda: os.environ.get("MALLOC_TRIM_THRESHOLD_")).values()) == {None}
+    assert set(client.run(lambda: os.environ.get("OPENBLAS_NUM_THREADS")).values()) == {"1"}
+
+
 def test_cli_cluster_check_decides_as_batch_mode(archive, tmp_path, capsys) -> None:
     """`--cluster local` prints the JSON array of batch mode with the same decisions and exit code."""
     from authn.bench.decisions import register_identities
