@@ -99,13 +99,15 @@ class PeriodicityBatch:
 
 def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
                        range_bin_m: float, n_fft: int) -> FlashSeriesBatch:
-    """`estimators.flash_series` of every row of `slow` (B, chirps, bins) with its `body_hz[b]`."""
+    """`estimators.flash_series` of every row of `slow` (B, chirps, bins), or (B, chirps, windows,
+    bins) of sub-chirp windows, with its `body_hz[b]`."""
     slow = np.asarray(slow)
     body = np.asarray(body_hz, dtype=np.float64).reshape(-1)
-    if slow.ndim != 3 or body.size != slow.shape[0]:
-        raise SignaturesError(f"flash_series_batch needs slow (B, chirps, bins) and body_hz (B,), got "
+    if slow.ndim not in (3, 4) or body.size != slow.shape[0]:
+        raise SignaturesError(f"flash_series_batch needs slow (B, chirps, [windows,] bins) and body_hz (B,), got "
                               f"{slow.shape} and {body.shape}")
-    b_rows, n, n_bins = slow.shape
+    b_rows, n, n_bins = slow.shape[0], slow.shape[1], slow.shape[-1]
+    windows = slow.shape[2] if slow.ndim == 4 else 1
     dec = max(1, int(config.prf_hz // SERIES_RATE_HZ))
     m = (n // dec) * dec
     n_out = m // dec if m >= dec else n
@@ -120,7 +122,7 @@ def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarra
     field = np.empty((b_rows, n_pos, n), cdt) if keep_field else None
     rdt = np.empty(0, cdt).real.dtype
     field_peak = np.empty((b_rows, n), rdt) if keep_field else None
-    per_row = n * (n_bins * cdt.itemsize * 10 + n_pos * (cdt.itemsize + 16))
+    per_row = n * windows * (n_bins * cdt.itemsize * 10 + n_pos * (cdt.itemsize + 16))
     step = max(1, min(MEMORY_BUDGET_BYTES, CHUNK_BYTES) // max(per_row, 1))
     for a in range(0, b_rows, step):
         sl = slice(a, min(a + step, b_rows))
@@ -138,10 +140,11 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     """`estimators.flash_series` of a chunk of rows, written into the output views; returns the
     matched-filter field and its power's maximum over positions per chirp. Same
     expressions as the single path with a leading batch axis."""
-    g, n, n_bins = slow.shape
+    g, n, n_bins = slow.shape[0], slow.shape[1], slow.shape[-1]
+    windows = slow.shape[2] if slow.ndim == 4 else 1
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body * config.pri_s)[:, None] * t).astype(np.complex64)
-    z0 = slow * demod[:, :, None]
+    z0 = slow.reshape(g, n, windows * n_bins) * demod[:, :, None]
     length = max(3, int(round(HIGHPASS_S / config.pri_s)) | 1)
     if n > length:
         z = _highpass(z0, length)
@@ -153,8 +156,16 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
         z = _highpass(z0, length, ~strong)
     else:
         z = z0 - z0.mean(axis=1, keepdims=True)
+    filters = est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)
+    if slow.ndim == 4:  # each chirp: the window whose best position holds the most energy
+        z4 = z.reshape(g, n, windows, n_bins)
+        y4 = z4 @ filters  # (g, chirps, windows, positions)
+        pick = np.argmax((y4.real ** 2 + y4.imag ** 2).max(axis=3), axis=2)[:, :, None, None]
+        z = np.take_along_axis(z4, pick, axis=2)[:, :, 0]
+        y = np.take_along_axis(y4, pick, axis=2)[:, :, 0]
+    else:
+        y = z @ filters  # (g, chirps, positions)
     eb = _power(z).astype(np.float64)
-    y = z @ est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)  # (g, chirps, positions)
     py = _power(y)
     peak = _max_last(py)
     m = (n // dec) * dec

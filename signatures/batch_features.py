@@ -297,8 +297,10 @@ def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected:
         results[b] = F._empty(config, n_chirps, n_bins, within[b])
     if live.size:
         offsets = np.array([configs[b].range_offset_m for b in live])
+        window = est.subchirp_window(config, n_bins, domain)
+        sub = _subchirp_bins(iq, live, cube.peak_bin[live], labels, window) if window else None
         for b, r in zip(live, _slow_stage(cube, live, config, offsets, n_chirps, n_bins, suppress,
-                                                  fft_backend)):
+                                          fft_backend, sub, window)):
             results[b] = r
     return results  # type: ignore[return-value]
 
@@ -607,10 +609,30 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 
 # --- slow-time stage -----------------------------------------------------------------------------
 
+def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, labels: list[int],
+                   window: int) -> np.ndarray:
+    """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
+    windows, bins): the same products (the power-of-two scale that `prepared` leaves to apply
+    rides on the matrix, which is exact), one matrix product per row."""
+    n_chirps, n_samples = iq.shape[1:]
+    base = est.subchirp_matrix(n_samples, window)
+    out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
+    step = max(1, _CUBE_BLOCK_BYTES // (8 * n_chirps * n_samples))
+    for a in range(0, rows.size, step):
+        part = rows[a:a + step]
+        x, scale, _, _ = prepared(np.stack([np.asarray(iq[b]) for b in part.tolist()]),
+                                  [labels[b] for b in part.tolist()])
+        for j, b in enumerate(part.tolist()):
+            m = (est.subchirp_demod(n_samples, int(peak_bin[a + j]))[:, None] * base).astype(x.dtype)
+            out[a + j] = (x[j] @ (m * scale[j, 0, 0].astype(x.real.dtype))).reshape(out.shape[1:])
+    return out
+
+
 def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_chirps: int,
-                n_bins: int, suppress: bool, fft_backend: str) -> list[F.FeatureResult]:
+                n_bins: int, suppress: bool, fft_backend: str, sub: np.ndarray | None = None,
+                window: int = 0) -> list[F.FeatureResult]:
     """`features._features` of the rows `live` (not all-zero; range offsets `offsets`), vectorised
-    over rows."""
+    over rows; `sub`: their sub-chirp bins of `window` samples, where the waveform has them."""
     n = n_chirps
     slow = cube.slow[live]
     size = slow.shape[2]
@@ -643,6 +665,8 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     snr_db = cube.snr_db[live]
     snr = np.maximum(10.0 ** (snr_db / 10.0), 1e-3)
     range_mid = offsets + cube.peak_bin_frac[live] * bin_m
+    hover_bin = F.hover_range_bin(cube.profile[live], peak_bin, noise_bin)
+    range_est = np.where(hovering, offsets + hover_bin * bin_m, range_mid)
     range_std = bin_m * (0.05 + 1.0 / np.sqrt(snr))
 
     rel_bins = np.mod(np.arange(n)[None, :] - body_idx[:, None] + n // 2, n) - n // 2
@@ -680,7 +704,10 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     occupancy = occupied.mean(axis=1)
     tip, tip_std, aliased = _tip_speed(occupied, rel_bins, body_hz, config, dop_bin_hz)
 
-    per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
+    if sub is not None:
+        per = best.periodicity_batch(best.flash_series_batch(sub, config, body_hz, bin_m * n_bins / window, window))
+    else:
+        per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
     flash, flash_std = per.flash_rate_hz, per.flash_rate_std_hz
     rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
     has_length = (rotor > 0) & (tip > 0) & ~aliased
@@ -697,7 +724,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
         spectral_centroid_hz=centroid, spectral_bandwidth_hz=bandwidth, peak_amplitude_db=peak_db,
         num_peaks=n_peaks, energy_ratio=energy_ratio, entropy=entropy,
-        range_m=range_mid - velocity * dwell / 2.0, range_std_m=range_std,
+        range_m=range_est - velocity * dwell / 2.0, range_std_m=range_std,
         radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
         tip_speed_mps=tip, tip_speed_std_mps=tip_std, tip_aliased=aliased, doppler_occupancy=occupancy,
         snr_db=np.maximum(snr_db, -100.0), detected=cube.detected[live],

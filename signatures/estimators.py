@@ -22,6 +22,16 @@ sampled once per 44 us PRI varies by up to ~20 dB with where it falls between
 chirps, and energy-weighted autocorrelations then lock onto the few strongest
 flashes of different rotors (inter-rotor lags).
 
+Sub-chirp windows: where a ramp lasts over twice a flash's main lobe (`paper`: 44 us
+against ~18 us), the flash is a burst inside the ramp, and the Hann window of the whole
+chirp weighs it by where it falls: a flash near either end of the ramp almost vanishes
+and a blade-tip floor then buries it. The target's three range bins are taken instead
+from SUBCHIRP_WINDOWS shorter Hann windows (SUBCHIRP_SHARE of the ramp, spread evenly
+over it) and each chirp keeps the window whose best position holds the most energy:
+one sample per chirp as before (the period search is unchanged), but every flash seen
+near its peak. The bins are the full-chirp peak bin and its neighbours on the shorter
+window's coarser grid (`subchirp_bins`).
+
 Matched filter: the Hann-windowed range bins of a point scatterer have a known
 complex profile for each fractional position, and the window correlates the noise
 of neighbouring bins (-2/3 between adjacent ones). Summing |.|^2 over three bins
@@ -123,6 +133,13 @@ FLASH_LOBE_S = 18e-6
 #: rotor flashes once per period and per-rotor rates differ by a few per cent.
 GROUP_GAP_PERIODS = 0.03
 GROUP_GAP_SAMPLES = 3.0
+#: Sub-chirp windows (module docstring): this many, each this share of the ramp, where a ramp
+#: lasts at least SUBCHIRP_MIN_LOBES flash lobes. Three windows of 0.6 ramp were the best of
+#: 40-64 % windows, 2-5 of them, on the randomised world (docs/features.md).
+SUBCHIRP_WINDOWS = 3
+SUBCHIRP_SHARE = 0.6
+SUBCHIRP_MIN_LOBES = 2.0
+SUBCHIRP_BINS = 3
 
 
 @dataclass(frozen=True)
@@ -146,19 +163,65 @@ class FlashSeries:
     decimation: int = 1  # chirps per series sample
 
 
+def subchirp_window(config: RadarConfig, n_samples: int, domain: str = "if") -> int:
+    """Samples per sub-chirp window for IF cubes of this waveform; 0 where the whole chirp is
+    the window (a ramp shorter than SUBCHIRP_MIN_LOBES flash lobes, or no fast time)."""
+    if domain != "if" or config.ramp_s < SUBCHIRP_MIN_LOBES * FLASH_LOBE_S:
+        return 0
+    w = int(round(SUBCHIRP_SHARE * n_samples))
+    return w if SUBCHIRP_BINS <= w < n_samples else 0
+
+
+@lru_cache(maxsize=16)
+def subchirp_matrix(n_samples: int, window: int) -> np.ndarray:
+    """(n_samples, SUBCHIRP_WINDOWS * SUBCHIRP_BINS) complex64: column (i, c) is bin c - 1 of
+    the `window`-point unit-mean Hann FFT of window i (offsets spread evenly over the ramp).
+    Cached, read-only."""
+    offsets = np.round(np.linspace(0, n_samples - window, SUBCHIRP_WINDOWS)).astype(int)
+    m = np.arange(window)
+    cols = np.arange(SUBCHIRP_BINS) - SUBCHIRP_BINS // 2
+    kernel = hann(window)[:, None] * np.exp(-2j * math.pi * m[:, None] * cols[None, :] / window)
+    out = np.zeros((n_samples, SUBCHIRP_WINDOWS, SUBCHIRP_BINS), np.complex128)
+    for i, o in enumerate(offsets.tolist()):
+        out[o:o + window, i] = kernel
+    out = out.reshape(n_samples, -1).astype(np.complex64)
+    out.setflags(write=False)
+    return out
+
+
+def subchirp_demod(n_samples: int, peak_bin: int) -> np.ndarray:
+    """(n_samples,) complex64 fast-time demodulation that moves range bin `peak_bin` to 0."""
+    k = np.arange(n_samples)
+    return np.exp(-2j * math.pi * (peak_bin * k % n_samples) / n_samples).astype(np.complex64)
+
+
+def subchirp_bins(iq: np.ndarray, peak_bin: int, window: int) -> np.ndarray:
+    """(chirps, SUBCHIRP_WINDOWS, SUBCHIRP_BINS) complex64: the bins around `peak_bin` of each
+    sub-chirp window of the IF cube `iq` (module docstring), in its precision (complex64 at
+    least). Not clutter-suppressed: the flash series' high-pass removes everything static."""
+    n, n_samples = iq.shape
+    x = np.asarray(iq)
+    x = x if np.iscomplexobj(x) and x.dtype.itemsize >= 8 else x.astype(np.complex64)
+    m = (subchirp_demod(n_samples, peak_bin)[:, None] * subchirp_matrix(n_samples, window)).astype(x.dtype)
+    return (x @ m).reshape(n, SUBCHIRP_WINDOWS, SUBCHIRP_BINS)
+
+
 def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
                  range_bin_m: float, n_fft: int) -> FlashSeries:
     """Matched-filter energy of the fast-varying part of the target bins per (decimated) chirp.
 
     `slow` is (chirps x bins): adjacent bins of a Hann-windowed `n_fft`-point range
-    FFT, not windowed in slow time. The energy is the best position's (summed over a
-    decimation block); the series is that energy above a robust noise level (median +
-    NOISE_MADS MAD), clipped at 0.
+    FFT, not windowed in slow time; or (chirps x windows x bins) from sub-chirp windows of
+    `n_fft` points (`subchirp_bins`), each chirp then taking its best window's values. The
+    energy is the best position's (summed over a decimation block); the series is that
+    energy above a robust noise level (median + NOISE_MADS MAD), clipped at 0.
     """
     n = slow.shape[0]
+    windows = slow.shape[1] if slow.ndim == 3 else 1
+    n_bins = slow.shape[-1]
     t = np.arange(n)
     demod = np.exp(-2j * math.pi * body_hz * config.pri_s * t).astype(np.complex64)
-    z0 = slow * demod[:, None]
+    z0 = slow.reshape(n, windows * n_bins) * demod[:, None]
     length = max(3, int(round(HIGHPASS_S / config.pri_s)) | 1)
     if n > length:
         # two passes: the second moving average leaves out the flashes the first one
@@ -171,8 +234,15 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
         z = _highpass(z0, length, ~strong)
     else:
         z = z0 - z0.mean(axis=0, keepdims=True)
+    filters = matched_filters(n_bins, n_fft).conj().astype(z.dtype)
+    if slow.ndim == 3:  # each chirp: the window whose best position holds the most energy
+        z3 = z.reshape(n, windows, n_bins)
+        y3 = z3 @ filters  # (chirps, windows, positions)
+        pick = np.argmax((y3.real ** 2 + y3.imag ** 2).max(axis=2), axis=1)
+        z, y = z3[t, pick], y3[t, pick]
+    else:
+        y = z @ filters  # (chirps, positions)
     eb = (z.real ** 2 + z.imag ** 2).astype(np.float64)
-    y = z @ matched_filters(z.shape[1], n_fft).conj().astype(z.dtype)  # (chirps, positions)
     ey = (y.real ** 2 + y.imag ** 2).astype(np.float64)
     dec = max(1, int(config.prf_hz // SERIES_RATE_HZ))
     m = (n // dec) * dec

@@ -35,12 +35,15 @@ __all__ = ["FEATURE_NAMES", "FEATURE_VERSION", "GATE_BINS", "PATCH_SHAPE", "QUIC
 
 #: Bump when feature values change: training-set caches key on it, and
 #: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
-FEATURE_VERSION = "1"
+FEATURE_VERSION = "2"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
 PATCH_FLOOR_DB = -60.0
 BODY_BINS = 3  # Doppler bins either side of the body line that count as "body"
 MOVING_LINE_BINS = 6  # a moving body line's peak-to-median exceeds n_chirps / this (see _features)
+#: A hovering target's range: the centroid of the clutter-suppressed range profile (above its
+#: median) over the peak bin +- this many bins (`hover_range_bin`).
+HOVER_CENTROID_BINS = 3
 PEAK_PROMINENCE_DB = 6.0  # a significant Doppler peak rises this much above its surroundings
 PEAK_ABOVE_NOISE_DB = 6.0  # ... and this much above the noise level
 PEAK_PROFILE_BANDS = 128  # Doppler profile pooled to at most this many bands for peak counting
@@ -215,7 +218,8 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
     noise_bin = float(median(profile))  # mean noise power per chirp in one range bin
     noise_doppler = max(noise_bin * n_chirps * float(np.mean(rd.hann(n_chirps) ** 2)), _TINY)
     return _features(prep, config, spectrum, profile, det, gate, slow, power, raw_power,
-                     noise_doppler, clutter_suppression, stationary, quick, fft_backend)
+                     noise_doppler, clutter_suppression, stationary, quick, fft_backend,
+                     est.subchirp_window(config, n_bins, domain))
 
 
 def _range_spectrum(iq: np.ndarray, suppress_clutter: bool, domain: str,
@@ -283,7 +287,8 @@ def _window(centre: int, size: int, n: int) -> tuple[int, int]:
 def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, profile: np.ndarray,
               det: rd.Detection, gate: tuple[int, int], slow: np.ndarray, power: np.ndarray,
               raw_power: np.ndarray, noise_doppler: float, suppressed: bool,
-              stationary: float, quick: bool = False, fft_backend: str | None = None) -> FeatureResult:
+              stationary: float, quick: bool = False, fft_backend: str | None = None,
+              subchirp: int = 0) -> FeatureResult:
     n_chirps, n_bins = spectrum.shape
     bin_m = config.range_bin_m(n_bins)
     dop_bin_hz = config.prf_hz / n_chirps
@@ -305,6 +310,11 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
     dwell = n_chirps * config.pri_s
     snr = max(10.0 ** (det.snr_db / 10.0), 1e-3)
     range_mid = config.range_offset_m + det.peak_bin_frac * bin_m
+    if hovering:
+        hover_bin = hover_range_bin(profile[None, :], np.array([det.peak_bin]), np.array([float(median(profile))]))
+        range_est = config.range_offset_m + float(hover_bin[0]) * bin_m
+    else:
+        range_est = range_mid
     range_std = bin_m * (0.05 + 1.0 / math.sqrt(snr))
 
     # --- Doppler axis relative to the body (circular), in Hz --------------------
@@ -344,15 +354,19 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
         std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
         spectral_centroid_hz=centroid_hz, spectral_bandwidth_hz=bandwidth_hz, peak_amplitude_db=peak_db,
         num_peaks=float(n_peaks), energy_ratio=energy_ratio, entropy=entropy,
-        range_m=range_mid - velocity * dwell / 2.0, range_std_m=range_std,
+        range_m=range_est - velocity * dwell / 2.0, range_std_m=range_std,
         radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
         tip_speed_mps=tip, tip_speed_std_mps=tip_std, tip_aliased=float(aliased), doppler_occupancy=occupancy,
         snr_db=max(det.snr_db, -100.0), detected=float(det.detected))
     if quick:
         feats = Features(**{n: values.get(n, 0.0) for n in FEATURE_NAMES})
         return FeatureResult(det.detected, feats, _no_patch, gate)
-    centre_cols = slice(max(0, det.peak_bin - 1 - gate[0]), min(gate[1] - gate[0], det.peak_bin + 2 - gate[0]))
-    series = est.flash_series(slow[:, centre_cols], config, body_hz, bin_m, n_bins)
+    if subchirp:  # the peak bin and its neighbours from sub-chirp windows (estimators docstring)
+        sub = est.subchirp_bins(prep.iq, det.peak_bin, subchirp)
+        series = est.flash_series(sub, config, body_hz, bin_m * n_bins / subchirp, subchirp)
+    else:
+        centre_cols = slice(max(0, det.peak_bin - 1 - gate[0]), min(gate[1] - gate[0], det.peak_bin + 2 - gate[0]))
+        series = est.flash_series(slow[:, centre_cols], config, body_hz, bin_m, n_bins)
     per = est.periodicity(series)
     rotors = est.rotor_count(per)
     flash = per.flash_rate
@@ -382,6 +396,23 @@ def _features(prep: rd.Prepared, config: RadarConfig, spectrum: np.ndarray, prof
 def physics_estimates(rotors_seen: float, rotors_seen_std: float) -> dict[str, float]:
     """`FeatureResult.physics` from its estimates (one place for the single and batch paths)."""
     return {"rotors_seen": float(rotors_seen), "rotors_seen_std": float(rotors_seen_std)}
+
+
+def hover_range_bin(profile: np.ndarray, peak_bin: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """Per row of (rows, bins) range profiles: the hub range (fractional bin) of a hovering
+    target. Clutter suppression removes its body with the clutter, leaving the blades, whose
+    intra-chirp Doppler moves each blade's energy up to ~1.5 bins (`paper`) to one side or the
+    other of its hub: the profile's peak then sits on one blade side, while the centroid of
+    the power above the median (`noise`) over the peak +- HOVER_CENTROID_BINS balances the
+    two sides."""
+    n_bins = profile.shape[1]
+    cols = peak_bin[:, None] + np.arange(-HOVER_CENTROID_BINS, HOVER_CENTROID_BINS + 1)[None, :]
+    inside = (cols >= 0) & (cols < n_bins)
+    p = np.take_along_axis(profile, np.clip(cols, 0, n_bins - 1), axis=1).astype(np.float64)
+    w = np.where(inside, np.maximum(p - noise[:, None], 0.0), 0.0)
+    total = w.sum(axis=1)
+    centroid = (cols * w).sum(axis=1) / np.maximum(total, _TINY)
+    return np.where(total > 0, centroid, peak_bin.astype(np.float64))
 
 
 def _db(x: float) -> float:

@@ -32,10 +32,13 @@ from signatures.radar import C, Preset, RadarConfig
 from signatures.recording import RadarSite, Recording
 from signatures.scene import BirdParams, Nuisance, Scene
 
-SIMULATOR_VERSION = "1"  # bump when simulate() draws or computes different returns (cached datasets key on it)
+SIMULATOR_VERSION = "2"  # bump when simulate() draws or computes different returns (cached datasets key on it)
 DEFAULT_SITE = RadarSite(lat_deg=52.0, lon_deg=4.4, alt_m=2.0)
 DEFAULT_START = datetime(2026, 1, 1, 12, 0, 0, tzinfo=timezone.utc)
 HUB_TO_BODY_DB = -12.0  # each motor hub, relative to the fuselage point
+#: Scatterer amplitudes are re-evaluated this often within a ramp (a blade tip at 115 m/s
+#: turns its carrier phase by 0.15 cycle in 2.5 us at 77 GHz; a flash lasts ~18 us).
+SUBSTEP_S = 2.5e-6
 
 
 @dataclass(frozen=True)
@@ -247,6 +250,12 @@ def _bird_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
     return amps, np.zeros(2), truth
 
 
+def substeps(config: RadarConfig, n_samples: int) -> int:
+    """Sub-steps per chirp at which scatterer amplitudes are evaluated: one per SUBSTEP_S of
+    the ramp, at most one per fast-time sample."""
+    return int(min(n_samples, max(1, math.ceil(config.ramp_s / SUBSTEP_S - 1e-9))))
+
+
 def _cos_sin(phase: np.ndarray) -> np.ndarray:
     """exp(j*phase) for float32 phases, via cos/sin (much cheaper than complex exp)."""
     out = np.empty(phase.shape, dtype=np.complex64)
@@ -262,7 +271,11 @@ def _target_cube(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: in
     if scene.kind == "none":
         return None, Truth(label="none", range_m=0.0, radial_speed_mps=0.0, elevation_deg=0.0)
     maker = _uav_amplitudes if scene.kind == "uav" else _bird_amplitudes
-    amps, offsets, truth = maker(scene, t, lam, rng)
+    steps = substeps(config, n_samples)
+    first = (np.arange(steps) * n_samples) // steps  # each sub-step's first fast-time sample
+    t_sub = (t[:, None] + first[None, :] / config.sample_rate_hz).ravel()
+    amps, offsets, truth = maker(scene, t_sub, lam, rng)  # (n_chirps * steps, m)
+    amps = amps.reshape(n_chirps, steps, -1)
     nz = scene.nuisance
     accel = nz.radial_accel_mps2 if nz else 0.0
     # bulk translation: carrier phase in float64, wrapped, then everything in complex64
@@ -270,21 +283,24 @@ def _target_cube(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: in
                   2 * math.pi)
     if nz is not None and nz.phase_noise_rad:  # oscillator phase wander over the dwell
         bulk = bulk + np.cumsum(rng.normal(0.0, nz.phase_noise_rad, t.size))
-    amps = amps * np.exp(1j * bulk)[:, None]
+    amps = amps * np.exp(1j * bulk)[:, None, None]
     if nz is not None and nz.beam_taper_db:  # a scanning beam: two-way gain falls off to the edges
         u = (t - t.mean()) / max(float(t.mean()), 1e-12)
-        amps = amps * (10.0 ** (-nz.beam_taper_db * u * u / 20.0))[:, None]
+        amps = amps * (10.0 ** (-nz.beam_taper_db * u * u / 20.0))[:, None, None]
     amps = amps.astype(np.complex64)
     kappa = 2.0 * math.pi * 2.0 * config.slope_hz_per_s / C  # beat phase per metre per second
     tk = (np.arange(n_samples) / config.sample_rate_hz).astype(np.float32)
     g = _cos_sin(np.float32(kappa) * offsets.astype(np.float32)[:, None] * tk[None, :])  # (m, k)
-    if scene.radial_speed_mps == 0.0 and accel == 0.0:
-        beat = _cos_sin(np.float32(kappa * (scene.range_m - config.range_offset_m)) * tk)
-        cube = amps @ (g * beat[None, :])
-    else:
+    hovering = scene.radial_speed_mps == 0.0 and accel == 0.0
+    if hovering:
+        g = g * _cos_sin(np.float32(kappa * (scene.range_m - config.range_offset_m)) * tk)[None, :]
+    cube = np.empty((n_chirps, n_samples), dtype=np.complex64)
+    for s, (a, b) in enumerate(zip(first, [*first[1:], n_samples])):
+        cube[:, a:b] = amps[:, s, :] @ g[:, a:b]
+    if not hovering:
         rel = (scene.range_m - config.range_offset_m + scene.radial_speed_mps * t
                + 0.5 * accel * t * t).astype(np.float32)
-        cube = (amps @ g) * _cos_sin(np.float32(kappa) * rel[:, None] * tk[None, :])
+        cube *= _cos_sin(np.float32(kappa) * rel[:, None] * tk[None, :])
     power = float(np.vdot(cube, cube).real) / cube.size
     cube *= np.float32(1.0 / math.sqrt(max(power, 1e-30)))  # target power per IF sample = 1
     return cube, truth

@@ -47,7 +47,8 @@ def test_expected_range_gates_the_detection(returns):
     at = extract(rec, expected_range_m=400.0 + 6.0 * 600 * rec.config.pri_s / 2)
     assert at.detected and at.gate[0] <= 40 <= at.gate[1]
     away = extract(rec, expected_range_m=lo + 3.0)
-    assert not away.detected and away.gate[0] == 0
+    # the gate sits on the expected range (bin 3), wherever the noise peaks within +-2 bins of it
+    assert not away.detected and away.gate[0] <= 3 < away.gate[1]
     with pytest.raises(SignaturesError, match="outside the recorded window"):
         extract(rec, expected_range_m=hi + 10.0)
 

@@ -194,7 +194,7 @@ def test_wide_series_keeps_no_field(wide_gates):
 
 def test_bad_shapes_raise_one_line():
     config = get_preset("paper").config
-    with pytest.raises(SignaturesError, match="B, chirps, bins"):
+    with pytest.raises(SignaturesError, match=r"B, chirps, \[windows,\] bins"):
         be.flash_series_batch(np.zeros((600, 3), np.complex64), config, np.zeros(1), 0.1, 80)
     with pytest.raises(SignaturesError, match="body_hz"):
         be.flash_series_batch(np.zeros((2, 600, 3), np.complex64), config, np.zeros(3), 0.1, 80)
