@@ -16,8 +16,10 @@ their ratio, and the issue's must-show ratio cluster / (cores x single process),
 medians and per turn (the three configurations run back to back) with its median. A third
 configuration, `cores` independent `authn check` processes on interleaved slices of the
 files at once (one registry), is what the machine gives that many processes without Dask:
-on a shared machine the cluster is held to it, not to cores x single. The log key
-and STH files go to --dir, not the user's.
+on a shared machine the cluster is held to it, not to cores x single. Every process runs
+with one BLAS/OpenMP thread, as Dask's nanny starts each worker: the baseline is the same
+batched check path (`Checker.evaluate_many`, one audit transaction per commit) in one
+process on one core. The log key and STH files go to --dir, not the user's.
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ import tempfile
 import time
 from collections import Counter
 from pathlib import Path
+
+
+ONE_THREAD = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
 def _archive(folder: Path, n: int) -> list[Path]:
@@ -81,6 +86,10 @@ def main() -> None:
     tmp.mkdir(parents=True, exist_ok=True)
     os.environ.setdefault("AUTHN_LOG_KEY", str(tmp / "log.pem"))
     os.environ.setdefault("AUTHN_AUDIT_STH_LOG", str(tmp / "sth.jsonl"))
+    #: like with like: every configuration's processes get the single BLAS/OpenMP thread that
+    #: Dask's nanny gives each worker (distributed.nanny.pre-spawn-environ), so the one-process
+    #: baseline is one process on one core, as each worker is
+    os.environ.update({k: "1" for k in ONE_THREAD})
     from authn.bench.decisions import register_identities
 
     files = _archive(tmp / "returns", args.returns)
