@@ -84,6 +84,26 @@ def test_local_workers_keep_glibc_dynamic_mmap_threshold(client) -> None:
     assert set(client.run(lambda: os.environ.get("OPENBLAS_NUM_THREADS")).values()) == {"1"}
 
 
+def test_the_workers_dask_settings_in_the_docs_are_the_local_clusters() -> None:
+    """docs/cluster.md gives a real cluster's workers LOCAL_CONFIG as YAML."""
+    import re
+
+    import yaml
+
+    from authn.cluster.engine import LOCAL_CONFIG
+
+    text = (Path(__file__).parents[2] / "docs" / "cluster.md").read_text()
+    (block,) = re.findall(r"```yaml\n(.*?)```", text, re.S)
+
+    def flat(d: dict, prefix: str = "") -> dict:
+        out = {}
+        for k, v in d.items():
+            out.update(flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+        return out
+
+    assert flat(yaml.safe_load(block)) == LOCAL_CONFIG
+
+
 def test_cli_cluster_check_decides_as_batch_mode(archive, tmp_path, capsys) -> None:
     """`--cluster local` prints the JSON array of batch mode with the same decisions and exit code."""
     from authn.bench.decisions import register_identities
