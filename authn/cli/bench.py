@@ -18,6 +18,8 @@ def bench(
     preset: list[str] = typer.Option(["paper", "wide"], "--preset", help="Preset(s) to run (repeatable)."),
     n: int = typer.Option(100, "--n", min=1, help="Scenes per category and preset."),
     seed: int = typer.Option(7, "--seed", help="Seed of the scene draws."),
+    seeds: int = typer.Option(1, "--seeds", min=1, help="Identity claims over this many consecutive seeds from "
+                              "--seed, pooled (issue protocol: 10 seeds x 3 airframes x 100 claims: --seeds 10 --n 100)."),
     quick: bool = typer.Option(False, "--quick", help="CI-sized run: 12 scenes per category, paper preset."),
     with_latency: bool = typer.Option(True, "--latency/--no-latency", help="Also time cold and batch checks."),
     stress: bool = typer.Option(False, "--stress", help="Run the numerical stress suite instead (exit 1 unless clean)."),
@@ -66,6 +68,8 @@ def bench(
 
     Example: authn bench --worlds-only --world both --n 100 --plot docs/figures
 
+    Example: authn bench --worlds-only --world both --n 100 --seeds 10 --preset paper
+
     Example: authn bench --batch --plot docs/figures
     """
     from rich.console import Console
@@ -90,7 +94,8 @@ def bench(
         return
     n_claims = len(preset) * len(snr) * len(WORLD_CATEGORIES) * n * len(worlds)
     if worlds_only:
-        _worlds(tuple(preset), worlds, tuple(snr), n, seed, n_claims, plot_dir, as_json)
+        _worlds(tuple(preset), worlds, tuple(snr), n, tuple(range(seed, seed + seeds)), n_claims * seeds, plot_dir,
+                as_json)
         return
     from authn.bench import pareto, perf
     from authn.bench.variants import DWELL_DIVISORS
@@ -206,9 +211,9 @@ def _batch(presets: tuple[str, ...], quick: bool, seed: int, plot_dir: Path | No
     Console().print(batch_table(report))
 
 
-def _worlds(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,
-            total: int, plot_dir: Path | None, as_json: bool) -> None:
-    """Only the identity claims in the chosen worlds (`--worlds-only`)."""
+def _worlds(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float, ...], n: int,
+            seeds: tuple[int, ...], total: int, plot_dir: Path | None, as_json: bool) -> None:
+    """Only the identity claims in the chosen worlds (`--worlds-only`), pooled over `seeds`."""
     from rich.console import Console
     from rich.progress import Progress
 
@@ -216,12 +221,16 @@ def _worlds(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float
 
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("identity claims in " + " and ".join(worlds), total=total)
-        trials = run_worlds(presets, worlds, n, seed, snrs, progress=lambda k: progress.advance(task, k))
+        trials = [t for seed in seeds
+                  for t in run_worlds(presets, worlds, n, seed, snrs, progress=lambda k: progress.advance(task, k))]
     if plot_dir is not None:
         plot_dir.mkdir(parents=True, exist_ok=True)
         plot_worlds(trials, plot_dir)
     if as_json:
-        typer.echo(json.dumps({"worlds": summarise_worlds(trials), "n_per_category": n, "seed": seed}, indent=2))
+        doc = {"worlds": summarise_worlds(trials), "n_per_category": n * len(seeds), "seed": seeds[0]}
+        if len(seeds) > 1:
+            doc["seeds"] = list(seeds)
+        typer.echo(json.dumps(doc, indent=2))
         return
     _print_worlds(Console(), trials)
 

@@ -143,3 +143,14 @@ def test_bench_tables_fit_80_columns() -> None:
               for w in ("training", "heldout")]
     _fits(_render(worlds_table(trials)), ["type spoof", "unseen", "100.0%", "0.0%", "held-out sim"])
     _fits(_render(eer_table(trials)), ["type spoof", "0.0%", "training sim"])
+
+
+def test_cli_seeds_pool_the_claims(capsys) -> None:
+    """--seeds K runs the claims of K consecutive seeds and pools them (K x n per cell)."""
+    from authn.cli import main
+
+    assert main(["bench", "--worlds-only", "--world", "training", "--n", "1", "--seeds", "2", "--preset", "paper",
+                 "--snr", "20", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["seeds"] == [7, 8] and doc["n_per_category"] == 2
+    assert doc["worlds"]["decisions"]["paper"]["20"]["genuine"]["training"]["n"] == 2

@@ -76,6 +76,12 @@ def test_to_domain_is_pure_and_exact(scene_rec) -> None:
     assert cw_config(24e9, 1e-4).doppler_wavelength_m(1) == pytest.approx(299_792_458.0 / 24e9, rel=1e-12)
 
 
+#: Features computed from the flash series (or its rate).
+FLASH_DERIVED = {"flash_rate_hz", "flash_rate_std_hz", "rotor_rate_hz", "rotor_rate_std_hz", "rotor_count",
+                 "rotor_count_std", "blade_length_m", "blade_length_std_m", "flash_score", "flash_count",
+                 "flash_par_db", "cadence_peak_hz", "cadence_harmonic_ratio"}
+
+
 def test_range_round_trip_features_decision_and_range_evidence(scene_rec, flight, registry_db, cli, tmp_path,
                                                                 paper_classifier) -> None:
     c = scene_rec.config
@@ -89,8 +95,13 @@ def test_range_round_trip_features_decision_and_range_evidence(scene_rec, flight
     assert back.domain == "range" and np.array_equal(back.iq, cube)
     for name in ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz", "range_offset_m"):
         assert getattr(back.config, name) == pytest.approx(getattr(c, name), rel=1e-9, abs=1e-9), name
-    for name, x, y in zip(FEATURE_NAMES, extract(scene_rec).as_array(), extract(back).as_array()):
-        assert y == pytest.approx(x, rel=FEATURE_RTOL, abs=FEATURE_ATOL), name
+    # a range cube has no fast time: its flash series comes from whole-chirp bins, an IF cube's from
+    # sub-chirp windows (docs/features.md), so the flash-derived features may differ; the rest are equal
+    from_if, from_range = extract(scene_rec).features, extract(back).features
+    for name, x, y in zip(FEATURE_NAMES, from_if.as_array(), from_range.as_array()):
+        if name not in FLASH_DERIVED:
+            assert y == pytest.approx(x, rel=FEATURE_RTOL, abs=FEATURE_ATOL), name
+    assert from_range.flash_rate_hz == pytest.approx(from_if.flash_rate_hz, rel=0.05)
     original = write_recording(scene_rec, tmp_path / "if.h5")
     code_a, a = check_json(cli, registry_db, original)
     code_b, b = check_json(cli, registry_db, tmp_path / "range.h5")
