@@ -159,10 +159,12 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     filters = est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)
     if slow.ndim == 4:  # each chirp: the window whose best position holds the most energy
         z4 = z.reshape(g, n, windows, n_bins)
-        y4 = z4 @ filters  # (g, chirps, windows, positions)
-        pick = np.argmax((y4.real ** 2 + y4.imag ** 2).max(axis=3), axis=2)[:, :, None, None]
-        z = np.take_along_axis(z4, pick, axis=2)[:, :, 0]
-        y = np.take_along_axis(y4, pick, axis=2)[:, :, 0]
+        y4 = (z.reshape(g, n * windows, n_bins) @ filters).reshape(g, n, windows, -1)  # the single path's product
+        pick = np.argmax(_max_last(_power(y4)), axis=2)[:, :, None]  # the same floats as the single path's
+        z, y = z4[:, :, 0], y4[:, :, 0]
+        for w in range(1, windows):  # a gather by selects: cheaper than take_along_axis here
+            z = np.where(pick == w, z4[:, :, w], z)
+            y = np.where(pick == w, y4[:, :, w], y)
     else:
         y = z @ filters  # (g, chirps, positions)
     eb = _power(z).astype(np.float64)

@@ -612,20 +612,30 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, labels: list[int],
                    window: int) -> np.ndarray:
     """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
-    windows, bins): the same products (the power-of-two scale that `prepared` leaves to apply
-    rides on the matrix, which is exact), one matrix product per row."""
+    windows, bins): the same products, one matrix product per row. `rd.prepare`'s power-of-two
+    scale rides on the matrix (exact); a row of complex64 whose scale `prepared` would leave to
+    apply is read as it is, any other row goes through `prepared`."""
     n_chirps, n_samples = iq.shape[1:]
     base = est.subchirp_matrix(n_samples, window)
     out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
-    step = max(1, _CUBE_BLOCK_BYTES // (8 * n_chirps * n_samples))
-    for a in range(0, rows.size, step):
-        part = rows[a:a + step]
-        x, scale, _, _ = prepared(np.stack([np.asarray(iq[b]) for b in part.tolist()]),
-                                  [labels[b] for b in part.tolist()])
-        for j, b in enumerate(part.tolist()):
-            m = (est.subchirp_demod(n_samples, int(peak_bin[a + j]))[:, None] * base).astype(x.dtype)
-            out[a + j] = (x[j] @ (m * scale[j, 0, 0].astype(x.real.dtype))).reshape(out.shape[1:])
+    for j, b in enumerate(rows.tolist()):
+        row = np.asarray(iq[b])
+        exponent = _exponent(row) if row.dtype == np.complex64 else None
+        if exponent is not None and abs(exponent) <= _SAFE_EXPONENT:
+            x, s = row, math.ldexp(1.0, -exponent)
+        else:
+            xs, scale, _, _ = prepared(row[None], [labels[b]])
+            x, s = xs[0], float(scale[0, 0, 0])
+        m = (est.subchirp_demod(n_samples, int(peak_bin[j]))[:, None] * base) * np.float32(s)
+        out[j] = (x @ m).reshape(out.shape[1:])
     return out
+
+
+def _exponent(row: np.ndarray) -> int | None:
+    """`prepared`'s power-of-two exponent of a finite, non-zero complex64 cube (None otherwise)."""
+    flat = np.ascontiguousarray(row).view(np.float32)
+    peak = max(float(flat.max()), -float(flat.min()))
+    return int(np.frexp(peak)[1]) if math.isfinite(peak) and peak > 0.0 else None
 
 
 def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_chirps: int,

@@ -237,7 +237,7 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     filters = matched_filters(n_bins, n_fft).conj().astype(z.dtype)
     if slow.ndim == 3:  # each chirp: the window whose best position holds the most energy
         z3 = z.reshape(n, windows, n_bins)
-        y3 = z3 @ filters  # (chirps, windows, positions)
+        y3 = (z.reshape(n * windows, n_bins) @ filters).reshape(n, windows, -1)  # one product, not n
         pick = np.argmax((y3.real ** 2 + y3.imag ** 2).max(axis=2), axis=1)
         z, y = z3[t, pick], y3[t, pick]
     else:
