@@ -112,17 +112,20 @@ class ForestArrays:
                 or min(self.left.min(), self.right.min(), self.roots.min()) < 0 \
                 or max(self.left.max(), self.right.max(), self.roots.max()) >= n:
             raise SignaturesError(f"{path}: inconsistent tree arrays")
+        #: node i's children side by side, (right, left): the next node is child[2 i + go_left],
+        #: one gather where np.where over both children took three
+        self._child = np.stack([self.right, self.left], axis=1).ravel()
 
     def proba(self, X: np.ndarray) -> np.ndarray:
         # scikit-learn compares float32 features with float64 thresholds
-        Z = np.asarray(X, dtype=np.float32).astype(np.float64)
+        Z = np.ascontiguousarray(np.asarray(X, dtype=np.float32), dtype=np.float64)
         if self.feature.max() >= Z.shape[1]:
             raise SignaturesError(f"forest uses feature {self.feature.max()}, the vector has {Z.shape[1]}")
-        rows = np.arange(len(Z))[:, None]
+        flat, row = Z.ravel(), (np.arange(len(Z)) * Z.shape[1])[:, None]  # Z[r, f] is flat[row[r] + f]
         node = np.broadcast_to(self.roots, (len(Z), len(self.roots)))
         for _ in range(self.depth):
-            go_left = Z[rows, self.feature[node]] <= self.threshold[node]
-            node = np.where(go_left, self.left[node], self.right[node])
+            go_left = flat[row + self.feature[node]] <= self.threshold[node]
+            node = self._child[2 * node + go_left]
         return self.value[node].mean(axis=1)
 
 
