@@ -612,11 +612,10 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, labels: list[int],
                    window: int) -> np.ndarray:
     """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
-    windows, bins): the same products, one matrix product per row. `rd.prepare`'s power-of-two
-    scale rides on the matrix (exact); a row of complex64 whose scale `prepared` would leave to
-    apply is read as it is, any other row goes through `prepared`."""
-    n_chirps, n_samples = iq.shape[1:]
-    base = est.subchirp_matrix(n_samples, window)
+    windows, bins), row by row with the single path's function. `rd.prepare`'s power-of-two
+    scale rides on the demodulation (exact); a complex64 row whose scale `prepared` would leave
+    to apply is read as it is, any other row goes through `prepared`."""
+    n_chirps = iq.shape[1]
     out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
     for j, b in enumerate(rows.tolist()):
         row = np.asarray(iq[b])
@@ -626,8 +625,7 @@ def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarr
         else:
             xs, scale, _, _ = prepared(row[None], [labels[b]])
             x, s = xs[0], float(scale[0, 0, 0])
-        m = (est.subchirp_demod(n_samples, int(peak_bin[j]))[:, None] * base) * np.float32(s)
-        out[j] = (x @ m).reshape(out.shape[1:])
+        out[j] = est.subchirp_bins(x, int(peak_bin[j]), window, s)
     return out
 
 
