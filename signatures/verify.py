@@ -69,6 +69,8 @@ CLASSIFIER_CLIP = 3.0
 #: An estimate whose stated std exceeds this share of its value abstains.
 MAX_REL_STD = 1.0
 TERM_FLOOR = -8.0
+#: A reported ratio's log is capped here (e**700 is still a finite float).
+MAX_REPORTED_LOG = 700.0
 
 
 @dataclass(frozen=True)
@@ -123,7 +125,8 @@ def _physics(features: Mapping[str, float], claimed: UavProfile,
     rotors = _rotors(features, claimed)
     compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
     if blade is not None:  # tip speed over flash rate, over the claim's 2 pi L / N: at most 1.05
-        compared["blade_ratio"] = {"measured": math.exp(blade[0]), "claimed_max": BLADE_BAND[1]}
+        # capped for the report: a tip estimate against a near-zero rate can exceed a float's range
+        compared["blade_ratio"] = {"measured": math.exp(min(blade[0], MAX_REPORTED_LOG)), "claimed_max": BLADE_BAND[1]}
     if rotors is not None:
         compared["rotors"] = {"seen": float(features["rotors_seen"]), "claimed": float(claimed.rotors)}
     slips = SLIPS if float(features.get("tip_aliased", 0.0)) >= 0.5 else UNALIASED_SLIPS

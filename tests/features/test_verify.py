@@ -136,3 +136,15 @@ def test_the_physics_of_a_genuine_return_never_contradicts_its_claim(scale: floa
     rotors = P[slug].rotors - 1 if P[slug].rotors > 4 else P[slug].rotors
     seen = {**_seen(P[slug], scale, cos_el), **_rotors(rotors, 4 * rotors)}
     assert verify(seen, P[slug], max_tip_mps=WIDE_MAX_TIP).llr > 0
+
+
+def test_an_extreme_blade_ratio_is_reported_finite() -> None:
+    """Tips of 1e300 m/s against a flash rate of 1e-300 Hz (found by the property test above):
+    the score and the reported ratio stay finite, and the JSON encodes."""
+    import json
+
+    feats = {"flash_rate_hz": 1e-300, "flash_rate_std_hz": 1e-301, "tip_speed_mps": 1e300, "tip_speed_std_mps": 1e299,
+             "flash_score": 5.0, "tip_aliased": 0.0}
+    v = verify(feats, P["m300"], max_tip_mps=WIDE_MAX_TIP)
+    assert math.isfinite(v.llr) and math.isfinite(v.compared["blade_ratio"]["measured"])
+    json.dumps(v.to_json(), allow_nan=False)
