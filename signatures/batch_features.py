@@ -298,7 +298,7 @@ def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected:
     if live.size:
         offsets = np.array([configs[b].range_offset_m for b in live])
         window = est.subchirp_window(config, n_bins, domain)
-        sub = _subchirp_bins(iq, live, cube.peak_bin[live], labels, window) if window else None
+        sub = _subchirp_bins(iq, live, cube.peak_bin[live], cube.log2_scale[live], labels, window) if window else None
         for b, r in zip(live, _slow_stage(cube, live, config, offsets, n_chirps, n_bins, suppress,
                                           fft_backend, sub, window)):
             results[b] = r
@@ -609,31 +609,24 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 
 # --- slow-time stage -----------------------------------------------------------------------------
 
-def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, labels: list[int],
-                   window: int) -> np.ndarray:
+def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, log2_scale: np.ndarray,
+                   labels: list[int], window: int) -> np.ndarray:
     """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
     windows, bins), row by row with the single path's function. `rd.prepare`'s power-of-two
-    scale rides on the demodulation (exact); a complex64 row whose scale `prepared` would leave
-    to apply is read as it is, any other row goes through `prepared`."""
+    scale (the cube stage's `log2_scale`) rides on the demodulation, which is exact; a row that
+    `prepared` would scale itself (not complex64, or beyond its safe exponent) goes through it."""
     n_chirps = iq.shape[1]
     out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
     for j, b in enumerate(rows.tolist()):
         row = np.asarray(iq[b])
-        exponent = _exponent(row) if row.dtype == np.complex64 else None
-        if exponent is not None and abs(exponent) <= _SAFE_EXPONENT:
+        exponent = int(log2_scale[j])
+        if row.dtype == np.complex64 and abs(exponent) <= _SAFE_EXPONENT:
             x, s = row, math.ldexp(1.0, -exponent)
         else:
             xs, scale, _, _ = prepared(row[None], [labels[b]])
             x, s = xs[0], float(scale[0, 0, 0])
         out[j] = est.subchirp_bins(x, int(peak_bin[j]), window, s)
     return out
-
-
-def _exponent(row: np.ndarray) -> int | None:
-    """`prepared`'s power-of-two exponent of a finite, non-zero complex64 cube (None otherwise)."""
-    flat = np.ascontiguousarray(row).view(np.float32)
-    peak = max(float(flat.max()), -float(flat.min()))
-    return int(np.frexp(peak)[1]) if math.isfinite(peak) and peak > 0.0 else None
 
 
 def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_chirps: int,
