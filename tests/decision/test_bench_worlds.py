@@ -154,3 +154,12 @@ def test_cli_seeds_pool_the_claims(capsys) -> None:
     doc = json.loads(capsys.readouterr().out)
     assert doc["seeds"] == [7, 8] and doc["n_per_category"] == 2
     assert doc["worlds"]["decisions"]["paper"]["20"]["genuine"]["training"]["n"] == 2
+
+
+def test_cli_seeds_below_one_is_bad_input(capsys) -> None:
+    """Exit 2 naming the option (typer's range check: its usage box, as for --n, not one line)."""
+    from authn.cli import main
+
+    assert main(["bench", "--worlds-only", "--seeds", "0", "--n", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--seeds" in err and "greater than or equal to 1" in err
