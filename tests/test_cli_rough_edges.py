@@ -110,3 +110,21 @@ def test_simulate_refuses_an_unknown_domain_in_one_line(tmp_path: Path, capsys) 
     err = capsys.readouterr().err.strip()
     assert err.splitlines() == [err] and "--domain: 'fmcw' is not one of if, range, cw" in err
     assert not out.exists()
+
+
+def test_usage_errors_are_one_line_bad_input(capsys) -> None:
+    """Unknown options, commands, missing arguments and unparsable values exit 2 with one line
+    naming the command's help: no boxed usage text, no traceback."""
+    cases = {("check", "--bogus"): "authn check --help", ("nosuch",): "authn --help",
+             ("check",): "Missing argument", ("simulate", "--model", "m300", "--range", "abc"): "'--range'",
+             ("registry", "list", "--nope"): "authn registry list --help"}
+    for argv, needle in cases.items():
+        capsys.readouterr()
+        assert main(list(argv)) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1 and needle in err, (argv, err)
+
+
+def test_a_bare_group_still_prints_its_help(capsys) -> None:
+    assert main(["registry"]) == 2
+    assert "Usage" in capsys.readouterr().out

@@ -75,18 +75,44 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI and return the exit code (tests call this directly).
 
     Every exception ends here as one line on stderr: bad input exits 2, anything else
-    (database, policy engine, models, an unexpected bug) exits 3. Never a traceback.
+    (database, policy engine, models, an unexpected bug) exits 3. Never a traceback. A usage
+    error (unknown option, value out of range) is bad input too: one line naming the command's
+    help, not click's boxed usage text; a bare group (`authn registry`) still prints its help.
     """
     try:
         with handled(_raise_interrupted):
-            app(args=_global_options_first(sys.argv[1:] if argv is None else list(argv)), prog_name="authn")
+            code = app(args=_global_options_first(sys.argv[1:] if argv is None else list(argv)), prog_name="authn",
+                       standalone_mode=False)
+        return code if isinstance(code, int) else 0
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
+    except typer.Abort:
+        print("error: aborted", file=sys.stderr)
+        return 130
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes an exit code
+        if _is_usage_error(exc):
+            return _usage_error(exc)
         print(("error: " if isinstance(exc, AuthnException) else "") + describe(exc), file=sys.stderr)
         return exit_code_for(exc)
     return 0
+
+
+def _is_usage_error(exc: Exception) -> bool:
+    """click's ClickException family, whichever click raised it: typer >= 0.2x vendors its own
+    copy (`typer._click`, private), older ones use click's. Duck-typed on click's interface."""
+    return isinstance(getattr(exc, "exit_code", None), int) and callable(getattr(exc, "format_message", None))
+
+
+def _usage_error(exc: Exception) -> int:
+    """One line on stderr naming the command's help; a bare group's help as click prints it."""
+    if type(exc).__name__ == "NoArgsIsHelpError":
+        exc.show()  # type: ignore[attr-defined]
+        return int(exc.exit_code)  # type: ignore[attr-defined]
+    ctx = getattr(exc, "ctx", None)
+    where = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+    print(f"error: {' '.join(exc.format_message().split())}{where}", file=sys.stderr)  # type: ignore[attr-defined]
+    return int(exc.exit_code)  # type: ignore[attr-defined]
 
 
 def _global_options_first(argv: list[str]) -> list[str]:

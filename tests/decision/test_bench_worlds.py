@@ -157,9 +157,10 @@ def test_cli_seeds_pool_the_claims(capsys) -> None:
 
 
 def test_cli_seeds_below_one_is_bad_input(capsys) -> None:
-    """Exit 2 naming the option (typer's range check: its usage box, as for --n, not one line)."""
+    """Exit 2, one line naming the option (typer's range check, reported by `main`)."""
     from authn.cli import main
 
     assert main(["bench", "--worlds-only", "--seeds", "0", "--n", "1"]) == 2
     err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ")
     assert "--seeds" in err and "greater than or equal to 1" in err
