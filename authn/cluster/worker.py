@@ -53,11 +53,6 @@ class PartitionResult:
         items = [_item(r) for r in results]
         return cls(key, tuple(json.dumps(doc, indent=2) for doc, _ in items), tuple(c for _, c in items), replayed)
 
-    @property
-    def items(self) -> tuple[tuple[dict[str, Any], int], ...]:
-        """Per file, its JSON object (decoded again) and exit code."""
-        return tuple((json.loads(t), c) for t, c in zip(self.texts, self.codes))
-
 
 _CHECKER: list[tuple[CheckerArgs, Checker]] = []  # this worker process's Checker and what built it
 

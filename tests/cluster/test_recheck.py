@@ -17,6 +17,11 @@ from authn.cluster.worker import CheckerArgs, check_partition
 from registry.dbapi import Database
 
 
+def _items(result) -> list[tuple[dict, int]]:
+    """Per file of a PartitionResult, its JSON object (decoded again) and exit code."""
+    return [(json.loads(t), c) for t, c in zip(result.texts, result.codes)]
+
+
 def _entries_per_file(url: str) -> Counter:
     rows = Database(url).fetch("SELECT payload FROM audit_log")
     return Counter(json.loads(p)["file"] for (p,) in rows)
@@ -29,9 +34,9 @@ def test_rerunning_a_committed_partition_appends_nothing(registry_url, archive) 
     first = check_partition(CheckerArgs(checker.db.url), part)
     again = check_partition(CheckerArgs(checker.db.url), part)
     assert not first.replayed and again.replayed
-    assert [d["audit_id"] for d, _ in again.items] == [d["audit_id"] for d, _ in first.items]
-    assert [(d["decision"], d["reasons"], c) for d, c in again.items] == \
-        [(d["decision"], d["reasons"], c) for d, c in first.items]
+    assert [d["audit_id"] for d, _ in _items(again)] == [d["audit_id"] for d, _ in _items(first)]
+    assert [(d["decision"], d["reasons"], c) for d, c in _items(again)] == \
+        [(d["decision"], d["reasons"], c) for d, c in _items(first)]
     assert _entries_per_file(registry_url) == Counter(part.files)
     assert main(["--db", registry_url, "audit", "verify"]) == 0
 
@@ -66,10 +71,10 @@ def test_a_killed_worker_loses_no_entry(client, archive, registry_url) -> None:
             os.kill(victim, signal.SIGKILL)
     for key in lost:  # the partitions the dead worker held were run again
         assert sum(len(t) > 2 and t[2] == "processing" for t in client.story(key)) >= 2, key
-    files = [doc["file"] for r in results for doc, _ in r.items]
+    files = [doc["file"] for r in results for doc, _ in _items(r)]
     assert sorted(files) == sorted(str(p.resolve()) for p in archive)
     assert _entries_per_file(registry_url) == Counter(files)  # each file exactly once
-    assert sum(code > 1 for r in results for _, code in r.items) == 0
+    assert sum(code > 1 for r in results for _, code in _items(r)) == 0
     assert main(["--db", registry_url, "audit", "verify"]) == 0
     client.wait_for_workers(2, timeout=60)
     assert victim not in client.run(os.getpid).values()  # the kill happened: the nanny restarted it
@@ -161,7 +166,7 @@ def test_a_partition_that_fails_every_retry_is_audited_as_errors(client, archive
     parts = plan(archive[:4], [None] * 4, 2)
     args = CheckerArgs(checker.db.url, policy=str(tmp_path / "not-on-the-workers.cedar"))
     results = list(run_partitions(client, checker, args, parts))
-    items = [item for r in results for item in r.items]
+    items = [item for r in results for item in _items(r)]
     assert sorted(doc["file"] for doc, _ in items) == sorted(str(p.resolve()) for p in archive[:4])
     assert all(code == 3 and doc["error"].startswith("cluster: ") and "not-on-the-workers.cedar" in doc["error"]
                for doc, code in items)
