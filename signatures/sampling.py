@@ -106,7 +106,7 @@ class NuisanceDistribution:
 
     The defaults are the training distribution (docs/signal-model.md "Domain randomisation"):
     rotor rates +-15 % (hover against climb and payload), per-rotor spread up to 3 %, unequal
-    blades, tip scatterers, extra body points, radial acceleration, oscillator phase noise,
+    and coned blades, tip scatterers, extra body points, radial acceleration, oscillator phase noise,
     IQ imbalance, DC offset, ADC resolution, a scanning beam and moving clutter.
     """
 
@@ -125,6 +125,7 @@ class NuisanceDistribution:
     adc_bits: tuple[int | None, ...] = (None, 10, 12, 14)
     beam_taper_db: Span = (0.0, 3.0)
     clutter_spread_mps: Span = (0.0, 0.5)
+    blade_cone_deg: Span = (0.0, 4.0)
 
 
 def sample_nuisance(rng: np.random.Generator, dist: NuisanceDistribution) -> tuple[Nuisance, dict[str, float]]:
@@ -140,6 +141,8 @@ def sample_nuisance(rng: np.random.Generator, dist: NuisanceDistribution) -> tup
                   beam_taper_db=u(dist.beam_taper_db), clutter_spread_mps=u(dist.clutter_spread_mps))
     scene_fields = dict(rotor_rate_jitter=u(dist.rotor_rate_jitter), attitude_wobble_deg=u(dist.attitude_wobble_deg),
                         blade_to_body_db=u(dist.blade_to_body_db))
+    # drawn last, so that every earlier draw is what it was before this knob existed
+    nz = nz.model_copy(update={"blade_cone_deg": u(dist.blade_cone_deg)})
     return nz, scene_fields
 
 

@@ -42,6 +42,8 @@ class Nuisance(BaseModel):
                               description="an extra point scatterer at each blade tip, relative to the blade")
     body_scatterers: int = Field(default=0, ge=0, le=12, description="extra body points (arms, gear, payload)")
     radial_accel_mps2: float = Field(default=0.0, ge=-20, le=20)
+    blade_cone_deg: float = Field(default=0.0, ge=0, le=10,
+                                  description="blades coned up out of the rotor plane by their lift")
     # --- the radar
     phase_noise_rad: float = Field(default=0.0, ge=0, le=0.5, description="random-walk phase step per chirp")
     iq_gain_imbalance: float = Field(default=0.0, ge=0, le=0.3, description="relative Q-channel gain error")

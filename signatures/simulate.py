@@ -167,10 +167,10 @@ def _uav_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
     hubs = np.stack([0.5 * p.propeller_distance_m * np.cos(arm_angle),
                      0.5 * p.propeller_distance_m * np.sin(arm_angle), z], axis=1)  # (r, 3)
     hub_proj = w @ hubs.T  # (n, r) LOS offset of each hub
+    nz = scene.nuisance
     # rotors: alternating spin, independent phases, small rate jitter
     jitter = np.clip(rng.normal(0, scene.rotor_rate_jitter, p.rotors), -3 * scene.rotor_rate_jitter,
                      3 * scene.rotor_rate_jitter)
-    nz = scene.nuisance
     rates = p.rotor_rate_hz * (nz.rotor_rate_scale if nz else 1.0) * (1.0 + jitter)
     spin = np.where(np.arange(p.rotors) % 2 == 0, 1.0, -1.0)
     phase0 = rng.uniform(0, 2 * math.pi, p.rotors)
@@ -178,6 +178,9 @@ def _uav_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
     theta = (phase0[None, :, None] + spin[None, :, None] * 2 * math.pi * rates[None, :, None] * t[:, None, None]
              + blade_off[None, None, :])  # (n, r, b)
     dir_proj = w[:, None, None, 0] * np.cos(theta) + w[:, None, None, 1] * np.sin(theta)
+    cone = math.radians(nz.blade_cone_deg) if nz is not None else 0.0
+    if cone:  # blades coned up by their lift: seen off the rotor plane, a rotor's two blades flash apart
+        dir_proj = math.cos(cone) * dir_proj + math.sin(cone) * w[:, None, None, 2]
     per_blade = _line_integral(hub_proj[:, :, None], dir_proj, p.blade_length_m, wavelength)  # (n, r, b)
     k = 4.0 * math.pi / wavelength
     hub_pts = np.exp(1j * np.mod(k * hub_proj, 2 * math.pi))  # motor hubs as points
