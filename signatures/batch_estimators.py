@@ -37,8 +37,8 @@ from signatures.errors import SignaturesError
 from signatures.estimators import (
     COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, FLASH_LOBE_S, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
     FULL_VOTE_DB, HALF_LLR, HALF_SHARE_CAP, HIGHPASS_S, MIN_OVERLAP, MIN_VOTE_WEIGHT, NOISE_MADS,
-    MATCH_TOL_FRACTION, POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB,
-    SKIRT_REACH, SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
+    POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
+    SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.radar import RadarConfig
 
 __all__ = ["MEMORY_BUDGET_BYTES", "FlashSeriesBatch", "PeriodicityBatch", "flash_series_batch",
@@ -492,8 +492,7 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out:
         return
     ti, tj = times[gi, ii], times[gi, jj]
     span = np.abs(tj - ti)
-    # |span - L| <= TOL_SAMPLES + TOL_FRACTION L  =>  L in [(span - TOL_SAMPLES) / (1 + TOL_FRACTION),
-    # (span + TOL_SAMPLES) / (1 - TOL_FRACTION)]; one lag
+    # |span - L| <= TOL_SAMPLES + TOL_FRACTION L  =>  L in [(span - 1) / 1.01, (span + 1) / 0.99]; one lag
     # of margin either side for rounding: the exact test below decides
     first = np.maximum(np.ceil((span - TOL_SAMPLES) / (1.0 + TOL_FRACTION)) - 1.0, lag0)
     last = np.minimum(np.floor((span + TOL_SAMPLES) / (1.0 - TOL_FRACTION)) + 1.0, lag1)
@@ -667,22 +666,27 @@ def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, va
 def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndarray, rate_hz: float,
             n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The tail of `estimators.periodicity` for a group: rate, rate std, score, phases, tolerance
-    (in periods), period (series samples). The lag refined and matched again closely where that
-    matches anything, as the single path; the score counts the search's pairs. Mean and std of the matched intervals run per match count
-    (numpy's pairwise sums depend on the length); the scalar tail in Python floats, as the single path."""
+    (in periods), period (series samples). Mean and std of the matched intervals run per match count (numpy's pairwise
+    sums depend on the length); the scalar tail in Python floats, as the single path."""
     g, k = times.shape
     diff = times[:, None, :] - times[:, :, None]
-    intervals, matched, mult = _matched_intervals(diff, lag0, TOL_FRACTION)  # the score's pairs
-    n_matched, mean, spread = _interval_stats(intervals, matched, lag0)
-    narrow_intervals, narrow, _ = _matched_intervals(diff, mean, MATCH_TOL_FRACTION)
-    use = (n_matched > 0) & narrow.any(axis=(1, 2))
-    lag0 = np.where(use, mean, lag0)
-    kept = np.where(use[:, None, None], narrow, matched)
-    n_matched, mean, spread = _interval_stats(np.where(use[:, None, None], narrow_intervals, intervals), kept, lag0)
+    l3 = lag0[:, None, None]
+    mult = np.round(diff / l3)
+    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * l3) <= TOL_SAMPLES + TOL_FRACTION * mult * l3)
+    intervals = diff / np.maximum(mult, 1)
+    n_matched = matched.sum(axis=(1, 2))
+    mean = lag0.copy()
+    spread = np.full(g, np.nan)
+    for m in np.unique(n_matched[n_matched > 0]).tolist():
+        sel = np.flatnonzero(n_matched == m)
+        vals = intervals[sel][matched[sel]].reshape(sel.size, m)
+        mean[sel] = vals.mean(axis=1)
+        if m > 1:
+            spread[sel] = vals.std(axis=1)
     rate, std, tol = np.empty(g), np.empty(g), np.empty(g)
     for b, (period, lag, scatter, count) in enumerate(zip(mean.tolist(), lag0.tolist(), spread.tolist(),
                                                          n_matched.tolist())):
-        tol0 = TOL_SAMPLES + MATCH_TOL_FRACTION * lag
+        tol0 = TOL_SAMPLES + TOL_FRACTION * lag
         if count <= 1:
             scatter = tol0
         period_std = math.sqrt(scatter ** 2 + 1.0 / 12.0) / math.sqrt(max(count, 1))
@@ -696,31 +700,6 @@ def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndar
     score = (np.sum(matched & same_place & (mult == 1), axis=(1, 2))
              + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2), axis=(1, 2)))
     return rate, std, score.astype(float), phases, tol, mean
-
-
-def _matched_intervals(diff: np.ndarray, lag: np.ndarray, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`estimators._matched_intervals` per row (`lag` (g,)), unmasked: intervals over their
-    multiple, matched mask, multiples."""
-    l3 = lag[:, None, None]
-    mult = np.round(diff / l3)
-    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * l3) <= TOL_SAMPLES + fraction * mult * l3)
-    return diff / np.maximum(mult, 1), matched, mult
-
-
-def _interval_stats(intervals: np.ndarray, matched: np.ndarray,
-                    lag: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per row: matched count, mean of the matched intervals (`lag` where none), their std (NaN
-    below two), run per match count as the single path's 1-D means."""
-    n_matched = matched.sum(axis=(1, 2))
-    mean = lag.astype(np.float64).copy()
-    spread = np.full(lag.shape[0], np.nan)
-    for m in np.unique(n_matched[n_matched > 0]).tolist():
-        sel = np.flatnonzero(n_matched == m)
-        vals = intervals[sel][matched[sel]].reshape(sel.size, m)
-        mean[sel] = vals.mean(axis=1)
-        if m > 1:
-            spread[sel] = vals.std(axis=1)
-    return n_matched, mean, spread
 
 
 def _rotor_count(phases: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -79,18 +79,9 @@ POSITION_TOL_BINS = 0.3
 #: A period needs this share of the series overlapping itself.
 MIN_OVERLAP = 1.0 / 3.0
 #: Partner tolerance (series samples): TOL_SAMPLES + TOL_FRACTION * lag (timing +-0.5
-#: sample; per-rotor rates differ by up to 3 % std, and coned blades seen off the rotor
-#: plane flash apart by up to ~3 % of the period, alternately early and late). 3 % was the
-#: best of 1-4 % on the randomised world, training world unchanged (docs/features.md).
+#: sample, per-rotor rate spread 0.5 % std).
 TOL_SAMPLES = 1.0
-TOL_FRACTION = 0.03
-#: Once the lag is chosen (the centre of a plateau as wide as the search's tolerance), the mean
-#: of the intervals matching its multiples within that tolerance refines it, and the period is
-#: the mean of those within TOL_SAMPLES + MATCH_TOL_FRACTION * (multiple x lag) of the refined
-#: one's multiples (where there are any), and rotor phases (`rotor_count`) group within that
-#: tolerance: the search's margin for rate spread and coning would let other rotors' intervals
-#: bias the period and merge distinct rotors. The score counts the search's pairs.
-MATCH_TOL_FRACTION = 0.01
+TOL_FRACTION = 0.01
 #: Events this many dB above the detection threshold vote fully; weaker ones (possibly
 #: noise) proportionally less, down to MIN_VOTE_WEIGHT.
 FULL_VOTE_DB = 10.0
@@ -107,9 +98,10 @@ SECOND_PERIOD_GAIN = 0.3
 SUBHARMONIC_MIN_FOUND = 3
 #: ... unless the half's share falls below the lag's by more than this many standard errors
 #: (a chance alignment of some rotors repeats less reliably than the true period). Not 2: a
-#: rotor's weaker blade (unequal, coned) flashes less reliably than the same blade a turn
-#: later, so a true half fails more checks than its double; 3 was chosen on the randomised
-#: world (`wide` flash rate within 5 % 81/80 -> 88/85 %, training unchanged).
+#: rotor's weaker blade (unequal blades; coned ones seen off the rotor plane flash apart, each
+#: alone) flashes less reliably than the same blade a turn later, so a true half fails more
+#: checks than its double. 3 was chosen on the randomised world (`wide` flash rate within 5 %
+#: 81/80 -> 88/85 % at 0/10 dB, training world unchanged; docs/features.md).
 SUBHARMONIC_Z = 3.0
 #: Flash events: local maxima within +-EVENT_RADIUS series samples, and above the sinc
 #: skirt of every stronger event within SKIRT_REACH samples: SKIRT_DB - 20 log10(distance).
@@ -325,7 +317,7 @@ class Periodicity:
     score: float  # matched flash pairs at the chosen period (0 = no periodicity)
     n_events: int  # flashes found in the dwell
     phases: np.ndarray  # flash times modulo the period, in periods [0, 1)
-    tolerance: float  # matching tolerance in periods (MATCH_TOL_FRACTION)
+    tolerance: float  # matching tolerance in periods
     flash_par_db: float  # peak-to-average power ratio of the flash series (impulsiveness)
     rotors_seen: Estimate = Estimate(0.0, 0.0)  # distinct flashes per flash period (`rotors_seen`)
 
@@ -599,13 +591,11 @@ def periodicity(series: FlashSeries) -> Periodicity:
             lag0 /= 2.0  # once: the event vote errs by one missed flash between two
     else:
         lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0)
+    tol0 = TOL_SAMPLES + TOL_FRACTION * lag0
     diff = times[None, :] - times[:, None]  # (k, k): t_j - t_i
-    periods, matched, mult = _matched_intervals(diff, lag0, TOL_FRACTION)  # the score's pairs
-    if periods.size:  # the search's lag is a plateau's centre: refine it, then match closely
-        narrow = _matched_intervals(diff, float(periods.mean()), MATCH_TOL_FRACTION)[0]
-        if narrow.size:
-            lag0, periods = float(periods.mean()), narrow
-    tol0 = TOL_SAMPLES + MATCH_TOL_FRACTION * lag0
+    mult = np.round(diff / lag0)
+    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * lag0) <= TOL_SAMPLES + TOL_FRACTION * mult * lag0)
+    periods = (diff / np.maximum(mult, 1))[matched]
     period = float(periods.mean()) if periods.size else float(lag0)
     scatter = float(periods.std()) if periods.size > 1 else tol0
     period_std = math.sqrt(scatter ** 2 + 1.0 / 12.0) / math.sqrt(max(periods.size, 1))
@@ -617,16 +607,7 @@ def periodicity(series: FlashSeries) -> Periodicity:
     score = float(np.sum(matched & same_place & (mult == 1))
                   + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2)))
     return Periodicity(Estimate(rate, rate * period_std / period), score, int(k), phases,
-                       tol0 / period, par_db,
-                       rotors_seen(flash_groups(times, period), period, n))
-
-
-def _matched_intervals(diff: np.ndarray, lag: float, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(intervals over their multiple, matched mask, multiples) of the event pairs whose interval
-    lies within TOL_SAMPLES + fraction x (multiple x lag) of a multiple of `lag`."""
-    mult = np.round(diff / lag)
-    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * lag) <= TOL_SAMPLES + fraction * mult * lag)
-    return (diff / np.maximum(mult, 1))[matched], matched, mult
+                       tol0 / period, par_db, rotors_seen(flash_groups(times, period), period, n))
 
 
 def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, valid_n: np.ndarray,

@@ -57,10 +57,8 @@ def test_coherent_checks_only_where_a_flash_fits_in_one_pri():
     assert times.size >= 1 and est._coherent(s, times) is None  # 6.25 us PRI: flashes span chirps
 
 
-def test_coherent_hit_needs_the_same_profile_and_phase_up_to_sign(monkeypatch):
+def test_coherent_hit_needs_the_same_profile_and_phase_up_to_sign():
     paper = get_preset("paper")
-    # windows of +-(1 + 0.01 lag): +-4 samples around 400 hold no noise hit of this seed (one at 391)
-    monkeypatch.setattr(est, "TOL_FRACTION", 0.01)
     # strong flash at 100; a weak same-hub flash one "period" later (sign flipped: sinc sidelobe);
     # an equally weak flash in quadrature at 400 (another rotor's random phase)
     flashes = [(100, 30.0, 0.3), (295, 4.0, 0.3 + np.pi), (400, 4.0, 0.3 + np.pi / 2)]
