@@ -28,7 +28,7 @@ PLAIN = NuisanceDistribution(
     rotor_rate_scale=(1, 1), rotor_rate_jitter=(0.005, 0.005), attitude_wobble_deg=(1, 1),
     blade_to_body_db=(-13, -7), blade_rcs_spread=(0, 0), tip_weight=(0, 0), body_scatterers=(0, 0),
     radial_accel_mps2=(0, 0), phase_noise_rad=(0, 0), iq_gain_imbalance=(0, 0), iq_phase_imbalance_deg=(0, 0),
-    dc_offset=(0, 0), adc_bits=(None,), beam_taper_db=(0, 0), clutter_spread_mps=(0, 0))
+    dc_offset=(0, 0), adc_bits=(None,), beam_taper_db=(0, 0), clutter_spread_mps=(0, 0), blade_cone_deg=(0, 0))
 
 
 def run(preset: str, n: int, knobs: list[str], tip_weight: tuple[float, float] | None) -> None:
