@@ -24,11 +24,12 @@ from tests.features.conftest import sim
 RTOL = 1e-3
 ATOL = 1e-6  # for values that are 0
 
-#: Fixed scenes (tests/features/conftest.py `sim`: paper preset, 400 m, 10 dB).
+#: Fixed scenes (tests/features/conftest.py `sim`: paper preset unless named, 400 m, 10 dB).
 SCENES = {
     "m300_moving": dict(radial_speed_mps=6.0, seed=1),
     "m600_hover": dict(model="m600", radial_speed_mps=0.0, seed=2),
     "bird": dict(kind="bird", model=None, radial_speed_mps=4.0, seed=3),
+    "phantom4_wide_hover": dict(model="phantom4", preset="wide", radial_speed_mps=0.0, seed=5),  # from version 3
 }
 
 #: (FEATURE_VERSION, SIMULATOR_VERSION) -> scene -> `extract(rec).as_array()` (FEATURE_NAMES order).
@@ -53,18 +54,13 @@ GOLDEN_FEATURES = {
         "bird": (400.1, 3.61, 0.5861, 1.235, 23.94, 1324, 1284, 91.54, 2, 0.8769, 0.3347, 400, 0.09335, 3.857,
                  0.004051, 0, 0, 0, 0, 0, 0, 2.137, 1.77, 0, 0, 0, 0, 0, 0, 0.09167, 1506, 0, 27.25, 1),
     },
-    # FEATURE_VERSION 3 changed the flash period's half rule, which `paper` (coherent checks) does not use
-    ("3", "2"): {
-        "m300_moving": (400.3, 5.989, 0.8364, 6.711, 23.19, 5509, 3224, 90.63, 2, 0.7077, 0.508, 400.1, 0.1001, 6.001,
-                        0.006323, 79.74, 0.2028, 39.87, 0.1014, 4, 0, 16.1, 0, 0, 0, 1, 5.3, 9, 19.57, 1, 77.25,
-                        0.9905, 25.99, 1),
-        "m600_hover": (400.2, -0.1511, 1.293, 12.45, 13.67, 5744, 3288, 72.85, 4, 0.06437, 0.9377, 400.1, 0.2348,
-                       -0.006639, 0.005186, 73.61, 0.2627, 36.81, 0.1314, 6, 0.5, 22.1, 0, 0, 0, 1, 5, 11, 19.2, 1,
-                       309, 1, 14.66, 1),
-        "bird": (400.1, 3.61, 0.5861, 1.235, 23.94, 1324, 1284, 91.54, 2, 0.8769, 0.3347, 400, 0.09335, 3.857,
-                 0.004051, 0, 0, 0, 0, 0, 0, 2.137, 1.77, 0, 0, 0, 0, 0, 0, 0.09167, 1506, 0, 27.25, 1),
-    },
 }
+# FEATURE_VERSION 3 changed the flash period's half rule, which `paper` (coherent checks) does not use;
+# it adds a `wide` scene, so that a change to `wide` alone needs a bump too
+GOLDEN_FEATURES[("3", "2")] = {**GOLDEN_FEATURES[("2", "2")],
+    "phantom4_wide_hover": (400, -0.1199, 0.7024, 62.91, 20.65, 28130, 16620, 90.07, 1, 0.01989, 0.8636, 400,
+                            0.1702, -0.001378, 0.002057, 116.8, 0.0777, 58.42, 0.03885, 4, 0.5, 108.8, 0.03802,
+                            0.2963, 0.0002226, 0, 25.1, 22, 17.52, 0.6987, 235.8, 0.5404, 18.39, 1)}
 
 SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
                      "|lag-1 slow-time autocorrelation|", "its phase (rad)", "peak range bin", "peak range power")
