@@ -132,17 +132,17 @@ def sample_nuisance(rng: np.random.Generator, dist: NuisanceDistribution) -> tup
     """One draw of `dist`: the `Nuisance` and the scene fields it also sets (wobble, jitter,
     blade-to-body ratio)."""
     u = lambda span: float(rng.uniform(*span))  # noqa: E731
-    nz = Nuisance(rotor_rate_scale=u(dist.rotor_rate_scale), blade_rcs_spread=u(dist.blade_rcs_spread),
-                  tip_weight=u(dist.tip_weight),
-                  body_scatterers=int(rng.integers(dist.body_scatterers[0], dist.body_scatterers[1] + 1)),
-                  radial_accel_mps2=u(dist.radial_accel_mps2), phase_noise_rad=u(dist.phase_noise_rad),
-                  iq_gain_imbalance=u(dist.iq_gain_imbalance), iq_phase_imbalance_deg=u(dist.iq_phase_imbalance_deg),
-                  dc_offset=u(dist.dc_offset), adc_bits=dist.adc_bits[int(rng.integers(len(dist.adc_bits)))],
-                  beam_taper_db=u(dist.beam_taper_db), clutter_spread_mps=u(dist.clutter_spread_mps))
+    drawn = dict(rotor_rate_scale=u(dist.rotor_rate_scale), blade_rcs_spread=u(dist.blade_rcs_spread),
+                 tip_weight=u(dist.tip_weight),
+                 body_scatterers=int(rng.integers(dist.body_scatterers[0], dist.body_scatterers[1] + 1)),
+                 radial_accel_mps2=u(dist.radial_accel_mps2), phase_noise_rad=u(dist.phase_noise_rad),
+                 iq_gain_imbalance=u(dist.iq_gain_imbalance), iq_phase_imbalance_deg=u(dist.iq_phase_imbalance_deg),
+                 dc_offset=u(dist.dc_offset), adc_bits=dist.adc_bits[int(rng.integers(len(dist.adc_bits)))],
+                 beam_taper_db=u(dist.beam_taper_db), clutter_spread_mps=u(dist.clutter_spread_mps))
     scene_fields = dict(rotor_rate_jitter=u(dist.rotor_rate_jitter), attitude_wobble_deg=u(dist.attitude_wobble_deg),
                         blade_to_body_db=u(dist.blade_to_body_db))
     # drawn last, so that every earlier draw is what it was before this knob existed
-    nz = nz.model_copy(update={"blade_cone_deg": u(dist.blade_cone_deg)})
+    nz = Nuisance(**drawn, blade_cone_deg=u(dist.blade_cone_deg))
     return nz, scene_fields
 
 

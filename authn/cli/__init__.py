@@ -95,7 +95,6 @@ def main(argv: list[str] | None = None) -> int:
             return _usage_error(exc)
         print(("error: " if isinstance(exc, AuthnException) else "") + describe(exc), file=sys.stderr)
         return exit_code_for(exc)
-    return 0
 
 
 def _is_usage_error(exc: Exception) -> bool:
