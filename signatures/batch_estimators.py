@@ -35,7 +35,7 @@ import numpy as np
 from signatures import estimators as est
 from signatures.errors import SignaturesError
 from signatures.estimators import (
-    COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, FLASH_LOBE_S, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
+    COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, EVENT_TOL_FRACTION, FLASH_LOBE_S, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
     FULL_VOTE_DB, HALF_LLR, HALF_SHARE_CAP, HIGHPASS_S, MIN_OVERLAP, MIN_VOTE_WEIGHT, NOISE_MADS,
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
@@ -315,6 +315,7 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
     dec = max(1, series.decimation)
     coherent = (series.field is not None and series.field.shape[2] >= n * dec
                 and series.rate_hz * dec * FLASH_LOBE_S <= 1.0)
+    fraction = TOL_FRACTION if coherent else EVENT_TOL_FRACTION
     groups = []  # (k, batch rows) with the scratch of one group within the memory budget
     for kk in np.unique(k[work]).tolist():
         rows = np.flatnonzero(work & (k == kk))
@@ -331,7 +332,7 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
         w = np.minimum(np.maximum(np.log10(1.0 + strength) * 10.0 / FULL_VOTE_DB, MIN_VOTE_WEIGHT), 1.0)
         weight[r, :kk] = w
         vote[r], found_n[r], valid_n[r] = _votes(t, pos[r, :kk], w, lags, n, series.drift_bins_per_sample[r],
-                                                 n_bins, counts=not coherent)
+                                                 n_bins, counts=not coherent, fraction=fraction)
     best = vote.max(axis=1)
     ok = work & (best > 0.0) & (found_n.max(axis=1) > 0.0)
     rows = np.flatnonzero(ok)
@@ -354,14 +355,14 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
             lag[at[sub]] = _rerank_choose(counts, share, times[sub, :kk], weight[sub, :kk], cands[at[sub]],
                                           scores[at[sub]], n_c[at[sub]], lags, n)
     else:
-        lag = _event_half_rule(lags, v, found_n[rows], valid_n[rows], lag)
+        lag = _event_half_rule(lags, v, found_n[rows], valid_n[rows], lag, fraction)
     for kk, r in groups:
         sub = r[ok[r]]
         if sub.size == 0:
             continue
         rate, std, score, phases, tol, period = _period(times[sub, :kk], pos[sub, :kk],
                                                         series.drift_bins_per_sample[sub], lag[at[sub]],
-                                                        series.rate_hz, n_bins)
+                                                        series.rate_hz, n_bins, fraction)
         rotors, rotors_std = _rotor_count(phases, tol)
         seen = [est.rotors_seen(est.flash_groups(t, p), p, n) for t, p in zip(times[sub, :kk], period.tolist())]
         for name, values in (("rate", rate), ("std", std), ("score", score), ("rotors", rotors),
@@ -438,8 +439,10 @@ def _weighted_sums(mask: np.ndarray, weight: np.ndarray) -> np.ndarray:
 
 
 def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndarray, n: int,
-           drift: np.ndarray, n_bins: int, counts: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`estimators._votes` of a group: (vote, found_n, valid_n), each (g, lags). Without `counts`
+           drift: np.ndarray, n_bins: int, counts: bool,
+           fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators._votes` of a group (partner tolerance TOL_SAMPLES + fraction x lag): (vote,
+    found_n, valid_n), each (g, lags). Without `counts`
     (only the halving rule reads them) found_n is the weighted count (zero where found_n is: every
     weight is >= MIN_VOTE_WEIGHT) and valid_n zero.
 
@@ -455,7 +458,7 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     moved = pos[:, None, :] - pos[:, :, None] - drift[:, None, None] * dt
     compat = (np.abs(moved) <= POSITION_TOL_BINS) | ~informative[:, None, :] | ~informative[:, :, None]
     share_compat = (compat.sum(axis=(1, 2)) - k) / max(k * (k - 1), 1)
-    tol = TOL_SAMPLES + TOL_FRACTION * lags
+    tol = TOL_SAMPLES + fraction * lags
     t2 = tol[None, :, None]
     upper = n - 1 - t2
     # checks as the float64 0/1 copies the single path's matmul makes: found (+, -), valid (+, -).
@@ -465,7 +468,7 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     checks[:, :2] = 0.0
     checks[:, 2] = times[:, None, :] + lags[None, :, None] <= upper
     checks[:, 3] = times[:, None, :] + (-1.0 * lags)[None, :, None] >= t2
-    _found(times, compat, lags, n, checks)
+    _found(times, compat, lags, n, checks, fraction)
     w = np.matmul(checks, weight[:, None, :, None])[..., 0]  # per row the single path's (2, L, k) @ (k,)
     found_w, valid_w = w[:, 0] + w[:, 1], w[:, 2] + w[:, 3]
     if counts:
@@ -480,22 +483,23 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     return np.where(share > chance, llr * share, 0.0), found_n, valid_n
 
 
-def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out: np.ndarray) -> None:
+def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out: np.ndarray,
+           fraction: float) -> None:
     """Set out[:, 0 or 1, L, i] = 1.0 where event i finds a position-compatible partner at t_i +- L
     (`_votes`)."""
     g, k = times.shape
     lag0, lag1 = float(lags[0]), float(lags[-1])
-    reach = TOL_SAMPLES + TOL_FRACTION * lag1
+    reach = TOL_SAMPLES + fraction * lag1
     dt = times[:, None, :] - times[:, :, None]
     gi, ii, jj = np.nonzero(compat & (np.abs(dt) >= lag0 - reach) & (np.abs(dt) <= lag1 + reach))
     if gi.size == 0:
         return
     ti, tj = times[gi, ii], times[gi, jj]
     span = np.abs(tj - ti)
-    # |span - L| <= TOL_SAMPLES + TOL_FRACTION L  =>  L in [(span - 1) / 1.01, (span + 1) / 0.99]; one lag
-    # of margin either side for rounding: the exact test below decides
-    first = np.maximum(np.ceil((span - TOL_SAMPLES) / (1.0 + TOL_FRACTION)) - 1.0, lag0)
-    last = np.minimum(np.floor((span + TOL_SAMPLES) / (1.0 - TOL_FRACTION)) + 1.0, lag1)
+    # |span - L| <= TOL_SAMPLES + f L  =>  L in [(span - TOL_SAMPLES) / (1 + f), (span + TOL_SAMPLES) / (1 - f)];
+    # one lag of margin either side for rounding: the exact test below decides
+    first = np.maximum(np.ceil((span - TOL_SAMPLES) / (1.0 + fraction)) - 1.0, lag0)
+    last = np.minimum(np.floor((span + TOL_SAMPLES) / (1.0 - fraction)) + 1.0, lag1)
     count = np.maximum(last - first + 1.0, 0.0).astype(int)
     pair = np.repeat(np.arange(gi.size), count)
     lag = first[pair] + (np.arange(pair.size) - np.repeat(np.cumsum(count) - count, count))
@@ -506,7 +510,7 @@ def _found(times: np.ndarray, compat: np.ndarray, lags: np.ndarray, n: int, out:
     # when t[j-1] < T <= t[j+1]), gathered for every candidate lag in one go
     t_i, t_j, sgn, t_prev, t_next = np.take(np.stack([ti, tj, sign, padded[gi, jj], padded[gi, jj + 2]]), pair,
                                             axis=1)
-    tol = TOL_SAMPLES + TOL_FRACTION * lag
+    tol = TOL_SAMPLES + fraction * lag
     target = t_i + sgn * lag
     hit = np.flatnonzero((target >= tol) & (target <= n - 1 - tol) & (t_prev < target) & (target <= t_next)
                          & (np.abs(t_j - target) <= tol))
@@ -639,7 +643,7 @@ def _half_is_period(found: np.ndarray, made: np.ndarray, found_h: np.ndarray, ma
 
 
 def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, valid_n: np.ndarray,
-                     lag0: np.ndarray) -> np.ndarray:
+                     lag0: np.ndarray, fraction: float) -> np.ndarray:
     """`estimators._event_half_rule` of a group: a loop over halvings, vectorised over rows."""
     lag0 = lag0.copy()
     going = np.ones(lag0.size, bool)
@@ -647,7 +651,7 @@ def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, va
     while True:
         going &= lag0 / 2.0 >= lags[0]
         sel = going[:, None] & (np.abs(lags[None, :] - (lag0 / 2.0)[:, None])
-                                <= (TOL_SAMPLES + TOL_FRACTION * lag0 / 2.0)[:, None])
+                                <= (TOL_SAMPLES + fraction * lag0 / 2.0)[:, None])
         going &= sel.any(axis=1)
         if not going.any():
             return lag0
@@ -664,25 +668,23 @@ def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, va
 
 
 def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndarray, rate_hz: float,
-            n_bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            n_bins: int, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The tail of `estimators.periodicity` for a group: rate, rate std, score, phases, tolerance
-    (in periods), period (series samples). Mean and std of the matched intervals run per match count (numpy's pairwise
-    sums depend on the length); the scalar tail in Python floats, as the single path."""
+    (in periods), period (series samples). After a search wider than TOL_FRACTION the lag is
+    refined and matched again closely where that matches anything, as the single path; the score
+    counts the search's pairs. Mean and std of the matched intervals run per match count (numpy's
+    pairwise sums depend on the length); the scalar tail in Python floats, as the single path."""
     g, k = times.shape
     diff = times[:, None, :] - times[:, :, None]
-    l3 = lag0[:, None, None]
-    mult = np.round(diff / l3)
-    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * l3) <= TOL_SAMPLES + TOL_FRACTION * mult * l3)
-    intervals = diff / np.maximum(mult, 1)
-    n_matched = matched.sum(axis=(1, 2))
-    mean = lag0.copy()
-    spread = np.full(g, np.nan)
-    for m in np.unique(n_matched[n_matched > 0]).tolist():
-        sel = np.flatnonzero(n_matched == m)
-        vals = intervals[sel][matched[sel]].reshape(sel.size, m)
-        mean[sel] = vals.mean(axis=1)
-        if m > 1:
-            spread[sel] = vals.std(axis=1)
+    intervals, matched, mult = _matched_intervals(diff, lag0, fraction)  # the score's pairs
+    n_matched, mean, spread = _interval_stats(intervals, matched, lag0)
+    if fraction > TOL_FRACTION:
+        narrow_intervals, narrow, _ = _matched_intervals(diff, mean, TOL_FRACTION)
+        use = (n_matched > 0) & narrow.any(axis=(1, 2))
+        lag0 = np.where(use, mean, lag0)
+        kept = np.where(use[:, None, None], narrow, matched)
+        n_matched, mean, spread = _interval_stats(np.where(use[:, None, None], narrow_intervals, intervals), kept,
+                                                  lag0)
     rate, std, tol = np.empty(g), np.empty(g), np.empty(g)
     for b, (period, lag, scatter, count) in enumerate(zip(mean.tolist(), lag0.tolist(), spread.tolist(),
                                                          n_matched.tolist())):
@@ -700,6 +702,31 @@ def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndar
     score = (np.sum(matched & same_place & (mult == 1), axis=(1, 2))
              + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2), axis=(1, 2)))
     return rate, std, score.astype(float), phases, tol, mean
+
+
+def _matched_intervals(diff: np.ndarray, lag: np.ndarray, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`estimators._matched_intervals` per row (`lag` (g,)), unmasked: intervals over their
+    multiple, matched mask, multiples."""
+    l3 = lag[:, None, None]
+    mult = np.round(diff / l3)
+    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * l3) <= TOL_SAMPLES + fraction * mult * l3)
+    return diff / np.maximum(mult, 1), matched, mult
+
+
+def _interval_stats(intervals: np.ndarray, matched: np.ndarray,
+                    lag: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row: matched count, mean of the matched intervals (`lag` where none), their std (NaN
+    below two), run per match count as the single path's 1-D means."""
+    n_matched = matched.sum(axis=(1, 2))
+    mean = lag.astype(np.float64).copy()
+    spread = np.full(lag.shape[0], np.nan)
+    for m in np.unique(n_matched[n_matched > 0]).tolist():
+        sel = np.flatnonzero(n_matched == m)
+        vals = intervals[sel][matched[sel]].reshape(sel.size, m)
+        mean[sel] = vals.mean(axis=1)
+        if m > 1:
+            spread[sel] = vals.std(axis=1)
+    return n_matched, mean, spread
 
 
 def _rotor_count(phases: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -61,6 +61,11 @@ GOLDEN_FEATURES[("3", "2")] = {**GOLDEN_FEATURES[("2", "2")],
     "phantom4_wide_hover": (400, -0.1199, 0.7024, 62.91, 20.65, 28130, 16620, 90.07, 1, 0.01989, 0.8636, 400,
                             0.1702, -0.001378, 0.002057, 116.8, 0.0777, 58.42, 0.03885, 4, 0.5, 108.8, 0.03802,
                             0.2963, 0.0002226, 0, 25.1, 22, 17.52, 0.6987, 235.8, 0.5404, 18.39, 1)}
+# FEATURE_VERSION 4 widened the flash period search where no coherent checks apply (`wide` only)
+GOLDEN_FEATURES[("4", "2")] = {**GOLDEN_FEATURES[("2", "2")],
+    "phantom4_wide_hover": (400, -0.1199, 0.7024, 62.91, 20.65, 28130, 16620, 90.07, 1, 0.01989, 0.8636, 400,
+                            0.1702, -0.001378, 0.002057, 116.8, 0.07654, 58.4, 0.03827, 4, 0.5, 108.8, 0.03802,
+                            0.2964, 0.0002201, 0, 27.3, 22, 17.52, 0.6987, 235.8, 0.5397, 18.39, 1)}
 
 SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
                      "|lag-1 slow-time autocorrelation|", "its phase (rad)", "peak range bin", "peak range power")
