@@ -157,23 +157,23 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     else:
         z = z0 - z0.mean(axis=1, keepdims=True)
     filters = est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)
+    m = (n // dec) * dec
     if slow.ndim == 4:  # each chirp: the window whose best position holds the most energy
-        z4 = z.reshape(g, n, windows, n_bins)
         y4 = (z.reshape(g, n * windows, n_bins) @ filters).reshape(g, n, windows, -1)  # the single path's product
-        pick = np.argmax(_max_last(_power(y4)), axis=2)[:, :, None]  # the same floats as the single path's
-        z, y = z4[:, :, 0], y4[:, :, 0]
-        for w in range(1, windows):  # a gather by selects: cheaper than take_along_axis here
-            z = np.where(pick == w, z4[:, :, w], z)
-            y = np.where(pick == w, y4[:, :, w], y)
+        best = _max_last(_power(y4))  # the same floats as the single path's
+        pick = np.argmax(best, axis=2)
+        peak = np.take_along_axis(best, pick[:, :, None], axis=2)[:, :, 0]  # the picked window's maximum
+        at = (np.arange(g * n) * windows + pick.reshape(-1))  # a gather of the picked windows' rows
+        z = np.take(z.reshape(g * n * windows, n_bins), at, axis=0).reshape(g, n, n_bins)
+        y = np.take(y4.reshape(g * n * windows, -1), at, axis=0).reshape(g, n, -1)
     else:
         y = z @ filters  # (g, chirps, positions)
+        peak = _max_last(_power(y))
     eb = _power(z).astype(np.float64)
-    py = _power(y)
-    peak = _max_last(py)
-    m = (n // dec) * dec
     if m >= dec and dec > 1:
         eb = eb[:, :m].reshape(g, -1, dec, n_bins).sum(axis=2)
-        e = _max_last(py.astype(np.float64)[:, :m].reshape(g, -1, dec, py.shape[2]).sum(axis=2))
+        py = _power(y).astype(np.float64)
+        e = _max_last(py[:, :m].reshape(g, -1, dec, py.shape[2]).sum(axis=2))
     else:  # the maximum of the float64 copies is the float64 copy of the maximum
         e = peak.astype(np.float64)
     level = _noise_level(e)
@@ -242,28 +242,42 @@ def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.
     sums = _window_diff(c, half, n)
     if keep is None:
         t = np.arange(n)
-        count = np.minimum(t + half + 1, n) - np.maximum(t - half, 0)
-        return z - sums / count[:, None].astype(np.float32).astype(z.dtype)  # the cast numpy makes, made once
-    ck = np.zeros((g, n + 1), np.int64)
-    np.cumsum(keep, axis=1, out=ck[:, 1:])
-    cnt = _window_diff(ck, half, n)
-    bi, ti = np.nonzero(cnt < max(2, length // 2))
-    if bi.size:  # thin windows: the 4x longer one
-        lo2, hi2 = np.maximum(ti - 2 * length, 0), np.minimum(ti + 2 * length + 1, n)
-        cnt[bi, ti] = ck[bi, hi2] - ck[bi, lo2]
-        sums[bi, ti] = c[bi, hi2] - c[bi, lo2]
-    return z - sums / np.maximum(cnt, 1)[:, :, None].astype(np.float32).astype(z.dtype)
+        count = (np.minimum(t + half + 1, n) - np.maximum(t - half, 0))[None, :]
+    else:
+        ck = np.zeros((g, n + 1), np.int64)
+        np.cumsum(keep, axis=1, out=ck[:, 1:])
+        count = _window_diff(ck, half, n)
+        bi, ti = np.nonzero(count < max(2, length // 2))
+        if bi.size:  # thin windows: the 4x longer one
+            lo2, hi2 = np.maximum(ti - 2 * length, 0), np.minimum(ti + 2 * length + 1, n)
+            count[bi, ti] = ck[bi, hi2] - ck[bi, lo2]
+            sums[bi, ti] = c[bi, hi2] - c[bi, lo2]
+        count = np.maximum(count, 1)
+    return _minus_mean(z, sums, count)
+
+
+def _minus_mean(z: np.ndarray, sums: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """z - sums / count as the single path computes it (a complex array over a float32 count), in
+    place in `sums`. numpy divides by the complex (count + 0j) as Smith's algorithm does with a zero
+    ratio: both parts times the reciprocal 1 / count in z's real precision (the same floats but
+    for the sign of a zero real part, which nothing downstream reads); here on the interleaved
+    real view, two passes without temporaries instead of a complex division."""
+    rdt = z.real.dtype
+    recip = np.reciprocal(count.astype(np.float32).astype(rdt))
+    parts = sums.view(rdt).reshape(sums.shape + (2,))
+    np.multiply(parts, recip[:, :, None, None], out=parts)
+    return np.subtract(z, sums, out=sums)
 
 
 def _window_diff(c: np.ndarray, half: int, n: int) -> np.ndarray:
-    """c[:, hi] - c[:, lo] for hi = min(t + half + 1, n), lo = max(t - half, 0), t = 0..n-1, by slices."""
+    """c[:, hi] - c[:, lo] for hi = min(t + half + 1, n), lo = max(t - half, 0), t = 0..n-1: one
+    subtraction of shifted slices where neither end clips, the clipped windows apart."""
     out = np.empty((c.shape[0], n) + c.shape[2:], c.dtype)
-    a = max(0, n - half)  # t < a: hi = t + half + 1
-    out[:, :a] = c[:, half + 1:half + 1 + a]
-    out[:, a:] = c[:, n:n + 1]
     b = min(n, half + 1)  # t < b: lo = 0
-    out[:, :b] -= c[:, 0:1]
-    out[:, b:] -= c[:, 1:n - half]
+    a = max(b, n - half)  # t >= a: hi = n
+    np.subtract(c[:, b + half + 1:a + half + 1], c[:, b - half:a - half], out=out[:, b:a])
+    t = np.r_[0:b, a:n]
+    out[:, t] = c[:, np.minimum(t + half + 1, n)] - c[:, np.maximum(t - half, 0)]
     return out
 
 
