@@ -185,8 +185,10 @@ def subchirp_window(config: RadarConfig, n_samples: int, domain: str = "if") -> 
     return w if SUBCHIRP_BINS <= w < n_samples else 0
 
 
+@lru_cache(maxsize=16)
 def subchirp_offsets(n_samples: int, window: int) -> tuple[int, ...]:
-    """First sample of each sub-chirp window: SUBCHIRP_WINDOWS spread evenly over the ramp."""
+    """First sample of each sub-chirp window: SUBCHIRP_WINDOWS spread evenly over the ramp (cached:
+    `linspace` costs more than a row's window products)."""
     return tuple(np.round(np.linspace(0, n_samples - window, SUBCHIRP_WINDOWS)).astype(int).tolist())
 
 
@@ -196,13 +198,16 @@ def subchirp_demod(n_samples: int, peak_bin: int) -> np.ndarray:
     return np.exp(-2j * math.pi * (peak_bin * k % n_samples) / n_samples).astype(np.complex64)
 
 
-def subchirp_bins(iq: np.ndarray, peak_bin: int, window: int, scale: float = 1.0) -> np.ndarray:
+def subchirp_bins(iq: np.ndarray, peak_bin: int, window: int, scale: float = 1.0,
+                  work: np.ndarray | None = None) -> np.ndarray:
     """(chirps, SUBCHIRP_WINDOWS, SUBCHIRP_BINS): the bins around `peak_bin` of each sub-chirp
     window of the IF cube `iq` times `scale` (module docstring), in the cube's precision
     (complex64 at least). Not clutter-suppressed: the flash series' high-pass removes
     everything static. FFTs of the windows, not a matrix product: a BLAS product of this size
     woke OpenBLAS's second thread, which on a busy 2-core machine cost up to 5 ms per return
-    against 0.03 ms for the product itself (measured)."""
+    against 0.03 ms for the product itself (measured). `work`: an optional (2, chirps, window)
+    workspace of the cube's complex dtype (the batch path reuses one: same values, no fresh
+    arrays per window)."""
     x = np.asarray(iq)
     x = x if np.iscomplexobj(x) and x.dtype.itemsize >= 8 else x.astype(np.complex64)
     n, n_samples = x.shape
@@ -210,11 +215,14 @@ def subchirp_bins(iq: np.ndarray, peak_bin: int, window: int, scale: float = 1.0
     if scale != 1.0:  # an exact power of two (`rd.prepare`'s): the products round as the scaled cube's
         demod = demod * x.real.dtype.type(scale)
     xd = x * demod
-    w = hann(window).astype(x.real.dtype)
+    w = hann(window).astype(x.real.dtype).astype(x.dtype)  # the cast numpy makes for each product, made once
     cols = np.arange(SUBCHIRP_BINS) - SUBCHIRP_BINS // 2
+    if work is None:
+        work = np.empty((2, n, window), x.dtype)
     out = np.empty((n, SUBCHIRP_WINDOWS, SUBCHIRP_BINS), x.dtype)
     for i, o in enumerate(subchirp_offsets(n_samples, window)):
-        out[:, i] = np.fft.fft(xd[:, o:o + window] * w, axis=1)[:, cols]
+        windowed = np.multiply(xd[:, o:o + window], w, out=work[0])
+        out[:, i] = np.fft.fft(windowed, axis=1, out=work[1])[:, cols]
     return out
 
 
