@@ -18,12 +18,12 @@ from signatures.radar import get_preset
 from signatures.recording import write_recording
 from signatures.scene import Scene
 
-PRINCIPAL = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=0)
+PRINCIPAL = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=0, has_key=False)
 SITE = dict(time_s=1_767_268_800, preset="paper")
 CONTEXT = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300",
                radar_known=True, radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120,
                range_tolerance_cm=850, velocity_residual_cmps=40, velocity_tolerance_cmps=170,
-               remote_id_present=True, remote_id_issues=[])
+               remote_id_present=True, remote_id_issues=[], remote_id_auth="absent", verification_llr_cn=250)
 
 
 @pytest.fixture(scope="module")
