@@ -182,7 +182,7 @@ class Checker:
         from signatures.verify import verify
 
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
-                      rec.config.unambiguous_velocity_mps)
+                      rec.config.unambiguous_velocity_mps, known=pred.known)
 
     def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer) -> Outcome | _Pending:
         """Everything before the radar: the claim, the registry, DRIP, and the policy with the radar

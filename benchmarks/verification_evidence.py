@@ -61,7 +61,7 @@ def collect(preset_name: str, snr: float, n: int, seed: int) -> list[dict]:
                 pred = classifier.predict(result.as_array(), lambda: result.rd_patch) if result.detected else None
                 rows.append(dict(world=world, cat=cat, flies=profiles[flies], claims=profiles[claims], rate=rate,
                                  detected=result.detected, estimates={**asdict(result.features), **result.physics},
-                                 probs=dict(pred.probabilities) if pred else {},
+                                 probs=dict(pred.probabilities) if pred else {}, known=bool(pred and pred.known),
                                  max_tip=rec.config.unambiguous_velocity_mps))
     return rows
 
@@ -89,7 +89,7 @@ def score(row: dict, variant: str) -> float:
     if not row["detected"]:
         return UNVERIFIED
     estimates, with_classifier = VARIANTS[variant](row)
-    v = verify(estimates, row["claims"], row["probs"] if with_classifier else None, row["max_tip"])
+    v = verify(estimates, row["claims"], row["probs"] if with_classifier else None, row["max_tip"], row["known"])
     return v.llr if v.terms else UNVERIFIED
 
 

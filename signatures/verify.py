@@ -24,7 +24,10 @@ independent terms:
 * **classifier**: the bundle's calibrated probability of the claimed class as log-odds against
   its prior 1/K, clipped to +-`CLASSIFIER_CLIP` (a classifier fitted to one simulator is not
   trusted further than that). Absent when the claim is not one of the bundle's classes: a new
-  profile registered from its physical parameters is verified by the physical terms alone.
+  profile registered from its physical parameters is verified by the physical terms alone. Where
+  the open-set test calls the return `unknown` (it fits no enrolled profile), the closed-set
+  classifier's support for the claim is no evidence, so the term is capped at 0: it may count
+  against the claim, never for it.
 
 A term abstains (is left out) when its estimate is unreliable; the physics term is floored at
 `TERM_FLOOR`. The Cedar policy thresholds the
@@ -159,9 +162,12 @@ def _rotors(features: Mapping[str, float], claimed: UavProfile) -> tuple[float, 
 
 
 def verify(features: Mapping[str, float], claimed: UavProfile,
-           probabilities: Mapping[str, float] | None = None, max_tip_mps: float | None = None) -> Verification:
+           probabilities: Mapping[str, float] | None = None, max_tip_mps: float | None = None,
+           known: bool = True) -> Verification:
     """Score a return's physical estimates (feature name -> value, `signatures.features`) and
     the classifier's probabilities (class -> p, optional) against the claimed profile.
+
+    `known`: the open-set verdict (`Prediction.known`); False caps the classifier term at 0.
 
     `max_tip_mps`: the fastest LOS speed the waveform measures unaliased (lambda * PRF / 4, the
     radar's `unambiguous_velocity_mps`); the blade term runs only when the claimed airframe's
@@ -176,5 +182,5 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
         prior = 1.0 / max(len(uav), 2)
         p = min(max(float(probabilities[claimed.slug]), 1e-6), 1.0 - 1e-6)
         odds = math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
-        terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP, odds))
+        terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP if known else 0.0, odds))
     return Verification(llr=sum(terms.values()), terms=terms, compared=compared)

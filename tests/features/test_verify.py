@@ -96,6 +96,16 @@ def test_the_classifier_term_is_bounded_and_only_for_its_own_classes() -> None:
     assert verify({}, P["m300"], uniform).terms["classifier"] == pytest.approx(0.0, abs=1e-9)
 
 
+def test_outside_the_open_set_the_classifier_only_counts_against_the_claim() -> None:
+    """An airframe no enrolled profile explains (open set: unknown): the closed-set classifier's
+    confidence in the claimed class is no evidence for it, its doubt still counts."""
+    probs = {"m600": 0.0, "m300": 1.0, "phantom4": 0.0, "bird": 0.0, "none": 0.0}
+    assert verify({}, P["m300"], probs, known=False).terms == {"classifier": 0.0}
+    assert verify({}, P["m600"], probs, known=False).terms == {"classifier": -CLASSIFIER_CLIP}
+    physics = verify(_seen(P["m300"]), P["m300"], probs, WIDE_MAX_TIP, known=False)
+    assert physics.terms["classifier"] == 0.0 and physics.llr == physics.terms["physics"] > 0.0
+
+
 def test_a_profile_registered_from_its_parameters_verifies_without_retraining() -> None:
     """A profile no bundle knows: the classifier says nothing about it, the physics does."""
     octo = UavProfile(slug="octo-x", name="Octo X", rotors=8, arms=8, blade_length_m=0.38,
