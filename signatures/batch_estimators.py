@@ -35,7 +35,7 @@ import numpy as np
 from signatures import estimators as est
 from signatures.errors import SignaturesError
 from signatures.estimators import (
-    COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, EVENT_TOL_FRACTION, FLASH_LOBE_S, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
+    COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, EVENT_TOL_FRACTION, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
     FULL_VOTE_DB, HALF_LLR, HALF_SHARE_CAP, HIGHPASS_S, MIN_OVERLAP, MIN_VOTE_WEIGHT, NOISE_MADS,
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
@@ -113,7 +113,7 @@ def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarra
     n_out = m // dec if m >= dec else n
     filters = est.matched_filters(n_bins, n_fft)
     n_pos = filters.shape[1]
-    keep_field = (config.prf_hz / dec) * dec * FLASH_LOBE_S <= 1.0  # else `_coherent` never reads it
+    keep_field = est.flashes_within_one_sample(config.prf_hz / dec, dec)  # else `_coherent` never reads it
     cdt = np.result_type(slow.dtype, np.complex64)
     energy = np.empty((b_rows, n_out))
     per_bin = np.empty((b_rows, n_out, n_bins))
@@ -166,13 +166,15 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
         at = (np.arange(g * n) * windows + pick.reshape(-1))  # a gather of the picked windows' rows
         z = np.take(z.reshape(g * n * windows, n_bins), at, axis=0).reshape(g, n, n_bins)
         y = np.take(y4.reshape(g * n * windows, -1), at, axis=0).reshape(g, n, -1)
+        py = None  # only decimated series need it, and windows run undecimated (`paper`)
     else:
         y = z @ filters  # (g, chirps, positions)
-        peak = _max_last(_power(y))
+        py = _power(y)
+        peak = _max_last(py)
     eb = _power(z).astype(np.float64)
     if m >= dec and dec > 1:
         eb = eb[:, :m].reshape(g, -1, dec, n_bins).sum(axis=2)
-        py = _power(y).astype(np.float64)
+        py = (_power(y) if py is None else py).astype(np.float64)
         e = _max_last(py[:, :m].reshape(g, -1, dec, py.shape[2]).sum(axis=2))
     else:  # the maximum of the float64 copies is the float64 copy of the maximum
         e = peak.astype(np.float64)
@@ -328,7 +330,7 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
     n_bins = series.per_bin.shape[2]
     dec = max(1, series.decimation)
     coherent = (series.field is not None and series.field.shape[2] >= n * dec
-                and series.rate_hz * dec * FLASH_LOBE_S <= 1.0)
+                and est.flashes_within_one_sample(series.rate_hz, dec))
     fraction = TOL_FRACTION if coherent else EVENT_TOL_FRACTION
     groups = []  # (k, batch rows) with the scratch of one group within the memory budget
     for kk in np.unique(k[work]).tolist():

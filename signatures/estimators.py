@@ -89,8 +89,8 @@ TOL_FRACTION = 0.01
 #: the period is matched again within TOL_FRACTION: the search's margin would otherwise let
 #: other rotors' intervals bias the period. 3 % was chosen on the randomised world among 1-5 %
 #: (`wide` flash rate within 5 % at 0/10 dB: 88/85 -> 92/88 %, seed 9, and 87/89 -> 92/92 %, seed
-#: 21; training unchanged; docs/features.md); the coherent path keeps 1 % (3 % cost `paper` 3-6
-#: points in its own world).
+#: 21); its price in the training world: 3 of 450 returns read at twice the rate (docs/features.md).
+#: The coherent path keeps 1 % (3 % cost `paper` 3-6 points in its own world).
 EVENT_TOL_FRACTION = 0.03
 #: Events this many dB above the detection threshold vote fully; weaker ones (possibly
 #: noise) proportionally less, down to MIN_VOTE_WEIGHT.
@@ -475,13 +475,19 @@ def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
     return _Coherent(counts, max(float(counts[:, -1].sum()) - own_hits, 0.0) / others)
 
 
+def flashes_within_one_sample(rate_hz: float, decimation: int) -> bool:
+    """Does a flash (FLASH_LOBE_S) fit within one PRI of a series at `rate_hz` decimated by
+    `decimation`? Only then do the coherent checks run (the batch path asks too); where flashes
+    span several chirps the energy events already find them."""
+    return rate_hz * max(1, decimation) * FLASH_LOBE_S <= 1.0
+
+
 def _coherent_applies(series: FlashSeries) -> bool:
     """Does the series carry the complex field the coherent checks need, with flashes within
-    one PRI (FLASH_LOBE_S)? Where flashes span several chirps the energy events already find
-    them."""
+    one PRI?"""
     dec = max(1, series.decimation)
     return (series.field is not None and series.field.shape[0] >= series.energy.size * dec
-            and series.rate_hz * dec * FLASH_LOBE_S <= 1.0)
+            and flashes_within_one_sample(series.rate_hz, dec))
 
 
 def _coherent_checks(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,
