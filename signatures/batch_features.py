@@ -612,12 +612,12 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, log2_scale: np.ndarray,
                    labels: list[int], window: int) -> np.ndarray:
     """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
-    windows, bins), row by row with the single path's function in a reused workspace. `rd.prepare`'s power-of-two
-    scale (the cube stage's `log2_scale`) rides on the demodulation, which is exact; a row that
-    `prepared` would scale itself (not complex64, or beyond its safe exponent) goes through it."""
+    windows, bins), row by row with the single path's function (the same products, so the same
+    bits). `rd.prepare`'s power-of-two scale (the cube stage's `log2_scale`) rides on the basis,
+    which is exact; a row that `prepared` would scale itself (not complex64, or beyond its safe
+    exponent) goes through it."""
     n_chirps = iq.shape[1]
     out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
-    work = _scratch("subchirp", (2, n_chirps, window), np.complex64)
     for j, b in enumerate(rows.tolist()):
         row = np.asarray(iq[b])
         exponent = int(log2_scale[j])
@@ -626,7 +626,7 @@ def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarr
         else:
             xs, scale, _, _ = prepared(row[None], [labels[b]])
             x, s = xs[0], float(scale[0, 0, 0])
-        out[j] = est.subchirp_bins(x, int(peak_bin[j]), window, s, work)
+        out[j] = est.subchirp_bins(x, int(peak_bin[j]), window, s)
     return out
 
 

@@ -5,8 +5,10 @@ transform), but OpenBLAS starts a thread per core for every matrix product big e
 kNN distances of a batch, the flash estimators' stacked products). On a machine whose other
 core is busy those threads wait for each other: measured on the shared 2-core machine, the
 `paper` batch of 256 (features + classifier) took 0.97 ms per return with the default BLAS
-threads and 0.72 ms with one (issue 19). The number of threads does not change a product's
-values (OpenBLAS splits the output among threads, not the sums).
+threads and 0.72 ms with one (issue 19). The number of threads can change a product's last
+bits: a complex product of (128-256 x 80) by (80 x 9) differs between one and two threads
+(measured, OpenBLAS 0.3.31), so code whose single and batch paths must agree to the bit makes
+products too small to be split (`estimators.SUBCHIRP_BLOCK`).
 
 `one_blas_thread()` limits the loaded BLAS libraries to one thread for a block of code
 (threadpoolctl, a scikit-learn dependency; nothing happens without it). Its controller is made

@@ -6,11 +6,14 @@ import math
 import warnings
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from signatures import batch_estimators as est_batch
 from signatures import estimators as est
 from signatures import rd
 from signatures.radar import get_preset
+from signatures.threads import one_blas_thread
 
 N_FFT = 80  # fast-time samples per chirp (the paper preset's)
 HUB_BIN = 40.3  # the flashing hub's range, in bins
@@ -158,3 +161,28 @@ def test_event_search_tolerates_coned_blades_and_refines_the_period(monkeypatch)
             m.setattr(est, "EVENT_TOL_FRACTION", est.TOL_FRACTION)
             narrow = est.periodicity(s)
         assert abs(s.rate_hz / narrow.flash_rate.value - 680.0) <= 2.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(peak_bin=st.integers(0, N_FFT - 1), n=st.integers(1, 200), exponent=st.integers(-20, 20),
+       seed=st.integers(0, 2**16))
+def test_subchirp_bins_are_the_windows_fft_bins_whatever_the_scale(peak_bin, n, exponent, seed):
+    """The basis product gives what its docstring says: each window's Hann-windowed FFT of the
+    chirp demodulated to `peak_bin`, at bins -1, 0, 1 (within float32 rounding of the largest);
+    an exact power-of-two scale rides on the basis bit for bit, and the same products come out
+    on one BLAS thread as on the default ones (the batch path runs on one)."""
+    window = est.subchirp_window(get_preset("paper").config, N_FFT)
+    rng = np.random.default_rng(seed)
+    x = (rng.standard_normal((n, N_FFT)) + 1j * rng.standard_normal((n, N_FFT))).astype(np.complex64)
+    got = est.subchirp_bins(x, peak_bin, window)
+    k = np.arange(N_FFT)
+    xd = x.astype(np.complex128) * np.exp(-2j * math.pi * peak_bin * k / N_FFT)
+    want = np.stack([np.fft.fft(xd[:, o:o + window] * rd.hann(window), axis=1)[:, [-1, 0, 1]]
+                     for o in est.subchirp_offsets(N_FFT, window)], axis=1)
+    assert got.shape == (n, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS) and got.dtype == np.complex64
+    assert np.max(np.abs(got - want)) <= 1e-5 * np.max(np.abs(want))
+    scale = math.ldexp(1.0, exponent)
+    assert np.array_equal(est.subchirp_bins(x, peak_bin, window, scale),
+                          est.subchirp_bins(x * np.float32(scale), peak_bin, window))
+    with one_blas_thread():
+        assert np.array_equal(est.subchirp_bins(x, peak_bin, window), got)
