@@ -193,11 +193,11 @@ def subchirp_offsets(n_samples: int, window: int) -> tuple[int, ...]:
     return tuple(np.round(np.linspace(0, n_samples - window, SUBCHIRP_WINDOWS)).astype(int).tolist())
 
 
-#: Rows per matrix product in `subchirp_bins`: small enough (64 x 80 x 9 multiply-adds for a
-#: `paper` chirp) that OpenBLAS never splits a product among threads. Split, a product of 128-256
-#: rows gave other last bits than on one thread (measured, OpenBLAS 0.3.31), and on a busy 2-core
-#: machine a woken second thread cost up to 5 ms per return; unsplit, the single and the batch
-#: paths make the same products and get the same bits.
+#: Chirps per matrix product in `subchirp_bins`: small enough (64 x 80 by 80 x 9 for `paper`)
+#: that OpenBLAS runs it on one thread (measured, OpenBLAS 0.3.31: products of 128-256 chirps were
+#: split among threads and then gave other last bits than on one; on a busy 2-core machine a woken
+#: second thread cost up to 5 ms per return). On one thread the single and the batch paths make
+#: the same products and get the same bits (tests/features/test_estimators_flash.py).
 SUBCHIRP_BLOCK = 64
 
 
