@@ -155,12 +155,14 @@ def equal_error_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], 
 
 
 def summarise_worlds(trials: list[Trial]) -> dict[str, object]:
-    """JSON view: per preset, SNR, category and world the decisions, reasons and scores; EERs."""
+    """JSON view: per preset, SNR, category and world the decisions, the reasons and the
+    "flown->claimed" pairs of the wrong ones, what the classifier said, and the scores; EERs."""
     doc: dict[str, dict] = defaultdict(lambda: defaultdict(lambda: defaultdict(dict)))
     for (preset, snr, cat, world), g in _group(trials).items():
         wrong = Counter(",".join(t.reasons) for t in g if not t.correct)
         doc[preset][f"{snr:g}"][cat][world] = {
             "n": len(g), "correct_rate": sum(t.correct for t in g) / len(g), "wrong_reasons": dict(wrong),
+            "wrong_pairs": dict(Counter(f"{t.flies}->{t.claims}" for t in g if not t.correct)),
             "radar_models": dict(Counter(t.radar_model or "not-run" for t in g)),
             "median_check_ms": round(statistics.median(t.check_ms for t in g), 2),
             "scores": [round(t.score, 6) for t in g]}

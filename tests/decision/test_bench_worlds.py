@@ -94,6 +94,22 @@ def test_two_worlds_check_the_same_claims() -> None:
     assert set(doc["eer"]) == {f"paper/10/{c}/{w}" for c in ("type_spoof", "unseen") for w in ("training", "heldout")}
 
 
+def test_summary_names_the_pairs_that_went_wrong() -> None:
+    """Which airframe flew and which was claimed, counted over the wrong decisions only: where
+    impostors pass is what the next estimator work needs to know."""
+    from authn.bench.worlds import Trial, summarise_worlds
+
+    def trial(flies: str, claims: str, decision: str) -> Trial:
+        return Trial("wide", "heldout", 0.0, "type_spoof", flies, claims, decision, ("registered-active",),
+                     flies, 1.0 if decision == "accept" else -1.0, 5.0)
+
+    trials = [trial("m300", "m600", "accept"), trial("m300", "m600", "accept"), trial("m600", "m300", "accept"),
+              trial("phantom4", "m300", "reject")]
+    cell = summarise_worlds(trials)["decisions"]["wide"]["0"]["type_spoof"]["heldout"]
+    assert cell["wrong_pairs"] == {"m300->m600": 2, "m600->m300": 1}
+    assert cell["n"] == 4 and cell["correct_rate"] == 0.25
+
+
 def test_cli_world_option(tmp_path, capsys) -> None:
     from authn.cli import main
 
