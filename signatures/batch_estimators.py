@@ -692,10 +692,10 @@ def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndar
     pairwise sums depend on the length); the scalar tail in Python floats, as the single path."""
     g, k = times.shape
     diff = times[:, None, :] - times[:, :, None]
-    intervals, matched, mult = _matched_intervals(diff, lag0, fraction)  # the score's pairs
+    intervals, matched, mult = est._matched_intervals(diff, lag0[:, None, None], fraction)  # the score's pairs
     n_matched, mean, spread = _interval_stats(intervals, matched, lag0)
     if fraction > TOL_FRACTION:
-        narrow_intervals, narrow, _ = _matched_intervals(diff, mean, TOL_FRACTION)
+        narrow_intervals, narrow, _ = est._matched_intervals(diff, mean[:, None, None], TOL_FRACTION)
         use = (n_matched > 0) & narrow.any(axis=(1, 2))
         lag0 = np.where(use, mean, lag0)
         kept = np.where(use[:, None, None], narrow, matched)
@@ -718,15 +718,6 @@ def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndar
     score = (np.sum(matched & same_place & (mult == 1), axis=(1, 2))
              + SECOND_PERIOD_GAIN * np.sum(matched & same_place & (mult == 2), axis=(1, 2)))
     return rate, std, score.astype(float), phases, tol, mean
-
-
-def _matched_intervals(diff: np.ndarray, lag: np.ndarray, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`estimators._matched_intervals` per row (`lag` (g,)), unmasked: intervals over their
-    multiple, matched mask, multiples."""
-    l3 = lag[:, None, None]
-    mult = np.round(diff / l3)
-    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * l3) <= TOL_SAMPLES + fraction * mult * l3)
-    return diff / np.maximum(mult, 1), matched, mult
 
 
 def _interval_stats(intervals: np.ndarray, matched: np.ndarray,

@@ -641,11 +641,13 @@ def periodicity(series: FlashSeries) -> Periodicity:
     else:
         lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0, fraction)
     diff = times[None, :] - times[:, None]  # (k, k): t_j - t_i
-    periods, matched, mult = _matched_intervals(diff, lag0, fraction)  # the score's pairs
+    intervals, matched, mult = _matched_intervals(diff, lag0, fraction)  # the score's pairs
+    periods = intervals[matched]
     if fraction > TOL_FRACTION and periods.size:  # a wide search's plateau centre: refine, match closely
-        narrow = _matched_intervals(diff, float(periods.mean()), TOL_FRACTION)[0]
-        if narrow.size:
-            lag0, periods = float(periods.mean()), narrow
+        refined = float(periods.mean())
+        narrow_intervals, narrow, _ = _matched_intervals(diff, refined, TOL_FRACTION)
+        if narrow.any():
+            lag0, periods = refined, narrow_intervals[narrow]
     tol0 = TOL_SAMPLES + TOL_FRACTION * lag0
     period = float(periods.mean()) if periods.size else float(lag0)
     scatter = float(periods.std()) if periods.size > 1 else tol0
@@ -661,13 +663,14 @@ def periodicity(series: FlashSeries) -> Periodicity:
                        tol0 / period, par_db, rotors_seen(flash_groups(times, period), period, n))
 
 
-def _matched_intervals(diff: np.ndarray, lag: float, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(intervals over their multiple, matched mask, multiples) of the event pairs (diff: (k, k)
-    of t_j - t_i) whose interval lies within TOL_SAMPLES + fraction x (multiple x lag) of a
-    multiple of `lag`."""
+def _matched_intervals(diff: np.ndarray, lag: float | np.ndarray,
+                       fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(intervals over their multiple, matched mask, multiples) of the event pairs (diff: t_j - t_i,
+    (k, k), or (rows, k, k) with `lag` broadcast against it, as the batch path calls it): matched
+    where the interval lies within TOL_SAMPLES + fraction x (multiple x lag) of a multiple of `lag`."""
     mult = np.round(diff / lag)
     matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * lag) <= TOL_SAMPLES + fraction * mult * lag)
-    return (diff / np.maximum(mult, 1))[matched], matched, mult
+    return diff / np.maximum(mult, 1), matched, mult
 
 
 def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, valid_n: np.ndarray,
