@@ -78,6 +78,27 @@ def worlds_table(trials: list["Trial"]) -> Table:
     return table
 
 
+def evidence_table(trials: list["Trial"]) -> Table:
+    """Per preset, SNR and claim, one column per world: the share of returns whose rotors were
+    seen (the physics term ran) and the share of right decisions among them."""
+    from authn.bench.worlds import evidence_rates
+
+    rates = evidence_rates(trials)
+    worlds = list(dict.fromkeys(t.world for t in trials))
+    table = _table("rotors seen / right decisions where seen",
+                   ("preset", "SNR dB", "claim", *(WORLD_HEADERS[w] for w in worlds)), left=3)
+
+    def cell(key: tuple) -> str:
+        if key not in rates:
+            return "-"
+        seen, right = rates[key]
+        return f"{seen:.0%} / " + ("-" if right is None else f"{right:.0%}")
+
+    for key in dict.fromkeys((t.preset, t.snr_db, t.category) for t in trials):
+        table.add_row(key[0], f"{key[1]:g}", key[2].replace("_", " "), *(cell((*key, w)) for w in worlds))
+    return table
+
+
 def eer_table(trials: list["Trial"]) -> Table:
     """Equal error rate of the verification score, genuine against each impostor kind."""
     from authn.bench.worlds import equal_error_rates

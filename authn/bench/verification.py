@@ -5,6 +5,7 @@ The score is the one the Cedar policy thresholds: the log-likelihood ratio of "t
 airframe" against "some other airframe" that `authn.check` computes for every detected target
 with `signatures.verify` and reports as `radar.verification.llr`. `verification_score` reads it
 back from a check's radar evidence; a claim the check could not verify scores `UNVERIFIED`.
+`rotor_evidence` says whether the score had the rotors' physics in it.
 """
 
 from __future__ import annotations
@@ -25,6 +26,15 @@ def verification_score(radar: dict[str, Any] | None) -> float:
     verification = (radar or {}).get("verification") or {}
     terms = verification.get("terms") or {}
     return float(verification["llr"]) if terms else UNVERIFIED
+
+
+def rotor_evidence(radar: dict[str, Any] | None) -> bool:
+    """Whether the check saw the rotors: its physics term ran (a blade-flash rate with a flash
+    score of at least `signatures.verify.MIN_FLASH_SCORE`). Without it a claim rests on the
+    classifier alone, so the world reports split "no rotor modulation seen" (the signal or the
+    flash detector) from "seen and misjudged" (the verification)."""
+    verification = (radar or {}).get("verification") or {}
+    return "physics" in (verification.get("terms") or {})
 
 
 def roc(genuine: Sequence[float], impostor: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:

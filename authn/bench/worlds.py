@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from authn.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
-from authn.bench.verification import eer, verification_score
+from authn.bench.verification import eer, rotor_evidence, verification_score
 from authn.scenario import Broadcast, remote_id_rows, simulate_flight
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import Preset, get_preset
@@ -66,6 +66,7 @@ class Trial:
     radar_model: str | None
     score: float
     check_ms: float
+    rotor_evidence: bool  # the verification's physics term ran (`verification.rotor_evidence`)
 
     @property
     def correct(self) -> bool:
@@ -125,7 +126,7 @@ def run_worlds(presets: tuple[str, ...], worlds: tuple[str, ...], n: int, seed: 
                             ms = (time.perf_counter() - t0) * 1e3
                             trials.append(Trial(preset, world, float(snr), cat, flies, claims, out.decision,
                                                 tuple(out.reasons), None if out.radar is None else out.radar["model"],
-                                                verification_score(out.radar), ms))
+                                                verification_score(out.radar), ms, rotor_evidence(out.radar)))
                             if progress:
                                 progress(1)
     return trials
@@ -143,6 +144,16 @@ def correct_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], floa
     return {k: sum(t.correct for t in g) / len(g) for k, g in _group(trials).items()}
 
 
+def evidence_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], tuple[float, float | None]]:
+    """Per (preset, SNR, category, world): (share of claims whose rotors were seen, share of right
+    decisions among those; None where none were seen)."""
+    out = {}
+    for k, g in _group(trials).items():
+        seen = [t for t in g if t.rotor_evidence]
+        out[k] = (len(seen) / len(g), sum(t.correct for t in seen) / len(seen) if seen else None)
+    return out
+
+
 def equal_error_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], float]:
     """EER of genuine against each impostor kind per (preset, SNR, impostor, world)."""
     groups = _group(trials)
@@ -156,12 +167,16 @@ def equal_error_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], 
 
 def summarise_worlds(trials: list[Trial]) -> dict[str, object]:
     """JSON view: per preset, SNR, category and world the decisions, the reasons and the
-    "flown->claimed" pairs of the wrong ones, what the classifier said, and the scores; EERs."""
+    "flown->claimed" pairs of the wrong ones, how often the rotors were seen and the right
+    decisions among those, what the classifier said, and the scores; EERs."""
     doc: dict[str, dict] = defaultdict(lambda: defaultdict(lambda: defaultdict(dict)))
+    evidence = evidence_rates(trials)
     for (preset, snr, cat, world), g in _group(trials).items():
         wrong = Counter(",".join(t.reasons) for t in g if not t.correct)
+        seen, right_if_seen = evidence[(preset, snr, cat, world)]
         doc[preset][f"{snr:g}"][cat][world] = {
             "n": len(g), "correct_rate": sum(t.correct for t in g) / len(g), "wrong_reasons": dict(wrong),
+            "rotor_evidence_rate": seen, "correct_rate_with_rotor_evidence": right_if_seen,
             "wrong_pairs": dict(Counter(f"{t.flies}->{t.claims}" for t in g if not t.correct)),
             "radar_models": dict(Counter(t.radar_model or "not-run" for t in g)),
             "median_check_ms": round(statistics.median(t.check_ms for t in g), 2),

@@ -239,9 +239,10 @@ def _print_worlds(console: "Console", trials: "list[Trial]") -> None:
     """The two-world tables, then each cell's wrong decisions by reason."""
     from collections import Counter
 
-    from authn.bench.tables import eer_table, worlds_table
+    from authn.bench.tables import eer_table, evidence_table, worlds_table
 
     console.print(worlds_table(trials))
+    console.print(evidence_table(trials))
     console.print(eer_table(trials))
     wrong: dict[tuple, Counter] = {}
     for t in trials:

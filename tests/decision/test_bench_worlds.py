@@ -101,13 +101,38 @@ def test_summary_names_the_pairs_that_went_wrong() -> None:
 
     def trial(flies: str, claims: str, decision: str) -> Trial:
         return Trial("wide", "heldout", 0.0, "type_spoof", flies, claims, decision, ("registered-active",),
-                     flies, 1.0 if decision == "accept" else -1.0, 5.0)
+                     flies, 1.0 if decision == "accept" else -1.0, 5.0, True)
 
     trials = [trial("m300", "m600", "accept"), trial("m300", "m600", "accept"), trial("m600", "m300", "accept"),
               trial("phantom4", "m300", "reject")]
     cell = summarise_worlds(trials)["decisions"]["wide"]["0"]["type_spoof"]["heldout"]
     assert cell["wrong_pairs"] == {"m300->m600": 2, "m600->m300": 1}
     assert cell["n"] == 4 and cell["correct_rate"] == 0.25
+
+
+def test_summary_splits_claims_by_rotor_evidence() -> None:
+    """A claim whose rotors were not seen rests on the classifier alone: the summary says how
+    many were seen, and how many of those were decided right, so that a world's misses split
+    into "nothing seen" and "seen but misjudged"."""
+    from authn.bench.verification import rotor_evidence
+    from authn.bench.worlds import Trial, evidence_rates, summarise_worlds
+
+    def trial(world: str, decision: str, seen: bool) -> Trial:
+        return Trial("paper", world, 0.0, "genuine", "m300", "m300", decision, ("registered-active",), "m300",
+                     1.0 if decision == "accept" else -1.0, 5.0, seen)
+
+    trials = [trial("heldout", "accept", True), trial("heldout", "reject", True), trial("heldout", "reject", False),
+              trial("heldout", "reject", False), trial("training", "reject", False)]
+    rates = evidence_rates(trials)
+    assert rates[("paper", 0.0, "genuine", "heldout")] == (0.5, 0.5)
+    assert rates[("paper", 0.0, "genuine", "training")] == (0.0, None)
+    cell = json.loads(json.dumps(summarise_worlds(trials)))["decisions"]["paper"]["0"]["genuine"]
+    assert cell["heldout"]["rotor_evidence_rate"] == 0.5 and cell["heldout"]["correct_rate_with_rotor_evidence"] == 0.5
+    assert cell["training"]["correct_rate_with_rotor_evidence"] is None
+    # read from a check's radar evidence: the physics term ran, or only the classifier's did
+    assert rotor_evidence({"verification": {"llr": 1.0, "terms": {"physics": 2.0, "classifier": -1.0}}})
+    assert not rotor_evidence({"verification": {"llr": -1.0, "terms": {"classifier": -1.0}}})
+    assert not rotor_evidence(None) and not rotor_evidence({"model": "bird"})
 
 
 def test_cli_world_option(tmp_path, capsys) -> None:
@@ -118,6 +143,7 @@ def test_cli_world_option(tmp_path, capsys) -> None:
     doc = json.loads(capsys.readouterr().out)
     cells = doc["worlds"]["decisions"]["paper"]["20"]
     assert all(set(c) == {"heldout"} for c in cells.values())
+    assert all(0.0 <= c["heldout"]["rotor_evidence_rate"] <= 1.0 for c in cells.values())
     assert (tmp_path / "det-paper.png").stat().st_size > 10_000
     assert main(["bench", "--worlds-only", "--world", "mars", "--n", "1"]) == 2
     err = capsys.readouterr().err.strip()
@@ -142,7 +168,8 @@ def _fits(text: str, values: list[str]) -> None:
 def test_bench_tables_fit_80_columns() -> None:
     from authn.bench.decisions import CATEGORIES, EXPECTED, Row
     from authn.bench.pareto import Point
-    from authn.bench.tables import decision_table, eer_table, imports_table, pareto_table, stage_table, worlds_table
+    from authn.bench.tables import (decision_table, eer_table, evidence_table, imports_table, pareto_table,
+                                    stage_table, worlds_table)
     from authn.bench.worlds import Trial
 
     rows = [Row(p, c, 300, 299, 300, 1234.5, {}) for p in ("paper", "wide") for c in CATEGORIES]
@@ -154,10 +181,12 @@ def test_bench_tables_fit_80_columns() -> None:
     st_ = {"checks": 70, "stage_median_ms": {"read": 2.244, "radar_features": 24.061, "policy_registry": 0.31}}
     _fits(_render(stage_table("wide", st_, {"fft_ms": 2.72})), ["24.061", "2.720", "policy_registry"])
     _fits(_render(imports_table({"authn.check": 182.0, "onnxruntime": 156.0})), ["authn.check", "182"])
-    trials = [Trial(p, w, s, c, "m300", "m300", "accept", ("registered-active",), "m300", 0.5 + 0.1 * i, 10.0)
+    trials = [Trial(p, w, s, c, "m300", "m300", "accept", ("registered-active",), "m300", 0.5 + 0.1 * i, 10.0,
+                    w == "training")
               for p in ("paper", "wide") for s in (0.0, 10.0) for i, c in enumerate(("genuine", "type_spoof", "unseen"))
               for w in ("training", "heldout")]
     _fits(_render(worlds_table(trials)), ["type spoof", "unseen", "100.0%", "0.0%", "held-out sim"])
+    _fits(_render(evidence_table(trials)), ["type spoof", "100% / 0%", "0% / -", "held-out sim"])
     _fits(_render(eer_table(trials)), ["type spoof", "0.0%", "training sim"])
 
 
