@@ -30,9 +30,12 @@ def _median_ms(fn: Callable[[], object], repeats: int) -> float:
 
 def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed: int = 5,
           budget_s: float = 20.0) -> dict[str, object]:
-    """Per-return ms of batched features + classifier at each batch size (`distinct` simulated
-    returns repeated to fill the batch; `extract_many` splits a batch larger than memory allows),
-    beside the single-return path and the FFT floor measured in the same run. Measured
+    """Per-return ms of batched features + classifier at each batch size, beside the single-return
+    path and the FFT floor measured in the same run. Every size runs the same mix of returns:
+    the `distinct` simulated returns in turn, in batches of that size, as many batches as cover
+    them all at least once (a batch of 1: each return alone; 256: the returns repeated to fill
+    it), so a small batch is not timed on the first few scenes only (`extract_many` splits a
+    batch larger than memory allows). Measured
     **interleaved**: each round times the floor, the single path and every batch size once, in
     turn, so that a shared machine's drift hits them alike; rounds repeat until `budget_s` has
     passed (at least 3, at most 50), medians over rounds."""
@@ -47,19 +50,21 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
         data.append((rec, pareto._gate_of(label, rec, truth)))
     recs, gates = [r for r, _ in data], [g for _, g in data]
 
-    def batched(b: int) -> Callable[[], object]:
-        rs, gs = [recs[i % len(recs)] for i in range(b)], [gates[i % len(gates)] for i in range(b)]
+    def batched(b: int) -> tuple[Callable[[], object], int]:
+        """Batches of b covering every return: (run them all, returns run)."""
+        total = -(-max(b, len(recs)) // b) * b
+        rows = [i % len(recs) for i in range(total)]
+        batches = [([recs[i] for i in rows[s:s + b]], [gates[i] for i in rows[s:s + b]]) for s in range(0, total, b)]
 
         def run() -> object:
-            feats = extract_many(rs, gs)
-            return clf.predict_many(np.stack([f.as_array() for f in feats]))
-        return run
+            return [clf.predict_many(np.stack([f.as_array() for f in extract_many(rs, gs)])) for rs, gs in batches]
+        return run, total
 
     def single() -> object:
         return [clf.predict(f.as_array()) for f in (extract(r, g) for r, g in zip(recs, gates))]
 
     runs: dict[str, tuple[Callable[[], object], int]] = {"single": (single, len(recs))}
-    runs.update({str(b): (batched(b), b) for b in sizes})
+    runs.update({str(b): batched(b) for b in sizes})
     for fn, _ in runs.values():
         fn()  # warm: FFT workspaces, models, the allocator
     times: dict[str, list[float]] = {k: [] for k in runs}
@@ -74,6 +79,7 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
     first = recs[0]
     return {"ms_per_return": out, "fft_floor_ms": floor,
             "x_floor": {k: v / floor for k, v in out.items()}, "rounds": len(floors),
+            "returns_timed": {k: count for k, (_, count) in runs.items()},
             "batch_size_from_memory": batch_size(first.n_chirps, first.n_samples), "distinct_returns": len(recs)}
 
 

@@ -127,3 +127,5 @@ def test_batch_curve_times_every_size_interleaved_beside_the_floor() -> None:
     assert set(c["ms_per_return"]) == set(c["x_floor"]) == {"single", "1", "8"}
     assert c["fft_floor_ms"] > 0 and all(v > 0 for v in c["ms_per_return"].values())
     assert c["x_floor"]["8"] == c["ms_per_return"]["8"] / c["fft_floor_ms"]
+    # every size runs the same returns (each at least once), not a small batch of the first few
+    assert c["returns_timed"] == {"single": 5, "1": 5, "8": 8}
