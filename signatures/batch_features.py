@@ -71,8 +71,6 @@ _SAFE_EXPONENT = 20
 #: the batched path's FFT backend: scipy's single-precision transforms (~2-4x numpy's complex128
 #: on these cubes; its 0.2-0.4 s import is paid once per batch job)
 DEFAULT_FFT_BACKEND = "scipy"
-#: threads per scipy transform: one (a fleet runs one batch process per core)
-_WORKERS = 1
 _TINY = F._TINY
 _local = threading.local()
 
@@ -483,7 +481,7 @@ def _spectra32(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str,
     if domain != "if":  # a range cube already is a range spectrum
         return mu, _range_profile(out)
     _fft_in_place(out, -1)
-    return sfft.fft(mu, axis=-1, workers=_WORKERS), _range_profile(out)
+    return sfft.fft(mu, axis=-1, workers=_fft.SCIPY_WORKERS), _range_profile(out)
 
 
 def _fft_in_place(a: np.ndarray, axis: int) -> np.ndarray:
@@ -491,7 +489,7 @@ def _fft_in_place(a: np.ndarray, axis: int) -> np.ndarray:
     should scipy decline): no fresh cube-sized array."""
     import scipy.fft as sfft
 
-    res = sfft.fft(a, axis=axis, overwrite_x=True, workers=_WORKERS)
+    res = sfft.fft(a, axis=axis, overwrite_x=True, workers=_fft.SCIPY_WORKERS)
     if not np.may_share_memory(res, a):
         a[...] = res
     return a
@@ -925,7 +923,7 @@ def _cadence(spec: tuple[np.ndarray, np.ndarray], fft_backend: str) -> tuple[np.
     """`timefreq.cadence(...).spectrum()` per row: (cadence spectrum (B, cadence bins), cadence_hz)."""
     power, t = spec
     p = power - power.mean(axis=1, keepdims=True)
-    mag = np.abs(_fft.rfft(p, axis=1, backend=fft_backend, workers=_WORKERS)).astype(p.dtype, copy=False)
+    mag = np.abs(_fft.rfft(p, axis=1, backend=fft_backend)).astype(p.dtype, copy=False)
     step = float(t[1] - t[0]) if t.size > 1 else 1.0
     return mag.sum(axis=2), np.fft.rfftfreq(p.shape[1], d=step)
 

@@ -24,9 +24,14 @@ import numpy as np
 
 from signatures.errors import SignaturesError
 
-__all__ = ["BACKENDS", "backend", "fft", "resolve", "rfft"]
+__all__ = ["BACKENDS", "SCIPY_WORKERS", "backend", "fft", "resolve", "rfft"]
 
 BACKENDS = ("numpy", "scipy")
+#: Threads per scipy transform. One: on the 2-core project machine two threads were no faster on
+#: the 8192x64 `wide` cube (0.61 against 0.58 ms) and slower on the small transforms of one check
+#: (the gate's 8192x5 Doppler FFT 0.17 against 0.10 ms), and a fleet runs one process per core.
+#: Values do not depend on it (the threads split the rows, not a transform).
+SCIPY_WORKERS = 1
 #: 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s import); anything else: numpy
 _BACKEND = os.environ.get("AUTHN_FFT", "numpy")
 if _BACKEND not in BACKENDS:
@@ -76,7 +81,7 @@ def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
         if window is not None:
             data = data * window.astype(data.real.dtype, copy=False)
         f = sfft.ifft if inverse else sfft.fft
-        return f(data, axis=axis, workers=-1).astype(out, copy=False)
+        return f(data, axis=axis, workers=SCIPY_WORKERS).astype(out, copy=False)
     src = _workspace("in", x.shape)
     if window is None:
         src[...] = x
@@ -87,11 +92,11 @@ def fft(x: np.ndarray, axis: int = -1, window: np.ndarray | None = None,
     return dst.astype(np.complex128 if x.dtype == np.complex128 else np.complex64)
 
 
-def rfft(x: np.ndarray, axis: int = -1, backend: str | None = None, workers: int = -1) -> np.ndarray:
+def rfft(x: np.ndarray, axis: int = -1, backend: str | None = None) -> np.ndarray:
     """Real FFT of float `x` along `axis`: numpy's (float64 arithmetic, complex128 result) or
     scipy's (the input's precision: complex64 for float32)."""
     if resolve(backend) == "scipy":
         import scipy.fft as sfft
 
-        return sfft.rfft(x, axis=axis, workers=workers)
+        return sfft.rfft(x, axis=axis, workers=SCIPY_WORKERS)
     return np.fft.rfft(x, axis=axis)
