@@ -154,8 +154,12 @@ def evidence_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], tup
     return out
 
 
-def equal_error_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], float]:
-    """EER of genuine against each impostor kind per (preset, SNR, impostor, world)."""
+def equal_error_rates(trials: list[Trial], rotor_evidence: bool | None = None) -> dict[tuple[str, float, str, str], float]:
+    """EER of genuine against each impostor kind per (preset, SNR, impostor, world); with
+    `rotor_evidence` True or False, among the claims whose rotors were (not) seen only (cells
+    where either side has no such claim are left out)."""
+    if rotor_evidence is not None:
+        trials = [t for t in trials if t.rotor_evidence == rotor_evidence]
     groups = _group(trials)
     out = {}
     for (preset, snr, cat, world), g in groups.items():
@@ -168,7 +172,8 @@ def equal_error_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], 
 def summarise_worlds(trials: list[Trial]) -> dict[str, object]:
     """JSON view: per preset, SNR, category and world the decisions, the reasons and the
     "flown->claimed" pairs of the wrong ones, how often the rotors were seen and the right
-    decisions among those, what the classifier said, and the scores; EERs."""
+    decisions among those, what the classifier said, and the scores; EERs, and the EERs among
+    the claims whose rotors were not seen (what the classifier alone separates there)."""
     doc: dict[str, dict] = defaultdict(lambda: defaultdict(lambda: defaultdict(dict)))
     evidence = evidence_rates(trials)
     for (preset, snr, cat, world), g in _group(trials).items():
@@ -181,8 +186,12 @@ def summarise_worlds(trials: list[Trial]) -> dict[str, object]:
             "radar_models": dict(Counter(t.radar_model or "not-run" for t in g)),
             "median_check_ms": round(statistics.median(t.check_ms for t in g), 2),
             "scores": [round(t.score, 6) for t in g]}
-    eers = {f"{p}/{s:g}/{c}/{w}": round(v, 4) for (p, s, c, w), v in equal_error_rates(trials).items()}
-    return {"decisions": {p: {s: dict(c) for s, c in d.items()} for p, d in doc.items()}, "eer": eers}
+    def keyed(eers: dict[tuple[str, float, str, str], float]) -> dict[str, float]:
+        return {f"{p}/{s:g}/{c}/{w}": round(v, 4) for (p, s, c, w), v in eers.items()}
+
+    return {"decisions": {p: {s: dict(c) for s, c in d.items()} for p, d in doc.items()},
+            "eer": keyed(equal_error_rates(trials)),
+            "eer_without_rotor_evidence": keyed(equal_error_rates(trials, rotor_evidence=False))}
 
 
 def plot_worlds(trials: list[Trial], folder: Path) -> list[Path]:

@@ -114,8 +114,8 @@ def test_summary_splits_claims_by_rotor_evidence() -> None:
     """A claim whose rotors were not seen rests on the classifier alone: the summary says how
     many were seen, and how many of those were decided right, so that a world's misses split
     into "nothing seen" and "seen but misjudged"."""
-    from authn.bench.verification import rotor_evidence
-    from authn.bench.worlds import Trial, evidence_rates, summarise_worlds
+    from authn.bench.verification import eer, rotor_evidence
+    from authn.bench.worlds import Trial, equal_error_rates, evidence_rates, summarise_worlds
 
     def trial(world: str, decision: str, seen: bool) -> Trial:
         return Trial("paper", world, 0.0, "genuine", "m300", "m300", decision, ("registered-active",), "m300",
@@ -129,6 +129,14 @@ def test_summary_splits_claims_by_rotor_evidence() -> None:
     cell = json.loads(json.dumps(summarise_worlds(trials)))["decisions"]["paper"]["0"]["genuine"]
     assert cell["heldout"]["rotor_evidence_rate"] == 0.5 and cell["heldout"]["correct_rate_with_rotor_evidence"] == 0.5
     assert cell["training"]["correct_rate_with_rotor_evidence"] is None
+    # the EER among the claims whose rotors were not seen: the classifier's separation alone
+    spoofs = [Trial("paper", "heldout", 0.0, "type_spoof", "m600", "m300", "reject", ("radar-not-a-drone",), "bird",
+                    s, 5.0, False) for s in (-1.0, 2.0)]
+    blind = equal_error_rates(trials + spoofs, rotor_evidence=False)
+    assert set(blind) == {("paper", 0.0, "type_spoof", "heldout")}  # the training world has no spoofs here
+    assert blind[("paper", 0.0, "type_spoof", "heldout")] == eer([-1.0, -1.0], [-1.0, 2.0])
+    doc = json.loads(json.dumps(summarise_worlds(trials + spoofs)))
+    assert doc["eer_without_rotor_evidence"] == {"paper/0/type_spoof/heldout": round(eer([-1.0, -1.0], [-1.0, 2.0]), 4)}
     # read from a check's radar evidence: the physics term ran, or only the classifier's did
     assert rotor_evidence({"verification": {"llr": 1.0, "terms": {"physics": 2.0, "classifier": -1.0}}})
     assert not rotor_evidence({"verification": {"llr": -1.0, "terms": {"classifier": -1.0}}})
