@@ -17,7 +17,13 @@ and prints, per world, the share of right decisions at the policy's threshold (L
 and the equal error rates (genuine against type spoofs / unseen). Nothing is fitted here: it
 measures how far each piece of evidence carries, to say where estimator work pays.
 
+`--dwells K` renders every scene K times with independent seeds (K dwells on one target: new
+noise, blade phases and, in the shifted worlds, new nuisance draws) and scores each claim by the
+sum of its dwells' LLRs (a dwell with nothing to verify adds 0): whether more dwells would
+separate what one does not, i.e. whether one dwell's errors are noise or a bias of the world.
+
     python benchmarks/verification_evidence.py --preset paper --snr 10 --n 100
+    python benchmarks/verification_evidence.py --preset paper --snr 10 --n 100 --dwells 4
 """
 
 from __future__ import annotations
@@ -42,8 +48,9 @@ from signatures.sampling import sample_scene
 from signatures.verify import verify
 
 
-def collect(preset_name: str, snr: float, n: int, seed: int) -> list[dict]:
-    """One row per claim and world: features, physics, probabilities, truth."""
+def collect(preset_name: str, snr: float, n: int, seed: int, dwells: int = 1) -> list[dict]:
+    """One row per claim, world and dwell: features, physics, probabilities, truth. Dwell 0 is
+    rendered with the seed a single-dwell run uses, so its rows are that run's."""
     preset = get_preset(preset_name)
     profiles: dict[str, UavProfile] = {**shipped_profiles(), **unseen_profiles()}
     slugs, unseen = list(shipped_profiles()), list(unseen_profiles())
@@ -53,17 +60,22 @@ def collect(preset_name: str, snr: float, n: int, seed: int) -> list[dict]:
         for i in range(n):
             flies, claims = _pair(cat, i, slugs, unseen)
             scene = sample_scene(rng, profiles[flies], replace(CLAIM_SCENES, snr_db=snr))
-            sim_seed = int(rng.integers(2**31))
-            for world in WORLDS:
+            first_seed = int(rng.integers(2**31))
+            for world, dwell in ((w, d) for w in WORLDS for d in range(dwells)):
+                sim_seed = (first_seed + DWELL_SEED_STEP * dwell) % 2**31
                 rec, rate, _, _ = render_in_world(world, scene, preset, sim_seed)
                 classifier = classifier or classifier_for(rec, None, "bench")
                 result = extract(rec, expected_range_m=scene.range_m)
                 pred = classifier.predict(result.as_array(), lambda: result.rd_patch) if result.detected else None
-                rows.append(dict(world=world, cat=cat, flies=profiles[flies], claims=profiles[claims], rate=rate,
+                rows.append(dict(world=world, cat=cat, claim=i, dwell=dwell, flies=profiles[flies], claims=profiles[claims], rate=rate,
                                  detected=result.detected, estimates={**asdict(result.features), **result.physics},
                                  probs=dict(pred.probabilities) if pred else {}, known=bool(pred and pred.known),
                                  max_tip=rec.config.unambiguous_velocity_mps))
     return rows
+
+
+#: Seed offset between the dwells of one scene (a prime, so that no two scenes' dwells share seeds).
+DWELL_SEED_STEP = 7919
 
 
 def _truth(row: dict, rotors: bool) -> dict[str, float]:
@@ -93,13 +105,23 @@ def score(row: dict, variant: str) -> float:
     return v.llr if v.terms else UNVERIFIED
 
 
+def claim_scores(rows: list[dict], variant: str, world: str, cat: str) -> list[float]:
+    """Per claim of one world and category: the sum of its dwells' LLRs (a dwell with nothing to
+    verify adds 0), or `UNVERIFIED` where no dwell had anything to verify."""
+    dwells: dict[int, list[float]] = {}
+    for r in rows:
+        if r["world"] == world and r["cat"] == cat:
+            dwells.setdefault(r["claim"], []).append(score(r, variant))
+    verified = ([s for s in v if s != UNVERIFIED] for v in dwells.values())
+    return [sum(v) if v else UNVERIFIED for v in verified]
+
+
 def report(rows: list[dict]) -> None:
     print("| evidence | world | genuine accepted | type spoofs rejected | unseen rejected | EER spoof / unseen |")
     print("|---|---|---|---|---|---|")
     for variant in VARIANTS:
         for world in WORLDS:
-            s = {c: [score(r, variant) for r in rows if r["world"] == world and r["cat"] == c]
-                 for c in WORLD_CATEGORIES}
+            s = {c: claim_scores(rows, variant, world, c) for c in WORLD_CATEGORIES}
             gen = np.mean(np.array(s["genuine"]) >= 0.0)
             spoof, other = (np.mean(np.array(s[c]) < 0.0) for c in ("type_spoof", "unseen"))
             e1, e2 = eer(s["genuine"], s["type_spoof"]), eer(s["genuine"], s["unseen"])
@@ -112,11 +134,12 @@ def main() -> None:
     ap.add_argument("--snr", type=float, default=10.0)
     ap.add_argument("--n", type=int, default=100, help="claims per category")
     ap.add_argument("--seed", type=int, default=101)
+    ap.add_argument("--dwells", type=int, default=1, help="dwells per claim (independent renders), LLRs summed")
     args = ap.parse_args()
-    if not math.isfinite(args.snr) or args.n < 2:
-        ap.error("--snr must be finite and --n at least 2")
-    rows = collect(args.preset, args.snr, args.n, args.seed)
-    print(f"{args.preset}, {args.snr:g} dB, {args.n} claims per category, seed {args.seed}")
+    if not math.isfinite(args.snr) or args.n < 2 or args.dwells < 1:
+        ap.error("--snr must be finite, --n at least 2 and --dwells at least 1")
+    rows = collect(args.preset, args.snr, args.n, args.seed, args.dwells)
+    print(f"{args.preset}, {args.snr:g} dB, {args.n} claims per category, {args.dwells} dwell(s) each, seed {args.seed}")
     report(rows)
 
 

@@ -1,0 +1,55 @@
+"""`benchmarks/verification_evidence.py --dwells K`: dwell 0 is the single-dwell run, the dwells are
+independent renders, and a claim's score is the sum of its dwells' LLRs (docs/benchmarks.md,
+"Held-out world")."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from authn.bench.verification import UNVERIFIED
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "verification_evidence.py"
+
+
+@pytest.fixture(scope="module")
+def ve():
+    spec = importlib.util.spec_from_file_location("verification_evidence", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def rows(ve):
+    return ve.collect("paper", 10.0, 2, seed=3, dwells=2)
+
+
+def test_dwell_zero_is_the_single_dwell_run(ve, rows):
+    single = ve.collect("paper", 10.0, 2, seed=3)
+    first = [r for r in rows if r["dwell"] == 0]
+    assert len(first) == len(single) and len(rows) == 2 * len(single)
+    for a, b in zip(first, single):
+        assert (a["world"], a["cat"], a["claim"]) == (b["world"], b["cat"], b["claim"])
+        assert a["estimates"] == b["estimates"]
+
+
+def test_dwells_are_independent_renders(ve, rows):
+    by_key = {(r["world"], r["cat"], r["claim"], r["dwell"]): r for r in rows}
+    differ = [by_key[(w, c, i, 0)]["estimates"] != by_key[(w, c, i, 1)]["estimates"]
+              for (w, c, i, d) in by_key if d == 0]
+    assert all(differ)
+
+
+def test_claim_score_sums_the_dwells(ve, rows):
+    for world in ("training", "heldout"):
+        for cat in ("genuine", "type_spoof"):
+            combined = ve.claim_scores(rows, "shipped", world, cat)
+            assert len(combined) == 2
+            for i, total in enumerate(combined):
+                parts = [ve.score(r, "shipped") for r in rows
+                         if (r["world"], r["cat"], r["claim"]) == (world, cat, i)]
+                verified = [p for p in parts if p != UNVERIFIED]
+                assert total == (sum(verified) if verified else UNVERIFIED)
