@@ -16,8 +16,8 @@ Why it is built this way:
 * The waveform is data (`signatures.radar.Preset`): the spec carries it to the worker
   processes, and the cache key digests its parameters (a shipped preset by its name, as always).
 * The result is cached as `.npz` (no pickle) under a key that digests everything the
-  samples depend on, so a retrain does not re-simulate. The code is not hashed: the key
-  names the featurizer and the explicit feature and simulator versions (`feature_version`).
+  samples depend on, so a retrain does not re-simulate: the featurizer, the explicit feature
+  and simulator versions and the code that computes the samples (`feature_version`).
 """
 
 from __future__ import annotations
@@ -219,22 +219,30 @@ def default_featurizer() -> Featurizer:
     return extract
 
 
+#: Where a dataset's numbers come from besides the featurizer's module: the simulator, the scene
+#: sampler and this module's scene distribution (`code_digest` follows their imports).
+SAMPLE_CODE = ("signatures.simulate", "signatures.sampling", "signatures.dataset")
+
+
 def feature_version(featurizer: Featurizer) -> str:
     """The featurizer's part of the cache key: its qualified name, the feature names, the feature
     and simulator versions (`signatures.features.FEATURE_VERSION`,
-    `signatures.simulate.SIMULATOR_VERSION`) and the featurizer module's own `FEATURE_VERSION`
-    if it has one. No source code is hashed: a change to the numbers of the features or of the
-    simulator must bump those versions (tests/features/test_feature_version.py fails until it does).
-    """
+    `signatures.simulate.SIMULATOR_VERSION`), the featurizer module's own `FEATURE_VERSION` if it
+    has one, and a digest of the code the samples come from (`signatures.code_digest`: the
+    featurizer's module, `SAMPLE_CODE` and our modules they import). The versions still say when
+    the numbers change (tests/features/test_feature_version.py fails until they are bumped); the
+    digest makes a cache written by other code (a reverted experiment) unreachable."""
     import importlib
 
     from signatures import features, simulate
+    from signatures.code_digest import code_digest
 
     mod = importlib.import_module(featurizer.__module__)
     names = getattr(mod, "FEATURE_NAMES", features.FEATURE_NAMES)
     doc = {"featurizer": f"{featurizer.__module__}.{featurizer.__qualname__}", "feature_names": list(names),
            "feature_version": features.FEATURE_VERSION, "simulator_version": simulate.SIMULATOR_VERSION,
-           "module_feature_version": str(getattr(mod, "FEATURE_VERSION", ""))}
+           "module_feature_version": str(getattr(mod, "FEATURE_VERSION", "")),
+           "code": code_digest((featurizer.__module__, *SAMPLE_CODE))}
     blob = json.dumps(doc, sort_keys=True).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
 

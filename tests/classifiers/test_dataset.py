@@ -46,16 +46,29 @@ def test_scene_draws_are_pinned() -> None:
     assert wing_flap == pytest.approx((0.371099, 9.45707, 24.9879), rel=1e-5)
 
 
-def test_cache_key_names_versions_not_source(monkeypatch) -> None:
-    """The featurizer's key part follows its name, FEATURE_VERSION and SIMULATOR_VERSION (no source digest)."""
-    from signatures import features, simulate
+def test_cache_key_names_versions_and_code(monkeypatch) -> None:
+    """The featurizer's key part follows its name, FEATURE_VERSION, SIMULATOR_VERSION and the
+    digest of the code the samples come from."""
+    from signatures import code_digest, features, simulate
 
     base = feature_version(features.extract)
     assert feature_version(features.extract) == base and feature_version(standin_extract) != base
     monkeypatch.setattr(features, "FEATURE_VERSION", features.FEATURE_VERSION + "-next")
     bumped = feature_version(features.extract)
     monkeypatch.setattr(simulate, "SIMULATOR_VERSION", simulate.SIMULATOR_VERSION + "-next")
-    assert len({base, bumped, feature_version(features.extract)}) == 3
+    resimulated = feature_version(features.extract)
+    monkeypatch.setattr(code_digest, "_digest", lambda roots, packages: "other code")
+    assert len({base, bumped, resimulated, feature_version(features.extract)}) == 4
+
+
+def test_cache_key_digests_the_sample_code() -> None:
+    """The digest reaches the estimators (imported by the featurizer), the simulator and the sampler."""
+    from signatures import dataset, features
+    from signatures.code_digest import modules_reached
+
+    reached = modules_reached((features.extract.__module__, *dataset.SAMPLE_CODE))
+    assert {"signatures.estimators", "signatures.rd", "signatures.timefreq", "signatures.simulate",
+            "signatures.sampling", "signatures.scene", "signatures.dataset"} <= set(reached)
 
 
 def test_split_is_a_property_of_the_block() -> None:
