@@ -48,6 +48,10 @@ from signatures.sampling import sample_scene
 from signatures.verify import verify
 
 
+#: Seed offset between the dwells of one scene.
+DWELL_SEED_STEP = 7919
+
+
 def collect(preset_name: str, snr: float, n: int, seed: int, dwells: int = 1) -> list[dict]:
     """One row per claim, world and dwell: features, physics, probabilities, truth. Dwell 0 is
     rendered with the seed a single-dwell run uses, so its rows are that run's."""
@@ -67,15 +71,12 @@ def collect(preset_name: str, snr: float, n: int, seed: int, dwells: int = 1) ->
                 classifier = classifier or classifier_for(rec, None, "bench")
                 result = extract(rec, expected_range_m=scene.range_m)
                 pred = classifier.predict(result.as_array(), lambda: result.rd_patch) if result.detected else None
-                rows.append(dict(world=world, cat=cat, claim=i, dwell=dwell, flies=profiles[flies], claims=profiles[claims], rate=rate,
-                                 detected=result.detected, estimates={**asdict(result.features), **result.physics},
+                rows.append(dict(world=world, cat=cat, claim=i, dwell=dwell, flies=profiles[flies],
+                                 claims=profiles[claims], rate=rate, detected=result.detected,
+                                 estimates={**asdict(result.features), **result.physics},
                                  probs=dict(pred.probabilities) if pred else {}, known=bool(pred and pred.known),
                                  max_tip=rec.config.unambiguous_velocity_mps))
     return rows
-
-
-#: Seed offset between the dwells of one scene (a prime, so that no two scenes' dwells share seeds).
-DWELL_SEED_STEP = 7919
 
 
 def _truth(row: dict, rotors: bool) -> dict[str, float]:
