@@ -33,24 +33,27 @@ def code_digest(roots: Iterable[str], packages: Iterable[str] = OUR_PACKAGES) ->
 @lru_cache(maxsize=32)
 def _digest(roots: tuple[str, ...], packages: tuple[str, ...]) -> str:
     h = hashlib.sha256()
-    for name in modules_reached(roots, packages):
-        h.update(name.encode() + b"\0" + ast.dump(_without_docstrings(_tree(name))).encode() + b"\0")
+    for name, tree in sorted(_parsed(roots, frozenset(packages)).items()):
+        h.update(name.encode() + b"\0" + ast.dump(_without_docstrings(tree)).encode() + b"\0")
     return h.hexdigest()[:16]
 
 
 def modules_reached(roots: Iterable[str], packages: Iterable[str] = OUR_PACKAGES) -> list[str]:
     """The roots (any module with a source file) and every module of `packages` they import,
     transitively, sorted by name."""
-    ours = frozenset(packages)
-    seen: set[str] = set()
+    return sorted(_parsed(roots, frozenset(packages)))
+
+
+def _parsed(roots: Iterable[str], ours: frozenset[str]) -> dict[str, ast.Module]:
+    """Each module `modules_reached` names and its syntax tree, every source read and parsed once."""
+    trees: dict[str, ast.Module] = {}
     stack = [r for r in roots if _source(r) is not None]
     while stack:
         name = stack.pop()
-        if name in seen:
-            continue
-        seen.add(name)
-        stack.extend(m for m in _imports(name, ours) if m not in seen)
-    return sorted(seen)
+        if name not in trees:
+            trees[name] = _tree(name)
+            stack.extend(m for m in _imports(trees[name], ours) if m not in trees)
+    return trees
 
 
 def _source(name: str) -> Path | None:
@@ -69,11 +72,11 @@ def _tree(name: str) -> ast.Module:
     return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
 
 
-def _imports(name: str, ours: frozenset[str]) -> set[str]:
-    """The modules of packages `ours` that `name` imports anywhere in its body (a package's
-    submodules named in `from package import a, b` included)."""
+def _imports(tree: ast.Module, ours: frozenset[str]) -> set[str]:
+    """The modules of packages `ours` that a module's tree imports anywhere in its body (a
+    package's submodules named in `from package import a, b` included)."""
     found: set[str] = set()
-    for node in ast.walk(_tree(name)):
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names if a.name.split(".")[0] in ours)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0 \
