@@ -53,3 +53,11 @@ def test_claim_score_sums_the_dwells(ve, rows):
                          if (r["world"], r["cat"], r["claim"]) == (world, cat, i)]
                 verified = [p for p in parts if p != UNVERIFIED]
                 assert total == (sum(verified) if verified else UNVERIFIED)
+
+
+def test_dwells_below_one_is_refused_with_exit_2() -> None:
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, str(SCRIPT), "--dwells", "0"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "--dwells at least 1" in done.stderr and "Traceback" not in done.stderr
