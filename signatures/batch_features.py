@@ -47,7 +47,7 @@ from signatures import timefreq as tf
 from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
 from signatures.recording import DOMAINS
-from signatures.threads import one_blas_thread
+from signatures.threads import blas_on_one_thread, one_blas_thread
 
 __all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "MIN_BATCH", "batch_size", "extract_batch", "extract_many"]
 
@@ -610,22 +610,45 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, log2_scale: np.ndarray,
                    labels: list[int], window: int) -> np.ndarray:
     """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
-    windows, bins), row by row with the single path's function (the same products, so the same
-    bits). `rd.prepare`'s power-of-two scale (the cube stage's `log2_scale`) rides on the basis,
-    which is exact; a row that `prepared` would scale itself (not complex64, or beyond its safe
-    exponent) goes through it."""
+    windows, bins), with the single path's products (`estimators.scaled_subchirp_basis`), so the
+    same bits. `rd.prepare`'s power-of-two scale (the cube stage's `log2_scale`) rides on the
+    basis, which is exact; a row that `prepared` would scale itself (not complex64, or beyond its
+    safe exponent) goes through it. With BLAS on one thread the rows that share a peak bin and a
+    scale are stacked into one product (`_stacked_subchirp_bins`), else each row makes its own."""
     n_chirps = iq.shape[1]
     out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
+    stack = blas_on_one_thread()
+    shared: dict[tuple[int, int], list[int]] = {}
     for j, b in enumerate(rows.tolist()):
         row = np.asarray(iq[b])
         exponent = int(log2_scale[j])
         if row.dtype == np.complex64 and abs(exponent) <= _SAFE_EXPONENT:
+            if stack:
+                shared.setdefault((int(peak_bin[j]), exponent), []).append(j)
+                continue
             x, s = row, math.ldexp(1.0, -exponent)
         else:
             xs, scale, _, _ = prepared(row[None], [labels[b]])
             x, s = xs[0], float(scale[0, 0, 0])
         out[j] = est.subchirp_bins(x, int(peak_bin[j]), window, s)
+    for (peak, exponent), js in shared.items():
+        _stacked_subchirp_bins(iq, rows[js], np.asarray(js), peak, math.ldexp(1.0, -exponent), window, out)
     return out
+
+
+def _stacked_subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, at: np.ndarray, peak_bin: int,
+                           scale: float, window: int, out: np.ndarray) -> None:
+    """The sub-chirp bins of complex64 rows `rows` sharing a peak bin and a scale into `out[at]`:
+    cache-sized blocks of rows stacked into one (rows x chirps, samples) product each."""
+    n_chirps, n_samples = iq.shape[1:]
+    basis = est.scaled_subchirp_basis(n_samples, peak_bin, window, np.complex64, scale)
+    step = max(1, _CUBE_BLOCK_BYTES // (8 * n_chirps * n_samples))
+    for s in range(0, rows.size, step):
+        part = rows[s:s + step].tolist()
+        x = np.stack([iq[b] for b in part], out=_scratch("subchirp", (len(part), n_chirps, n_samples), np.complex64))
+        prod = np.matmul(x.reshape(-1, n_samples), basis,
+                         out=_scratch("subchirp_out", (len(part) * n_chirps, basis.shape[1]), np.complex64))
+        out[at[s:s + step]] = prod.reshape((len(part), n_chirps) + out.shape[2:])
 
 
 def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_chirps: int,

@@ -221,6 +221,15 @@ def subchirp_basis(n_samples: int, peak_bin: int, window: int) -> np.ndarray:
     return basis
 
 
+def scaled_subchirp_basis(n_samples: int, peak_bin: int, window: int, dtype, scale: float = 1.0) -> np.ndarray:
+    """`subchirp_basis` in the cube's complex `dtype` times the power of two `scale` (a fresh
+    array): the products of `subchirp_bins`, which the batch path makes too."""
+    basis = subchirp_basis(n_samples, peak_bin, window).astype(dtype)
+    if scale != 1.0:
+        basis *= basis.real.dtype.type(scale)
+    return basis
+
+
 def subchirp_bins(iq: np.ndarray, peak_bin: int, window: int, scale: float = 1.0) -> np.ndarray:
     """(chirps, SUBCHIRP_WINDOWS, SUBCHIRP_BINS): the bins around `peak_bin` of each sub-chirp
     window of the IF cube `iq` times `scale` (module docstring), in the cube's precision
@@ -233,9 +242,7 @@ def subchirp_bins(iq: np.ndarray, peak_bin: int, window: int, scale: float = 1.0
     x = np.asarray(iq)
     x = x if np.iscomplexobj(x) and x.dtype.itemsize >= 8 else x.astype(np.complex64)
     n, n_samples = x.shape
-    basis = subchirp_basis(n_samples, peak_bin, window).astype(x.dtype)
-    if scale != 1.0:
-        basis *= x.real.dtype.type(scale)
+    basis = scaled_subchirp_basis(n_samples, peak_bin, window, x.dtype, scale)
     out = np.empty((n, basis.shape[1]), x.dtype)
     for s in range(0, n, SUBCHIRP_BLOCK):
         np.matmul(x[s:s + SUBCHIRP_BLOCK], basis, out=out[s:s + SUBCHIRP_BLOCK])

@@ -10,6 +10,10 @@ bits: a complex product of (128-256 x 80) by (80 x 9) differs between one and tw
 (measured, OpenBLAS 0.3.31), so code whose single and batch paths must agree to the bit makes
 products too small to be split (`estimators.SUBCHIRP_BLOCK`).
 
+On one thread a product's rows do not depend on how many rows it has (OpenBLAS 0.3.31, complex64,
+measured), so inside the block (`blas_on_one_thread()`) the batch path may stack many rows into
+one product: the sub-chirp bins of a `paper` batch cost half as much that way.
+
 `one_blas_thread()` limits the loaded BLAS libraries to one thread for a block of code
 (threadpoolctl, a scikit-learn dependency; nothing happens without it). Its controller is made
 on first use (~15 ms, once per process), after numpy's BLAS is loaded.
@@ -20,7 +24,7 @@ from __future__ import annotations
 import contextlib
 import threading
 
-__all__ = ["one_blas_thread"]
+__all__ = ["blas_on_one_thread", "one_blas_thread"]
 
 _lock = threading.Lock()
 _controller = None
@@ -67,3 +71,8 @@ def one_blas_thread():
             if _active == 0 and _limiter is not None:
                 _limiter.restore_original_limits()
                 _limiter = None
+
+
+def blas_on_one_thread() -> bool:
+    """Whether BLAS is held to one thread now: inside `one_blas_thread` with a BLAS it controls."""
+    return _active > 0 and _limiter is not None

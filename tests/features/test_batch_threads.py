@@ -1,11 +1,14 @@
 """`signatures.threads.one_blas_thread`: one BLAS thread inside, the same products, the
-original limits back after (nested and overlapping blocks included)."""
+original limits back after (nested and overlapping blocks included); `blas_on_one_thread` says
+so, and on one thread the batch path's stacked sub-chirp products are the single path's."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from signatures import batch_features as bf
+from signatures import estimators as est
 from signatures import threads
 
 
@@ -18,12 +21,14 @@ def _blas_threads() -> list[int]:
 
 def test_one_thread_inside_and_the_limits_restored():
     before = _blas_threads()
+    assert not threads.blas_on_one_thread()
     with threads.one_blas_thread():
-        assert all(n == 1 for n in _blas_threads())
+        assert all(n == 1 for n in _blas_threads()) and threads.blas_on_one_thread()
         with threads.one_blas_thread():  # nested: still one, and the outer block keeps it
             assert all(n == 1 for n in _blas_threads())
-        assert all(n == 1 for n in _blas_threads())
+        assert all(n == 1 for n in _blas_threads()) and threads.blas_on_one_thread()
     assert _blas_threads() == before
+    assert not threads.blas_on_one_thread()
 
 
 def test_same_products_on_one_thread():
@@ -32,3 +37,29 @@ def test_same_products_on_one_thread():
     ref = a @ b
     with threads.one_blas_thread():
         assert np.array_equal(a @ b, ref)
+
+
+def test_stacked_subchirp_bins_are_the_row_by_row_products_bit_for_bit():
+    """On one BLAS thread the batch path stacks rows that share a peak bin and a scale into one
+    product; each row's bins are still those of its own `estimators.subchirp_bins` call (what
+    the batch path makes row by row, and the single path makes). Rows of 37 chirps: products
+    whose height is not the single path's block of 64; one row beyond the safe exponent."""
+    _blas_threads()
+    rng = np.random.default_rng(3)
+    n_rows, n_chirps, n_samples, window = 23, 37, 80, 48
+    iq = (rng.standard_normal((n_rows, n_chirps, n_samples))
+          + 1j * rng.standard_normal((n_rows, n_chirps, n_samples))).astype(np.complex64)
+    iq *= np.ldexp(1.0, rng.choice([-3, 0, 5, 30], n_rows)).astype(np.float32)[:, None, None]
+    log2_scale = bf.prepared(iq, list(range(n_rows)))[2]
+    peak = rng.choice([2, 17, 40], n_rows)
+    args = (iq, np.arange(n_rows), peak, log2_scale, list(range(n_rows)), window)
+    assert not threads.blas_on_one_thread()
+    row_by_row = bf._subchirp_bins(*args)
+    with threads.one_blas_thread():
+        assert threads.blas_on_one_thread()
+        stacked = bf._subchirp_bins(*args)
+        for b in range(n_rows):
+            assert np.array_equal(stacked[b], row_by_row[b]), b
+            if abs(log2_scale[b]) <= bf._SAFE_EXPONENT:
+                want = est.subchirp_bins(iq[b], int(peak[b]), window, 2.0 ** -int(log2_scale[b]))
+                assert np.array_equal(stacked[b], want), b
