@@ -1,0 +1,162 @@
+"""Where a batch's time goes, and the part of it no implementation of these features avoids.
+
+Two tables for one preset, both per return and as multiples of the FFT floor measured in the
+same run (`authn.bench.perf.fft_floor`, as `authn bench --batch`; docs/benchmarks.md, "Batch mode"):
+
+* **stages**: `extract_many` + `Classifier.predict_many` on a batch of B of the bench's returns
+  (`authn.bench.batch.curve`'s scenes), with the batch path's stage functions wrapped in timers
+  (cube stage, sub-chirp bins, flash series, periodicity, spectrogram, cadence, the rest of the
+  slow stage, the classifier); medians over rounds.
+* **transforms alone**: on random cubes of the preset's shape, in the batch path's precision
+  (complex64, scipy's transforms, one thread): the cube's passes every check needs (slow-time
+  mean, clutter subtraction, window, range FFT, range profile), the sub-chirp products as one
+  matrix product over the batch (where the waveform has sub-chirp windows), the gate's Doppler FFT
+  and its STFT. What is left of a target ratio after these is all the estimators may cost.
+
+    python benchmarks/batch_stages.py --preset paper --batch 256
+    python benchmarks/batch_stages.py --preset wide --batch 64 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import statistics
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from authn.bench import pareto, perf
+from signatures import batch_estimators as be
+from signatures import batch_features as bf
+from signatures import estimators as est
+from signatures import features as F
+from signatures import rd
+from signatures import timefreq as tf
+from signatures.inference import load_classifier
+from signatures.radar import get_preset
+from signatures.threads import one_blas_thread
+
+#: (module, function) wrapped in timers, reported under the function's name
+STAGES = ((bf, "_cube_stage"), (bf, "_subchirp_bins"), (be, "flash_series_batch"), (be, "periodicity_batch"),
+          (bf, "_spectrogram"), (bf, "_cadence"), (bf, "_slow_stage"))
+
+
+def _returns(preset: str, batch: int, seed: int = 5) -> tuple[list, list]:
+    """The batch bench's 60 returns at 10 dB (12 per class), repeated to fill `batch` rows."""
+    data = [(rec, pareto._gate_of(label, rec, truth)) for _, label, rec, truth in pareto._scenes(preset, (10.0,), 12, seed)]
+    rows = [data[i % len(data)] for i in range(batch)]
+    return [r for r, _ in rows], [g for _, g in rows]
+
+
+def stages(preset: str, batch: int, rounds: int) -> dict[str, float]:
+    """Median ms per return of each stage (and 'classifier', 'total') over `rounds` batches."""
+    clf = load_classifier(preset)
+    recs, gates = _returns(preset, batch)
+    spent: dict[str, float] = {}
+    originals = [(mod, name, getattr(mod, name)) for mod, name in STAGES]
+
+    def timed(name: str, fn: Callable) -> Callable:
+        @functools.wraps(fn)
+        def run(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                spent[name] = spent.get(name, 0.0) + time.perf_counter() - t0
+        return run
+
+    for mod, name, fn in originals:
+        setattr(mod, name, timed(name, fn))
+    try:
+        per_round: list[dict[str, float]] = []
+        for r in range(rounds + 1):  # the first round warms workspaces and models
+            spent.clear()
+            t0 = time.perf_counter()
+            features = np.stack([f.as_array() for f in bf.extract_many(recs, gates)])
+            t1 = time.perf_counter()
+            clf.predict_many(features)
+            t2 = time.perf_counter()
+            if r:
+                per_round.append(dict(spent, classifier=t2 - t1, total=t2 - t0))
+    finally:
+        for mod, name, fn in originals:
+            setattr(mod, name, fn)
+    out = {k: statistics.median(p.get(k, 0.0) for p in per_round) * 1e3 / batch for k in per_round[0]}
+    inner = ("flash_series_batch", "periodicity_batch", "_spectrogram", "_cadence")  # called by _slow_stage
+    out["rest of the slow stage"] = out["_slow_stage"] - sum(out.get(k, 0.0) for k in inner)
+    return out
+
+
+def transforms(preset: str, batch: int, rounds: int) -> dict[str, float]:
+    """Median ms per return of the transforms every check of `preset` makes, alone (module docstring)."""
+    import scipy.fft as sfft
+
+    pre = get_preset(preset)
+    n, k = pre.n_chirps, pre.n_samples
+    rng = np.random.default_rng(0)
+    rows = min(batch, max(1, bf._CUBE_BLOCK_BYTES // (8 * n * k)))  # the cube stage's block of rows
+    cube = (rng.standard_normal((rows, n, k)) + 1j * rng.standard_normal((rows, n, k))).astype(np.complex64)
+    window = rd.hann(k).astype(np.float32)
+    work = np.empty_like(cube)
+    gate = np.ascontiguousarray(cube[:, :, :F.GATE_BINS])
+    hann_slow = rd.hann(n).astype(np.float32)[:, None]
+    win, hop = tf.stft_params(pre.config, n)
+    frames = np.ascontiguousarray(np.lib.stride_tricks.sliding_window_view(gate, win, axis=1)[:, ::hop])
+    sub = est.subchirp_window(pre.config, k)
+
+    def cube_passes() -> None:
+        np.subtract(cube, cube.mean(axis=1, keepdims=True), out=work)
+        np.multiply(work, window, out=work)
+        spec = sfft.fft(work, axis=-1, overwrite_x=True, workers=1)
+        f = spec.view(np.float32)
+        np.einsum("bnj,bnj->bj", f, f)
+
+    parts: dict[str, Callable[[], object]] = {"cube passes + range FFT": cube_passes}
+    if sub:
+        basis = est.scaled_subchirp_basis(k, k // 4, sub, np.complex64)
+        parts["sub-chirp products"] = lambda: cube.reshape(-1, k) @ basis
+    parts["Doppler FFT"] = lambda: sfft.fft(gate * hann_slow, axis=1, workers=1)
+    parts["STFT"] = lambda: sfft.fft(frames, axis=-1, workers=1)
+    out = {}
+    with one_blas_thread():
+        for name, fn in parts.items():
+            fn()
+            times = []
+            for _ in range(max(3, rounds)):
+                t0 = time.perf_counter()
+                fn()
+                times.append(time.perf_counter() - t0)
+            out[name] = statistics.median(times) * 1e3 / rows
+    out["total"] = sum(out.values())
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--preset", default="paper", choices=("paper", "wide"))
+    ap.add_argument("--batch", type=int, default=256, help="rows per batch (default 256)")
+    ap.add_argument("--rounds", type=int, default=10, help="timed rounds, medians (default 10)")
+    ap.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    args = ap.parse_args(argv)
+    if args.batch < bf.MIN_BATCH or args.rounds < 1:
+        ap.error(f"--batch must be >= {bf.MIN_BATCH} (smaller groups take the single path) and --rounds >= 1")
+    floor = perf.fft_floor(args.preset, repeats=20)["fft_ms"]
+    result = {"preset": args.preset, "batch": args.batch, "fft_floor_ms": floor,
+              "stages_ms": stages(args.preset, args.batch, args.rounds),
+              "transforms_ms": transforms(args.preset, args.batch, args.rounds)}
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    print(f"{args.preset}, batch {args.batch}, FFT floor {floor:.3f} ms per return")
+    for title, table in (("stage", result["stages_ms"]), ("transform alone", result["transforms_ms"])):
+        print(f"\n| {title} | ms per return | x floor |\n|---|---|---|")
+        for name, ms in table.items():
+            print(f"| {name.strip('_')} | {ms:.3f} | {ms / floor:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,53 @@
+"""`benchmarks/batch_stages.py`: the stage timers account for the batch's time and leave the
+batch path as they found it; the transforms-alone table has the preset's transforms; bad
+arguments exit 2 (docs/benchmarks.md, "Batch mode")."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from signatures import batch_estimators as be
+from signatures import batch_features as bf
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "batch_stages.py"
+
+
+@pytest.fixture(scope="module")
+def bs():
+    spec = importlib.util.spec_from_file_location("batch_stages", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_stages_add_up_and_the_batch_path_is_restored(bs):
+    before = {name: getattr(mod, name) for mod, name in bs.STAGES}
+    ms = bs.stages("paper", 8, 1)
+    assert {name for _, name in bs.STAGES} <= ms.keys()
+    assert all(v >= 0.0 for k, v in ms.items() if k != "rest of the slow stage")
+    top = ms["_cube_stage"] + ms["_subchirp_bins"] + ms["_slow_stage"] + ms["classifier"]
+    assert top <= ms["total"] * 1.0001  # the top-level stages run one after another inside the total
+    inner = ms["flash_series_batch"] + ms["periodicity_batch"] + ms["_spectrogram"] + ms["_cadence"]
+    assert ms["rest of the slow stage"] == pytest.approx(ms["_slow_stage"] - inner)
+    assert {name: getattr(mod, name) for mod, name in bs.STAGES} == before
+    assert bf._cube_stage is before["_cube_stage"] and be.periodicity_batch is before["periodicity_batch"]
+
+
+@pytest.mark.parametrize("preset,sub", [("paper", True), ("wide", False)])
+def test_transforms_alone_are_the_presets(bs, preset, sub):
+    ms = bs.transforms(preset, 4, 1)
+    assert ("sub-chirp products" in ms) == sub  # `wide` has no sub-chirp windows
+    assert {"cube passes + range FFT", "Doppler FFT", "STFT"} <= ms.keys()
+    assert ms["total"] == pytest.approx(sum(v for k, v in ms.items() if k != "total"))
+    assert all(v > 0.0 for v in ms.values())
+
+
+@pytest.mark.parametrize("argv", [["--batch", "2"], ["--rounds", "0"], ["--preset", "cw"]])
+def test_bad_arguments_exit_2(bs, argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        bs.main(argv)
+    assert exc.value.code == 2
+    assert "error:" in capsys.readouterr().err
