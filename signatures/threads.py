@@ -12,7 +12,7 @@ products too small to be split (`estimators.SUBCHIRP_BLOCK`).
 
 On one thread a product's rows do not depend on how many rows it has (OpenBLAS 0.3.31, complex64,
 measured), so inside the block (`blas_on_one_thread()`) the batch path may stack many rows into
-one product: the sub-chirp bins of a `paper` batch cost half as much that way.
+one product: the sub-chirp bins of a `paper` batch cost about a third less that way.
 
 `one_blas_thread()` limits the loaded BLAS libraries to one thread for a block of code
 (threadpoolctl, a scikit-learn dependency; nothing happens without it). Its controller is made
