@@ -1,12 +1,15 @@
 """Shared fixtures: a fresh database per test, on SQLite always and on PostgreSQL too
-when AUTHN_TEST_POSTGRES_URL points at a server."""
+when AUTHN_TEST_POSTGRES_URL points at a server; the benchmark scripts as modules."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -92,3 +95,15 @@ def _no_user_models(tmp_path_factory, monkeypatch):
     models = tmp_path_factory.getbasetemp() / "user-models"
     models.mkdir(exist_ok=True)
     monkeypatch.setenv("AUTHN_MODELS_DIR", str(models))
+
+
+@pytest.fixture(scope="session")
+def benchmark_script() -> Callable[[str], ModuleType]:
+    """Loads `benchmarks/NAME.py` as a module (the scripts are not a package)."""
+    def load(name: str) -> ModuleType:
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+    return load

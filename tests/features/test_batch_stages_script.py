@@ -4,23 +4,15 @@ arguments exit 2 (docs/benchmarks.md, "Batch mode")."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
 from signatures import batch_estimators as be
 from signatures import batch_features as bf
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "batch_stages.py"
-
 
 @pytest.fixture(scope="module")
-def bs():
-    spec = importlib.util.spec_from_file_location("batch_stages", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def bs(benchmark_script):
+    return benchmark_script("batch_stages")
 
 
 def test_stages_add_up_and_the_batch_path_is_restored(bs):

@@ -4,22 +4,16 @@ independent renders, and a claim's score is the sum of its dwells' LLRs (docs/be
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
 
 from authn.bench.verification import UNVERIFIED
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "verification_evidence.py"
-
 
 @pytest.fixture(scope="module")
-def ve():
-    spec = importlib.util.spec_from_file_location("verification_evidence", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def ve(benchmark_script):
+    return benchmark_script("verification_evidence")
 
 
 @pytest.fixture(scope="module")
@@ -59,5 +53,6 @@ def test_dwells_below_one_is_refused_with_exit_2() -> None:
     import subprocess
     import sys
 
-    done = subprocess.run([sys.executable, str(SCRIPT), "--dwells", "0"], capture_output=True, text=True, timeout=120)
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / "verification_evidence.py"
+    done = subprocess.run([sys.executable, str(script), "--dwells", "0"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "--dwells at least 1" in done.stderr and "Traceback" not in done.stderr
