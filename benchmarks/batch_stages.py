@@ -28,7 +28,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from authn.bench import pareto, perf
+from authn.bench import perf
+from authn.bench.batch import _median_ms, returns
 from signatures import batch_estimators as be
 from signatures import batch_features as bf
 from signatures import estimators as est
@@ -44,11 +45,11 @@ STAGES = ((bf, "_cube_stage"), (bf, "_subchirp_bins"), (be, "flash_series_batch"
           (bf, "_spectrogram"), (bf, "_cadence"), (bf, "_slow_stage"))
 
 
-def _returns(preset: str, batch: int, seed: int = 5) -> tuple[list, list]:
-    """The batch bench's 60 returns at 10 dB (12 per class), repeated to fill `batch` rows."""
-    data = [(rec, pareto._gate_of(label, rec, truth)) for _, label, rec, truth in pareto._scenes(preset, (10.0,), 12, seed)]
-    rows = [data[i % len(data)] for i in range(batch)]
-    return [r for r, _ in rows], [g for _, g in rows]
+def _returns(preset: str, batch: int) -> tuple[list, list]:
+    """The batch bench's 60 returns (`authn.bench.batch.returns`), repeated to fill `batch` rows."""
+    recs, gates = returns(preset)
+    rows = [i % len(recs) for i in range(batch)]
+    return [recs[i] for i in rows], [gates[i] for i in rows]
 
 
 def stages(preset: str, batch: int, rounds: int) -> dict[str, float]:
@@ -124,12 +125,7 @@ def transforms(preset: str, batch: int, rounds: int) -> dict[str, float]:
     with one_blas_thread():
         for name, fn in parts.items():
             fn()
-            times = []
-            for _ in range(max(3, rounds)):
-                t0 = time.perf_counter()
-                fn()
-                times.append(time.perf_counter() - t0)
-            out[name] = statistics.median(times) * 1e3 / rows
+            out[name] = _median_ms(fn, max(3, rounds)) / rows
     out["total"] = sum(out.values())
     return out
 

@@ -28,6 +28,16 @@ def _median_ms(fn: Callable[[], object], repeats: int) -> float:
     return statistics.median(times)
 
 
+def returns(preset: str, distinct: int = 64, seed: int = 5) -> tuple[list, list[float | None]]:
+    """The bench's returns: `distinct` // 5 simulated scenes per class at 10 dB (the shipped
+    UAVs, a bird, an empty scene), as (recordings, their gates' expected ranges)."""
+    from authn.bench import pareto
+
+    data = [(rec, pareto._gate_of(label, rec, truth))
+            for _, label, rec, truth in pareto._scenes(preset, (10.0,), max(1, distinct // 5), seed)]
+    return [r for r, _ in data], [g for _, g in data]
+
+
 def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed: int = 5,
           budget_s: float = 20.0) -> dict[str, object]:
     """Per-return ms of batched features + classifier at each batch size, beside the single-return
@@ -39,16 +49,13 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
     **interleaved**: each round times the floor, the single path and every batch size once, in
     turn, so that a shared machine's drift hits them alike; rounds repeat until `budget_s` has
     passed (at least 3, at most 50), medians over rounds."""
-    from authn.bench import pareto, perf
+    from authn.bench import perf
     from signatures.batch_features import batch_size, extract_many
     from signatures.features import extract
     from signatures.inference import load_classifier
 
     clf = load_classifier(preset)
-    data = []
-    for _, label, rec, truth in pareto._scenes(preset, (10.0,), max(1, distinct // 5), seed):
-        data.append((rec, pareto._gate_of(label, rec, truth)))
-    recs, gates = [r for r, _ in data], [g for _, g in data]
+    recs, gates = returns(preset, distinct, seed)
 
     def batched(b: int) -> tuple[Callable[[], object], int]:
         """Batches of b covering every return: (run them all, returns run)."""
