@@ -16,23 +16,24 @@ serves both; a proof carries the entry itself, not a hash of a hash; and the lea
 commits to the chain link. Each row stores its leaf hash (leaf_hash) so proofs and
 checkpoints never re-serialise the log; verify recomputes and compares them.
 
-Automatic checkpoints: `append` signs a tree head when K entries were added since the
-newest one, or T seconds passed (checked at append time; nothing runs in between):
+Heads: every append signs a C2SP checkpoint of the whole log (authn.logkey), whose origin
+line names this log (audit_log_meta), stores it in `audit_tree_heads` and, after commit,
+in the latest-head file beside the STH log. Every K entries or T seconds (checked at
+append time) the head is periodic: it also keeps the tree's right edge before its last
+entry, goes as one line into the STH log (AUTHN_AUDIT_STH_LOG) and to the witness
+(--witness / AUTHN_AUDIT_WITNESS, authn.witness) with a consistency proof.
     AUTHN_AUDIT_CHECKPOINT_EVERY   K, entries (default 64)
     AUTHN_AUDIT_CHECKPOINT_SECONDS T, seconds (default 300)
-It continues the tree from the newest head's stored frontier (<= 64 subtree roots) over
-the stored leaf hashes added since, so a checkpoint costs O(K) hashes, not O(n). The STH
-goes into `audit_tree_heads` and, after commit, as one JSON line into the STH log file
-(AUTHN_AUDIT_STH_LOG, default beside the log key; see authn.logkey).
 
-Every commit also signs the head of the whole log and writes it, after commit, to the
-latest-head file beside the STH log (one small file per database, replaced, never
-regressing): so the newest signed head always covers every committed entry, and a tail
-deleted, an entry forged or rewritten after the last periodic STH is caught too. Before
-signing, `append` checks that the log extends that latest head (same root at its size)
-and refuses to append to a log that does not (SystemFault, exit 3). The files outside the
-database are what make truncation and rewrites detectable: keep copies where the
-database's administrators cannot write.
+Extension before every append: the writer trusts the newest head of each place (the
+database, the latest-head file, the STH log, the witness when a periodic head is due),
+checks each one's signature and origin, and proves, by root, that the stored log extends
+every one of them. It starts from the newest periodic head's right edge, which must fold
+(with the entry at its size, re-hashed) to that head's signed root, then re-serialises and
+re-hashes every entry since: O(K + log n) per append. Rewrites before the anchor that keep
+the chain consistent change the anchor entry or the entries after it, and are refused;
+an edit before the anchor that breaks the chain locally is found by `verify` (or by every
+append with AUTHN_AUDIT_APPEND_CHECK=full, which starts from the first entry: O(n)).
 
 Policies: `append(..., policy_text=...)` stores the Cedar text once per SHA-256 in
 `audit_policies` in the same transaction, so `replay` can re-decide an entry later.
@@ -43,6 +44,8 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import secrets
+import sys
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -52,20 +55,22 @@ from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 from authn import merkle
-from authn.errors import AuthnError, SystemFault
-from authn.logkey import LogKey, SignedTreeHead, append_sth_log, canonical_json, key_path, latest_head_path, \
-    read_latest_head, read_sth_log, sth_log_path, write_latest_head
+from authn.errors import AuthnError, SystemFault, one_line
+from authn.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append_sth_log, canonical_json, \
+    create_key_file, key_path, latest_head_path, load_retired_keys, retired_keys_path, read_latest_head, read_sth_log, sth_log_path, write_latest_head
+from authn.witness import Conflict, HttpWitness, WitnessStore, open_witness
 from registry.dbapi import Database
 
 GENESIS = "0" * 64
 _PG_AUDIT_LOCK = 0x61756469_746C6F67  # "auditlog"
 ENV_EVERY = "AUTHN_AUDIT_CHECKPOINT_EVERY"
 ENV_SECONDS = "AUTHN_AUDIT_CHECKPOINT_SECONDS"
+ENV_CHECK = "AUTHN_AUDIT_APPEND_CHECK"
+ENV_ORIGIN = "AUTHN_AUDIT_ORIGIN"
 DEFAULT_EVERY, DEFAULT_SECONDS = 64, 300.0
 PROOF_FORMAT = "authn-inclusion-proof/1"
 PAGE = 5000
 
-Checkpoint = SignedTreeHead  # the old name of "what verify checks against"
 _ENC = json.JSONEncoder(sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 _KEYS: dict[Path, LogKey] = {}
 
@@ -138,12 +143,31 @@ def _env_number(name: str, default: float, kind: type) -> Any:
     return value
 
 
-def _log_key(path: str | Path | None, create: bool = True) -> LogKey:
+def _append_check() -> str:
+    mode = os.environ.get(ENV_CHECK) or "window"
+    if mode not in ("window", "full"):
+        raise AuthnError(f"${ENV_CHECK}: 'window' or 'full', got {mode!r}")
+    return mode
+
+
+def _log_key(path: str | Path | None) -> LogKey:
     p = key_path(path)
     key = _KEYS.get(p)
     if key is None:
-        key = _KEYS[p] = LogKey.load(p, create=create)
+        key = _KEYS[p] = LogKey.load(p)
     return key
+
+
+def writer_key(db: Database, heads: Sequence["KnownHead"], log_key: str | Path | None = None) -> LogKey:
+    """The log key; created only for a log that has no signed head anywhere yet. A log with
+    heads and no key is a fault: a new key would let whoever made it re-sign history."""
+    p = key_path(log_key)
+    if p not in _KEYS and not p.exists():
+        if heads or db.fetch("SELECT tree_size FROM audit_tree_heads LIMIT 1"):
+            raise SystemFault(f"audit log key {p} is missing but the log has signed heads: restore the key file "
+                              "(a new one is never made for a signed log; `authn audit rotate-key` changes it)")
+        create_key_file(p)
+    return _log_key(p)
 
 
 def db_label(db: Database) -> str:
@@ -157,17 +181,38 @@ def db_label(db: Database) -> str:
     return urlunsplit(("postgresql", netloc, parts.path, "", ""))
 
 
+def log_origin(db: Database, *, create: bool = False) -> str | None:
+    """The name this log's checkpoints carry (audit_log_meta), made once inside the first
+    append's transaction: $AUTHN_AUDIT_ORIGIN, else authn.invalid/audit/<random>."""
+    rows = db.fetch("SELECT value FROM audit_log_meta WHERE name = 'origin'")
+    if rows:
+        return str(rows[0][0])
+    if not create:
+        return None
+    origin = os.environ.get(ENV_ORIGIN) or f"authn.invalid/audit/{secrets.token_hex(8)}"
+    try:
+        SignedTreeHead(0, 0, GENESIS, "", "", origin).note_body()
+        from authn.logkey import _check_origin
+
+        _check_origin(origin)
+    except ValueError:
+        raise AuthnError(f"${ENV_ORIGIN}: not a checkpoint origin (no spaces, '+' or control characters)") from None
+    db.execute("INSERT INTO audit_log_meta (name, value) VALUES ('origin', :v)", {"v": origin})
+    return origin
+
+
 # --- append ------------------------------------------------------------------------------
 
 def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None = None,
            log_key: str | Path | None = None, sth_log: str | Path | None = None,
-           idempotency_key: str | None = None) -> list[Entry]:
+           idempotency_key: str | None = None, witness: str | None = None) -> list[Entry]:
     """Append entries in one transaction (one per check, or one per batch), serialised
     against other writers: SQLite's BEGIN IMMEDIATE, PostgreSQL's advisory lock.
 
     With `policy_text`, its text is recorded (once per SHA-256) and every entry's payload
     carries its `policy_sha256` (added to entries without one; a different one is refused).
-    Signs and stores a tree head when one is due (see the module docstring).
+    Before signing, proves that the log extends every head it trusts (see the module
+    docstring); signs the new head, and every K entries / T seconds publishes it.
 
     With `idempotency_key`, the transaction also records the key in `audit_batches`; if a
     transaction with that key already committed, nothing is written and its entries are
@@ -185,13 +230,12 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
             elif given != policy_sha:
                 raise AuthnError(f"audit entry policy_sha256 {given} is not the SHA-256 of policy_text")
         prepared.append((e, payload, canonical_json(payload)))
+    places = HeadPlaces.of(db, sth_log=sth_log, log_key=log_key, witness=witness)
     every = _env_number(ENV_EVERY, DEFAULT_EVERY, int)
     seconds = _env_number(ENV_SECONDS, DEFAULT_SECONDS, float)
+    mode = _append_check()
     out: list[Entry] = []
-    sth: SignedTreeHead | None = None
-    due = False
-    label = db_label(db)
-    latest_file = latest_head_path(sth_log_path(sth_log, log_key), label)
+    signed: _Signed | None = None
     with db.write():
         if db.dialect == "postgresql":
             db.execute("SELECT pg_advisory_xact_lock(:k)", {"k": _PG_AUDIT_LOCK})
@@ -223,11 +267,9 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
                        {"k": idempotency_key, "f": seq - len(out) + 1, "n": len(out),
                         "c": db.to_db_time(datetime.now(timezone.utc))})
         if out:
-            sth, due = _sign_head(db, seq - len(out), seq, every, seconds, log_key, latest_file)
-    if sth is not None:
-        write_latest_head(latest_file, sth, label)
-        if due:
-            append_sth_log(sth_log_path(sth_log, log_key), sth, label)
+            signed = _sign_head(db, places, seq - len(out), seq, every, seconds, mode)
+    if signed is not None:
+        places.publish(signed)
     return out
 
 
@@ -242,95 +284,164 @@ def batch_entries(db: Database, key: str) -> list[Entry] | None:
                                         "ORDER BY seq", {"a": first, "b": first + n})]
 
 
-def _newest_head(db: Database) -> tuple[int, int, str] | None:
-    """The newest periodic head: the one whose stored frontier the next head continues from."""
-    rows = db.fetch("SELECT tree_size, timestamp_ms, frontier FROM audit_tree_heads WHERE frontier IS NOT NULL "
+_HEAD_COLUMNS = "tree_size, timestamp_ms, root_hash, log_key_id, signature, origin"
+
+
+def _head_of(row: Sequence[Any]) -> SignedTreeHead:
+    """A head from a row of _HEAD_COLUMNS (AuthnError when malformed)."""
+    n, ts, root, kid, sig, origin = row
+    fmt = "authn-sth/1" if origin is None else CHECKPOINT_FORMAT
+    return SignedTreeHead.from_dict({"format": fmt, "tree_size": int(n), "timestamp": int(ts), "root_hash": root,
+                                     "log_key_id": str(kid).strip(), "signature": sig, "origin": origin})
+
+
+@dataclass(frozen=True)
+class _Signed:
+    sth: SignedTreeHead
+    due: bool  # periodic: also to the STH log and the witness
+    frontier: merkle.Frontier  # at sth.tree_size
+
+
+@dataclass(frozen=True)
+class _Anchor:
+    """Where the writer's proof starts: a signed periodic head whose stored right edge folds
+    to its root (so the edge, and the entry at its size, are the ones that were signed)."""
+
+    size: int
+    frontier: merkle.Frontier
+    chain: str  # entry_hash of entry `size` (GENESIS at 0)
+    timestamp_ms: int
+
+
+def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int) -> _Anchor:
+    """The newest periodic head (window mode), checked against its signature and root;
+    the empty tree in full mode, or when there is none."""
+    if mode == "full":
+        return _Anchor(0, merkle.Frontier(), GENESIS, 0)
+    rows = db.fetch(f"SELECT {_HEAD_COLUMNS}, frontier FROM audit_tree_heads WHERE frontier IS NOT NULL "
                     "ORDER BY tree_size DESC, id DESC LIMIT 1")
-    return (int(rows[0][0]), int(rows[0][1]), str(rows[0][2])) if rows else None
-
-
-_HEAD_COLUMNS = "tree_size, timestamp_ms, root_hash, log_key_id, signature"
-
-
-def _head_of(row: tuple) -> SignedTreeHead:
-    n, ts, root, kid, sig = row
-    return SignedTreeHead.from_dict({"format": "authn-sth/1", "tree_size": int(n), "timestamp": int(ts),
-                                     "root_hash": root, "log_key_id": kid, "signature": sig})
-
-
-def _newest_signed(db: Database) -> SignedTreeHead | None:
-    """The newest head of any kind in the database (every append transaction stores one)."""
-    rows = db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads ORDER BY tree_size DESC, id DESC LIMIT 1")
     if not rows:
-        return None
+        return _Anchor(0, merkle.Frontier(), GENESIS, 0)
     try:
-        return _head_of(rows[0])
+        sth = _head_of(rows[0][:6])
     except AuthnError:
-        raise SystemFault("audit log: the newest signed head in the database is malformed; "
+        raise SystemFault("audit log: the newest periodic head in the database is malformed; "
                           "run `authn audit verify`") from None
-
-
-def _sign_head(db: Database, size_before: int, size: int, every: int, seconds: float,
-               log_key: str | Path | None, latest_file: Path) -> tuple[SignedTreeHead, bool]:
-    """Inside append's transaction: sign the head of all `size` entries (every commit), and
-    say whether it is also due for the table and the STH log (K entries / T seconds).
-
-    Before signing, the log must extend the latest head signed for it (the latest-head
-    file): the same root at that size. A log that was truncated, or rewritten after that
-    head, is refused here (SystemFault, the transaction rolls back): the log never signs
-    over tampering, and no decision is added to a tampered log."""
-    key = _log_key(log_key)
-    latest = read_latest_head(latest_file)
-    if latest is not None and not key.vouches_for(latest):
-        raise SystemFault(f"{latest_file}: the latest signed head is not signed by this log's key")
-    if latest is not None and latest.tree_size > size:
-        raise SystemFault(f"audit log truncated: {size} entries, but the latest signed head has "
-                          f"{latest.tree_size}; run `authn audit verify`")
-    signed = _newest_signed(db)
-    if signed is not None and not key.vouches_for(signed):
-        raise SystemFault("audit log: the newest signed head in the database is not signed by this log's key; "
-                          "run `authn audit verify`")
-    if signed is not None and signed.tree_size != size_before:
-        what = ("truncated" if signed.tree_size > size_before else
-                f"entries {signed.tree_size + 1}..{size_before} carry no signed head (written outside authn?)")
-        raise SystemFault(f"audit log {what}; run `authn audit verify`")
-    now_ms = int(time.time() * 1000)
-    newest = _newest_head(db)
-    base_size, base_ms, frontier_json = newest if newest else (0, 0, "[]")
+    _check_head(KnownHead(sth, "database"), key, origin, size_before)
+    b = sth.tree_size
+    entry = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :s", {"s": b}) if b else []
     try:
-        frontier = merkle.Frontier(base_size, [bytes.fromhex(h) for h in json.loads(frontier_json)])
-    except (ValueError, TypeError):
-        frontier = merkle.Frontier()  # unreadable frontier: rebuild from the leaves
-    if frontier.size > size:
-        raise SystemFault(f"audit log truncated: {size} entries, but a signed head in the database has "
-                          f"{frontier.size}; run `authn audit verify`")
-    leaves = db.fetch("SELECT leaf_hash FROM audit_log WHERE seq > :a ORDER BY seq", {"a": frontier.size})
-    if len(leaves) != size - frontier.size or any(h is None for (h,) in leaves):
-        raise SystemFault("audit log damaged (entries or leaf hashes missing); run `authn audit verify`")
-    check_at = latest.tree_size if latest is not None and latest.tree_size >= frontier.size else None
-    for (h,) in leaves:
-        if frontier.size == check_at:
-            _same_root(frontier, latest)
-        frontier.push(bytes.fromhex(h))
-    if frontier.size == check_at:
-        _same_root(frontier, latest)
-    sth = key.sign_tree_head(frontier.size, frontier.root(), now_ms)
-    due = size - base_size >= every or now_ms - base_ms >= seconds * 1000
-    _store_head(db, frontier if due else None, sth)
-    return sth, due
+        edge = json.loads(rows[0][6])
+        if isinstance(edge, dict):  # the edge before the last entry: the entry itself is checked too
+            if not entry:
+                raise ValueError
+            body = _row_body(entry[0])
+            frontier = merkle.Frontier(b - 1, [bytes.fromhex(h) for h in edge["before_last"]])
+            frontier.push(merkle.leaf_hash(body))
+            chain = hashlib.sha256(body).hexdigest()
+        else:  # an edge stored before revision 0005: the entry at its size is taken as stored
+            frontier = merkle.Frontier(b, [bytes.fromhex(h) for h in edge])
+            chain = str(entry[0][7]) if entry else ""
+    except (ValueError, TypeError, KeyError):
+        raise SystemFault(f"audit log: the right edge stored with the head of size {b} is damaged; "
+                          "run `authn audit verify`") from None
+    if frontier.root() != sth.root:
+        raise SystemFault(f"audit log entries 1..{b} differ from the signed head of size {b} (rewritten, deleted "
+                          "or reordered); run `authn audit verify`")
+    return _Anchor(b, frontier, chain, sth.timestamp)
 
 
-def _same_root(frontier: merkle.Frontier, latest: SignedTreeHead) -> None:
-    if frontier.root() != latest.root:
-        raise SystemFault(f"audit log entries 1..{latest.tree_size} differ from the latest signed head "
-                          "(rewritten, deleted or reordered); run `authn audit verify`")
+def _row_body(row: Sequence[Any]) -> bytes:
+    seq, created, kind, serial, decision, payload, prev_hash, _, _ = row
+    return entry_bytes(int(seq), _iso_db(created), kind, serial, decision, payload, prev_hash)
 
 
-def _store_head(db: Database, frontier: merkle.Frontier | None, sth: SignedTreeHead) -> SignedTreeHead:
-    db.execute("INSERT INTO audit_tree_heads (tree_size, timestamp_ms, root_hash, log_key_id, signature, frontier) "
-               "VALUES (:n, :t, :r, :k, :s, :f)",
+def _check_head(h: "KnownHead", key: LogKey, origin: str, size_before: int) -> None:
+    """A trusted head must be this key's, name this log, and not be larger than the log."""
+    if not key.vouches_for(h.sth):
+        raise SystemFault(f"audit log: the signed head of size {h.sth.tree_size} ({h.source}) is not signed by "
+                          "this log's key; run `authn audit verify`")
+    if h.sth.origin is not None and h.sth.origin != origin:
+        raise SystemFault(f"audit log: the signed head of size {h.sth.tree_size} ({h.source}) names the log "
+                          f"{h.sth.origin}, not this one ({origin})")
+    if h.sth.tree_size > size_before:
+        raise SystemFault(f"audit log truncated: {size_before} entries, but the signed head ({h.source}) has "
+                          f"{h.sth.tree_size}; run `authn audit verify`")
+
+
+def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, every: int, seconds: float,
+               mode: str) -> _Signed:
+    """Inside append's transaction: prove the log extends every head it trusts, then sign
+    the head of all `size` entries (and say whether it is also periodic).
+
+    Trusted: the newest head in the database, the newest periodic one, the latest-head
+    file, the newest line of the STH log and, when a periodic head is due, the witness's
+    newest. Each must carry this key's signature and name this log; none may be larger
+    than the log; the newest in the database must be the head of exactly the entries
+    before this append; and the tree the stored entries make must have, at each trusted
+    head's size, that head's root. The entries since the anchor are re-serialised and
+    re-hashed, not taken as stored. Anything else raises SystemFault: the transaction rolls
+    back, and nothing is appended to a log that does not extend what was signed."""
+    origin = log_origin(db, create=True)
+    assert origin is not None
+    heads = places.newest_heads(db)
+    key = writer_key(db, heads, places.log_key)
+    for h in heads:
+        _check_head(h, key, origin, size_before)
+    now_ms = int(time.time() * 1000)
+    anchor = _anchor(db, key, origin, mode, size_before)
+    due = size - anchor.size >= every or now_ms - anchor.timestamp_ms >= seconds * 1000
+    if due and places.witness is not None:
+        witnessed = places.witness_heads(origin, newest_only=True)
+        for h in witnessed:
+            _check_head(h, key, origin, size_before)
+        heads += witnessed
+    in_db = [h for h in heads if h.source == "database"]
+    if in_db and max(h.sth.tree_size for h in in_db) != size_before:
+        raise SystemFault(f"audit log entries {max(h.sth.tree_size for h in in_db) + 1}..{size_before} carry no "
+                          "signed head (written outside authn?); run `authn audit verify`")
+    at = {}
+    for h in heads:
+        if h.sth.tree_size >= anchor.size:
+            at.setdefault(h.sth.tree_size, []).append(h)
+    frontier, chain, expected = anchor.frontier, anchor.chain, anchor.size + 1
+    before_last = frontier.hashes if frontier.size == size else []
+
+    def check_roots() -> None:
+        for h in at.get(frontier.size, ()):
+            if frontier.root() != h.sth.root:
+                raise SystemFault(f"audit log entries 1..{h.sth.tree_size} differ from the signed head of that size "
+                                  f"({h.source}): rewritten, deleted or reordered; run `authn audit verify`")
+
+    check_roots()
+    for row in db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq > :a ORDER BY seq", {"a": anchor.size}):
+        seq = int(row[0])
+        if seq != expected or row[6] != chain:
+            raise SystemFault(f"audit log entry {expected} is missing, moved or does not link to entry "
+                              f"{expected - 1}; run `authn audit verify`")
+        body = _row_body(row)
+        chain = hashlib.sha256(body).hexdigest()
+        leaf = merkle.leaf_hash(body)
+        if chain != row[7] or leaf.hex() != row[8]:
+            raise SystemFault(f"audit log entry {seq} was modified (hash mismatch); run `authn audit verify`")
+        if seq == size:
+            before_last = frontier.hashes
+        frontier.push(leaf)
+        expected += 1
+        check_roots()
+    if frontier.size != size:
+        raise SystemFault("audit log damaged (entries missing); run `authn audit verify`")
+    sth = key.sign_tree_head(size, frontier.root(), now_ms, origin)
+    edge = json.dumps({"before_last": [h.hex() for h in before_last]}) if due else None
+    _store_head(db, sth, edge)
+    return _Signed(sth, due, frontier)
+
+
+def _store_head(db: Database, sth: SignedTreeHead, edge: str | None) -> SignedTreeHead:
+    db.execute("INSERT INTO audit_tree_heads (tree_size, timestamp_ms, root_hash, log_key_id, signature, frontier, "
+               "origin) VALUES (:n, :t, :r, :k, :s, :f, :o)",
                {"n": sth.tree_size, "t": sth.timestamp, "r": sth.root_hash, "k": sth.log_key_id,
-                "s": sth.signature, "f": None if frontier is None else json.dumps([h.hex() for h in frontier.hashes])})
+                "s": sth.signature, "f": edge, "o": sth.origin})
     return sth
 
 
@@ -375,39 +486,145 @@ def _rows(db: Database) -> Iterator[tuple]:
         last = page[-1][0]
 
 
-# --- signed tree heads we know of ----------------------------------------------------------
+# --- where heads are kept ------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class KnownHead:
     sth: SignedTreeHead
-    source: str  # "file PATH" | "database" | "--against FILE"
+    source: str  # "database" | "file PATH" | "witness W" | "--against FILE"
 
 
-def known_heads(db: Database, *, sth_log: str | Path | None = None, log_key: str | Path | None = None) -> list[KnownHead]:
-    """STHs for this database from the external STH log and from audit_tree_heads (unverified)."""
-    out: list[KnownHead] = []
-    path = sth_log_path(sth_log, log_key)
-    label = db_label(db)
-    for owner, sth in read_sth_log(path):
-        if owner == label:
-            out.append(KnownHead(sth, f"file {path}"))
-    latest_file = latest_head_path(path, label)
-    latest = read_latest_head(latest_file)
-    if latest is not None:
-        out.append(KnownHead(latest, f"file {latest_file}"))
-    newest_row = db.fetch("SELECT id FROM audit_tree_heads ORDER BY tree_size DESC, id DESC LIMIT 1")
-    newest_id = newest_row[0][0] if newest_row else None
-    for n, ts, root, kid, sig in db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads "
-                                          "WHERE frontier IS NOT NULL OR id = :newest ORDER BY id",
-                                          {"newest": newest_id if newest_id is not None else -1}):
+def _newest_of(heads: Sequence[SignedTreeHead]) -> SignedTreeHead | None:
+    """The largest head, the last written among equals (a rotation's new-key head)."""
+    best = None
+    for h in heads:
+        if best is None or h.tree_size >= best.tree_size:
+            best = h
+    return best
+
+
+@dataclass
+class HeadPlaces:
+    """Every place a head of this log is kept: the database, the latest-head file, the STH
+    log and the witness. The writer and `verify` read their trusted heads from here."""
+
+    db: Database
+    label: str
+    sth_log: Path
+    latest_file: Path
+    log_key: Path
+    witness: WitnessStore | HttpWitness | None
+
+    @classmethod
+    def of(cls, db: Database, *, sth_log: str | Path | None = None, log_key: str | Path | None = None,
+           witness: str | None = None) -> "HeadPlaces":
+        path = sth_log_path(sth_log, log_key)
+        label = db_label(db)
+        return cls(db, label, path, latest_head_path(path, label), key_path(log_key), open_witness(witness))
+
+    def _db_heads(self, where: str, params: dict[str, Any] | None = None) -> list[KnownHead]:
+        out = []
+        for row in self.db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads {where}", params or {}):
+            try:
+                out.append(KnownHead(_head_of(row), "database"))
+            except AuthnError:
+                out.append(KnownHead(SignedTreeHead(int(row[0]), int(row[1]), GENESIS, "", ""),
+                                     "database (malformed)"))
+        return out
+
+    def newest_heads(self, db: Database) -> list[KnownHead]:
+        """What the writer trusts: the newest head in the database, the latest-head file, the
+        newest STH log line for this database (the witness is asked separately)."""
+        out = self._db_heads("ORDER BY tree_size DESC, id DESC LIMIT 1")
+        latest = read_latest_head(self.latest_file)
+        if latest is not None:
+            out.append(KnownHead(latest, f"file {self.latest_file}"))
+        logged = _newest_of([sth for owner, sth in read_sth_log(self.sth_log) if owner == self.label])
+        if logged is not None:
+            out.append(KnownHead(logged, f"file {self.sth_log}"))
+        return out
+
+    def all_heads(self) -> list[KnownHead]:
+        """What `verify` checks: every periodic head and the newest in the database, every STH
+        log line for this database, the latest-head file, and every head the witness holds."""
+        out = [KnownHead(sth, f"file {self.sth_log}") for owner, sth in read_sth_log(self.sth_log)
+               if owner == self.label]
+        latest = read_latest_head(self.latest_file)
+        if latest is not None:
+            out.append(KnownHead(latest, f"file {self.latest_file}"))
+        newest_id = self.db.fetch("SELECT id FROM audit_tree_heads ORDER BY tree_size DESC, id DESC LIMIT 1")
+        out += self._db_heads("WHERE frontier IS NOT NULL OR id = :newest ORDER BY id",
+                              {"newest": newest_id[0][0] if newest_id else -1})
+        origin = log_origin(self.db)
+        if self.witness is not None and origin is not None:
+            out += self.witness_heads(origin, newest_only=False)
+        return out
+
+    def witness_heads(self, origin: str, *, newest_only: bool) -> list[KnownHead]:
+        assert self.witness is not None
+        held = self.witness.heads(origin)
+        if newest_only:
+            newest_held = _newest_of(held)
+            held = [newest_held] if newest_held is not None else []
+        return [KnownHead(h, f"witness {self.witness.name}") for h in held]
+
+    def publish(self, signed: _Signed) -> None:
+        """After commit: the latest-head file always; periodic heads to the STH log and the witness."""
+        write_latest_head(self.latest_file, signed.sth, self.label)
+        if not signed.due:
+            return
+        append_sth_log(self.sth_log, signed.sth, self.label)
+        if self.witness is not None:
+            self.witness_add(signed.sth)
+
+    def witness_add(self, sth: SignedTreeHead, *cosigned: SignedTreeHead, keys: Sequence[Any] = ()) -> None:
+        """Give the witness `sth` with a consistency proof from the newest head it holds. A
+        refusal is a fault (it holds history this log no longer has); an unreachable
+        witness is only reported: the next periodic head carries the proof from where it is."""
+        assert self.witness is not None and sth.origin is not None
         try:
-            sth = SignedTreeHead.from_dict({"format": "authn-sth/1", "tree_size": int(n), "timestamp": int(ts),
-                                            "root_hash": root, "log_key_id": kid, "signature": sig})
-        except AuthnError:
-            out.append(KnownHead(SignedTreeHead(int(n), int(ts), GENESIS, "", ""), "database (malformed)"))
-            continue
-        out.append(KnownHead(sth, "database"))
-    return out
+            held = _newest_of(self.witness.heads(sth.origin))
+            old = held.tree_size if held is not None else 0
+            proof = consistency_proof(self.db, old, sth.tree_size)
+            for head in (sth, *cosigned):
+                self.witness.add(head, old, proof, list(keys) or [_log_key(self.log_key).public_key])
+        except Conflict as exc:
+            raise SystemFault(f"witness {self.witness.name} refused the head of size {sth.tree_size}: {exc}") from None
+        except SystemFault as exc:
+            print(f"authn: warning: {one_line(str(exc))}; the witness gets the next periodic head", file=sys.stderr)
+
+
+def consistency_proof(db: Database, old: int, new: int) -> list[bytes]:
+    """PROOF(old, new) over the stored leaf hashes: from the right edge stored with a periodic
+    head of size `old` (O(new - old + log new)), else one pass over the leaves."""
+    if old == 0 or old == new:
+        return []
+    frontier: merkle.Frontier | None = None
+    rows = db.fetch("SELECT frontier FROM audit_tree_heads WHERE tree_size = :n AND frontier IS NOT NULL "
+                    "ORDER BY id DESC LIMIT 1", {"n": old})
+    try:
+        edge = json.loads(rows[0][0]) if rows else None
+        if isinstance(edge, dict):
+            leaf = db.fetch("SELECT leaf_hash FROM audit_log WHERE seq = :s", {"s": old})
+            frontier = merkle.Frontier(old - 1, [bytes.fromhex(h) for h in edge["before_last"]])
+            frontier.push(bytes.fromhex(leaf[0][0]))
+        elif isinstance(edge, list):
+            frontier = merkle.Frontier(old, [bytes.fromhex(h) for h in edge])
+    except (ValueError, TypeError, KeyError, IndexError):
+        frontier = None
+    if frontier is None:
+        frontier = merkle.Frontier()
+        for (h,) in db.fetch("SELECT leaf_hash FROM audit_log WHERE seq <= :n ORDER BY seq", {"n": old}):
+            frontier.push(bytes.fromhex(h))
+    leaves = [bytes.fromhex(h) for (h,) in db.fetch("SELECT leaf_hash FROM audit_log WHERE seq > :a AND seq <= :b "
+                                                     "ORDER BY seq", {"a": old, "b": new})]
+    return merkle.consistency_proof_from(frontier, leaves)
+
+
+def known_heads(db: Database, *, sth_log: str | Path | None = None, log_key: str | Path | None = None,
+                witness: str | None = None) -> list[KnownHead]:
+    """Every head of this log kept anywhere (unverified): what `verify` checks the log against."""
+    return HeadPlaces.of(db, sth_log=sth_log, log_key=log_key, witness=witness).all_heads()
 
 
 def newest(heads: Sequence[KnownHead]) -> KnownHead | None:
@@ -432,13 +649,31 @@ def _when(ms: int) -> str:
     return datetime.fromtimestamp(ms / 1000, timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
+def accepted_keys(heads: Sequence[KnownHead], current: Any, retired: Sequence[Any] = ()) -> list[Any]:
+    """The current key, and each retired key that signed a head which a key already accepted
+    signed too (the rotation head `authn audit rotate-key` signs with both): a retired key
+    nobody handed over from is not accepted, whatever file lists it."""
+    keys, pending = [current], list(retired)
+    grown = True
+    while grown and pending:
+        grown = False
+        for r in list(pending):
+            by_r = {h.sth.signed_bytes() for h in heads if h.sth.origin is not None and h.sth.verify_signature(r)}
+            if any(h.sth.signed_bytes() in by_r and any(h.sth.verify_signature(k) for k in keys) for h in heads):
+                keys.append(r)
+                pending.remove(r)
+                grown = True
+    return keys
+
+
 def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | KnownHead] | None = None, *,
-           public_key: Any = None, require_signed_to_end: bool = False) -> VerifyReport:
+           public_key: Any = None, retired: Sequence[Any] = (), require_signed_to_end: bool = False) -> VerifyReport:
     """Recompute the chain, every leaf hash and the Merkle root in one streaming pass.
 
-    With STHs (`against`): each must carry a valid signature by `public_key` (else
-    AuthnError), the log must hold at least tree_size entries (else: truncated), and a
-    consistency proof computed from the recomputed leaves must prove, against the STH's
+    With heads (`against`): each must carry a valid signature by `public_key` (or by a
+    retired key handed over from it, see accepted_keys) and name this log (else
+    AuthnError); the log must hold at least tree_size entries (else: truncated), and a
+    consistency proof computed from the recomputed leaves must prove, against the head's
     root, that the signed log is a prefix of today's (else: rewritten/deleted/reordered).
     """
     heads: list[KnownHead] = []
@@ -449,10 +684,15 @@ def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | Kno
     if heads:
         if public_key is None:
             raise AuthnError("verify against a signed tree head needs the log's public key")
+        keys = accepted_keys(heads, public_key, retired)
+        origin = log_origin(db)
         for h in heads:
-            if not h.sth.verify_signature(public_key):
+            if not any(h.sth.verify_signature(k) for k in keys):
                 raise AuthnError(f"signed tree head (size {h.sth.tree_size}, {h.source}): signature is not the log "
                                  "key's (forged, altered, or another log's)")
+            if h.sth.origin is not None and h.sth.origin != origin:
+                raise AuthnError(f"signed tree head (size {h.sth.tree_size}, {h.source}) names the log "
+                                 f"{h.sth.origin}, not this one ({origin or 'no origin recorded'})")
     total = int(db.fetch("SELECT COUNT(*) FROM audit_log")[0][0])
     wanted: set[merkle.Range] = set()
     for h in heads:
@@ -507,25 +747,83 @@ def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | Kno
 
 # --- checkpoints -------------------------------------------------------------------------
 
-def checkpoint(db: Database, *, log_key: str | Path | None = None,
-               sth_log: str | Path | None = None) -> SignedTreeHead:
-    """Verify the whole log, then sign its tree head; stored in the table and the STH log file."""
-    report = verify(db)
+def _verified(db: Database, places: HeadPlaces, key: LogKey) -> VerifyReport:
+    report = verify(db, places.all_heads(), public_key=key.public_key,
+                    retired=load_retired_keys(places.log_key))
     if not report.ok:
         raise AuthnError(f"audit log does not verify: {report.problem}")
-    key = _log_key(log_key)
+    return report
+
+
+def _sign_whole(db: Database, places: HeadPlaces, report: VerifyReport, keys: Sequence[LogKey]) -> list[SignedTreeHead]:
+    """Inside no transaction: sign the verified log's head with each key (one periodic head
+    per key, the last key's newest), store them, and publish them."""
     leaves = [bytes.fromhex(h) for (h,) in db.fetch("SELECT leaf_hash FROM audit_log ORDER BY seq")]
     with db.write():
         if db.dialect == "postgresql":
             db.execute("SELECT pg_advisory_xact_lock(:k)", {"k": _PG_AUDIT_LOCK})
+        origin = log_origin(db, create=True)
+        assert origin is not None
         frontier = merkle.Frontier()
+        before_last: list[bytes] = []
         for h in leaves[:report.size]:
+            before_last = frontier.hashes
             frontier.push(h)
-        if frontier.root().hex() != report.root:
+        if frontier.root().hex() != report.root or len(leaves) != report.size:
             raise AuthnError("audit log changed during the checkpoint; run it again")
-        sth = _store_head(db, frontier, key.sign_tree_head(frontier.size, frontier.root(), int(time.time() * 1000)))
-    append_sth_log(sth_log_path(sth_log, log_key), sth, db_label(db))
-    return sth
+        now_ms = int(time.time() * 1000)
+        edge = json.dumps({"before_last": [h.hex() for h in before_last]}) if frontier.size else None
+        heads = [_store_head(db, k.sign_tree_head(frontier.size, frontier.root(), now_ms, origin), edge) for k in keys]
+    write_latest_head(places.latest_file, heads[-1], places.label)
+    for sth in heads:
+        append_sth_log(places.sth_log, sth, places.label)
+    if places.witness is not None:
+        places.witness_add(heads[-1], *heads[:-1], keys=[k.public_key for k in keys])
+    return heads
+
+
+def checkpoint(db: Database, *, log_key: str | Path | None = None, sth_log: str | Path | None = None,
+               witness: str | None = None) -> SignedTreeHead:
+    """Verify the whole log against every head kept anywhere, then sign its head; stored in
+    the table, the latest-head file, the STH log and the witness."""
+    places = HeadPlaces.of(db, sth_log=sth_log, log_key=log_key, witness=witness)
+    key = writer_key(db, places.all_heads(), log_key)
+    return _sign_whole(db, places, _verified(db, places, key), [key])[-1]
+
+
+def rotate_key(db: Database, *, log_key: str | Path | None = None, sth_log: str | Path | None = None,
+               witness: str | None = None) -> tuple[SignedTreeHead, Path]:
+    """Replace the log key on purpose: verify the log, sign its head with the old key and
+    with a new one (the hand-over any verifier follows, see accepted_keys), publish both,
+    append the old public key to the retired keys, keep the old private key beside it as
+    `<key>.retired-<id>.pem`, and put the new key in place. Returns the head and where the
+    old key went."""
+    places = HeadPlaces.of(db, sth_log=sth_log, log_key=log_key, witness=witness)
+    p = places.log_key
+    if not p.exists():
+        raise SystemFault(f"audit log key {p} does not exist: rotation needs the old key to hand over from")
+    old = _log_key(p)
+    report = _verified(db, places, old)
+    staged = p.with_name(p.name + ".new")
+    if staged.exists():
+        raise SystemFault(f"{staged} exists: a rotation was interrupted; move it into place or delete it")
+    create_key_file(staged)
+    new = LogKey.load(staged)
+    heads = _sign_whole(db, places, report, [old, new])
+    retired_pem = retired_keys_path(p)
+    kept = p.with_name(f"{p.name}.retired-{old.key_id[:16]}.pem")
+    try:
+        with open(retired_pem, "a", encoding="ascii") as fh:
+            fh.write(old.public_pem())
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(p, kept)
+        os.replace(staged, p)
+    except OSError as exc:
+        raise SystemFault(f"audit log key {p}: rotation signed but not completed ({exc.strerror}); "
+                          f"the new key is {staged}") from None
+    _KEYS.pop(p, None)
+    return heads[-1], kept
 
 
 # --- inclusion proofs --------------------------------------------------------------------

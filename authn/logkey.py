@@ -1,19 +1,20 @@
-"""The audit log's Ed25519 signing key and its signed tree heads (STHs).
+"""The audit log's Ed25519 signing key and its signed tree heads (C2SP checkpoints).
 
 Why a key outside the database: the hash chain and the Merkle tree use no secret, so
 anyone who can write the database can rewrite history and recompute every hash. A
-signature by a key the database never holds cannot be recomputed; an STH kept outside
+signature by a key the database never holds cannot be recomputed; a head kept outside
 the database (a file, a witness) fixes the log's contents up to its size.
 
-Key file: PKCS#8 PEM, created on first use with mode 0600 (atomically: written to a
-temporary file and hard-linked into place, so concurrent first uses agree on one key).
-Path: `--log-key`, else $AUTHN_LOG_KEY, else `audit-log-key.pem` in the user data
-directory (next to the default SQLite database). The public key is exported as
-SubjectPublicKeyInfo PEM; its id is SHA-256 of the raw 32-byte key, hex.
+Key file: PKCS#8 PEM, mode 0600, written atomically (a temporary file hard-linked into
+place, so concurrent first uses agree on one key). Path: `--log-key`, else
+$AUTHN_LOG_KEY, else `audit-log-key.pem` in the user data directory. Loading never
+creates it: the audit writer creates it only for a log that has no signed head yet
+(authn.audit), and `authn audit rotate-key` replaces it deliberately, keeping the
+retired public keys in `<key>.retired.pub.pem`. Its id is SHA-256 of the raw public key.
 
-STH (JSON): {"format": "authn-sth/1", "tree_size", "timestamp" (ms since the epoch, UTC),
-"root_hash" (hex), "log_key_id" (hex), "signature" (base64)}. The signature is Ed25519
-over the UTF-8 canonical JSON (sorted keys, no spaces) of every other field.
+Heads are C2SP checkpoints (https://c2sp.org/tlog-checkpoint) whose origin line names the
+log, so a head of one log never verifies for another signed with the same key; heads
+written before origins existed (authn-sth/1 JSON, no origin) still verify.
 `cryptography` is imported only when a key is loaded or a signature checked.
 """
 
@@ -32,7 +33,9 @@ from authn.errors import AuthnError, SystemFault
 
 ENV_KEY = "AUTHN_LOG_KEY"
 ENV_STH_LOG = "AUTHN_AUDIT_STH_LOG"
-STH_FORMAT = "authn-sth/1"
+STH_FORMAT = "authn-sth/1"  # legacy heads: JSON, no origin
+CHECKPOINT_FORMAT = "authn-checkpoint/1"  # JSON carrying a C2SP checkpoint and its fields
+TIMESTAMP_EXTENSION = "authn-timestamp-ms"
 
 
 def canonical_json(obj: Any) -> str:
@@ -88,8 +91,9 @@ class LogKey:
         return True
 
     @classmethod
-    def load(cls, path: str | Path | None = None, *, create: bool = True) -> "LogKey":
-        """The key at `path` (see key_path), generated there on first use when `create`."""
+    def load(cls, path: str | Path | None = None, *, create: bool = False) -> "LogKey":
+        """The key at `path` (see key_path); generated there when absent only with `create`
+        (the audit writer's decision: never for a log that already has signed heads)."""
         from cryptography.hazmat.primitives import serialization
         from cryptography.hazmat.primitives.asymmetric import ed25519
 
@@ -97,7 +101,7 @@ class LogKey:
         if not p.exists():
             if not create:
                 raise SystemFault(f"audit log key {p} does not exist (it is created by the first audit write)")
-            _create(p)
+            create_key_file(p)
         try:
             data = p.read_bytes()
         except OSError as exc:
@@ -116,14 +120,43 @@ class LogKey:
         return self._private.public_key().public_bytes(
             serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo).decode()
 
-    def sign_tree_head(self, tree_size: int, root_hash: bytes, timestamp_ms: int) -> "SignedTreeHead":
-        unsigned = SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, "")
-        sig = base64.b64encode(self._private.sign(unsigned.signed_bytes())).decode()
+    def sign_tree_head(self, tree_size: int, root_hash: bytes, timestamp_ms: int, origin: str) -> "SignedTreeHead":
+        """A C2SP checkpoint of the log named `origin`, signed by this key."""
+        _check_origin(origin)
+        unsigned = SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, "", origin)
+        raw = self._private.sign(unsigned.signed_bytes())
+        sig = base64.b64encode(note_key_hash(origin, self.public_raw) + raw).decode()
         self._vouched.add((unsigned.signed_bytes(), sig))
-        return SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, sig)
+        return SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, sig, origin)
 
 
-def _create(p: Path) -> None:
+def retired_keys_path(key: Path) -> Path:
+    """Public keys this log signed with before `authn audit rotate-key` (PEM blocks, oldest first)."""
+    return key.with_name(key.name + ".retired.pub.pem")
+
+
+def load_retired_keys(key: Path) -> list[Any]:
+    """The retired public keys beside the key file (none: an empty list)."""
+    from cryptography.hazmat.primitives import serialization
+
+    path = retired_keys_path(key)
+    try:
+        text = path.read_bytes()
+    except FileNotFoundError:
+        return []
+    except OSError as exc:
+        raise SystemFault(f"{path}: cannot read the retired log keys ({exc.strerror})") from None
+    out = []
+    for block in text.split(b"-----END PUBLIC KEY-----")[:-1]:
+        try:
+            out.append(serialization.load_pem_public_key(block + b"-----END PUBLIC KEY-----\n"))
+        except ValueError:
+            raise SystemFault(f"{path}: not a list of PEM public keys") from None
+    return out
+
+
+def create_key_file(p: Path) -> None:
+    """A new Ed25519 key at `p` (0600, atomic; another process's key wins a race)."""
     from cryptography.hazmat.primitives import serialization
     from cryptography.hazmat.primitives.asymmetric import ed25519
 
@@ -180,27 +213,54 @@ def public_raw(public_key: Any) -> bytes:
 
 @dataclass(frozen=True)
 class SignedTreeHead:
+    """A signed tree head: a C2SP checkpoint (`origin` set) or a legacy authn-sth/1 head.
+
+    Checkpoint: the signed note text is "<origin>\\n<tree_size>\\n<base64 root>\\n" plus one
+    extension line "authn-timestamp-ms <ms>\\n"; `signature` is the note's signature field,
+    base64(4-byte key hash || 64-byte Ed25519 signature), the key hash being
+    SHA-256(origin || 0x0A || 0x01 || public key)[:4] (C2SP signed-note). `log_key_id` is
+    SHA-256 of the raw public key (hex), or the 8-hex key hash when parsed from a bare note.
+    Legacy heads (no origin) sign the canonical JSON of the other fields and name no log."""
+
     tree_size: int
     timestamp: int  # ms since the epoch, UTC
     root_hash: str  # hex
-    log_key_id: str  # hex SHA-256 of the raw public key
-    signature: str  # base64 Ed25519
-
-    @property
-    def size(self) -> int:  # the old Checkpoint's name
-        return self.tree_size
+    log_key_id: str
+    signature: str  # base64
+    origin: str | None = None
 
     @property
     def root(self) -> bytes:
         return bytes.fromhex(self.root_hash)
 
+    def note_body(self) -> str:
+        root = base64.b64encode(self.root).decode()
+        return f"{self.origin}\n{self.tree_size}\n{root}\n{TIMESTAMP_EXTENSION} {self.timestamp}\n"
+
     def signed_bytes(self) -> bytes:
-        return canonical_json({"format": STH_FORMAT, "tree_size": self.tree_size, "timestamp": self.timestamp,
-                               "root_hash": self.root_hash, "log_key_id": self.log_key_id}).encode()
+        if self.origin is None:
+            return canonical_json({"format": STH_FORMAT, "tree_size": self.tree_size, "timestamp": self.timestamp,
+                                   "root_hash": self.root_hash, "log_key_id": self.log_key_id}).encode()
+        return self.note_body().encode()
+
+    def same_head(self, other: "SignedTreeHead") -> bool:
+        """The same signed content (a rotation head carries it under two keys)."""
+        return self.signed_bytes() == other.signed_bytes() if self.origin is not None else False
+
+    def note(self, *cosigned: "SignedTreeHead") -> str:
+        """The C2SP signed note: body, blank line, one signature line per head of this body."""
+        if self.origin is None:
+            raise AuthnError("a legacy authn-sth/1 head has no checkpoint form")
+        sigs = "".join(f"\u2014 {self.origin} {h.signature}\n" for h in (self, *cosigned))
+        return self.note_body() + "\n" + sigs
 
     def to_dict(self) -> dict[str, Any]:
-        return {"format": STH_FORMAT, "tree_size": self.tree_size, "timestamp": self.timestamp,
-                "root_hash": self.root_hash, "log_key_id": self.log_key_id, "signature": self.signature}
+        if self.origin is None:
+            return {"format": STH_FORMAT, "tree_size": self.tree_size, "timestamp": self.timestamp,
+                    "root_hash": self.root_hash, "log_key_id": self.log_key_id, "signature": self.signature}
+        return {"format": CHECKPOINT_FORMAT, "origin": self.origin, "tree_size": self.tree_size,
+                "timestamp": self.timestamp, "root_hash": self.root_hash, "log_key_id": self.log_key_id,
+                "signature": self.signature, "checkpoint": self.note()}
 
     def to_json(self) -> str:
         return canonical_json(self.to_dict())
@@ -208,31 +268,37 @@ class SignedTreeHead:
     @classmethod
     def from_dict(cls, doc: Any, what: str = "signed tree head") -> "SignedTreeHead":
         try:
-            if not isinstance(doc, dict) or doc.get("format") != STH_FORMAT:
+            if not isinstance(doc, dict) or doc.get("format") not in (STH_FORMAT, CHECKPOINT_FORMAT):
                 raise ValueError
             size, ts = doc["tree_size"], doc["timestamp"]
             root, kid, sig = doc["root_hash"], doc["log_key_id"], doc["signature"]
+            origin = doc["origin"] if doc["format"] == CHECKPOINT_FORMAT else None
             if not (type(size) is int and type(ts) is int and size >= 0 and ts >= 0):
                 raise ValueError
             if not all(isinstance(x, str) for x in (root, kid, sig)):
                 raise ValueError
-            if len(bytes.fromhex(root)) != 32 or len(bytes.fromhex(kid)) != 32 or root != root.lower() \
-                    or kid != kid.lower():
+            if len(bytes.fromhex(root)) != 32 or root != root.lower() or kid != kid.lower() \
+                    or len(bytes.fromhex(kid)) not in ((32,) if origin is None else (4, 32)):
                 raise ValueError
-            if len(base64.b64decode(sig, validate=True)) != 64:
+            if len(base64.b64decode(sig, validate=True)) != (64 if origin is None else 68):
                 raise ValueError
+            if origin is not None:
+                _check_origin(origin)
         except (ValueError, KeyError, TypeError, binascii.Error):
-            raise AuthnError(f"{what}: not an {STH_FORMAT} document") from None
-        return cls(size, ts, root, kid, sig)
+            raise AuthnError(f"{what}: not an {CHECKPOINT_FORMAT} or {STH_FORMAT} document") from None
+        return cls(size, ts, root, kid, sig, origin)
 
     @classmethod
     def from_json(cls, text: str | bytes, what: str = "signed tree head") -> "SignedTreeHead":
+        """A head from JSON (either format), or the first signature of a bare C2SP note."""
         try:
             if isinstance(text, bytes):
                 text = text.decode("utf-8")
+            if not text.lstrip().startswith("{"):
+                return parse_note(text, what)[0]
             doc = json.loads(text)
         except (UnicodeDecodeError, ValueError):
-            raise AuthnError(f"{what}: not an {STH_FORMAT} JSON document") from None
+            raise AuthnError(f"{what}: not an {CHECKPOINT_FORMAT} document or C2SP checkpoint") from None
         return cls.from_dict(doc, what)
 
     @classmethod
@@ -245,16 +311,75 @@ class SignedTreeHead:
         return cls.from_json(data, str(p))
 
     def verify_signature(self, public_key: Any) -> bool:
-        """Whether the signature is the log key's over these fields (and the key id matches)."""
+        """Whether the signature is this key's over these fields (key id and key hash match)."""
         from cryptography.exceptions import InvalidSignature
 
-        if key_id(public_raw(public_key)) != self.log_key_id:
-            return False
+        raw = public_raw(public_key)
+        sig = base64.b64decode(self.signature)
+        if self.origin is None:
+            if key_id(raw) != self.log_key_id:
+                return False
+        else:
+            hint = note_key_hash(self.origin, raw)
+            if sig[:4] != hint or self.log_key_id not in (key_id(raw), hint.hex()):
+                return False
+            sig = sig[4:]
         try:
-            public_key.verify(base64.b64decode(self.signature), self.signed_bytes())
+            public_key.verify(sig, self.signed_bytes())
         except InvalidSignature:
             return False
         return True
+
+
+def note_key_hash(name: str, public_raw_key: bytes) -> bytes:
+    """C2SP signed-note key hash of an Ed25519 key: SHA-256(name || 0x0A || 0x01 || key)[:4]."""
+    return hashlib.sha256(name.encode() + b"\n\x01" + public_raw_key).digest()[:4]
+
+
+def _check_origin(origin: Any) -> None:
+    """A note key name: non-empty UTF-8 without whitespace, '+' or control characters."""
+    if not isinstance(origin, str) or not origin or len(origin) > 256 or "+" in origin \
+            or any(c.isspace() or ord(c) < 0x20 or ord(c) == 0x7F for c in origin):
+        raise ValueError(f"not a checkpoint origin: {origin!r}")
+
+
+def parse_note(text: str, what: str = "checkpoint") -> list[SignedTreeHead]:
+    """Every signature of a C2SP checkpoint note, as heads (unverified; key id = the key hash)."""
+    try:
+        body, sep, sigs = text.rpartition("\n\n")
+        if not sep or len(text) > 1 << 16 or any(ord(c) < 0x20 and c != "\n" for c in text):
+            raise ValueError
+        lines = body.split("\n")
+        origin, size_text, root_b64, *ext = lines
+        _check_origin(origin)
+        if not size_text.isdigit() or (size_text != "0" and size_text.startswith("0")):
+            raise ValueError
+        root = base64.b64decode(root_b64, validate=True)
+        if len(root) != 32:
+            raise ValueError
+        timestamp = 0
+        for line in ext:
+            if not line:
+                raise ValueError
+            name, _, value = line.partition(" ")
+            if name == TIMESTAMP_EXTENSION and value.isdigit():
+                timestamp = int(value)
+        heads = []
+        for line in sigs.split("\n"):
+            if not line:
+                continue
+            dash, name, sig = line.split(" ")
+            if dash != "\u2014":
+                raise ValueError
+            raw = base64.b64decode(sig, validate=True)
+            if name != origin or len(raw) != 68:
+                continue  # another signer (a witness's cosignature): not a log head
+            heads.append(SignedTreeHead(int(size_text), timestamp, root.hex(), raw[:4].hex(), sig, origin))
+        if not heads:
+            raise ValueError
+    except (ValueError, binascii.Error):
+        raise AuthnError(f"{what}: not a C2SP checkpoint signed by its origin") from None
+    return heads
 
 
 def read_sth_log(path: Path) -> list[tuple[str | None, SignedTreeHead]]:

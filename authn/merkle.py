@@ -251,3 +251,22 @@ def verify_consistency(old: int, new: int, old_root: bytes, new_root: bytes, pro
         fn >>= 1
         sn >>= 1
     return sn == 0 and fr == old_root and sr == new_root
+
+
+def consistency_proof_from(old: Frontier, new_leaves: Sequence[bytes]) -> list[bytes]:
+    """PROOF(m, D[n]) from the old tree's frontier and the leaf hashes added since: O(n - m + log n).
+
+    Every node of such a proof either lies left of m, and is then one of the old tree's
+    perfect subtrees (its frontier), or lies wholly among the new leaves."""
+    m, n = old.size, old.size + len(new_leaves)
+    spans, start = {}, 0
+    for size_, h in zip(old._sizes, old.hashes):
+        spans[(start, start + size_)] = h
+        start += size_
+    out = []
+    for a, b in consistency_ranges(m, n):
+        if b <= m:
+            out.append(spans[(a, b)])
+        else:
+            out.append(root_hash(new_leaves[a - m:b - m]))
+    return out

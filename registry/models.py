@@ -171,7 +171,18 @@ class AuditTreeHead(Base):
     root_hash: Mapped[str] = mapped_column(CHAR(64))
     log_key_id: Mapped[str] = mapped_column(CHAR(64))
     signature: Mapped[str] = mapped_column(Text)
-    frontier: Mapped[str | None] = mapped_column(Text)  # JSON list of hex subtree roots, largest first
+    frontier: Mapped[str | None] = mapped_column(Text)  # JSON: the tree's right edge (see authn.audit)
+    origin: Mapped[str | None] = mapped_column(Text)  # the log the head names; NULL: authn-sth/1 (revision 0005)
+
+
+class AuditLogMeta(Base):
+    """Facts about the audit log itself (revision 0005): `origin`, the name its checkpoints
+    carry, written once by the first append. Written by authn.audit."""
+
+    __tablename__ = "audit_log_meta"
+
+    name: Mapped[str] = mapped_column(String(64), primary_key=True)
+    value: Mapped[str] = mapped_column(Text)
 
 
 class AuditBatch(Base):

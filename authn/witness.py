@@ -1,0 +1,239 @@
+"""Witnesses: the audit log's heads kept where the log's own machine cannot rewrite them.
+
+Why: every other copy of a head (the database, the latest-head file, the STH log) sits
+on or beside the machine that holds the database and the log key. Someone who controls
+that machine can rewrite the log and re-sign it with the readable key. A witness holds
+every head it was given in an append-only store on another host and accepts a new head
+only with an RFC 9162 consistency proof from the newest one it holds (as a C2SP
+tlog-witness does), so a rewrite, even re-signed with the real key, either is refused
+by the witness or leaves the witness holding a head the log no longer extends, which
+`authn audit verify` and the next append report.
+
+Two kinds, one store:
+- `DIR`: a folder (a mount of another host, ideally append-only): `WitnessStore` runs
+  in the writer's process. A head published there is checked the same way.
+- `http(s)://HOST:PORT`: `authn audit witness serve --dir DIR --public-key LOG.pub`
+  on the other host, the same store behind two routes:
+  `POST /add-checkpoint` (body: "old <size>\\n", one base64 proof hash per line, a blank
+  line, then the signed note; 200, or 409 with the witness's newest head when the proof
+  fails) and `GET /checkpoints?origin=O` (every held head, JSON lines).
+
+A store file is `<sha256(origin)[:16]>.jsonl`: one authn-checkpoint/1 object per line,
+oldest first, appended under an exclusive lock with one write(2).
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import hashlib
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from authn import merkle
+from authn.errors import AuthnError, SystemFault
+from authn.logkey import SignedTreeHead, parse_note
+
+ENV_WITNESS = "AUTHN_AUDIT_WITNESS"
+TIMEOUT_S = 5.0
+
+
+class Conflict(AuthnError):
+    """The witness holds a head the offered one does not extend."""
+
+
+class WitnessStore:
+    """Append-only heads per origin in one folder, each new one proven to extend the last."""
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root).expanduser()
+        self.name = str(self.root)
+
+    def _file(self, origin: str) -> Path:
+        return self.root / f"{hashlib.sha256(origin.encode()).hexdigest()[:16]}.jsonl"
+
+    def heads(self, origin: str) -> list[SignedTreeHead]:
+        """Every head held for `origin`, oldest first (lines that do not parse: a fault)."""
+        path = self._file(origin)
+        try:
+            lines = path.read_bytes().splitlines()
+        except FileNotFoundError:
+            return []
+        except OSError as exc:
+            raise SystemFault(f"witness {path}: cannot read ({exc.strerror})") from None
+        out = []
+        for i, line in enumerate(lines, 1):
+            if not line.strip():
+                continue
+            try:
+                out.append(SignedTreeHead.from_json(line, f"witness {path} line {i}"))
+            except AuthnError as exc:
+                raise SystemFault(str(exc)) from None
+        return [h for h in out if h.origin == origin]
+
+    def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
+        """Keep `head` if a key in `public_keys` signed it and `proof` proves it extends the
+        newest head held for its origin (of size `old_size`); else Conflict / AuthnError."""
+        import fcntl
+
+        if head.origin is None:
+            raise AuthnError("a witness keeps C2SP checkpoints only (this head names no log)")
+        if not any(head.verify_signature(k) for k in public_keys):
+            raise AuthnError("witness: the head is not signed by the log's key")
+        path = self._file(head.origin)
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            lock = os.open(str(path) + ".lock", os.O_CREAT | os.O_RDWR, 0o644)
+        except OSError as exc:
+            raise SystemFault(f"witness {self.root}: cannot write ({exc.strerror})") from None
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            held = self.heads(head.origin)
+            last = max(held, key=lambda h: h.tree_size, default=None)
+            if last is not None:
+                if last.tree_size != old_size:
+                    raise Conflict(f"witness holds size {last.tree_size}, the proof starts at {old_size}")
+                if not merkle.verify_consistency(last.tree_size, head.tree_size, last.root, head.root, proof):
+                    raise Conflict(f"the head of size {head.tree_size} does not extend the witnessed head of "
+                                   f"size {last.tree_size} (rewritten history)")
+                if head.tree_size == last.tree_size and head.signature == last.signature:
+                    return  # already held
+            line = (head.to_json() + "\n").encode()
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+            try:
+                os.write(fd, line)
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        except OSError as exc:
+            raise SystemFault(f"witness {path}: cannot append ({exc.strerror})") from None
+        finally:
+            os.close(lock)
+
+
+class HttpWitness:
+    """A witness endpoint (`authn audit witness serve`) seen from the log's side."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url.rstrip("/")
+        self.name = self.url
+
+    def heads(self, origin: str) -> list[SignedTreeHead]:
+        import urllib.parse
+
+        body = self._request("GET", "/checkpoints?origin=" + urllib.parse.quote(origin, safe=""), None)
+        out = []
+        for i, line in enumerate(body.splitlines(), 1):
+            if line.strip():
+                try:
+                    out.append(SignedTreeHead.from_json(line, f"witness {self.url} line {i}"))
+                except AuthnError as exc:
+                    raise SystemFault(str(exc)) from None
+        return [h for h in out if h.origin == origin]
+
+    def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
+        self._request("POST", "/add-checkpoint", add_request(head, old_size, proof))
+
+    def _request(self, method: str, path: str, data: bytes | None) -> bytes:
+        import urllib.error
+        import urllib.request
+
+        req = urllib.request.Request(self.url + path, data=data, method=method,
+                                     headers={"Content-Type": "text/plain; charset=utf-8"})
+        try:
+            with urllib.request.urlopen(req, timeout=TIMEOUT_S) as resp:  # noqa: S310 - the operator's URL
+                return resp.read(1 << 24)
+        except urllib.error.HTTPError as exc:
+            text = exc.read(2000).decode("utf-8", "replace").strip().splitlines()
+            if exc.code == 409:
+                raise Conflict(f"witness {self.url}: {text[0] if text else 'conflict'}") from None
+            raise SystemFault(f"witness {self.url}: HTTP {exc.code}") from None
+        except (urllib.error.URLError, OSError) as exc:
+            raise SystemFault(f"witness {self.url}: not reached ({getattr(exc, 'reason', exc)})") from None
+
+
+def add_request(head: SignedTreeHead, old_size: int, proof: Sequence[bytes]) -> bytes:
+    lines = [f"old {old_size}"] + [base64.b64encode(p).decode() for p in proof]
+    return ("\n".join(lines) + "\n\n" + head.note()).encode()
+
+
+def parse_add_request(body: bytes) -> tuple[SignedTreeHead, int, list[bytes]]:
+    """The inverse of add_request (AuthnError on anything malformed)."""
+    try:
+        text = body.decode("utf-8")
+        head_part, sep, note = text.partition("\n\n")
+        lines = head_part.split("\n")
+        if not sep or not lines[0].startswith("old ") or not lines[0][4:].isdigit() or len(lines) > 65:
+            raise ValueError
+        proof = [base64.b64decode(p, validate=True) for p in lines[1:]]
+        if any(len(p) != 32 for p in proof):
+            raise ValueError
+    except (UnicodeDecodeError, ValueError, binascii.Error):
+        raise AuthnError("not an add-checkpoint request") from None
+    return parse_note(note, "add-checkpoint")[0], int(lines[0][4:]), proof
+
+
+def open_witness(spec: str | None) -> WitnessStore | HttpWitness | None:
+    """--witness, else $AUTHN_AUDIT_WITNESS: a folder or an http(s) URL (None: no witness)."""
+    spec = spec or os.environ.get(ENV_WITNESS) or None
+    if spec is None:
+        return None
+    if spec.startswith(("http://", "https://")):
+        return HttpWitness(spec)
+    return WitnessStore(spec)
+
+
+def serve(store: WitnessStore, public_keys: Sequence[Any], host: str, port: int) -> None:
+    """Run the witness endpoint until interrupted (stdlib HTTP server, one thread per request)."""
+    import urllib.parse
+    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+    class Handler(BaseHTTPRequestHandler):
+        timeout = 10  # seconds a client may take to send its request
+
+        def _answer(self, status: int, body: bytes) -> None:
+            self.send_response(status)
+            self.send_header("Content-Type", "text/plain; charset=utf-8")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def do_GET(self) -> None:  # noqa: N802 - http.server's name
+            url = urllib.parse.urlsplit(self.path)
+            origin = urllib.parse.parse_qs(url.query).get("origin", [""])[0]
+            if url.path != "/checkpoints" or not origin:
+                self._answer(404, b"GET /checkpoints?origin=ORIGIN\n")
+                return
+            self._answer(200, "".join(h.to_json() + "\n" for h in store.heads(origin)).encode())
+
+        def do_POST(self) -> None:  # noqa: N802
+            length = self.headers.get("Content-Length", "")
+            if self.path != "/add-checkpoint" or not length.isdigit() or int(length) > 1 << 16:
+                self._answer(400, b"POST /add-checkpoint with a body under 64 KiB\n")
+                return
+            try:
+                head, old, proof = parse_add_request(self.rfile.read(int(length)))
+                store.add(head, old, proof, public_keys)
+            except Conflict as exc:
+                self._answer(409, f"{exc}\n".encode())
+                return
+            except AuthnError as exc:
+                self._answer(400, f"{exc}\n".encode())
+                return
+            self._answer(200, b"ok\n")
+
+        def log_message(self, fmt: str, *args: Any) -> None:
+            pass
+
+    server = ThreadingHTTPServer((host, port), Handler)
+    try:
+        server.serve_forever()
+    finally:
+        server.server_close()
+
+
+def to_json_lines(heads: Sequence[SignedTreeHead]) -> str:
+    return "".join(json.dumps(h.to_dict()) + "\n" for h in heads)
