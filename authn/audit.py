@@ -72,7 +72,7 @@ PROOF_FORMAT = "authn-inclusion-proof/1"
 PAGE = 5000
 
 _ENC = json.JSONEncoder(sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
-_KEYS: dict[Path, LogKey] = {}
+_KEYS: dict[Path, tuple[tuple[int, int] | None, LogKey]] = {}
 
 
 def _iso(when: datetime) -> str:
@@ -151,18 +151,24 @@ def _append_check() -> str:
 
 
 def _log_key(path: str | Path | None) -> LogKey:
+    """The key at `path`, loaded once per file version (a replaced file is loaded again)."""
     p = key_path(path)
-    key = _KEYS.get(p)
-    if key is None:
-        key = _KEYS[p] = LogKey.load(p)
-    return key
+    try:
+        st = p.stat()
+        version = (st.st_ino, st.st_mtime_ns)
+    except OSError:
+        version = None
+    cached = _KEYS.get(p)
+    if cached is None or cached[0] != version or version is None:
+        _KEYS[p] = (version, LogKey.load(p))
+    return _KEYS[p][1]
 
 
 def writer_key(db: Database, heads: Sequence["KnownHead"], log_key: str | Path | None = None) -> LogKey:
     """The log key; created only for a log that has no signed head anywhere yet. A log with
     heads and no key is a fault: a new key would let whoever made it re-sign history."""
     p = key_path(log_key)
-    if p not in _KEYS and not p.exists():
+    if not p.exists():
         if heads or db.fetch("SELECT tree_size FROM audit_tree_heads LIMIT 1"):
             raise SystemFault(f"audit log key {p} is missing but the log has signed heads: restore the key file "
                               "(a new one is never made for a signed log; `authn audit rotate-key` changes it)")
@@ -691,8 +697,9 @@ def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | Kno
                 raise AuthnError(f"signed tree head (size {h.sth.tree_size}, {h.source}): signature is not the log "
                                  "key's (forged, altered, or another log's)")
             if h.sth.origin is not None and h.sth.origin != origin:
-                raise AuthnError(f"signed tree head (size {h.sth.tree_size}, {h.source}) names the log "
-                                 f"{h.sth.origin}, not this one ({origin or 'no origin recorded'})")
+                return VerifyReport(False, 0, GENESIS, problem=f"the signed head of size {h.sth.tree_size} "
+                                    f"({h.source}) names the log {h.sth.origin}, not this one "
+                                    f"({origin or 'no origin recorded'})")
     total = int(db.fetch("SELECT COUNT(*) FROM audit_log")[0][0])
     wanted: set[merkle.Range] = set()
     for h in heads:

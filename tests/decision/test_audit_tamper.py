@@ -210,3 +210,256 @@ def test_cli_verify_uses_the_external_sth_file(db_url: str, capsys) -> None:
     assert main(["--db", db_url, "audit", "verify"]) == 1
     err = capsys.readouterr().err
     assert "truncated" in err and "sth.jsonl" in err and err.count("\n") == 1
+
+
+# --- the writer: every append proves the log extends what was signed ------------------------
+
+def _drop_triggers(url: str) -> None:
+    engine = get_engine(url)
+    with engine.begin() as conn:
+        if engine.dialect.name == "sqlite":
+            for (name,) in conn.exec_driver_sql("SELECT name FROM sqlite_master WHERE type='trigger'").all():
+                conn.exec_driver_sql(f"DROP TRIGGER {name}")
+        else:
+            for table in ("audit_log", "audit_tree_heads", "audit_policies", "audit_log_meta"):
+                conn.exec_driver_sql(f"ALTER TABLE {table} DISABLE TRIGGER ALL")
+
+
+def _launder(conn, first: int) -> None:
+    """Entries `first`.. turned from accept to reject (and back), reasons edited, chain and
+    leaf hashes recomputed with the project's own functions."""
+    rows = _rows(conn)
+    for row in rows[first - 1:]:
+        row[4] = "reject" if row[4] == "accept" else "accept"
+        row[5] = json.dumps({"reasons": ["laundered"]})
+    _rewrite(conn, rows)
+
+
+def _keys_dir() -> Path:
+    from authn.logkey import key_path
+
+    return key_path().parent
+
+
+def _latest_files() -> list[Path]:
+    return list(_keys_dir().glob("*-latest-*.json"))
+
+
+@pytest.fixture(scope="module")
+def genuine(tmp_path_factory) -> Path:
+    from datetime import datetime, timezone
+
+    from authn.scenario import Broadcast, simulate_flight
+    from signatures.profiles import shipped_profiles
+    from signatures.radar import get_preset
+    from signatures.recording import write_recording
+    from signatures.scene import Scene
+
+    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
+                  elevation_deg=10.0)
+    rec, _ = simulate_flight(scene, get_preset("paper"), 11, Broadcast(serial="1581BDEM00000002"),
+                             azimuth_deg=60.0, start_time=datetime.now(timezone.utc))
+    return write_recording(rec, tmp_path_factory.mktemp("tamper") / "genuine.h5")
+
+
+def _checks(url: str, genuine: Path, n: int) -> None:
+    from authn.cli import main
+
+    for _ in range(n):
+        assert main(["--db", url, "check", str(genuine)]) == 0
+
+
+def _count(url: str) -> int:
+    with get_engine(url).begin() as conn:
+        return conn.exec_driver_sql("SELECT COUNT(*) FROM audit_log").scalar_one()
+
+
+@pytest.mark.parametrize("heads_too", [False, True], ids=["db-heads-kept", "db-heads-deleted"])
+def test_laundering_after_the_last_periodic_head_is_refused(db_url: str, genuine: Path, heads_too: bool,
+                                                            monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    """The attack: periodic heads every K entries; entries after the last one rewritten
+    (accept -> reject, reasons edited, hashes recomputed); the latest-head file deleted (and
+    the per-commit heads in the database); then one ordinary check. The append is refused
+    (exit 3, nothing appended) and `verify` fails."""
+    from authn.cli import main
+    from authn.demo import register_examples
+
+    monkeypatch.setenv("AUTHN_AUDIT_CHECKPOINT_EVERY", "4")
+    register_examples(db_url)
+    _checks(db_url, genuine, 10)  # periodic heads at 4 and 8
+    _drop_triggers(db_url)
+    with get_engine(db_url).begin() as conn:
+        _launder(conn, 9)
+        if heads_too:
+            conn.exec_driver_sql("DELETE FROM audit_tree_heads WHERE tree_size > 8")
+    for f in _latest_files():
+        f.unlink()
+    capsys.readouterr()
+    assert main(["--db", db_url, "check", str(genuine)]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "audit log" in err, err
+    assert _count(db_url) == 10, "nothing appended to the laundered log"
+    assert main(["--db", db_url, "audit", "verify"]) == 1
+    assert "BROKEN" in capsys.readouterr().err
+
+
+# rewrites before the last periodic head that keep the chain consistent: refused by the
+# default (window) check; local edits too with AUTHN_AUDIT_APPEND_CHECK=full
+RECHAINED = ["forged entry, chain recomputed", "rewrite and recompute the whole chain", "reorder, chain recomputed",
+             "delete, chain recomputed", "delete the tail", "truncate all"]
+LOCAL = ["edit an entry", "delete a middle entry", "reorder two entries"]
+BEFORE = [(n, "window") for n in RECHAINED] + [(n, "full") for n in RECHAINED + LOCAL]
+
+
+@pytest.mark.parametrize("name,mode", BEFORE, ids=[f"{n}-{m}" for n, m in BEFORE])
+def test_tamper_before_the_last_periodic_head_stops_the_next_append(db_url: str, name: str, mode: str,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    tamper, before, _ = TAMPERS[name]
+    _setup(db_url)
+    monkeypatch.setenv("AUTHN_AUDIT_APPEND_CHECK", mode)
+    with get_engine(db_url).begin() as conn:
+        tamper(conn, before)
+    n = _count(db_url)
+    db = Database(db_url)
+    try:
+        with pytest.raises(SystemFault, match="audit log"):
+            append(db, [NewEntry("decision", "NEXT", "reject", {"reasons": ["r"]})])
+    finally:
+        db.close()
+    assert _count(db_url) == n
+
+
+def test_local_edit_before_the_anchor_is_verifys_to_find_in_window_mode(db_url: str) -> None:
+    """What the O(K) default does not see: a content edit before the last periodic head that
+    leaves the hash columns alone. The append goes through; `verify` names the entry."""
+    periodic, key = _setup(db_url)
+    with get_engine(db_url).begin() as conn:
+        _edit(conn, 3)
+    db = Database(db_url)
+    try:
+        append(db, [NewEntry("decision", "NEXT", "reject", {"reasons": ["r"]})])
+        report = verify(db, [periodic], public_key=key)
+    finally:
+        db.close()
+    assert not report.ok and report.first_bad_seq == 3
+
+
+def test_deleted_key_exits_3_and_no_new_key_is_made(db_url: str, genuine: Path, capsys) -> None:
+    from authn.cli import main
+    from authn.demo import register_examples
+    from authn.logkey import key_path
+
+    register_examples(db_url)
+    _checks(db_url, genuine, 2)
+    key_path().unlink()
+    capsys.readouterr()
+    assert main(["--db", db_url, "check", str(genuine)]) == 3
+    err = capsys.readouterr().err
+    assert "is missing but the log has signed heads" in err and err.count("\n") == 1, err
+    assert not key_path().exists(), "a new key was made behind the operator's back"
+    assert main(["--db", db_url, "audit", "public-key"]) == 3
+    assert not key_path().exists()
+    assert _count(db_url) == 2
+
+
+def test_heads_of_one_log_do_not_verify_for_another(tmp_path: Path, capsys) -> None:
+    """Two logs, one key: log A's checkpoint names A's origin, so log B refuses it."""
+    from authn.cli import main
+
+    urls = [f"sqlite:///{tmp_path / name}.sqlite3" for name in ("a", "b")]
+    for url in urls:
+        db = Database(url)
+        append(db, [NewEntry("decision", "S", "accept", {"reasons": ["r"]}) for _ in range(6)])
+        db.close()
+    head_a = tmp_path / "a-head.json"
+    assert main(["--db", urls[0], "audit", "checkpoint", "--out", str(head_a)]) == 0
+    assert main(["--db", urls[0], "audit", "verify", "--against", str(head_a)]) == 0
+    capsys.readouterr()
+    assert main(["--db", urls[1], "audit", "verify", "--against", str(head_a)]) == 1
+    assert "names the log" in capsys.readouterr().err
+    db_b = Database(urls[1])
+    try:
+        report = verify(db_b, [LogKey.load().public_key and __import__("authn.logkey").logkey.SignedTreeHead.read(head_a)],
+                        public_key=LogKey.load().public_key)
+    finally:
+        db_b.close()
+    assert not report.ok and "names the log" in report.problem
+
+
+@pytest.fixture(params=["folder", "http"])
+def witness(request, tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """A witness of the log's heads: a folder, or `authn audit witness serve` semantics over HTTP."""
+    import threading
+
+    from authn import witness as w
+    from tests.service.server import free_port
+
+    store = tmp_path / "witness"
+    if request.param == "folder":
+        spec = str(store)
+    else:
+        port = free_port()
+
+        class Keys(list):  # the log key exists only after the first append: resolve it per request
+            def __iter__(self):
+                return iter([LogKey.load().public_key])
+
+        thread = threading.Thread(target=w.serve, args=(w.WitnessStore(store), Keys(), "127.0.0.1", port),
+                                  daemon=True)
+        thread.start()
+        spec = f"http://127.0.0.1:{port}"
+        import time as _t
+
+        for _ in range(50):
+            try:
+                w.HttpWitness(spec).heads("x")
+                break
+            except SystemFault:
+                _t.sleep(0.1)
+    monkeypatch.setenv("AUTHN_AUDIT_WITNESS", spec)
+    monkeypatch.setenv("AUTHN_AUDIT_CHECKPOINT_EVERY", "4")
+    return spec
+
+
+def test_rewrite_resigned_with_the_readable_key_is_reported_by_the_witness(db_url: str, witness: str,
+                                                                          capsys) -> None:
+    """An intruder who can read the log key rewrites the log, deletes every head kept on this
+    machine and signs a fresh head over the rewrite. The witness holds heads the rewrite does
+    not extend: it refuses the re-signed head, `verify` reports the log, and the next append
+    is refused when it consults the witness."""
+    from authn import merkle as m
+    from authn.audit import log_origin
+    from authn.cli import main
+    from authn.witness import Conflict, open_witness
+
+    db = Database(db_url)
+    for i in range(8):
+        append(db, [NewEntry("decision", f"S{i}", "accept", {"reasons": ["r"]})])
+    origin = log_origin(db)
+    db.close()
+    held = open_witness(witness).heads(origin)
+    assert [h.tree_size for h in held] == [1, 5]  # the first append is periodic, then every 4
+    assert main(["--db", db_url, "audit", "verify"]) == 0
+    _drop_triggers(db_url)
+    with get_engine(db_url).begin() as conn:
+        _launder(conn, 2)
+        conn.exec_driver_sql("DELETE FROM audit_tree_heads")
+        leaves = [bytes.fromhex(h) for (h,) in conn.exec_driver_sql(
+            "SELECT leaf_hash FROM audit_log ORDER BY seq").all()]
+    for f in [*_latest_files(), _keys_dir() / "sth.jsonl", _keys_dir() / "audit-sth.jsonl"]:
+        f.unlink(missing_ok=True)
+    key = LogKey.load()  # the readable key
+    forged = key.sign_tree_head(8, m.root_hash(leaves), 1, origin)
+    with pytest.raises((Conflict, SystemFault)):
+        open_witness(witness).add(forged, 8, [], [key.public_key])
+    capsys.readouterr()
+    assert main(["--db", db_url, "audit", "verify"]) == 1
+    err = capsys.readouterr().err
+    assert "witness" in err and "BROKEN" in err, err
+    db = Database(db_url)
+    try:
+        with pytest.raises(SystemFault, match="audit log"):
+            for i in range(4):  # the next periodic head asks the witness
+                append(db, [NewEntry("decision", f"T{i}", "accept", {"reasons": ["r"]})])
+    finally:
+        db.close()
