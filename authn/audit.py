@@ -57,7 +57,7 @@ from urllib.parse import urlsplit, urlunsplit
 from authn import merkle
 from authn.errors import AuthnError, SystemFault, one_line
 from authn.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append_sth_log, canonical_json, \
-    create_key_file, key_path, latest_head_path, load_retired_keys, retired_keys_path, read_latest_head, read_sth_log, sth_log_path, write_latest_head
+    create_key_file, key_path, latest_head_path, load_retired_keys, newest_in_sth_log, retired_keys_path, read_latest_head, read_sth_log, sth_log_path, write_latest_head
 from authn.witness import Conflict, HttpWitness, WitnessStore, open_witness
 from registry.dbapi import Database
 
@@ -311,23 +311,24 @@ class _Signed:
 @dataclass(frozen=True)
 class _Anchor:
     """Where the writer's proof starts: a signed periodic head whose stored right edge folds
-    to its root (so the edge, and the entry at its size, are the ones that were signed)."""
+    to its root (so the edge, and the entry at its size, are the ones that were signed), or
+    the empty tree; and the newest periodic head, from which the next one is due."""
 
     size: int
     frontier: merkle.Frontier
     chain: str  # entry_hash of entry `size` (GENESIS at 0)
-    timestamp_ms: int
+    periodic_size: int
+    periodic_ms: int
+    periodic: SignedTreeHead | None = None
 
 
 def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int) -> _Anchor:
-    """The newest periodic head (window mode), checked against its signature and root;
-    the empty tree in full mode, or when there is none."""
-    if mode == "full":
-        return _Anchor(0, merkle.Frontier(), GENESIS, 0)
+    """The newest periodic head, checked against its signature and root (window mode); in
+    full mode, or when there is none, the proof starts from the empty tree."""
     rows = db.fetch(f"SELECT {_HEAD_COLUMNS}, frontier FROM audit_tree_heads WHERE frontier IS NOT NULL "
                     "ORDER BY tree_size DESC, id DESC LIMIT 1")
     if not rows:
-        return _Anchor(0, merkle.Frontier(), GENESIS, 0)
+        return _Anchor(0, merkle.Frontier(), GENESIS, 0, 0)
     try:
         sth = _head_of(rows[0][:6])
     except AuthnError:
@@ -335,6 +336,8 @@ def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int)
                           "run `authn audit verify`") from None
     _check_head(KnownHead(sth, "database"), key, origin, size_before)
     b = sth.tree_size
+    if mode == "full":  # the periodic head is checked by root on the way, like every trusted head
+        return _Anchor(0, merkle.Frontier(), GENESIS, b, sth.timestamp, sth)
     entry = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :s", {"s": b}) if b else []
     try:
         edge = json.loads(rows[0][6])
@@ -354,7 +357,7 @@ def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int)
     if frontier.root() != sth.root:
         raise SystemFault(f"audit log entries 1..{b} differ from the signed head of size {b} (rewritten, deleted "
                           "or reordered); run `authn audit verify`")
-    return _Anchor(b, frontier, chain, sth.timestamp)
+    return _Anchor(b, frontier, chain, b, sth.timestamp, sth)
 
 
 def _row_body(row: Sequence[Any]) -> bytes:
@@ -396,7 +399,7 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
         _check_head(h, key, origin, size_before)
     now_ms = int(time.time() * 1000)
     anchor = _anchor(db, key, origin, mode, size_before)
-    due = size - anchor.size >= every or now_ms - anchor.timestamp_ms >= seconds * 1000
+    due = size - anchor.periodic_size >= every or now_ms - anchor.periodic_ms >= seconds * 1000
     if due and places.witness is not None:
         witnessed = places.witness_heads(origin, newest_only=True)
         for h in witnessed:
@@ -406,8 +409,8 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     if in_db and max(h.sth.tree_size for h in in_db) != size_before:
         raise SystemFault(f"audit log entries {max(h.sth.tree_size for h in in_db) + 1}..{size_before} carry no "
                           "signed head (written outside authn?); run `authn audit verify`")
-    at = {}
-    for h in heads:
+    at: dict[int, list[KnownHead]] = {}
+    for h in heads + ([KnownHead(anchor.periodic, "database")] if anchor.periodic is not None else []):
         if h.sth.tree_size >= anchor.size:
             at.setdefault(h.sth.tree_size, []).append(h)
     frontier, chain, expected = anchor.frontier, anchor.chain, anchor.size + 1
@@ -545,7 +548,7 @@ class HeadPlaces:
         latest = read_latest_head(self.latest_file)
         if latest is not None:
             out.append(KnownHead(latest, f"file {self.latest_file}"))
-        logged = _newest_of([sth for owner, sth in read_sth_log(self.sth_log) if owner == self.label])
+        logged = newest_in_sth_log(self.sth_log, self.label)
         if logged is not None:
             out.append(KnownHead(logged, f"file {self.sth_log}"))
         return out

@@ -25,6 +25,7 @@ import binascii
 import hashlib
 import json
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -336,10 +337,12 @@ def note_key_hash(name: str, public_raw_key: bytes) -> bytes:
     return hashlib.sha256(name.encode() + b"\n\x01" + public_raw_key).digest()[:4]
 
 
+_ORIGIN = re.compile(r"[^\s+\x00-\x1f\x7f]{1,256}")
+
+
 def _check_origin(origin: Any) -> None:
     """A note key name: non-empty UTF-8 without whitespace, '+' or control characters."""
-    if not isinstance(origin, str) or not origin or len(origin) > 256 or "+" in origin \
-            or any(c.isspace() or ord(c) < 0x20 or ord(c) == 0x7F for c in origin):
+    if not isinstance(origin, str) or not _ORIGIN.fullmatch(origin):
         raise ValueError(f"not a checkpoint origin: {origin!r}")
 
 
@@ -401,6 +404,37 @@ def read_sth_log(path: Path) -> list[tuple[str | None, SignedTreeHead]]:
         except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
             continue
     return out
+
+
+def newest_in_sth_log(path: Path, db_label: str) -> SignedTreeHead | None:
+    """The last well-formed line for `db_label`, read backwards from the end of the file a
+    block at a time (the writer asks on every append; the file grows with the log)."""
+    try:
+        fh = open(path, "rb")
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise SystemFault(f"{path}: cannot read the STH log ({exc.strerror})") from None
+    with fh:
+        end = fh.seek(0, os.SEEK_END)
+        tail = b""
+        while end > 0:
+            start = max(0, end - (1 << 16))
+            fh.seek(start)
+            block = fh.read(end - start) + tail
+            lines = block.split(b"\n")
+            tail = lines.pop(0) if start > 0 else b""  # maybe cut: joined with the next block
+            for line in reversed(lines):
+                if db_label.encode() not in line:
+                    continue
+                try:
+                    doc = json.loads(line.decode("utf-8"))
+                    if doc.get("db") == db_label:
+                        return SignedTreeHead.from_dict({k: v for k, v in doc.items() if k != "db"})
+                except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
+                    continue
+            end = start
+    return None
 
 
 def append_sth_log(path: Path, sth: SignedTreeHead, db_label: str) -> None:

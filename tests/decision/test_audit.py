@@ -238,3 +238,23 @@ def test_inclusion_proof_fails_for_any_altered_field(db_url: str) -> None:
     other = LogKey.load(Path(LogKey.load().path).with_name("other.pem"), create=True).public_key
     with pytest.raises(Exception, match="not signed"):
         verify_proof(doc, other)
+
+
+def test_newest_sth_line_read_backwards_matches_a_full_read(tmp_path: Path) -> None:
+    """The writer reads the STH log from its end in 64 KiB blocks: whatever the lines' sizes
+    and owners, it finds the same newest line as reading every line."""
+    import random
+
+    from authn.logkey import append_sth_log, create_key_file, newest_in_sth_log, read_sth_log
+
+    create_key_file(tmp_path / "k.pem")
+    key = LogKey.load(tmp_path / "k.pem")
+    rng = random.Random(5)
+    path = tmp_path / "sth.jsonl"
+    for i in range(900):
+        origin = "authn.invalid/" + "x" * rng.randrange(1, 240)  # lines of 0.4-0.9 KiB: many cut by blocks
+        append_sth_log(path, key.sign_tree_head(i, bytes(32), i, origin), rng.choice("ABBC"))
+        if i % 97 == 0 or i == 899:
+            for label in "ABCD":
+                full = [sth for owner, sth in read_sth_log(path) if owner == label]
+                assert newest_in_sth_log(path, label) == (full[-1] if full else None)

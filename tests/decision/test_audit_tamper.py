@@ -463,3 +463,60 @@ def test_rewrite_resigned_with_the_readable_key_is_reported_by_the_witness(db_ur
                 append(db, [NewEntry("decision", f"T{i}", "accept", {"reasons": ["r"]})])
     finally:
         db.close()
+
+
+def test_rotate_key_hands_over_and_a_listed_stranger_is_not_trusted(db_url: str, tmp_path: Path, capsys) -> None:
+    """`authn audit rotate-key`: the old key's heads stay valid through the head both keys
+    signed; a key merely added to the retired-keys file vouches for nothing."""
+    from authn.cli import main
+    from authn.logkey import create_key_file, key_path, retired_keys_path
+
+    db = Database(db_url)
+    append(db, [NewEntry("decision", f"S{i}", "accept", {"reasons": ["r"]}) for i in range(6)])
+    old_id = LogKey.load().key_id
+    assert main(["--db", db_url, "audit", "rotate-key"]) == 0
+    out = capsys.readouterr().out
+    assert "rotated: head of size 6" in out
+    new = LogKey.load()
+    assert new.key_id != old_id
+    assert (key_path().parent / f"{key_path().name}.retired-{old_id[:16]}.pem").exists()
+    append(db, [NewEntry("decision", "T", "reject", {"reasons": ["r"]})])
+    assert main(["--db", db_url, "audit", "verify"]) == 0
+    assert "ok: 7 entries" in capsys.readouterr().out
+    stranger_path = tmp_path / "stranger.pem"
+    create_key_file(stranger_path)
+    stranger = LogKey.load(stranger_path)
+    with open(retired_keys_path(key_path()), "a") as fh:
+        fh.write(stranger.public_pem())
+    from authn.audit import _store_head, log_origin
+
+    with db.write():
+        _store_head(db, stranger.sign_tree_head(7, b"\x00" * 32, 1, log_origin(db)), None)
+    db.close()
+    assert main(["--db", db_url, "audit", "verify"]) == 1
+    assert "not signed by the log key" in capsys.readouterr().err
+
+
+def test_checkpoint_note_is_a_c2sp_signed_note(db_url: str, tmp_path: Path, capsys) -> None:
+    """`audit checkpoint --note`: origin, size, base64 root, our timestamp extension, a blank
+    line and one signature line by the origin's key; `verify --against` reads it back."""
+    import base64
+
+    from authn.cli import main
+    from authn.logkey import note_key_hash, public_raw
+
+    db = Database(db_url)
+    append(db, [NewEntry("decision", "S", "accept", {"reasons": ["r"]}) for _ in range(3)])
+    db.close()
+    note = tmp_path / "checkpoint"
+    assert main(["--db", db_url, "audit", "checkpoint", "--note", "--out", str(note)]) == 0
+    text = note.read_text()
+    body, _, sig = text.partition("\n\n")
+    origin, size, root, ext = body.split("\n")
+    assert size == "3" and len(base64.b64decode(root)) == 32 and ext.startswith("authn-timestamp-ms ")
+    dash, name, b64 = sig.strip().split(" ")
+    raw = base64.b64decode(b64)
+    key = LogKey.load().public_key
+    assert dash == "\u2014" and name == origin and raw[:4] == note_key_hash(origin, public_raw(key))
+    key.verify(raw[4:], (body + "\n").encode())  # the signature covers the note text, final newline included
+    assert main(["--db", db_url, "audit", "verify", "--against", str(note)]) == 0
