@@ -1,4 +1,5 @@
-"""Text from outside, parsed once for every layer: ISO 8601 times and pydantic errors.
+"""Text from outside, parsed once for every layer: ISO 8601 times, JSON documents (with a
+nesting limit) and pydantic errors.
 
 A leaf module (standard library and pydantic types only), so the radar, registry and
 decision layers share one reading of a date and one way of turning a validation error
@@ -7,12 +8,21 @@ into the one-line message the CLI prints.
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
+import json
+from datetime import datetime, timedelta, timezone
 from typing import Any
 
 from authn.errors import BadInput
 
-__all__ = ["parse_iso_time", "first_error"]
+__all__ = ["parse_iso_time", "in_utc_range", "first_error", "loads_json", "JsonTooDeep", "MAX_JSON_DEPTH"]
+
+#: Deepest nesting of arrays and objects a JSON file from outside may have (a registry
+#: export is 3 deep, a radar configuration 2): anything deeper is refused as bad input
+#: before a recursive reader (json, pydantic, our own walkers) can hit Python's recursion limit.
+MAX_JSON_DEPTH = 64
+
+_MIN_SAFE = datetime.min + timedelta(days=1)
+_MAX_SAFE = datetime.max - timedelta(days=1)
 
 
 def parse_iso_time(text: str, what: str, *, error: type[BadInput] = BadInput,
@@ -27,7 +37,21 @@ def parse_iso_time(text: str, what: str, *, error: type[BadInput] = BadInput,
         if not naive_is_utc:
             raise error(f"{what}: needs a UTC offset: {text!r}")
         when = when.replace(tzinfo=timezone.utc)
+    if not in_utc_range(when):
+        raise error(f"{what}: {text!r} is out of range (UTC times from 0001-01-02 to 9999-12-30)")
     return when
+
+
+def in_utc_range(when: datetime) -> bool:
+    """Whether an aware datetime converts to UTC (and every other zone) without overflowing:
+    `0001-01-01T00:00:00+23:59` is a valid ISO 8601 text whose UTC instant is before year 1,
+    which Python cannot represent. One day of margin at either end keeps a later
+    `astimezone` to any offset safe too."""
+    try:
+        utc = when.astimezone(timezone.utc)
+    except OverflowError:
+        return False
+    return _MIN_SAFE <= utc.replace(tzinfo=None) <= _MAX_SAFE
 
 
 def first_error(exc: Any) -> tuple[str, str, Any]:
@@ -36,3 +60,43 @@ def first_error(exc: Any) -> tuple[str, str, Any]:
     err = exc.errors()[0]
     loc = ".".join(str(p) for p in err["loc"])
     return loc, str(err["msg"]).removeprefix("Value error, "), err.get("input")
+
+
+class JsonTooDeep(ValueError):
+    """A JSON document nested deeper than the limit (a ValueError, like json.JSONDecodeError)."""
+
+    def __init__(self, max_depth: int) -> None:
+        super().__init__(f"nesting deeper than {max_depth} levels")
+        self.msg = str(self)  # json.JSONDecodeError's attribute, for callers that print it
+        self.max_depth = max_depth
+
+
+def loads_json(text: str | bytes, *, max_depth: int = MAX_JSON_DEPTH) -> Any:
+    """`json.loads`, refusing documents nested deeper than `max_depth` arrays/objects with
+    JsonTooDeep. json's own parser is recursive: a 100,000-deep array raises RecursionError
+    inside it, which is reported the same way; the depth of what did parse is then measured
+    without recursion. Syntax errors are json.JSONDecodeError, as from json.loads."""
+    try:
+        doc = json.loads(text)
+    except RecursionError:
+        raise JsonTooDeep(max_depth) from None
+    if json_depth(doc, max_depth) > max_depth:
+        raise JsonTooDeep(max_depth)
+    return doc
+
+
+def json_depth(doc: Any, stop_after: int | None = None) -> int:
+    """Nesting depth of a parsed JSON value (a scalar 0, `[]` 1, `{"a": [1]}` 2), measured
+    with an explicit stack; stops early once deeper than `stop_after`."""
+    deepest = 0
+    stack: list[tuple[Any, int]] = [(doc, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if not isinstance(value, (dict, list)):
+            continue
+        deepest = max(deepest, depth)
+        if stop_after is not None and deepest > stop_after:
+            return deepest
+        children = value.values() if isinstance(value, dict) else value
+        stack.extend((c, depth + 1) for c in children if isinstance(c, (dict, list)))
+    return deepest

@@ -103,17 +103,18 @@ def load(path: Path, raa: int = DEFAULT_RAA, hda: int = DEFAULT_HDA) -> UaKey:
 def load_trusted_registries(path: Path) -> dict[bytes, bytes]:
     """Registries (HDAs) whose DRIP Links the site trusts: a JSON file
     `{"registries": [{"det": "<HDA DET, hex or IPv6 text>", "public_key": "<64 hex digits>"}]}`."""
-    import json
-
+    from authn.parsing import JsonTooDeep, loads_json
     from registry.remoteid.drip import DripError, parse_det
 
     try:
-        doc = json.loads(Path(path).read_text())
+        doc = loads_json(Path(path).read_text())
         entries = doc["registries"]
         if not isinstance(entries, list):
             raise TypeError
     except OSError as exc:
         raise BadInput(f"{path}: cannot read trusted registries ({exc.strerror})") from None
+    except JsonTooDeep as exc:
+        raise BadInput(f"{path}: {exc}") from None
     except (ValueError, KeyError, TypeError, AttributeError):
         raise BadInput(f'{path}: expected {{"registries": [{{"det": ..., "public_key": ...}}]}}') from None
     out: dict[bytes, bytes] = {}

@@ -22,7 +22,7 @@ from sqlalchemy.exc import ArgumentError, DBAPIError
 from sqlalchemy.orm import Session, sessionmaker
 
 from registry.errors import DatabaseFault, RegistryError
-from registry.urls import resolve_url
+from registry.urls import announce_created, check_backend, prepare_sqlite, resolve_url, sqlite_file
 
 _PG_LOCK_KEY = 0x61757468_6E726567  # "authnreg": one advisory lock for migrations
 _engines: dict[str, Engine] = {}
@@ -45,18 +45,17 @@ def _sqlite_setup(engine: Engine) -> None:
         conn.exec_driver_sql("BEGIN IMMEDIATE")
 
 
-def create_db_engine(url: str | None = None) -> Engine:
-    """A new engine for `url` (see resolve_url); no migration is run."""
+def create_db_engine(url: str | None = None, *, create: bool = False) -> Engine:
+    """A new engine for `url` (see resolve_url); no migration is run. Only sqlite and
+    postgresql URLs; a SQLite file's directory must exist unless it is the default database
+    or `create` (see registry.urls.prepare_sqlite)."""
     resolved = resolve_url(url)
+    check_backend(resolved)
     try:
         parsed = make_url(resolved)
     except ArgumentError:
         raise RegistryError(f"database URL {resolved!r} is not a valid SQLAlchemy URL") from None
-    if parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "", ":memory:"):
-        try:
-            Path(parsed.database).expanduser().parent.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise DatabaseFault(f"cannot create the database directory: {exc.strerror}") from None
+    prepare_sqlite(resolved, create=create)
     try:
         engine = create_engine(parsed, pool_pre_ping=parsed.get_backend_name() != "sqlite")
     except (ArgumentError, ImportError) as exc:
@@ -141,6 +140,8 @@ def get_engine(url: str | None = None) -> Engine:
     with _engines_lock:
         engine = _engines.get(resolved)
         if engine is None:
+            target = sqlite_file(resolved)
+            new_file = target is not None and not target.exists()
             engine = create_db_engine(resolved)
             try:
                 with engine.connect() as conn:
@@ -152,6 +153,8 @@ def get_engine(url: str | None = None) -> Engine:
             if not current:
                 upgrade(engine)
             _engines[resolved] = engine
+            if new_file:
+                announce_created(resolved)
     return engine
 
 

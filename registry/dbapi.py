@@ -15,14 +15,13 @@ import sqlite3
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
 from datetime import datetime, timezone
 from typing import Any
 from urllib.parse import parse_qsl, unquote, urlsplit
 
 from signatures.profiles import UavProfile
 from registry.errors import DatabaseFault, RegistryError
-from registry.urls import resolve_url
+from registry.urls import announce_created, check_backend, prepare_sqlite, resolve_url
 
 #: Seconds a writer waits for another's lock before the check fails as a system error (exit 3).
 LOCK_TIMEOUT_S = 30.0
@@ -76,20 +75,16 @@ class Database:
 
     def __init__(self, url: str | None = None) -> None:
         self.url = resolve_url(url)
-        if self.url.startswith("sqlite"):
-            self.dialect = "sqlite"
-        elif self.url.startswith("postgresql"):
-            self.dialect = "postgresql"
-        else:
-            raise RegistryError(f"database URL {self.url!r}: only sqlite and postgresql are supported")
+        self.dialect = check_backend(self.url)
         self._conn: Any = None
+        self._new_file = False  # this process created the SQLite file: announced once it opened
 
     # --- connection -------------------------------------------------------------------
     def _open(self) -> Any:
         if self.dialect == "sqlite":
             path = _sqlite_path(self.url)
+            self._new_file = prepare_sqlite(self.url) or self._new_file  # a missing directory: bad input
             try:
-                Path(path).expanduser().parent.mkdir(parents=True, exist_ok=True)  # first use on a fresh machine
                 conn = sqlite3.connect(path, timeout=LOCK_TIMEOUT_S, isolation_level=None)
                 conn.execute("PRAGMA foreign_keys = ON")
             except (sqlite3.Error, OSError) as exc:
@@ -139,6 +134,9 @@ class Database:
                 get_engine(self.url)  # migrates under the file lock / advisory lock
                 conn = self._open()
             self._conn = conn
+            if self._new_file:
+                self._new_file = False
+                announce_created(self.url)
         return self._conn
 
     def close(self) -> None:
@@ -196,7 +194,10 @@ class Database:
 
     # --- values -----------------------------------------------------------------------
     def to_db_time(self, when: datetime) -> Any:
-        when = when.astimezone(timezone.utc)
+        try:
+            when = when.astimezone(timezone.utc)
+        except OverflowError:  # 0001-01-01T00:00:00+23:59: before year 1 in UTC
+            raise RegistryError(f"time {when.isoformat()} is out of range in UTC") from None
         return when.replace(tzinfo=None).strftime(SQLITE_TIME) if self.dialect == "sqlite" else when
 
     @staticmethod

@@ -54,7 +54,7 @@ from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.orm import Session
 
 from authn.errors import BadInput
-from authn.parsing import first_error, parse_iso_time
+from authn.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile, utcnow
 from registry.serials import validate_uas_id
@@ -85,8 +85,8 @@ def _iso_time(value: Any) -> Any:
             return None
         try:
             return parse_iso_time(text, "time")  # naive = UTC
-        except BadInput:
-            raise ValueError(f"{value!r} is not an ISO 8601 date/time") from None
+        except BadInput as exc:  # not ISO 8601, or out of range in UTC: say which
+            raise ValueError(str(exc).removeprefix("time: ")) from None
     if value is None or isinstance(value, datetime):
         return value
     raise ValueError(f"{value!r} is not an ISO 8601 date/time string")
@@ -135,6 +135,8 @@ class NewIdentity(BaseModel):
     def _aware(cls, v: datetime | None) -> datetime | None:
         if v is not None and v.tzinfo is None:
             v = v.replace(tzinfo=timezone.utc)  # naive input is read as UTC
+        if v is not None and not in_utc_range(v):  # would overflow converting to UTC
+            raise ValueError("out of range (UTC times from 0001-01-02 to 9999-12-30)")
         return v.astimezone(timezone.utc) if v is not None else None
 
     @model_validator(mode="after")
@@ -403,7 +405,9 @@ def _validated(model: type[BaseModel], raw: Any, label: str) -> Any:
 def parse_json(text: str) -> RegistryImport:
     """Validate a JSON registry document (see the module docstring); any bad record raises."""
     try:
-        data = json.loads(text.lstrip("\ufeff"))
+        data = loads_json(text.lstrip("\ufeff"))
+    except JsonTooDeep as exc:
+        raise RegistryError(str(exc)) from None
     except json.JSONDecodeError as exc:
         raise RegistryError(f"not JSON ({exc.msg} at line {exc.lineno})") from None
     if not isinstance(data, dict):

@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from authn.parsing import JsonTooDeep, loads_json
 from signatures.errors import SignaturesError
 
 __all__ = ["CARD_FORMAT", "CARD_NAME", "ModelIntegrityError", "card_bytes", "library_versions", "read_card",
@@ -54,9 +55,11 @@ def read_card(folder: Path) -> tuple[dict[str, Any], str]:
     path = folder / CARD_NAME
     try:
         data = path.read_bytes()
-        card = json.loads(data)
+        card = loads_json(data)
     except OSError as exc:
         raise ModelIntegrityError(f"{path}: cannot read model card ({exc.strerror})") from None
+    except JsonTooDeep as exc:
+        raise ModelIntegrityError(f"{path}: model card: {exc}") from None
     except json.JSONDecodeError as exc:
         raise ModelIntegrityError(f"{path}: model card is not JSON ({exc.msg})") from None
     if not isinstance(card, dict) or card.get("format") != CARD_FORMAT or not isinstance(card.get("files"), dict):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from authn.parsing import first_error
+from authn.parsing import JsonTooDeep, first_error, loads_json
 from signatures.errors import SignaturesError
 
 #: Classes the radar knows besides UAV profiles.
@@ -84,7 +84,9 @@ def load_profiles(path: str | Path | None = None) -> dict[str, UavProfile]:
             raise SignaturesError(f"{path}: cannot read profiles ({exc.strerror})") from None
         source = str(path)
     try:
-        data = json.loads(text)
+        data = loads_json(text)
+    except JsonTooDeep as exc:
+        raise SignaturesError(f"{source}: {exc}") from None
     except json.JSONDecodeError as exc:
         raise SignaturesError(f"{source}: not JSON ({exc.msg} at line {exc.lineno})") from None
     return parse_profiles(data, source)

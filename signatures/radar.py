@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from authn.parsing import JsonTooDeep, loads_json
 from signatures.profiles import UavProfile
 
 C = 299_792_458.0  # speed of light, m/s
@@ -301,9 +302,11 @@ def load_waveform(path: Path) -> Preset:
     from signatures.errors import SignaturesError
 
     try:
-        doc = json.loads(Path(path).read_text())
+        doc = loads_json(Path(path).read_text())
     except OSError as exc:
         raise SignaturesError(f"{path}: cannot read radar configuration ({exc.strerror})") from None
+    except JsonTooDeep as exc:
+        raise SignaturesError(f"{path}: radar configuration: {exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise SignaturesError(f"{path}: radar configuration is not JSON ({exc})") from None
     return parse_waveform(doc, str(path))

@@ -23,6 +23,7 @@ from authn.cli import (audit, bench, check, db, demo, features, importer, inspec
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
 from authn.errors import AuthnException, describe, exit_code_for
+from authn.textsafe import printable
 
 __all__ = ["app", "main", "run"]
 
@@ -79,6 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     error (unknown option, value out of range) is bad input too: one line naming the command's
     help, not click's boxed usage text; a bare group (`authn registry`) still prints its help.
     """
+    import registry.urls
+
+    previous, registry.urls.created_notice = registry.urls.created_notice, _announce_created
     try:
         with handled(_raise_interrupted):
             code = app(args=_global_options_first(sys.argv[1:] if argv is None else list(argv)), prog_name="authn",
@@ -95,6 +99,13 @@ def main(argv: list[str] | None = None) -> int:
             return _usage_error(exc)
         print(("error: " if isinstance(exc, AuthnException) else "") + describe(exc), file=sys.stderr)
         return exit_code_for(exc)
+    finally:
+        registry.urls.created_notice = previous
+
+
+def _announce_created(url: str) -> None:
+    """One line on stderr when a command created a new (empty) SQLite database."""
+    print(printable(f"authn: created new database {url} (empty registry)"), file=sys.stderr)
 
 
 def _is_usage_error(exc: Exception) -> bool:
@@ -110,7 +121,8 @@ def _usage_error(exc: Exception) -> int:
         return int(exc.exit_code)  # type: ignore[attr-defined]
     ctx = getattr(exc, "ctx", None)
     where = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
-    print(f"error: {' '.join(exc.format_message().split())}{where}", file=sys.stderr)  # type: ignore[attr-defined]
+    message = printable(" ".join(exc.format_message().split()))  # type: ignore[attr-defined]
+    print(f"error: {message}{where}", file=sys.stderr)
     return int(exc.exit_code)  # type: ignore[attr-defined]
 
 

@@ -51,7 +51,8 @@ def _since(text: str | None) -> datetime | None:
 def list_cmd(
     ctx: typer.Context,
     since: str | None = typer.Option(None, "--since", help="Only entries at or after this ISO 8601 time (UTC)."),
-    decision: str | None = typer.Option(None, "--decision", help="accept, reject, or error (error entries)."),
+    decision: str | None = typer.Option(None, "--decision",
+                                        help="accept, reject, error (error entries) or registry (registry changes)."),
     serial: str | None = typer.Option(None, "--serial", help="Only this claimed serial."),
     limit: int | None = typer.Option(None, "--limit", min=1, help="At most this many entries."),
     as_json: bool = typer.Option(False, "--json", help="JSON array instead of a table."),
@@ -64,10 +65,10 @@ def list_cmd(
     from authn.errors import AuthnError
     from registry.dbapi import Database
 
-    if decision not in (None, "accept", "reject", "error"):
-        raise AuthnError(f"--decision: must be accept, reject or error, got {decision!r}")
+    if decision not in (None, "accept", "reject", "error", "registry"):
+        raise AuthnError(f"--decision: must be accept, reject, error or registry, got {decision!r}")
     state: CliState = ctx.obj
-    kind = "error" if decision == "error" else None
+    kind = decision if decision in ("error", "registry") else None
     entries = list_entries(Database(state.db_url), since=_since(since),
                            decision=None if kind else decision, kind=kind, serial=serial, limit=limit)
     if as_json:
@@ -76,18 +77,41 @@ def list_cmd(
     from rich.console import Console
     from rich.table import Table
 
+    from authn.textsafe import cell
+
     table = Table(title=f"audit log ({len(entries)} entries)",
                   caption="one entry in full, hashes included: `authn audit show SEQ`")
     table.add_column("seq", justify="right", no_wrap=True)
     table.add_column("time (UTC)", no_wrap=True)
     table.add_column("serial", overflow="fold", min_width=16)
     table.add_column("decision", no_wrap=True)
-    table.add_column("reasons / error", overflow="fold", ratio=1)
-    for e in entries:
-        reasons = ", ".join(e.payload.get("reasons", [])) if e.kind == "decision" else e.payload.get("error", "")
-        table.add_row(str(e.seq), e.created_at.strftime("%Y-%m-%d %H:%M"), e.serial or "",
-                      e.decision or "error", reasons)
+    table.add_column("reasons / error / change", overflow="fold", ratio=1)
+    for e in entries:  # serials, errors and notes come from outside: escaped, never rich markup
+        label, detail = _list_row(e)
+        table.add_row(str(e.seq), e.created_at.strftime("%Y-%m-%d %H:%M"), cell(e.serial or ""),
+                      cell(label), cell(detail))
     Console().print(table)
+
+
+def _list_row(e) -> tuple[str, str]:
+    """The decision column and the reasons column of one entry: a decision with its reasons,
+    an error with its message, a registry change (`authn serve`) as `registry` with what
+    changed and who changed it."""
+    p = e.payload if isinstance(e.payload, dict) else {}
+    if e.kind == "decision":
+        return str(e.decision), ", ".join(str(r) for r in p.get("reasons", []))
+    if e.kind == "registry":
+        action = str(p.get("action") or "change")
+        extra = [f"{k} {p[k]}" for k in ("model", "reason") if p.get(k) is not None]
+        by = f"by API key {p['api_key_id']}" + (f" ({p['role']})" if p.get("role") else "") \
+            if p.get("api_key_id") is not None else ""
+        parts = [action + (f" ({', '.join(extra)})" if extra else "")] + ([by] if by else [])
+        if p.get("error"):
+            parts.append(str(p["error"]))
+        return "registry", "; ".join(parts)
+    if e.kind == "error":
+        return "error", str(p.get("error", ""))
+    return str(e.decision or e.kind), str(p.get("error", ""))
 
 
 @audit_app.command("show")

@@ -66,15 +66,19 @@ def _print_outcome(o) -> None:
     from rich.console import Console
     from rich.table import Table
 
+    from rich.text import Text
+
+    from authn.textsafe import cell, printable
+
     console = Console()
     colour = "green" if o.decision == "accept" else "red"
-    console.print(f"[bold {colour}]{o.decision.upper()}[/] {o.claim['serial']} ({o.claim['source']}) "
-                  f"- {', '.join(o.reasons)}")
+    console.print(Text.assemble((o.decision.upper(), f"bold {colour}"),
+                                printable(f" {o.claim['serial']} ({o.claim['source']}) - {', '.join(o.reasons)}")))
     t = Table(show_header=False, box=None, pad_edge=False)
     t.add_column(style="dim")
     t.add_column()
     reg = o.registry
-    t.add_row("registry", f"{reg['status']}" + (f", declared {reg['model']}" if reg["model"] else ""))
+    t.add_row("registry", cell(f"{reg['status']}" + (f", declared {reg['model']}" if reg["model"] else "")))
     if "outside-validity-window" in o.reasons:
         t.add_row("validity", f"dwell at {o.dwell_start}; registered valid from {reg['valid_from']}"
                   + (f" until {reg['valid_until']}" if reg["valid_until"] else ""))
@@ -84,7 +88,7 @@ def _print_outcome(o) -> None:
         r = o.radar
         conf = "" if r["confidence"] is None else f" ({r['confidence']:.1%})"
         where = "" if r["range_m"] is None else f", {r['range_m']:.1f} m, {r['radial_velocity_mps']:+.2f} m/s"
-        t.add_row("radar", f"{r['model']}{conf}{where}" + (", gated" if r.get("gated") else ""))
+        t.add_row("radar", cell(f"{r['model']}{conf}{where}" + (", gated" if r.get("gated") else "")))
     if o.kinematics is not None:
         k = o.kinematics
         t.add_row("range residual", f"{k['range_residual_m']:.1f} m (tolerance {k['range_tolerance_m']:.1f} m)")
@@ -92,9 +96,9 @@ def _print_outcome(o) -> None:
             t.add_row("velocity residual", f"{k['radial_velocity_residual_mps']:.2f} m/s "
                       f"(tolerance {k['radial_velocity_tolerance_mps']:.2f} m/s)")
     if o.remote_id["issues"]:
-        t.add_row("remote id issues", ", ".join(o.remote_id["issues"]))
+        t.add_row("remote id issues", cell(", ".join(o.remote_id["issues"])))
     if o.skipped:
-        t.add_row("skipped", ", ".join(o.skipped))
+        t.add_row("skipped", cell(", ".join(o.skipped)))
     t.add_row("time", f"{sum(o.timings_ms.values()):.1f} ms  audit #{o.audit_id}")
     console.print(t)
 
@@ -261,8 +265,10 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     else:
         _print_summary(results, len(paths))
     failures = [r for r in results if isinstance(r, Failure)]
+    from authn.textsafe import printable
+
     for f in failures:
-        print(f"error: {f.file}: {f.error}", file=sys.stderr)
+        print(printable(f"error: {f.file}: {f.error}"), file=sys.stderr)
     if stop:
         raise SystemFault(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
                           "returns; every printed result is in the audit log")
@@ -276,6 +282,7 @@ def _print_summary(results: list, total: int) -> None:
     from rich.table import Table
 
     from authn.check import Failure
+    from authn.textsafe import cell
 
     outcomes = [r for r in results if not isinstance(r, Failure)]
     failures = [r for r in results if isinstance(r, Failure)]
@@ -288,10 +295,10 @@ def _print_summary(results: list, total: int) -> None:
     table.add_column("ms", justify="right")
     for r in results:
         if isinstance(r, Failure):
-            table.add_row(Path(r.file).name, r.serial or "", "[yellow]error[/]", r.error, "", "")
+            table.add_row(cell(Path(r.file).name), cell(r.serial), "[yellow]error[/]", cell(r.error), "", "")
             continue
         radar = r.radar["model"] if r.radar else "skipped"
         colour = "green" if r.decision == "accept" else "red"
-        table.add_row(Path(r.file).name, r.claim["serial"], f"[{colour}]{r.decision}[/]", ", ".join(r.reasons),
-                      radar, f"{sum(r.timings_ms.values()):.1f}")
+        table.add_row(cell(Path(r.file).name), cell(r.claim["serial"]), f"[{colour}]{r.decision}[/]",
+                      cell(", ".join(r.reasons)), cell(radar), f"{sum(r.timings_ms.values()):.1f}")
     Console().print(table)

@@ -11,6 +11,7 @@ from typing import Optional
 import typer
 
 from authn.parsing import parse_iso_time
+from authn.textsafe import printable
 
 
 registry_app = typer.Typer(help="Inspect and change the registry of authorised UAVs.",
@@ -125,13 +126,15 @@ def register_cmd(
         typer.echo(json.dumps(out, indent=2))
         return
     if new_profile is not None:
-        typer.echo(f"registered model {new_profile.slug} ({new_profile.name})")
+        typer.echo(printable(f"registered model {new_profile.slug} ({new_profile.name})"))
     if rec is not None:
-        typer.echo(f"registered {rec.serial} ({rec.id_type}, model {rec.model}, {rec.status})")
+        typer.echo(printable(f"registered {rec.serial} ({rec.id_type}, model {rec.model}, {rec.status})"))
 
 
 def _table(records, title: str):
     from rich.table import Table
+
+    from authn.textsafe import cell
 
     t = Table(title=title, caption="all fields: `authn registry show SERIAL` or --json")
     t.add_column("serial", overflow="fold", min_width=16)  # a DRIP session ID is 34 characters
@@ -140,7 +143,8 @@ def _table(records, title: str):
     t.add_column("key", no_wrap=True)
     for r in records:
         until = r.valid_until.strftime("%Y-%m-%d") if r.valid_until else ""
-        t.add_row(r.serial, r.model, r.status, f"{r.valid_from:%Y-%m-%d}..{until}", "yes" if r.public_key else "")
+        t.add_row(cell(r.serial), cell(r.model), r.status, f"{r.valid_from:%Y-%m-%d}..{until}",
+                  "yes" if r.public_key else "")
     return t
 
 
@@ -194,13 +198,15 @@ def show_cmd(
     from rich.console import Console
     from rich.table import Table
 
-    t = Table(title=rec.serial, show_header=False)
+    from authn.textsafe import cell
+
+    t = Table(title=cell(rec.serial), show_header=False)  # notes, names: imported text, escaped
     data = _record_json(rec)
     profile = data.pop("profile")
     for k, v in data.items():
-        t.add_row(k, "" if v is None else str(v))
+        t.add_row(k, cell(v))
     for k, v in profile.items():
-        t.add_row(f"profile.{k}", str(v))
+        t.add_row(f"profile.{k}", cell(v))
     Console().print(t)
 
 
@@ -219,7 +225,7 @@ def revoke_cmd(
 
     with session_scope(ctx.obj.db_url) as session:
         rec = revoke_identity(session, serial, reason)
-    typer.echo(f"revoked {rec.serial}")
+    typer.echo(printable(f"revoked {rec.serial}"))
 
 
 _CSV_COLUMNS_HELP = "serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key"
@@ -347,10 +353,12 @@ def models_cmd(
     from rich.console import Console
     from rich.table import Table
 
+    from authn.textsafe import cell
+
     t = Table(title="model profiles")
     for col in ("slug", "name", "rotors", "arms", "blades", "blade m", "rotor Hz", "prop. dist. m"):
         t.add_column(col)
     for p in profiles:
-        t.add_row(p.slug, p.name, str(p.rotors), str(p.arms), str(p.blades_per_rotor),
+        t.add_row(cell(p.slug), cell(p.name), str(p.rotors), str(p.arms), str(p.blades_per_rotor),
                   f"{p.blade_length_m:g}", f"{p.rotor_rate_hz:g}", f"{p.propeller_distance_m:g}")
     Console().print(t)

@@ -69,11 +69,13 @@ def decode_cmd(
     from rich.console import Console
     from rich.table import Table
 
+    from authn.textsafe import cell
+
     t = Table(title=f"{len(rows)} Remote ID messages")
     for col in ("#", "captured", "transport", "type", "v", "fields"):
         t.add_column(col, overflow="fold")
-    for frame, ts, transport, m in rows:
-        t.add_row(frame, ts, transport, m.type, str(m.protocol_version), _summary(m))
+    for frame, ts, transport, m in rows:  # the fields are broadcast text: escaped, never markup
+        t.add_row(frame, ts, cell(transport), cell(m.type), str(m.protocol_version), cell(_summary(m)))
     Console().print(t)
     _print_auth(wire, public_key, at, as_json=False)
 
@@ -114,8 +116,10 @@ def _print_auth(wire: list, public_key: Optional[Path], at: Optional[str], as_js
         typer.echo(json.dumps({"authentication": lines, "verification": result.to_dict() if result else None},
                               indent=2))
         return
+    from authn.textsafe import printable
+
     for line in lines:
-        typer.echo(line)
+        typer.echo(printable(line))
     if result is not None:
         typer.echo(f"verification: {result.status}" + (f" ({result.reason})" if result.reason else "")
                    + (f"; {', '.join(result.sam_types)} covering messages {list(result.covered)}"

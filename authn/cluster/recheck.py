@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from authn.cluster.worker import CheckerArgs, Partition, PartitionResult, check_partition, record_lost
+from authn.textsafe import printable
 
 #: Default partitions per worker: enough to balance uneven files and to bound what a lost
 #: worker's retry re-does, few enough that one audit transaction per partition stays cheap.
@@ -117,7 +118,7 @@ def recheck(checker: Any, args: CheckerArgs, paths: Sequence[Path], claims: Sequ
                 for text, code in zip(result.texts, result.codes):
                     if code > 1:
                         doc = json.loads(text)
-                        print(f"error: {doc['file']}: {doc['error']}", file=sys.stderr)
+                        print(printable(f"error: {doc['file']}: {doc['error']}"), file=sys.stderr)
                 out.flush()
                 progress.advance(task, len(result.codes))
         summary.seconds = time.perf_counter() - t0

@@ -9,7 +9,7 @@ from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from authn.service.auth import Caller
 from authn.service.deps import require, runtime
@@ -120,6 +120,19 @@ class IdentityIn(BaseModel):
     valid_from: datetime | None = None
     valid_until: datetime | None = None
     notes: str | None = Field(default=None, max_length=2000)
+
+    @field_validator("valid_from", "valid_until")
+    @classmethod
+    def _in_range(cls, v: datetime | None) -> datetime | None:
+        """A time whose UTC instant Python cannot hold (0001-01-01T00:00:00+23:59) is a 422 here,
+        not an OverflowError later."""
+        from datetime import timezone
+
+        from authn.parsing import in_utc_range
+
+        if v is not None and not in_utc_range(v if v.tzinfo else v.replace(tzinfo=timezone.utc)):
+            raise ValueError("out of range (UTC times from 0001-01-02 to 9999-12-30)")
+        return v
 
 
 class RevokeIn(BaseModel):

@@ -13,7 +13,6 @@ their Q. Real ADC output: the I words only. The waveform comes from the mmWave S
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -22,7 +21,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from authn.parsing import first_error
+from authn.parsing import JsonTooDeep, first_error, loads_json
 from signatures.errors import SignaturesError
 from signatures.importers.dwell import Dwell, analytic_half_rate, radar_config
 from signatures.radar import RadarConfig
@@ -230,7 +229,9 @@ def load_config(path: Path) -> Dca1000Config:
         raise SignaturesError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
     if path.suffix.lower() == ".json":
         try:
-            doc = json.loads(text)
+            doc = loads_json(text)
+        except JsonTooDeep as exc:
+            raise SignaturesError(f"{path}: {exc}") from None
         except ValueError as exc:
             raise SignaturesError(f"{path}: not valid JSON ({exc})") from None
         return _validated(doc, str(path))

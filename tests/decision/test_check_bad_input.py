@@ -61,6 +61,12 @@ CASES = {
 }
 
 
+def _err(capsys) -> str:
+    """stderr without the notice that the check created the (fresh) test database."""
+    return "".join(line for line in capsys.readouterr().err.splitlines(keepends=True)
+                   if not line.startswith("authn: created new database "))
+
+
 def _audit(db: str, capsys) -> list[dict]:
     capsys.readouterr()
     assert main(["--db", db, "audit", "list", "--json"]) == 0
@@ -72,7 +78,7 @@ def test_bad_input_exit_2_and_audited(good_file: Path, tmp_path: Path, case: str
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     path = CASES[case](good_file, tmp_path)
     assert main(["--db", db, "check", str(path)]) == 2
-    err = capsys.readouterr().err
+    err = _err(capsys)
     assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err
     entries = _audit(db, capsys)
     assert [e["kind"] for e in entries] == ["error"]
@@ -99,7 +105,7 @@ def test_invalid_policy_file_is_refused(good_file: Path, tmp_path: Path, capsys)
     bad = tmp_path / "bad.cedar"
     bad.write_text('permit (principal, action, resource) when { context.nope };')
     assert main(["--db", db, "check", str(good_file), "--policy", str(bad)]) == 2
-    err = capsys.readouterr().err
+    err = _err(capsys)
     assert "does not validate against the schema" in err and err.count("\n") == 1
     assert [e["kind"] for e in _audit(db, capsys)] == ["error"]
 

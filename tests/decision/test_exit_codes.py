@@ -177,5 +177,9 @@ def test_fresh_machine_bad_file_is_one_line_exit_2(tmp_path: Path) -> None:
     proc = subprocess.run([sys.executable, "-m", "authn", "check", str(bad), "--serial", "1581A0000000001"],
                           capture_output=True, text=True, env=env, timeout=120)
     assert proc.returncode == 2, proc.stderr
-    _one_error_line(proc.stderr)
-    assert list(home.rglob("registry.sqlite3")), "the failed check is audited in the default database"
+    notice, _, error = proc.stderr.partition("\n")
+    created = home.rglob("registry.sqlite3")
+    assert notice.startswith("authn: created new database sqlite:///") and notice.endswith("(empty registry)"), \
+        "creating the default database on first use says so, in one line"
+    _one_error_line(error)
+    assert list(created), "the failed check is audited in the default database"
