@@ -17,6 +17,7 @@ from authn.parsing import parse_iso_time
 
 LOG_KEY_HELP = "Ed25519 log key (PEM; default $AUTHN_LOG_KEY, else audit-log-key.pem in the user data dir)."
 STH_LOG_HELP = "JSON-lines file of automatic signed tree heads (default $AUTHN_AUDIT_STH_LOG, else beside the key)."
+WITNESS_HELP = "Witness of the log's heads: a folder or an http(s) URL (default $AUTHN_AUDIT_WITNESS)."
 
 audit_app = typer.Typer(help="Read and verify the tamper-evident audit log.", no_args_is_help=True)
 
@@ -140,49 +141,54 @@ def _public_key(public_key: Path | None, log_key: Path | None, *, required: bool
         return load_public_key(public_key)
     if not required and not key_path(log_key).exists():
         return None
-    return LogKey.load(log_key, create=False).public_key
+    return LogKey.load(log_key).public_key
 
 
 @audit_app.command("verify")
 def verify_cmd(
     ctx: typer.Context,
-    against: Path | None = typer.Option(None, "--against", help="A signed tree head file (`authn audit checkpoint`)."),
+    against: Path | None = typer.Option(None, "--against", help="A signed head file (`authn audit checkpoint`)."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
-    public_key: Path | None = typer.Option(None, "--public-key", help="Check STH signatures with this PEM public key."),
+    public_key: Path | None = typer.Option(None, "--public-key", help="Check head signatures with this PEM public key."),
     sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
+    witness: str | None = typer.Option(None, "--witness", help=WITNESS_HELP),
 ) -> None:
-    """Recompute the hash chain and the Merkle tree; check the log against signed tree heads.
+    """Recompute the hash chain and the Merkle tree; check the log against signed heads.
 
-    Without --against it uses every STH found in the STH log file, the latest-head file
-    and the database (and names the newest); as every append signs the head of the whole
-    log, entries that no signed head covers are reported too (a forged append). With one, the log must hold at least its tree_size entries
-    and a consistency proof must show the signed log is a prefix of today's: truncation,
-    rewrites, deletions and reordering before the STH's size are reported. Exit 1 names
-    the first bad entry.
+    Without --against it uses every head found in the STH log file, the latest-head file,
+    the database and the witness (and names the newest); as every append signs the head of
+    the whole log, entries that no signed head covers are reported too (a forged append).
+    With one, the log must hold at least its tree_size entries and a consistency proof must
+    show the signed log is a prefix of today's: truncation, rewrites, deletions and
+    reordering before the head's size are reported. A head that names another log (its
+    checkpoint origin) is reported. Exit 1 names the first bad entry.
 
-    Example: authn audit verify --against sth.json
+    Example: authn audit verify --against sth.json --witness /mnt/witness
     """
-    from authn.audit import KnownHead, known_heads, newest, verify
-    from authn.logkey import SignedTreeHead
+    from authn.audit import KnownHead, accepted_keys, known_heads, newest, verify
+    from authn.logkey import SignedTreeHead, key_path, load_retired_keys
     from registry.dbapi import Database
 
     sth = SignedTreeHead.read(against) if against is not None else None
     db = Database(ctx.obj.db_url)
+    retired = load_retired_keys(key_path(log_key)) if public_key is None else []
     if sth is not None:
         heads = [KnownHead(sth, f"--against {against}")]
         key = _public_key(public_key, log_key, required=True)
     else:
-        heads = known_heads(db, sth_log=sth_log, log_key=log_key)
+        heads = known_heads(db, sth_log=sth_log, log_key=log_key, witness=witness)
         key = _public_key(public_key, log_key, required=bool(heads))
-        forged = [h for h in heads if not h.sth.verify_signature(key)]
+        keys = accepted_keys(heads, key, retired) if heads else []
+        forged = [h for h in heads if not any(h.sth.verify_signature(k) for k in keys)]
         if forged:
             h = min(forged, key=lambda h: h.sth.tree_size)
             typer.echo(f"BROKEN: tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
                        "(forged or altered)", err=True)
             raise typer.Exit(1)
-    report = verify(db, heads, public_key=key, require_signed_to_end=sth is None)
+    report = verify(db, heads, public_key=key, retired=retired, require_signed_to_end=sth is None)
     if not report.ok:
-        typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
+        where = f" at entry {report.first_bad_seq}" if report.first_bad_seq is not None else ""
+        typer.echo(f"BROKEN{where}: {report.problem}", err=True)
         raise typer.Exit(1)
     line = f"ok: {report.size} entries, chain head {report.head[:16]}, tree root {report.root[:16]}"
     best = newest(heads)
@@ -199,42 +205,110 @@ def verify_cmd(
 @audit_app.command("checkpoint")
 def checkpoint_cmd(
     ctx: typer.Context,
-    out: Path | None = typer.Option(None, "--out", help="Write the STH to this file instead of stdout."),
+    out: Path | None = typer.Option(None, "--out", help="Write the head to this file instead of stdout."),
+    note: bool = typer.Option(False, "--note", help="Write the bare C2SP signed note instead of JSON."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
     sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
+    witness: str | None = typer.Option(None, "--witness", help=WITNESS_HELP),
 ) -> None:
-    """Verify the log, then sign its tree head (authn-sth/1 JSON) to keep elsewhere.
+    """Verify the log against every head kept anywhere, then sign its head to keep elsewhere.
 
-    The STH is also stored in the database and appended to the STH log file.
+    The head is a C2SP checkpoint (authn-checkpoint/1 JSON, or with --note the signed note
+    itself); it is also stored in the database, the STH log and the witness.
 
-    Example: authn audit checkpoint --out /mnt/witness/sth-$(date +%F).json
+    Example: authn audit checkpoint --note --out /mnt/elsewhere/checkpoint-$(date +%F)
     """
-    from authn.audit import checkpoint, verify
+    from authn.audit import checkpoint
+    from authn.errors import AuthnError
     from registry.dbapi import Database
 
-    db = Database(ctx.obj.db_url)
-    report = verify(db)
-    if not report.ok:
-        typer.echo(f"BROKEN at entry {report.first_bad_seq}: {report.problem}", err=True)
-        raise typer.Exit(1)
-    sth = checkpoint(db, log_key=log_key, sth_log=sth_log)
-    _write(sth.to_json() + "\n", out)
+    try:
+        sth = checkpoint(Database(ctx.obj.db_url), log_key=log_key, sth_log=sth_log, witness=witness)
+    except AuthnError as exc:
+        if "does not verify" not in str(exc):
+            raise
+        typer.echo(f"BROKEN: {exc}", err=True)
+        raise typer.Exit(1) from None
+    _write(sth.note() if note else sth.to_json() + "\n", out)
+
+
+@audit_app.command("rotate-key")
+def rotate_key_cmd(
+    ctx: typer.Context,
+    log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
+    sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
+    witness: str | None = typer.Option(None, "--witness", help=WITNESS_HELP),
+) -> None:
+    """Replace the log key on purpose, handing over from the old one.
+
+    Verifies the log, signs its head with the old key and with a new one (verifiers accept
+    the new key's heads and, through that pair, the old key's), publishes both (database,
+    latest-head file, STH log, witness), appends the old public key to
+    `<key>.retired.pub.pem`, keeps the old private key as `<key>.retired-<id>.pem` (move it
+    offline), and puts the new key in place. Give verifiers the new public key.
+
+    Example: authn audit rotate-key --witness /mnt/witness
+    """
+    from authn.audit import rotate_key
+    from authn.errors import AuthnError
+    from registry.dbapi import Database
+
+    try:
+        sth, kept = rotate_key(Database(ctx.obj.db_url), log_key=log_key, sth_log=sth_log, witness=witness)
+    except AuthnError as exc:
+        if "does not verify" not in str(exc):
+            raise
+        typer.echo(f"BROKEN: {exc}", err=True)
+        raise typer.Exit(1) from None
+    typer.echo(f"rotated: head of size {sth.tree_size} signed by the old and the new key; "
+               f"new key id {sth.log_key_id[:16]}; old private key kept at {kept}")
 
 
 @audit_app.command("public-key")
 def public_key_cmd(
+    ctx: typer.Context,
     out: Path | None = typer.Option(None, "--out", help="Write the PEM to this file instead of stdout."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
 ) -> None:
-    """Print the log's Ed25519 public key (PEM) and its key id, for verifiers (created on first use).
+    """Print the log's Ed25519 public key (PEM) and its key id, for verifiers.
+
+    The key is created here only for a log that has no signed head yet.
 
     Example: authn audit public-key --out authn-log.pub
     """
-    from authn.logkey import LogKey
+    from authn.audit import known_heads, writer_key
+    from registry.dbapi import Database
 
-    key = LogKey.load(log_key)
+    db = Database(ctx.obj.db_url)
+    key = writer_key(db, known_heads(db, log_key=log_key), log_key)
     _write(key.public_pem(), out)
     typer.echo(f"log_key_id {key.key_id}", err=True)
+
+
+witness_app = typer.Typer(help="Run a witness of audit log heads on another host.", no_args_is_help=True)
+audit_app.add_typer(witness_app, name="witness")
+
+
+@witness_app.command("serve")
+def witness_serve_cmd(
+    folder: Path = typer.Option(..., "--dir", help="Where the witnessed heads are kept (append-only files)."),
+    public_key: list[Path] = typer.Option(..., "--public-key", help="The log's public key(s) (PEM); repeatable."),
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on."),
+    port: int = typer.Option(8090, "--port", min=1, max=65535, help="TCP port."),
+) -> None:
+    """Keep every head a log publishes, each proven to extend the last (C2SP tlog-witness style).
+
+    The log publishes with `--witness http://HOST:PORT` (or $AUTHN_AUDIT_WITNESS). A head
+    that does not extend the newest one held is refused (409) and never stored.
+
+    Example: authn audit witness serve --dir /srv/authn-witness --public-key authn-log.pub --port 8090
+    """
+    from authn.logkey import load_public_key
+    from authn.witness import WitnessStore, serve
+
+    keys = [load_public_key(p) for p in public_key]
+    typer.echo(f"authn witness: http://{host}:{port}, heads in {folder}", err=True)
+    serve(WitnessStore(folder), keys, host, port)
 
 
 @audit_app.command("prove")

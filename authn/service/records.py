@@ -57,21 +57,23 @@ async def audit_list(request: Request, after: Annotated[int, Query(ge=0, le=2**6
 async def audit_verify(request: Request, _caller: Caller = Depends(require("read_audit"))) -> dict[str, Any]:
     """Recompute the chain and Merkle tree; check them against every signed tree head known
     (as `authn audit verify`). `ok` false names the first bad entry."""
-    from authn.audit import known_heads, newest, verify
-    from authn.logkey import LogKey, key_path
+    from authn.audit import accepted_keys, known_heads, newest, verify
+    from authn.logkey import LogKey, key_path, load_retired_keys
 
     rt = runtime(request)
 
     def run() -> dict[str, Any]:
         db = rt.checker.db
         heads = known_heads(db)
-        key = LogKey.load(None, create=False).public_key if heads or key_path(None).exists() else None
-        forged = [h for h in heads if not h.sth.verify_signature(key)]
+        key = LogKey.load(None).public_key if heads or key_path(None).exists() else None
+        retired = load_retired_keys(key_path(None))
+        keys = accepted_keys(heads, key, retired) if key is not None else []
+        forged = [h for h in heads if not any(h.sth.verify_signature(k) for k in keys)]
         if forged:
             h = min(forged, key=lambda h: h.sth.tree_size)
             return {"ok": False, "size": None, "first_bad_seq": None,
                     "problem": f"tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key"}
-        report = verify(db, heads, public_key=key, require_signed_to_end=True)
+        report = verify(db, heads, public_key=key, retired=retired, require_signed_to_end=True)
         best = newest(heads)
         return {"ok": report.ok, "size": report.size, "head": report.head, "root": report.root,
                 "first_bad_seq": report.first_bad_seq, "problem": report.problem,
@@ -82,7 +84,7 @@ async def audit_verify(request: Request, _caller: Caller = Depends(require("read
 
 @router.post("/audit:checkpoint", tags=["audit"], responses=_AUTH)
 async def audit_checkpoint(request: Request, _caller: Caller = Depends(require("checkpoint"))) -> dict[str, Any]:
-    """Verify the log, then sign its tree head (authn-sth/1), as `authn audit checkpoint`."""
+    """Verify the log, then sign its head (authn-checkpoint/1: a C2SP checkpoint), as `authn audit checkpoint`."""
     import json
 
     from authn.audit import checkpoint

@@ -195,7 +195,7 @@ def test_audit_paging_verify_and_checkpoint(server, keys, returns, sqlite_db) ->
     assert [e["seq"] for e in first["entries"]] == [1, 2] and first["next_after"] == 2
     assert [e["seq"] for e in second["entries"]] == [3, 4]
     assert verified["ok"] and verified["size"] >= 5 and verified["problem"] is None
-    assert sth["format"] == "authn-sth/1" and sth["tree_size"] == verified["size"]
+    assert sth["format"] == "authn-checkpoint/1" and sth["tree_size"] == verified["size"]
     assert main(["--db", sqlite_db, "audit", "verify"]) == 0
 
 
