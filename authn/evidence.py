@@ -156,7 +156,7 @@ class RegistryFacts:
 class RemoteIdAuth:
     """What the DRIP authentication of the Remote ID messages came to (RFC 9575)."""
 
-    status: str = "absent"  # valid | invalid | absent | unknown-key | expired
+    status: str = "absent"  # valid | invalid | absent | unknown-key | expired | not-yet-valid
     reason: str | None = None
     sam_types: tuple[str, ...] = ()
     covered: tuple[int, ...] = ()  # indices (in the decoded message list) that a valid signature covers

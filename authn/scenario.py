@@ -35,6 +35,7 @@ class Signing:
     signed_at_offset_s: float = 0.0  # shift the window (a replayed signature: e.g. -86400)
     tamper_after_signing: bool = False  # move the first Location 50 m after signing it
     link: bytes | None = None  # a DRIP Link (auth data) from the drone's registry, broadcast too
+    fec: bool = False  # end each authentication message with a forward-error-correction page (RFC 9575)
 
 
 @dataclass(frozen=True)
@@ -120,9 +121,9 @@ def _signed(rows: list[bytes], times: list[float], signing: Signing, start: date
         loc = decode(rows[first])
         rows = [*rows[:first], encode(loc.model_copy(update={"latitude_deg": loc.latitude_deg + 50.0 / 111_320.0})),
                 *rows[first + 1:]]
-    pages = paginate(data, start + shift)
+    pages = paginate(data, start + shift, fec=signing.fec)
     if signing.link is not None:  # a different page-0 timestamp keeps the two messages apart
-        pages = paginate(signing.link, start + shift - timedelta(seconds=1)) + pages
+        pages = paginate(signing.link, start + shift - timedelta(seconds=1), fec=signing.fec) + pages
     t = dwell_s / 2
     return rows + list(pages), times + [t] * len(pages)
 

@@ -13,7 +13,8 @@ from pathlib import Path
 
 from authn.errors import BadInput
 
-__all__ = ["DEFAULT_RAA", "DEFAULT_HDA", "UaKey", "generate", "load", "load_trusted_registries"]
+__all__ = ["DEFAULT_RAA", "DEFAULT_HDA", "UaKey", "det_of", "generate", "load", "load_trusted_registries",
+           "read_public_key_arg"]
 
 #: The Registered Assigning Authority and HDA put in generated DETs (RFC 9374 HID). RAA
 #: 16376 lies in the range RFC 9374 leaves for experiments; real deployments take theirs
@@ -42,6 +43,24 @@ def _det(public_raw: bytes, raa: int, hda: int) -> bytes:
     if not (0 <= raa < 1 << 14 and 0 <= hda < 1 << 14):
         raise BadInput(f"RAA and HDA are 14-bit numbers (0..16383), got {raa} and {hda}")
     return det_from_public_key(public_raw, raa, hda)
+
+
+def det_of(public_raw: bytes, raa: int = DEFAULT_RAA, hda: int = DEFAULT_HDA) -> bytes:
+    """The DET (RFC 9374) of an Ed25519 public key: what `authn keys show` prints."""
+    return _det(public_raw, raa, hda)
+
+
+def read_public_key_arg(value: str) -> bytes:
+    """A `--public-key` argument: a key file (PEM, 32 raw bytes or 64 hex digits, as `authn register`
+    reads) or, when no such file exists, the 64 hex digits themselves (a raw Ed25519 key)."""
+    import re
+
+    from registry.keys import read_public_key
+
+    text = str(value).strip()
+    if re.fullmatch(r"[0-9A-Fa-f]{64}", text) and not Path(value).exists():
+        return bytes.fromhex(text)
+    return read_public_key(value)
 
 
 def generate(raa: int = DEFAULT_RAA, hda: int = DEFAULT_HDA) -> UaKey:

@@ -38,6 +38,35 @@ def generate_cmd(
         typer.echo(f"{name:16} {value}")
 
 
+@keys_app.command("show")
+def show_cmd(
+    public_key: str = typer.Option(..., "--public-key", help="Public key: a file (PEM, 32 raw bytes or 64 hex "
+                                                             "digits) or the 64 hex digits themselves."),
+    raa: int = typer.Option(16376, "--raa", help="Registered Assigning Authority of the DET (14 bits)."),
+    hda: int = typer.Option(1, "--hda", help="HHIT Domain Authority of the DET (14 bits)."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Print the DRIP Entity Tag and session ID of an existing public key (RFC 9374).
+
+    DETs printed before the RFC 9575 example fix hashed the key in another form and differ:
+    this prints the one checks use now (docs/drip.md).
+
+    Example: authn keys show --public-key ua.pub.pem
+    """
+    from authn.uakeys import det_of, read_public_key_arg
+    from registry.remoteid.drip import det_to_text
+
+    key = read_public_key_arg(public_key)
+    det = det_of(key, raa, hda)
+    doc = {"public_key": key.hex(), "det": det_to_text(det), "det_hex": det.hex(),
+           "session_id": ("01" + det.hex()).upper()}
+    if as_json:
+        typer.echo(json.dumps(doc, indent=2))
+        return
+    for name, value in doc.items():
+        typer.echo(f"{name:16} {value}")
+
+
 api_app = typer.Typer(help="API keys of `authn serve` (the secret is shown once; only its hash is stored).",
                       no_args_is_help=True)
 keys_app.add_typer(api_app, name="api")

@@ -22,8 +22,10 @@ def decode_cmd(
     messages: Optional[list[str]] = typer.Argument(None, help="Messages as hex (25 bytes, or a message pack)."),
     pcap: Optional[Path] = typer.Option(None, "--pcap", help="pcap/pcapng capture (Wi-Fi beacon/NAN, Bluetooth LE)."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON array."),
-    public_key: Optional[Path] = typer.Option(None, "--public-key",
-                                              help="Verify DRIP authentication pages (RFC 9575) with this Ed25519 key."),
+    public_key: Optional[str] = typer.Option(None, "--public-key",
+                                             help="Verify DRIP authentication pages (RFC 9575) with this Ed25519 key: "
+                                                  "a key file (PEM, 32 raw bytes or 64 hex digits) or the 64 hex "
+                                                  "digits themselves."),
     at: Optional[str] = typer.Option(None, "--at", help="Time the signatures must be valid at (ISO 8601; default now)."),
 ) -> None:
     """Decode F3411 broadcast messages (all types, protocol versions 0-2).
@@ -40,6 +42,10 @@ def decode_cmd(
     Example: authn rid decode --pcap odid_wifi_bcn_sample.pcap
 
     Example: authn rid decode $(cat pages.hex) --public-key ua.pub.pem
+
+    A signature that verifies outside its validity window is reported as expired or
+    not-yet-valid ("verified-but-expired"), never as invalid. Pages ending with a
+    forward-error-correction page are checked (parity) and one lost page is rebuilt.
     """
     from registry.remoteid.errors import RemoteIdError
 
@@ -80,7 +86,7 @@ def decode_cmd(
     _print_auth(wire, public_key, at, as_json=False)
 
 
-def _print_auth(wire: list, public_key: Optional[Path], at: Optional[str], as_json: bool) -> None:
+def _print_auth(wire: list, public_key: Optional[str], at: Optional[str], as_json: bool) -> None:
     """The DRIP authentication of the decoded messages, when they carry authentication pages."""
     from registry.remoteid import AuthPage, AuthPage0
 
@@ -92,8 +98,7 @@ def _print_auth(wire: list, public_key: Optional[Path], at: Optional[str], as_js
     from datetime import datetime, timezone
 
     from authn.parsing import parse_iso_time
-    from registry.keys import read_public_key
-    from registry.remoteid.drip import det_matches_key, det_to_text, parse_sam, reassemble, verify
+    from registry.remoteid.drip import det_matches_key, det_to_text, parse_sam, reassemble, valid_time_text, verify
 
     when = datetime.now(timezone.utc) if at is None else parse_iso_time(at, "--at")
     lines = []
@@ -101,16 +106,20 @@ def _print_auth(wire: list, public_key: Optional[Path], at: Optional[str], as_js
         if msg.data is None:
             lines.append(f"auth type {msg.auth_type}: malformed ({msg.reason})")
             continue
+        fec = ""
+        if msg.fec:
+            fec = ", FEC page" + (f" (page {msg.rebuilt} rebuilt from it)" if msg.rebuilt is not None else "")
         try:
             sam = parse_sam(msg.data)
-            det = getattr(sam, "det", None) or getattr(sam, "ua_det", None)
-            lines.append(f"auth type {msg.auth_type}: DRIP {sam.name if hasattr(sam, 'name') else 'link'}, "
-                         f"valid {sam.vnb}..{sam.vna} s since 2019, DET {det_to_text(det)}")
+            lines.append(f"auth type {msg.auth_type}: DRIP {sam.name}{fec}, valid {valid_time_text(sam.vnb)} to "
+                         f"{valid_time_text(sam.vna)}, DET {det_to_text(sam.det)}")
         except ValueError as exc:
             lines.append(f"auth type {msg.auth_type}: {' '.join(str(exc).split())}")
     result = None
     if public_key is not None:
-        key = read_public_key(public_key)
+        from authn.uakeys import read_public_key_arg
+
+        key = read_public_key_arg(public_key)
         result = verify(wire, lambda det: key if det_matches_key(det, key) else None, when)
     if as_json:
         typer.echo(json.dumps({"authentication": lines, "verification": result.to_dict() if result else None},

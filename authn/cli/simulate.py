@@ -27,12 +27,13 @@ def _scene_for(model: str, profiles_file: Path | None, **kw: object):  # -> Scen
     return Scene(kind="uav", profile=profiles[model], **kw)  # type: ignore[arg-type]
 
 
-def _signing(key_file: Path | None, sam: str, det: str | None, age_s: float, tamper: bool):  # -> Signing | None
+def _signing(key_file: Path | None, sam: str, det: str | None, age_s: float, tamper: bool,
+             fec: bool = False):  # -> Signing | None
     from authn.errors import BadInput
 
     if key_file is None:
-        if det is not None or age_s or tamper:
-            raise BadInput("--sign-det/--sign-age/--tamper-after-signing need --sign-key")
+        if det is not None or age_s or tamper or fec:
+            raise BadInput("--sign-det/--sign-age/--tamper-after-signing/--rid-fec need --sign-key")
         return None
     if sam not in ("wrapper", "manifest", "frame"):
         raise BadInput(f"--sam: {sam!r} is not wrapper, manifest or frame")
@@ -45,7 +46,7 @@ def _signing(key_file: Path | None, sam: str, det: str | None, age_s: float, tam
         named = key.det if det is None else parse_det(det)
     except DripError as exc:
         raise BadInput(f"--sign-det: {exc}") from None
-    return Signing(key.private_raw, named, sam, signed_at_offset_s=-age_s, tamper_after_signing=tamper)
+    return Signing(key.private_raw, named, sam, signed_at_offset_s=-age_s, tamper_after_signing=tamper, fec=fec)
 
 
 _OPTION_OF = {"range_m": "range", "radial_speed_mps": "speed", "snr_db": "snr",
@@ -113,6 +114,9 @@ def simulate(
                                    help="Signature made this many seconds before the dwell (a replay when > 300)."),
     tamper_after_signing: bool = typer.Option(False, "--tamper-after-signing",
                                               help="Move the first Location 50 m after signing it (a spoof)."),
+    rid_fec: bool = typer.Option(False, "--rid-fec",
+                                 help="End the authentication pages with a forward-error-correction page "
+                                      "(XOR parity, as RFC 9575's examples; a receiver rebuilds one lost page)."),
 ) -> None:
     """Simulate the radar return of one scene and write it as a recorded-return file.
 
@@ -148,7 +152,7 @@ def simulate(
     start = datetime.now(timezone.utc) if start_time is None else \
         parse_iso_time(start_time, "--start-time", error=SignaturesError)
     broadcast = None
-    signing = _signing(sign_key, sam, sign_det, sign_age, tamper_after_signing)
+    signing = _signing(sign_key, sam, sign_det, sign_age, tamper_after_signing, rid_fec)
     if rid_serial is not None:
         if rid_id_type is None:
             rid_id_type = 4 if re.fullmatch(r"01[0-9A-Fa-f]{32}", rid_serial) else 1

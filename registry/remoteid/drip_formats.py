@@ -10,8 +10,16 @@ seconds since 2019-01-01T00:00:00Z):
   data bytes), uint32 timestamp, 17 data bytes; pages 1..15: header, auth type << 4 | page,
   23 data bytes. A message with last page index L carries 17 + 23 L bytes, of which the
   first `length` are auth data (17 + 23 (L - 1) < length <= 17 + 23 L).
+* Forward error correction (RFC 9575 Section 4.2.1, as its examples send it): a message may
+  end with one FEC page. Its last page index counts the FEC page, its length does not (so
+  length fits L - 1, not L), and the FEC page's bytes 2..24 are the XOR of bytes 2..24 of
+  every page before it (page 0 from its last page index byte on: last page index, length,
+  timestamp and data). One missing page is the XOR of all the others.
 * SAM auth data (auth type 0x5): SAM type (1) then the SAM data. DRIP SAM types:
   0x01 Link, 0x02 Wrapper, 0x03 Manifest, 0x04 Frame.
+* VNB / VNA (valid not before / after) are uint32 Unix times (seconds since 1970-01-01 UTC,
+  as the RFC 9575 examples carry them: VNB 2023-12-15T23:14:40Z), unlike the page-0 timestamp
+  (seconds since 2019-01-01, F3411).
 * UA-signed structure (Wrapper, Manifest, Frame): VNB (4) | VNA (4) | evidence (0..112) |
   UA DET (16) | Ed25519 signature (64) over VNB | VNA | evidence | DET.
   - Wrapper evidence: 0..4 whole 25-byte F3411 messages.
@@ -25,8 +33,10 @@ seconds since 2019-01-01T00:00:00Z):
   before it (without the SAM type): 137 bytes with the SAM type.
 * DET (RFC 9374): prefix 2001:30::/28 | RAA (14 bits) | HDA (14 bits) | suite ID (8 bits,
   5 = EdDSA/cSHAKE128) | 64-bit hash, the hash being cSHAKE128(prefix | HID | suite |
-  HI, 64 bits, N = "", S = Context ID 0x00B5A69C795DF5D5F0087F56843F2C40) with HI the
-  HOST_ID form of the key: EdDSA curve (uint16 = 1, Ed25519) | 0x0000 | 32-byte key.
+  HI, 64 bits, N = "", S = ORCHID Context ID 0x00B5A69C795DF5D5F0087F56843F2C40) with HI
+  the raw 32-byte Ed25519 public key. This reproduces the DET of the RFC 9575 examples
+  (host identity b5fef530...041813 -> 2001:3f:fe00:105:a29b:3ff4:2226:c04e); the
+  HOST_ID form with a curve id and padding before the key (used before) does not.
 """
 
 from __future__ import annotations
@@ -66,7 +76,6 @@ LINK_SIZE = 1 + 4 + 4 + DET_SIZE + KEY_SIZE + DET_SIZE + SIG_SIZE  # 137
 DET_PREFIX = 0x2001003  # the top 28 bits of 2001:30::/28
 SUITE_EDDSA_CSHAKE128 = 5
 DET_CONTEXT_ID = bytes.fromhex("00B5A69C795DF5D5F0087F56843F2C40")
-EDDSA_CURVE_ED25519 = 1
 HASH_CUSTOMIZATION = b"Remote ID Auth Hash"
 
 
@@ -134,8 +143,7 @@ def det_from_public_key(public_key_raw: bytes, raa: int, hda: int) -> bytes:
         if not 0 <= v <= 0x3FFF:
             raise DripError(f"{what} {v} out of range 0..16383")
     head = _hid_bytes(raa, hda, SUITE_EDDSA_CSHAKE128)
-    host_id = EDDSA_CURVE_ED25519.to_bytes(2, "big") + b"\0\0" + public_key_raw
-    return head + cshake128(head + host_id, 8, DET_CONTEXT_ID)
+    return head + cshake128(head + public_key_raw, 8, DET_CONTEXT_ID)  # ORCHID input: head | raw key
 
 
 def det_fields(det: bytes) -> DetFields:
@@ -174,7 +182,7 @@ def parse_det(value: bytes | bytearray | str) -> bytes:
 
 # ------------------------------------------------------------------ times
 def to_drip_time(value: datetime | int) -> int:
-    """Seconds since 2019-01-01 UTC (F3411 and RFC 9575 timestamps)."""
+    """Seconds since 2019-01-01 UTC (the F3411 Authentication page-0 timestamp)."""
     if isinstance(value, datetime):
         if value.tzinfo is None:
             raise DripError("timestamps must be timezone-aware")
@@ -188,10 +196,32 @@ def from_drip_time(value: int) -> datetime:
     return datetime.fromtimestamp(ODID_EPOCH.timestamp() + value, tz=timezone.utc)
 
 
+def to_valid_time(value: datetime | int) -> int:
+    """A VNB / VNA field: uint32 Unix time (seconds since 1970-01-01 UTC), as RFC 9575's examples."""
+    if isinstance(value, datetime):
+        if value.tzinfo is None:
+            raise DripError("timestamps must be timezone-aware")
+        value = int(value.timestamp())
+    if not 0 <= int(value) <= 0xFFFFFFFF:
+        raise DripError(f"valid-not-before/after {value} outside the uint32 range of Unix times")
+    return int(value)
+
+
+def from_valid_time(value: int) -> datetime:
+    """A VNB / VNA field as a UTC datetime."""
+    return datetime.fromtimestamp(value, tz=timezone.utc)
+
+
+def valid_time_text(value: int) -> str:
+    """A VNB / VNA field as ISO 8601 UTC text (2023-12-15T23:14:40Z)."""
+    return from_valid_time(value).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
 # ------------------------------------------------------------------ pages
 def paginate(auth_data: bytes, timestamp: datetime | int, *, auth_type: int = AUTH_TYPE_SAM,
-             protocol_version: int = 2) -> list[bytes]:
-    """Authentication pages (25 bytes each, page 0 first) carrying `auth_data`."""
+             protocol_version: int = 2, fec: bool = False) -> list[bytes]:
+    """Authentication pages (25 bytes each, page 0 first) carrying `auth_data`; with `fec`, one
+    more page at the end: the forward-error-correction page (XOR parity, see the module doc)."""
     auth_data = bytes(auth_data)
     n = len(auth_data)
     if not 0 < n <= MAX_AUTH_LENGTH:
@@ -199,12 +229,24 @@ def paginate(auth_data: bytes, timestamp: datetime | int, *, auth_type: int = AU
     last = 0 if n <= PAGE0_DATA else -(-(n - PAGE0_DATA) // PAGE_DATA)
     padded = auth_data + bytes(PAGE0_DATA + PAGE_DATA * last - n)
     head = 0x20 | protocol_version
-    pages = [struct.pack("<BBBBI17s", head, auth_type << 4, last, n, to_drip_time(timestamp),
+    pages = [struct.pack("<BBBBI17s", head, auth_type << 4, last + bool(fec), n, to_drip_time(timestamp),
                          padded[:PAGE0_DATA])]
     for k in range(1, last + 1):
         off = PAGE0_DATA + PAGE_DATA * (k - 1)
         pages.append(bytes([head, auth_type << 4 | k]) + padded[off:off + PAGE_DATA])
+    if fec:  # last + 1 <= 12 for 255 bytes: always a page index 1..15
+        pages.append(bytes([head, auth_type << 4 | (last + 1)]) + xor_pages(p[2:] for p in pages))
     return pages
+
+
+def xor_pages(bodies) -> bytes:
+    """Byte-wise XOR of 23-byte page bodies (bytes 2..24 of each page): the FEC parity."""
+    acc = 0
+    for b in bodies:
+        if len(b) != PAGE_DATA:
+            raise DripError(f"a page body is {PAGE_DATA} bytes, got {len(b)}")
+        acc ^= int.from_bytes(b, "big")
+    return acc.to_bytes(PAGE_DATA, "big")
 
 
 def length_fits(length: int, last_page_index: int) -> bool:
@@ -212,6 +254,12 @@ def length_fits(length: int, last_page_index: int) -> bool:
     top = PAGE0_DATA + PAGE_DATA * last_page_index
     low = PAGE0_DATA + PAGE_DATA * (last_page_index - 1) if last_page_index else 0
     return low < length <= top
+
+
+def has_fec_page(length: int, last_page_index: int) -> bool:
+    """Whether a page-0 length and last page index say the last page is an FEC page: the length
+    needs exactly one page fewer than the index counts (never ambiguous with `length_fits`)."""
+    return last_page_index >= 1 and length_fits(length, last_page_index - 1)
 
 
 # ------------------------------------------------------------------ SAM structures
@@ -338,7 +386,7 @@ def _raw(message) -> bytes:
 
 def _encode_signed(sam: int, evidence: bytes, det: bytes, private_key, vnb, vna) -> bytes:
     det = parse_det(det)
-    lo, hi = to_drip_time(vnb), to_drip_time(vna)
+    lo, hi = to_valid_time(vnb), to_valid_time(vna)
     _check_window(SAM_NAMES[sam], lo, hi)
     if len(evidence) > MAX_EVIDENCE:
         raise DripError(f"DRIP {SAM_NAMES[sam]}: {len(evidence)} evidence bytes, at most {MAX_EVIDENCE}")
@@ -381,7 +429,7 @@ def encode_link(ua_det: bytes, ua_public_key: bytes, hda_det: bytes, hda_private
     ua_det, hda_det = parse_det(ua_det), parse_det(hda_det)
     if len(ua_public_key) != KEY_SIZE:
         raise DripError(f"UA public key: {len(ua_public_key)} bytes, expected {KEY_SIZE}")
-    lo, hi = to_drip_time(vnb), to_drip_time(vna)
+    lo, hi = to_valid_time(vnb), to_valid_time(vna)
     _check_window("link", lo, hi)
     signed = struct.pack("<II", lo, hi) + ua_det + bytes(ua_public_key) + hda_det
     return bytes([SAM_LINK]) + signed + _signer(hda_private_key).sign(signed)

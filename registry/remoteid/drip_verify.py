@@ -7,9 +7,10 @@ pages exist.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timezone
 
 from registry.remoteid.drip_formats import (
     AUTH_TYPE_SAM,
@@ -21,33 +22,41 @@ from registry.remoteid.drip_formats import (
     DripError,
     Link,
     det_matches_key,
+    from_drip_time,
+    has_fec_page,
     length_fits,
     message_hash,
     parse_sam,
-    to_drip_time,
+    valid_time_text,
+    xor_pages,
 )
 from registry.remoteid.errors import RemoteIdError
-from registry.remoteid.messages import AuthPage, AuthPage0, BasicId, Location
+from registry.remoteid.messages import ODID_EPOCH, AuthPage, AuthPage0, BasicId, Location
 
-STATUSES = ("valid", "invalid", "absent", "unknown-key", "expired")
+STATUSES = ("valid", "invalid", "absent", "unknown-key", "expired", "not-yet-valid")
 
 
 @dataclass(frozen=True)
 class AuthMessage:
-    """One reassembled authentication message: its bytes, or why it is malformed."""
+    """One reassembled authentication message: its bytes, or why it is malformed. `fec`: it
+    ended with a forward-error-correction page; `rebuilt`: the page index rebuilt from it."""
 
     auth_type: int
     timestamp: datetime | None
     data: bytes | None = None
     reason: str | None = None
+    fec: bool = False
+    rebuilt: int | None = None
 
 
 @dataclass(frozen=True)
 class AuthResult:
     """The DRIP verdict of one recording.
 
-    status: valid / invalid / absent / unknown-key / expired; reason: one line (for all but
-    a plain valid or absent); sam_types: the DRIP SAM types that verified ("link",
+    status: valid / invalid / absent / unknown-key / expired / not-yet-valid (the last two: a
+    signature that verifies, outside its VNB..VNA window; the reason then starts with
+    "verified-but-expired" or "verified-but-not-yet-valid"); reason: one line (for all but
+    a plain valid or absent); sam_types: the DRIP SAM types whose signatures verified ("link",
     "wrapper", "manifest", "frame"); covered: indices (into the messages given to
     `verify`) of the Basic ID and Location messages that a verified Wrapper or Manifest
     covers; det: the UA's DET (hex) that signed, or the first DET seen.
@@ -66,13 +75,34 @@ class AuthResult:
 
 
 # ------------------------------------------------------------------ reassembly
-class _Open:
-    __slots__ = ("page0", "pages", "conflict")
+def _page0_body(p0: AuthPage0) -> bytes:
+    """Bytes 2..24 of a page 0 (last page index, length, timestamp, data): what FEC covers."""
+    ts = 0 if p0.timestamp is None else round((p0.timestamp - ODID_EPOCH).total_seconds())
+    return struct.pack("<BBI", p0.last_page_index, p0.length, ts) + bytes(p0.data)
 
-    def __init__(self, page0: AuthPage0):
+
+class _Open:
+    """One message being collected: pages by index (each its bytes 2..24). `page0` is None for a
+    message whose page 0 was lost (rebuilt from its FEC page on close, if it has one)."""
+
+    __slots__ = ("auth_type", "page0", "pages", "conflict", "origin")
+
+    def __init__(self, auth_type: int, page0: AuthPage0 | None = None, origin: str | None = None):
+        self.auth_type = auth_type
         self.page0 = page0
-        self.pages: dict[int, bytes] = {0: page0.data}
+        self.pages: dict[int, bytes] = {} if page0 is None else {0: _page0_body(page0)}
         self.conflict: str | None = None
+        self.origin = origin  # why a page without a page 0 started this message
+
+    def clash(self, page: int, data: bytes) -> str | None:
+        """Why `page` cannot join this message (None if it can)."""
+        last = self.page0.last_page_index if self.page0 is not None else None
+        if last is not None and page > last:
+            return f"auth type {self.auth_type}: page {page} past the last page index {last}"
+        seen = self.pages.get(page)
+        if seen is not None and seen != data:
+            return f"auth type {self.auth_type}: page {page} seen twice with different bytes"
+        return None
 
 
 def reassemble(messages: Iterable) -> list[AuthMessage]:
@@ -81,58 +111,100 @@ def reassemble(messages: Iterable) -> list[AuthMessage]:
     A page 0 opens (or, repeated identically, re-opens) a message of its auth type; pages
     1..15 join the message of their auth type that the latest page 0 opened, so messages
     sent one after another, repeated or interleaved with other auth types reassemble.
-    Missing pages, a page past the last index, the same page with other bytes, or a
-    length impossible for the last page index make that message malformed.
+
+    A message may end with a forward-error-correction page (`has_fec_page`): its parity is
+    checked when every page is there (a mismatch makes the message malformed), and any one
+    missing page, page 0 included, is rebuilt from it. A page that does not fit the message
+    it would join (past its last page index, or another page's bytes at its index) starts a
+    message whose page 0 was lost when that message is already whole; otherwise it makes the
+    message malformed. Missing pages beyond what FEC rebuilds, or a length impossible for the
+    last page index, make a message malformed.
     """
     order: list[_Open] = []
     by_key: dict[tuple, _Open] = {}
     current: dict[int, _Open] = {}
-    orphans: list[AuthMessage] = []
     for m in messages:
         if isinstance(m, AuthPage0):
             key = (m.auth_type, m.last_page_index, m.length, m.timestamp, m.data)
             rec = by_key.get(key)
             if rec is None:
-                rec = by_key[key] = _Open(m)
+                rec = by_key[key] = _Open(m.auth_type, m)
                 order.append(rec)
             current[m.auth_type] = rec
         elif isinstance(m, AuthPage):
+            data = bytes(m.data)
             rec = current.get(m.auth_type)
-            if rec is None:
-                orphans.append(AuthMessage(m.auth_type, None, reason=(
-                    f"auth type {m.auth_type}: page {m.page} without a page 0")))
+            why = None if rec is None else rec.clash(m.page, data)
+            if rec is None or (why and _close(rec).data is not None):
+                # no page 0 yet, or the message is whole: a new message whose page 0 was lost
+                rec = _Open(m.auth_type, origin=why or f"auth type {m.auth_type}: page {m.page} without a page 0")
+                current[m.auth_type] = rec
+                order.append(rec)
+            elif why:
+                rec.conflict = rec.conflict or why
                 continue
-            last = rec.page0.last_page_index
-            if m.page > last:
-                rec.conflict = rec.conflict or (
-                    f"auth type {m.auth_type}: page {m.page} past the last page index {last}")
-                continue
-            seen = rec.pages.get(m.page)
-            if seen is not None and seen != m.data:
-                rec.conflict = rec.conflict or (
-                    f"auth type {m.auth_type}: page {m.page} seen twice with different bytes")
-                continue
-            rec.pages[m.page] = m.data
-    out = [_close(rec) for rec in order]
-    return out + orphans
+            rec.pages[m.page] = data
+    out: list[AuthMessage] = []
+    seen: set[tuple] = set()
+    for rec in order:
+        msg = _close(rec)
+        key = (msg.auth_type, msg.timestamp, msg.data, msg.reason)
+        if key not in seen:  # a message rebuilt without its page 0 and also received whole
+            seen.add(key)
+            out.append(msg)
+    return out
 
 
 def _close(rec: _Open) -> AuthMessage:
-    p0 = rec.page0
-    t, ts, last, length = p0.auth_type, p0.timestamp, p0.last_page_index, p0.length
+    """The message `rec` collected (without changing `rec`: more pages may still join it)."""
+    t = rec.auth_type
     if rec.conflict:
-        return AuthMessage(t, ts, reason=rec.conflict)
-    if not length_fits(length, last):
+        return AuthMessage(t, rec.page0.timestamp if rec.page0 else None, reason=rec.conflict)
+    if rec.page0 is None:
+        return _close_headless(rec)
+    p0 = rec.page0
+    ts, last, length = p0.timestamp, p0.last_page_index, p0.length
+    fec = has_fec_page(length, last)
+    if not fec and not length_fits(length, last):
         hi = PAGE0_DATA + PAGE_DATA * last
         return AuthMessage(t, ts, reason=(
-            f"auth type {t}: length {length} impossible for last page index {last} (max {hi})"))
-    missing = [k for k in range(last + 1) if k not in rec.pages]
-    if missing:
-        return AuthMessage(t, ts, reason=(
+            f"auth type {t}: length {length} impossible for last page index {last} "
+            f"(max {hi}; {hi - PAGE_DATA} with an FEC page)"))
+    pages = dict(rec.pages)
+    missing = [k for k in range(last + 1) if k not in pages]
+    rebuilt = None
+    if fec and not missing:
+        if xor_pages(pages[k] for k in range(last)) != pages[last]:
+            return AuthMessage(t, ts, fec=True, reason=(
+                f"auth type {t}: FEC parity error: page {last} is not the XOR of pages 0..{last - 1}"))
+    elif fec and len(missing) == 1:
+        if missing[0] != last:  # a lost FEC page needs no rebuilding
+            rebuilt = missing[0]
+            pages[rebuilt] = xor_pages(pages[k] for k in range(last + 1) if k != rebuilt)
+    elif missing:
+        return AuthMessage(t, ts, fec=fec, reason=(
             f"auth type {t}: page{'s' if len(missing) > 1 else ''} "
-            f"{', '.join(map(str, missing))} of 0..{last} missing"))
-    data = b"".join(rec.pages[k] for k in range(last + 1))[:length]
-    return AuthMessage(t, ts, data=data)
+            f"{', '.join(map(str, missing))} of 0..{last} missing"
+            + (" (the FEC page rebuilds one)" if fec else "")))
+    n = last if fec else last + 1
+    data = (pages[0][6:] + b"".join(pages[k] for k in range(1, n)))[:length]
+    return AuthMessage(t, ts, data=data, fec=fec, rebuilt=rebuilt)
+
+
+def _close_headless(rec: _Open) -> AuthMessage:
+    """A message whose page 0 was lost: page 0 is the XOR of pages 1..L when page L is its FEC page."""
+    t = rec.auth_type
+    top = max(rec.pages)
+    if sorted(rec.pages) == list(range(1, top + 1)):
+        body = xor_pages(rec.pages.values())
+        last, length, ts = struct.unpack_from("<BBI", body)
+        if last == top and has_fec_page(length, last):
+            data = (body[6:] + b"".join(rec.pages[k] for k in range(1, last)))[:length]
+            return AuthMessage(t, from_drip_time(ts) if ts else None, data=data, fec=True, rebuilt=0)
+    pages = ", ".join(map(str, sorted(rec.pages)))
+    return AuthMessage(t, None, reason=(
+        f"{rec.origin}; no page 0 for page{'s' if len(rec.pages) > 1 else ''} {pages}, "
+        "and no FEC page rebuilds it"))
 
 
 # ------------------------------------------------------------------ verification
@@ -195,12 +267,19 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
         except (InvalidSignature, ValueError):
             return False
 
-    now = to_drip_time(dwell_time) if dwell_time.tzinfo else None
-    if now is None:
+    if dwell_time.tzinfo is None:
         return AuthResult("invalid", reason="dwell time must be timezone-aware")
+    now = dwell_time.timestamp()  # VNB / VNA are Unix times
+    at = dwell_time.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
-    def in_window(s) -> bool:
-        return s.vnb - skew_s <= now <= s.vna + skew_s
+    def outside(s) -> tuple[str, str] | None:
+        """(status, reason) of a verified signature outside its window, None inside it."""
+        window = f"valid {valid_time_text(s.vnb)} to {valid_time_text(s.vna)}, checked at {at}"
+        if now < s.vnb - skew_s:
+            return "not-yet-valid", f"verified-but-not-yet-valid: DRIP {s.name} signature verifies ({window})"
+        if now > s.vna + skew_s:
+            return "expired", f"verified-but-expired: DRIP {s.name} signature verifies ({window})"
+        return None
 
     structures = []
     others = set()
@@ -237,7 +316,8 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
     verified: list[str] = []
     covered: set[int] = set()
     unknown: list[str] = []
-    expired: list[str] = []
+    early: list[tuple[str, str]] = []  # (status, reason) of verified signatures outside their window
+    late_types: list[str] = []
     det_hex = structures[0].det.hex()
     signer_det = None
     for s in sorted(structures, key=lambda s: not isinstance(s, Link)):
@@ -252,8 +332,9 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
             if not det_matches_key(s.ua_det, s.ua_key):
                 return AuthResult("invalid", reason="DRIP link: UA DET is not the DET of the UA key it carries",
                                   det=s.ua_det.hex())
-            if not in_window(s):
-                expired.append(f"DRIP link valid {s.vnb}..{s.vna}, dwell time {now} (s since 2019)")
+            if (why := outside(s)) is not None:
+                early.append(why)
+                late_types.append("link")
                 continue
             learned[s.ua_det] = s.ua_key
             verified.append("link")
@@ -266,8 +347,13 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
         if not sig_ok(key, s.signature, s.signed_bytes):
             return AuthResult("invalid", reason=f"DRIP {s.name}: signature does not verify",
                               det=s.det.hex())
-        if not in_window(s):
-            expired.append(f"DRIP {s.name} valid {s.vnb}..{s.vna}, dwell time {now} (s since 2019)")
+        if s.sam_type == SAM_MANIFEST and not s.manifest_current_ok():
+            return AuthResult("invalid", det=s.det.hex(),
+                              reason="DRIP manifest: current manifest hash does not match its evidence")
+        if (why := outside(s)) is not None:
+            early.append(why)
+            late_types.append(s.name)
+            signer_det = signer_det or s.det.hex()
             continue
         carried = s.wrapped() if s.sam_type == SAM_WRAPPER else \
             s.frame_messages() if s.sam_type == SAM_FRAME else None
@@ -280,18 +366,16 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
                         "is not among the decoded messages"))
                 covered.update(coverable(idx))
         elif s.sam_type == SAM_MANIFEST:
-            if not s.manifest_current_ok():
-                return AuthResult("invalid", det=s.det.hex(),
-                                  reason="DRIP manifest: current manifest hash does not match its evidence")
             for h in s.manifest_hashes()[3]:
                 covered.update(coverable(hashes.get(h, [])))
         verified.append(s.name)
         signer_det = signer_det or s.det.hex()
 
     det_hex = signer_det or det_hex
-    if expired:
-        return AuthResult("expired", reason=expired[0], sam_types=tuple(dict.fromkeys(verified)),
-                          det=det_hex, details=tuple(expired + unknown))
+    if early:  # a signature that verifies, outside its window: never `invalid`, never `valid`
+        status, reason = early[0]
+        return AuthResult(status, reason=reason, sam_types=tuple(dict.fromkeys(verified + late_types)),
+                          det=det_hex, details=tuple([r for _, r in early] + unknown))
     if verified:
         return AuthResult("valid", sam_types=tuple(dict.fromkeys(verified)), covered=tuple(sorted(covered)),
                           det=det_hex, details=tuple(unknown))
