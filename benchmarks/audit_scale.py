@@ -33,7 +33,7 @@ def main() -> None:
     os.environ.setdefault("AUTHN_AUDIT_STH_LOG", str(tmp / "sth.jsonl"))
 
     from authn.audit import NewEntry, append, known_heads, verify
-    from authn.logkey import LogKey
+    from authn.audit.logkey import LogKey
     from registry.dbapi import Database
 
     db = Database(f"sqlite:///{tmp / 'audit.sqlite3'}")

@@ -32,7 +32,7 @@ def test_default_paths_point_into_the_session_folder(tmp_path_factory) -> None:
     import matplotlib
     import platformdirs
 
-    from authn.logkey import key_path
+    from authn.audit.logkey import key_path
     from registry.urls import default_url, resolve_url
     from signatures.dataset import cache_dir
 

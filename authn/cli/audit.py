@@ -135,7 +135,7 @@ def show_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry numb
 
 def _public_key(public_key: Path | None, log_key: Path | None, *, required: bool) -> object | None:
     """--public-key, else the public half of the log key file (None if absent and not required)."""
-    from authn.logkey import LogKey, key_path, load_public_key
+    from authn.audit.logkey import LogKey, key_path, load_public_key
 
     if public_key is not None:
         return load_public_key(public_key)
@@ -166,7 +166,7 @@ def verify_cmd(
     Example: authn audit verify --against sth.json --witness /mnt/witness
     """
     from authn.audit import KnownHead, accepted_keys, known_heads, newest, verify
-    from authn.logkey import SignedTreeHead, key_path, load_retired_keys
+    from authn.audit.logkey import SignedTreeHead, key_path, load_retired_keys
     from registry.dbapi import Database
 
     sth = SignedTreeHead.read(against) if against is not None else None
@@ -303,8 +303,8 @@ def witness_serve_cmd(
 
     Example: authn audit witness serve --dir /srv/authn-witness --public-key authn-log.pub --port 8090
     """
-    from authn.logkey import load_public_key
-    from authn.witness import WitnessStore, serve
+    from authn.audit.logkey import load_public_key
+    from authn.audit.witness import WitnessStore, serve
 
     keys = [load_public_key(p) for p in public_key]
     typer.echo(f"authn witness: http://{host}:{port}, heads in {folder}", err=True)
@@ -328,7 +328,7 @@ def prove_cmd(
     """
     from authn.audit import prove
     from authn.errors import AuthnError
-    from authn.logkey import SignedTreeHead
+    from authn.audit.logkey import SignedTreeHead
     from registry.dbapi import Database
 
     sth = SignedTreeHead.read(sth_file) if sth_file is not None else None
@@ -349,7 +349,7 @@ def verify_proof_cmd(
     """
     from authn.audit import verify_proof
     from authn.errors import AuthnError
-    from authn.logkey import load_public_key
+    from authn.audit.logkey import load_public_key
 
     key = load_public_key(public_key)
     try:

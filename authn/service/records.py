@@ -58,7 +58,7 @@ async def audit_verify(request: Request, _caller: Caller = Depends(require("read
     """Recompute the chain and Merkle tree; check them against every signed tree head known
     (as `authn audit verify`). `ok` false names the first bad entry."""
     from authn.audit import accepted_keys, known_heads, newest, verify
-    from authn.logkey import LogKey, key_path, load_retired_keys
+    from authn.audit.logkey import LogKey, key_path, load_retired_keys
 
     rt = runtime(request)
 

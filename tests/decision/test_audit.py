@@ -15,7 +15,7 @@ from authn.audit import (NewEntry, append, checkpoint, get_policy, known_heads, 
                          verify, verify_proof)
 from authn.cli import main
 from authn.errors import SystemFault
-from authn.logkey import LogKey, SignedTreeHead
+from authn.audit.logkey import LogKey, SignedTreeHead
 from registry.db import get_engine
 from registry.dbapi import Database
 
@@ -245,7 +245,7 @@ def test_newest_sth_line_read_backwards_matches_a_full_read(tmp_path: Path) -> N
     and owners, it finds the same newest line as reading every line."""
     import random
 
-    from authn.logkey import append_sth_log, create_key_file, newest_in_sth_log, read_sth_log
+    from authn.audit.logkey import append_sth_log, create_key_file, newest_in_sth_log, read_sth_log
 
     create_key_file(tmp_path / "k.pem")
     key = LogKey.load(tmp_path / "k.pem")

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from sqlalchemy import text
 
-from authn import merkle
+from authn.audit import merkle
 from authn.audit import NewEntry, append, list_entries, prove, verify, verify_proof
-from authn.logkey import LogKey
+from authn.audit.logkey import LogKey
 from registry.db import alembic_config, create_db_engine, dispose_engines
 from registry.dbapi import Database
 

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from authn import merkle
+from authn.audit import merkle
 from authn.audit import NewEntry, append, checkpoint, entry_bytes, verify
 from authn.errors import SystemFault
-from authn.logkey import LogKey
+from authn.audit.logkey import LogKey, SignedTreeHead
 from registry.db import get_engine
 from registry.dbapi import Database
 
@@ -142,7 +142,7 @@ CASES = [(name, where) for name in TAMPERS for where in ("before", "after")]
 def _latest_head(url: str):
     """The latest signed tree head, as kept outside the database (what a verifier holds)."""
     from authn.audit import db_label
-    from authn.logkey import latest_head_path, read_latest_head, sth_log_path
+    from authn.audit.logkey import latest_head_path, read_latest_head, sth_log_path
 
     db = Database(url)
     try:
@@ -236,7 +236,7 @@ def _launder(conn, first: int) -> None:
 
 
 def _keys_dir() -> Path:
-    from authn.logkey import key_path
+    from authn.audit.logkey import key_path
 
     return key_path().parent
 
@@ -347,7 +347,7 @@ def test_local_edit_before_the_anchor_is_verifys_to_find_in_window_mode(db_url: 
 def test_deleted_key_exits_3_and_no_new_key_is_made(db_url: str, genuine: Path, capsys) -> None:
     from authn.cli import main
     from authn.demo import register_examples
-    from authn.logkey import key_path
+    from authn.audit.logkey import key_path
 
     register_examples(db_url)
     _checks(db_url, genuine, 2)
@@ -379,8 +379,7 @@ def test_heads_of_one_log_do_not_verify_for_another(tmp_path: Path, capsys) -> N
     assert "names the log" in capsys.readouterr().err
     db_b = Database(urls[1])
     try:
-        report = verify(db_b, [LogKey.load().public_key and __import__("authn.logkey").logkey.SignedTreeHead.read(head_a)],
-                        public_key=LogKey.load().public_key)
+        report = verify(db_b, [SignedTreeHead.read(head_a)], public_key=LogKey.load().public_key)
     finally:
         db_b.close()
     assert not report.ok and "names the log" in report.problem
@@ -391,7 +390,7 @@ def witness(request, tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
     """A witness of the log's heads: a folder, or `authn audit witness serve` semantics over HTTP."""
     import threading
 
-    from authn import witness as w
+    from authn.audit import witness as w
     from tests.service.server import free_port
 
     store = tmp_path / "witness"
@@ -427,10 +426,10 @@ def test_rewrite_resigned_with_the_readable_key_is_reported_by_the_witness(db_ur
     machine and signs a fresh head over the rewrite. The witness holds heads the rewrite does
     not extend: it refuses the re-signed head, `verify` reports the log, and the next append
     is refused when it consults the witness."""
-    from authn import merkle as m
+    from authn.audit import merkle as m
     from authn.audit import log_origin
     from authn.cli import main
-    from authn.witness import Conflict, open_witness
+    from authn.audit.witness import Conflict, open_witness
 
     db = Database(db_url)
     for i in range(8):
@@ -469,7 +468,7 @@ def test_rotate_key_hands_over_and_a_listed_stranger_is_not_trusted(db_url: str,
     """`authn audit rotate-key`: the old key's heads stay valid through the head both keys
     signed; a key merely added to the retired-keys file vouches for nothing."""
     from authn.cli import main
-    from authn.logkey import create_key_file, key_path, retired_keys_path
+    from authn.audit.logkey import create_key_file, key_path, retired_keys_path
 
     db = Database(db_url)
     append(db, [NewEntry("decision", f"S{i}", "accept", {"reasons": ["r"]}) for i in range(6)])
@@ -488,7 +487,7 @@ def test_rotate_key_hands_over_and_a_listed_stranger_is_not_trusted(db_url: str,
     stranger = LogKey.load(stranger_path)
     with open(retired_keys_path(key_path()), "a") as fh:
         fh.write(stranger.public_pem())
-    from authn.audit import _store_head, log_origin
+    from authn.audit.heads import _store_head, log_origin
 
     with db.write():
         _store_head(db, stranger.sign_tree_head(7, b"\x00" * 32, 1, log_origin(db)), None)
@@ -503,7 +502,7 @@ def test_checkpoint_note_is_a_c2sp_signed_note(db_url: str, tmp_path: Path, caps
     import base64
 
     from authn.cli import main
-    from authn.logkey import note_key_hash, public_raw
+    from authn.audit.logkey import note_key_hash, public_raw
 
     db = Database(db_url)
     append(db, [NewEntry("decision", "S", "accept", {"reasons": ["r"]}) for _ in range(3)])

@@ -12,7 +12,7 @@ import hashlib
 
 import pytest
 
-from authn import merkle
+from authn.audit import merkle
 
 LEAF_INPUTS = [bytes.fromhex(h) for h in ["", "00", "10", "2021", "3031", "40414243", "5051525354555657",
                                            "606162636465666768696a6b6c6d6e6f"]]

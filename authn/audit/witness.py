@@ -33,9 +33,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from authn import merkle
+import authn.audit.merkle as merkle
 from authn.errors import AuthnError, SystemFault
-from authn.logkey import SignedTreeHead, parse_note
+from authn.audit.logkey import SignedTreeHead, parse_note
 
 ENV_WITNESS = "AUTHN_AUDIT_WITNESS"
 TIMEOUT_S = 5.0

@@ -123,7 +123,7 @@ class LogKey:
 
     def sign_tree_head(self, tree_size: int, root_hash: bytes, timestamp_ms: int, origin: str) -> "SignedTreeHead":
         """A C2SP checkpoint of the log named `origin`, signed by this key."""
-        _check_origin(origin)
+        check_origin(origin)
         unsigned = SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, "", origin)
         raw = self._private.sign(unsigned.signed_bytes())
         sig = base64.b64encode(note_key_hash(origin, self.public_raw) + raw).decode()
@@ -284,7 +284,7 @@ class SignedTreeHead:
             if len(base64.b64decode(sig, validate=True)) != (64 if origin is None else 68):
                 raise ValueError
             if origin is not None:
-                _check_origin(origin)
+                check_origin(origin)
         except (ValueError, KeyError, TypeError, binascii.Error):
             raise AuthnError(f"{what}: not an {CHECKPOINT_FORMAT} or {STH_FORMAT} document") from None
         return cls(size, ts, root, kid, sig, origin)
@@ -340,7 +340,7 @@ def note_key_hash(name: str, public_raw_key: bytes) -> bytes:
 _ORIGIN = re.compile(r"[^\s+\x00-\x1f\x7f]{1,256}")
 
 
-def _check_origin(origin: Any) -> None:
+def check_origin(origin: Any) -> None:
     """A note key name: non-empty UTF-8 without whitespace, '+' or control characters."""
     if not isinstance(origin, str) or not _ORIGIN.fullmatch(origin):
         raise ValueError(f"not a checkpoint origin: {origin!r}")
@@ -354,7 +354,7 @@ def parse_note(text: str, what: str = "checkpoint") -> list[SignedTreeHead]:
             raise ValueError
         lines = body.split("\n")
         origin, size_text, root_b64, *ext = lines
-        _check_origin(origin)
+        check_origin(origin)
         if not size_text.isdigit() or (size_text != "0" and size_text.startswith("0")):
             raise ValueError
         root = base64.b64decode(root_b64, validate=True)

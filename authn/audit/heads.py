@@ -1,0 +1,288 @@
+"""Where the audit log's signed heads are kept, and which ones are trusted.
+
+A head lives in the database (`audit_tree_heads`), the latest-head file, the STH log and
+the witness. The writer trusts the newest of each (authn.audit.writer); `verify` checks
+every one. Both read them here, so they agree on the set. Also here: the log's origin
+(the name its checkpoints carry), the log key as the writer loads it (never created for
+a signed log), and the hand-over rule for retired keys.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import authn.audit.merkle as merkle
+from authn.audit.entries import GENESIS, db_label
+from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append_sth_log, check_origin, \
+    create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, read_sth_log, sth_log_path, \
+    write_latest_head
+from authn.audit.witness import Conflict, HttpWitness, WitnessStore, open_witness
+from authn.errors import AuthnError, SystemFault, one_line
+from registry.dbapi import Database
+
+ENV_ORIGIN = "AUTHN_AUDIT_ORIGIN"
+_KEYS: dict[Path, tuple[tuple[int, int] | None, LogKey]] = {}
+
+
+
+def _log_key(path: str | Path | None) -> LogKey:
+    """The key at `path`, loaded once per file version (a replaced file is loaded again)."""
+    p = key_path(path)
+    try:
+        st = p.stat()
+        version = (st.st_ino, st.st_mtime_ns)
+    except OSError:
+        version = None
+    cached = _KEYS.get(p)
+    if cached is None or cached[0] != version or version is None:
+        _KEYS[p] = (version, LogKey.load(p))
+    return _KEYS[p][1]
+
+
+
+def writer_key(db: Database, heads: Sequence["KnownHead"], log_key: str | Path | None = None) -> LogKey:
+    """The log key; created only for a log that has no signed head anywhere yet. A log with
+    heads and no key is a fault: a new key would let whoever made it re-sign history."""
+    p = key_path(log_key)
+    if not p.exists():
+        if heads or db.fetch("SELECT tree_size FROM audit_tree_heads LIMIT 1"):
+            raise SystemFault(f"audit log key {p} is missing but the log has signed heads: restore the key file "
+                              "(a new one is never made for a signed log; `authn audit rotate-key` changes it)")
+        create_key_file(p)
+    return _log_key(p)
+
+
+
+def log_origin(db: Database, *, create: bool = False) -> str | None:
+    """The name this log's checkpoints carry (audit_log_meta), made once inside the first
+    append's transaction: $AUTHN_AUDIT_ORIGIN, else authn.invalid/audit/<random>."""
+    rows = db.fetch("SELECT value FROM audit_log_meta WHERE name = 'origin'")
+    if rows:
+        return str(rows[0][0])
+    if not create:
+        return None
+    origin = os.environ.get(ENV_ORIGIN) or f"authn.invalid/audit/{secrets.token_hex(8)}"
+    try:
+        check_origin(origin)
+    except ValueError:
+        raise AuthnError(f"${ENV_ORIGIN}: not a checkpoint origin (no spaces, '+' or control characters)") from None
+    db.execute("INSERT INTO audit_log_meta (name, value) VALUES ('origin', :v)", {"v": origin})
+    return origin
+
+
+
+_HEAD_COLUMNS = "tree_size, timestamp_ms, root_hash, log_key_id, signature, origin"
+
+
+
+def _head_of(row: Sequence[Any]) -> SignedTreeHead:
+    """A head from a row of _HEAD_COLUMNS (AuthnError when malformed)."""
+    n, ts, root, kid, sig, origin = row
+    fmt = "authn-sth/1" if origin is None else CHECKPOINT_FORMAT
+    return SignedTreeHead.from_dict({"format": fmt, "tree_size": int(n), "timestamp": int(ts), "root_hash": root,
+                                     "log_key_id": str(kid).strip(), "signature": sig, "origin": origin})
+
+
+
+def _store_head(db: Database, sth: SignedTreeHead, edge: str | None) -> SignedTreeHead:
+    db.execute("INSERT INTO audit_tree_heads (tree_size, timestamp_ms, root_hash, log_key_id, signature, frontier, "
+               "origin) VALUES (:n, :t, :r, :k, :s, :f, :o)",
+               {"n": sth.tree_size, "t": sth.timestamp, "r": sth.root_hash, "k": sth.log_key_id,
+                "s": sth.signature, "f": edge, "o": sth.origin})
+    return sth
+
+
+
+def _check_head(h: "KnownHead", key: LogKey, origin: str, size_before: int) -> None:
+    """A trusted head must be this key's, name this log, and not be larger than the log."""
+    if not key.vouches_for(h.sth):
+        raise SystemFault(f"audit log: the signed head of size {h.sth.tree_size} ({h.source}) is not signed by "
+                          "this log's key; run `authn audit verify`")
+    if h.sth.origin is not None and h.sth.origin != origin:
+        raise SystemFault(f"audit log: the signed head of size {h.sth.tree_size} ({h.source}) names the log "
+                          f"{h.sth.origin}, not this one ({origin})")
+    if h.sth.tree_size > size_before:
+        raise SystemFault(f"audit log truncated: {size_before} entries, but the signed head ({h.source}) has "
+                          f"{h.sth.tree_size}; run `authn audit verify`")
+
+
+
+def accepted_keys(heads: Sequence[KnownHead], current: Any, retired: Sequence[Any] = ()) -> list[Any]:
+    """The current key, and each retired key that signed a head which a key already accepted
+    signed too (the rotation head `authn audit rotate-key` signs with both): a retired key
+    nobody handed over from is not accepted, whatever file lists it."""
+    keys, pending = [current], list(retired)
+    grown = True
+    while grown and pending:
+        grown = False
+        for r in list(pending):
+            by_r = {h.sth.signed_bytes() for h in heads if h.sth.origin is not None and h.sth.verify_signature(r)}
+            if any(h.sth.signed_bytes() in by_r and any(h.sth.verify_signature(k) for k in keys) for h in heads):
+                keys.append(r)
+                pending.remove(r)
+                grown = True
+    return keys
+
+
+
+@dataclass(frozen=True)
+class _Signed:
+    sth: SignedTreeHead
+    due: bool  # periodic: also to the STH log and the witness
+    frontier: merkle.Frontier  # at sth.tree_size
+
+
+
+@dataclass(frozen=True)
+class KnownHead:
+    sth: SignedTreeHead
+    source: str  # "database" | "file PATH" | "witness W" | "--against FILE"
+
+
+
+def _newest_of(heads: Sequence[SignedTreeHead]) -> SignedTreeHead | None:
+    """The largest head, the last written among equals (a rotation's new-key head)."""
+    best = None
+    for h in heads:
+        if best is None or h.tree_size >= best.tree_size:
+            best = h
+    return best
+
+
+
+@dataclass
+class HeadPlaces:
+    """Every place a head of this log is kept: the database, the latest-head file, the STH
+    log and the witness. The writer and `verify` read their trusted heads from here."""
+
+    db: Database
+    label: str
+    sth_log: Path
+    latest_file: Path
+    log_key: Path
+    witness: WitnessStore | HttpWitness | None
+
+    @classmethod
+    def of(cls, db: Database, *, sth_log: str | Path | None = None, log_key: str | Path | None = None,
+           witness: str | None = None) -> "HeadPlaces":
+        path = sth_log_path(sth_log, log_key)
+        label = db_label(db)
+        return cls(db, label, path, latest_head_path(path, label), key_path(log_key), open_witness(witness))
+
+    def _db_heads(self, where: str, params: dict[str, Any] | None = None) -> list[KnownHead]:
+        out = []
+        for row in self.db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads {where}", params or {}):
+            try:
+                out.append(KnownHead(_head_of(row), "database"))
+            except AuthnError:
+                out.append(KnownHead(SignedTreeHead(int(row[0]), int(row[1]), GENESIS, "", ""),
+                                     "database (malformed)"))
+        return out
+
+    def newest_heads(self, db: Database) -> list[KnownHead]:
+        """What the writer trusts: the newest head in the database, the latest-head file, the
+        newest STH log line for this database (the witness is asked separately)."""
+        out = self._db_heads("ORDER BY tree_size DESC, id DESC LIMIT 1")
+        latest = read_latest_head(self.latest_file)
+        if latest is not None:
+            out.append(KnownHead(latest, f"file {self.latest_file}"))
+        logged = newest_in_sth_log(self.sth_log, self.label)
+        if logged is not None:
+            out.append(KnownHead(logged, f"file {self.sth_log}"))
+        return out
+
+    def all_heads(self) -> list[KnownHead]:
+        """What `verify` checks: every periodic head and the newest in the database, every STH
+        log line for this database, the latest-head file, and every head the witness holds."""
+        out = [KnownHead(sth, f"file {self.sth_log}") for owner, sth in read_sth_log(self.sth_log)
+               if owner == self.label]
+        latest = read_latest_head(self.latest_file)
+        if latest is not None:
+            out.append(KnownHead(latest, f"file {self.latest_file}"))
+        newest_id = self.db.fetch("SELECT id FROM audit_tree_heads ORDER BY tree_size DESC, id DESC LIMIT 1")
+        out += self._db_heads("WHERE frontier IS NOT NULL OR id = :newest ORDER BY id",
+                              {"newest": newest_id[0][0] if newest_id else -1})
+        origin = log_origin(self.db)
+        if self.witness is not None and origin is not None:
+            out += self.witness_heads(origin, newest_only=False)
+        return out
+
+    def witness_heads(self, origin: str, *, newest_only: bool) -> list[KnownHead]:
+        assert self.witness is not None
+        held = self.witness.heads(origin)
+        if newest_only:
+            newest_held = _newest_of(held)
+            held = [newest_held] if newest_held is not None else []
+        return [KnownHead(h, f"witness {self.witness.name}") for h in held]
+
+    def publish(self, signed: _Signed) -> None:
+        """After commit: the latest-head file always; periodic heads to the STH log and the witness."""
+        write_latest_head(self.latest_file, signed.sth, self.label)
+        if not signed.due:
+            return
+        append_sth_log(self.sth_log, signed.sth, self.label)
+        if self.witness is not None:
+            self.witness_add(signed.sth)
+
+    def witness_add(self, sth: SignedTreeHead, *cosigned: SignedTreeHead, keys: Sequence[Any] = ()) -> None:
+        """Give the witness `sth` with a consistency proof from the newest head it holds. A
+        refusal is a fault (it holds history this log no longer has); an unreachable
+        witness is only reported: the next periodic head carries the proof from where it is."""
+        assert self.witness is not None and sth.origin is not None
+        try:
+            held = _newest_of(self.witness.heads(sth.origin))
+            old = held.tree_size if held is not None else 0
+            proof = consistency_proof(self.db, old, sth.tree_size)
+            for head in (sth, *cosigned):
+                self.witness.add(head, old, proof, list(keys) or [_log_key(self.log_key).public_key])
+        except Conflict as exc:
+            raise SystemFault(f"witness {self.witness.name} refused the head of size {sth.tree_size}: {exc}") from None
+        except SystemFault as exc:
+            print(f"authn: warning: {one_line(str(exc))}; the witness gets the next periodic head", file=sys.stderr)
+
+
+
+def consistency_proof(db: Database, old: int, new: int) -> list[bytes]:
+    """PROOF(old, new) over the stored leaf hashes: from the right edge stored with a periodic
+    head of size `old` (O(new - old + log new)), else one pass over the leaves."""
+    if old == 0 or old == new:
+        return []
+    frontier: merkle.Frontier | None = None
+    rows = db.fetch("SELECT frontier FROM audit_tree_heads WHERE tree_size = :n AND frontier IS NOT NULL "
+                    "ORDER BY id DESC LIMIT 1", {"n": old})
+    try:
+        edge = json.loads(rows[0][0]) if rows else None
+        if isinstance(edge, dict):
+            leaf = db.fetch("SELECT leaf_hash FROM audit_log WHERE seq = :s", {"s": old})
+            frontier = merkle.Frontier(old - 1, [bytes.fromhex(h) for h in edge["before_last"]])
+            frontier.push(bytes.fromhex(leaf[0][0]))
+        elif isinstance(edge, list):
+            frontier = merkle.Frontier(old, [bytes.fromhex(h) for h in edge])
+    except (ValueError, TypeError, KeyError, IndexError):
+        frontier = None
+    if frontier is None:
+        frontier = merkle.Frontier()
+        for (h,) in db.fetch("SELECT leaf_hash FROM audit_log WHERE seq <= :n ORDER BY seq", {"n": old}):
+            frontier.push(bytes.fromhex(h))
+    leaves = [bytes.fromhex(h) for (h,) in db.fetch("SELECT leaf_hash FROM audit_log WHERE seq > :a AND seq <= :b "
+                                                     "ORDER BY seq", {"a": old, "b": new})]
+    return merkle.consistency_proof_from(frontier, leaves)
+
+
+
+def known_heads(db: Database, *, sth_log: str | Path | None = None, log_key: str | Path | None = None,
+                witness: str | None = None) -> list[KnownHead]:
+    """Every head of this log kept anywhere (unverified): what `verify` checks the log against."""
+    return HeadPlaces.of(db, sth_log=sth_log, log_key=log_key, witness=witness).all_heads()
+
+
+
+def newest(heads: Sequence[KnownHead]) -> KnownHead | None:
+    return max(heads, key=lambda h: (h.sth.tree_size, h.sth.timestamp, h.source.startswith("file")), default=None)

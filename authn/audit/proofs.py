@@ -1,0 +1,98 @@
+"""Inclusion proofs: `prove` one entry against a signed head, and `verify_proof` with only
+the log's public key (no database)."""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Any
+from pathlib import Path
+
+import authn.audit.merkle as merkle
+from authn.audit.entries import _COLUMNS, _iso_db, entry_bytes
+from authn.audit.heads import _log_key, known_heads, newest
+from authn.audit.logkey import SignedTreeHead
+from authn.audit.signer import checkpoint
+from authn.audit.verifier import _when
+from authn.errors import AuthnError
+from registry.dbapi import Database
+
+PROOF_FORMAT = "authn-inclusion-proof/1"
+
+
+
+def _entry_doc(row: tuple) -> dict[str, Any]:
+    seq, created, kind, serial, decision, payload, prev_hash, entry_hash, _ = row
+    return {"seq": int(seq), "created_at": _iso_db(created), "kind": kind, "serial": serial,
+            "decision": decision, "payload": payload, "prev_hash": prev_hash, "entry_hash": entry_hash}
+
+
+
+def prove(db: Database, seq: int, sth: SignedTreeHead | None = None, *, log_key: str | Path | None = None,
+          sth_log: str | Path | None = None) -> dict[str, Any]:
+    """A self-contained inclusion proof of entry `seq` (JSON-ready): the entry as hashed,
+    its leaf index, the audit path, and the STH it is proved against (the newest one
+    covering it, a new checkpoint if none does, or the one given)."""
+    rows = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :s", {"s": seq})
+    if not rows:
+        raise AuthnError(f"no audit entry {seq}")
+    if sth is None:
+        key = _log_key(log_key)
+        good = [h for h in known_heads(db, sth_log=sth_log, log_key=log_key)
+                if h.sth.tree_size >= seq and h.sth.verify_signature(key.public_key)]
+        best = newest(good)
+        sth = best.sth if best is not None else checkpoint(db, log_key=log_key, sth_log=sth_log)
+    n = sth.tree_size
+    if seq > n:
+        raise AuthnError(f"entry {seq} is not covered by the signed tree head (size {n})")
+    leaves = db.fetch("SELECT leaf_hash FROM audit_log WHERE seq <= :n ORDER BY seq", {"n": n})
+    if len(leaves) != n or any(h is None for (h,) in leaves):
+        raise AuthnError(f"the log does not hold the {n} entries the signed tree head covers; run `authn audit verify`")
+    collector = merkle.RangeCollector(merkle.inclusion_ranges(seq - 1, n))
+    for (h,) in leaves:
+        collector.push(bytes.fromhex(h))
+    if collector.root() != sth.root:
+        raise AuthnError("the log does not match the signed tree head; run `authn audit verify`")
+    entry = _entry_doc(rows[0])
+    body = entry_bytes(entry["seq"], entry["created_at"], entry["kind"], entry["serial"], entry["decision"],
+                       entry["payload"], entry["prev_hash"])
+    if merkle.leaf_hash(body).hex() != leaves[seq - 1][0]:
+        raise AuthnError(f"entry {seq} does not match its leaf hash; run `authn audit verify`")
+    return {"format": PROOF_FORMAT, "entry": entry, "leaf_index": seq - 1, "tree_size": n,
+            "audit_path": [collector.hashes[r].hex() for r in merkle.inclusion_ranges(seq - 1, n)],
+            "sth": sth.to_dict()}
+
+
+
+def verify_proof(doc: Any, public_key: Any) -> str:
+    """Check an inclusion proof with only the log's public key; returns a one-line summary.
+    Raises AuthnError naming what does not hold."""
+    if not isinstance(doc, dict) or doc.get("format") != PROOF_FORMAT:
+        raise AuthnError(f"not an {PROOF_FORMAT} document")
+    sth = SignedTreeHead.from_dict(doc.get("sth"), "proof's signed tree head")
+    if not sth.verify_signature(public_key):
+        raise AuthnError("the proof's signed tree head is not signed by this public key")
+    entry, index, size, path = doc.get("entry"), doc.get("leaf_index"), doc.get("tree_size"), doc.get("audit_path")
+    try:
+        seq = entry["seq"]
+        fields = (entry["created_at"], entry["kind"], entry["serial"], entry["decision"], entry["payload"],
+                  entry["prev_hash"])
+        if type(seq) is not int or type(index) is not int or type(size) is not int:
+            raise TypeError
+        if not all(isinstance(x, str) or x is None for x in fields) or not isinstance(entry["entry_hash"], str):
+            raise TypeError
+        nodes = [bytes.fromhex(p) for p in path]
+        if any(len(p) != 32 for p in nodes) or any(p != p.lower() for p in path):
+            raise ValueError
+    except (KeyError, TypeError, ValueError):
+        raise AuthnError("proof: malformed entry, leaf_index, tree_size or audit_path") from None
+    if size != sth.tree_size:
+        raise AuthnError("proof: tree_size differs from the signed tree head's")
+    if index != seq - 1:
+        raise AuthnError(f"proof: leaf_index {index} is not entry {seq}'s")
+    body = entry_bytes(seq, *fields)
+    if hashlib.sha256(body).hexdigest() != entry["entry_hash"]:
+        raise AuthnError(f"proof: entry {seq} does not match its entry_hash (altered)")
+    if not merkle.verify_inclusion(index, size, merkle.leaf_hash(body), nodes, sth.root):
+        raise AuthnError(f"proof: entry {seq} is not in the tree the signed tree head signed")
+    return (f"ok: entry {seq} is leaf {index} of the log of {size} entries signed at {_when(sth.timestamp)} "
+            f"by key {sth.log_key_id[:16]}")
