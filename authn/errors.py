@@ -59,12 +59,22 @@ def one_line(exc: BaseException) -> str:
     return text or type(exc).__name__
 
 
+#: optional dependencies (pyproject extras) by top-level module: a check needs none of them
+OPTIONAL_EXTRAS = {"sklearn": "train", "skl2onnx": "train", "onnx": "train", "matplotlib": "plot",
+                   "torch": "cnn", "dask": "cluster", "distributed": "cluster", "locust": "dev"}
+
+
 def describe(exc: BaseException) -> str:
     """An exception as the one line the CLI prints after "error: " and the audit keeps: ours
-    as their message, anything else as "internal error: Type: message" (a driver error that
-    SQLAlchemy wraps with the SQL and a link: the driver's message)."""
+    as their message, a missing optional dependency as the extra to install, anything else
+    as "internal error: Type: message" (a driver error that SQLAlchemy wraps with the SQL
+    and a link: the driver's message)."""
     if isinstance(exc, AuthnException):
         return one_line(exc)
+    if isinstance(exc, ModuleNotFoundError) and (exc.name or "").split(".")[0] in OPTIONAL_EXTRAS:
+        extra = OPTIONAL_EXTRAS[(exc.name or "").split(".")[0]]
+        return (f"this command needs the optional '{extra}' dependencies ({exc.name} is not installed): "
+                f"pip install 'uav-radar-authn[{extra}]'")
     orig = getattr(exc, "orig", None)
     if orig is not None:
         return f"internal error: database: {one_line(orig)}"

@@ -1,10 +1,10 @@
 """Where a batch's time goes, and the part of it no implementation of these features avoids.
 
 Two tables for one preset, both per return and as multiples of the FFT floor measured in the
-same run (`authn.bench.perf.fft_floor`, as `authn bench --batch`; docs/benchmarks.md, "Batch mode"):
+same run (`lab.bench.perf.fft_floor`, as `authn bench --batch`; docs/benchmarks.md, "Batch mode"):
 
 * **stages**: `extract_many` + `Classifier.predict_many` on a batch of B of the bench's returns
-  (`authn.bench.batch.curve`'s scenes), with the batch path's stage functions wrapped in timers
+  (`lab.bench.batch.curve`'s scenes), with the batch path's stage functions wrapped in timers
   (cube stage, sub-chirp bins, flash series, periodicity, spectrogram, cadence, the rest of the
   slow stage, the classifier); medians over rounds.
 * **transforms alone**: on random cubes of the preset's shape, in the batch path's precision
@@ -28,8 +28,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from authn.bench import perf
-from authn.bench.batch import _median_ms, returns
+from lab.bench import perf
+from lab.bench.batch import _median_ms, returns
 from signatures import batch_estimators as be
 from signatures import batch_features as bf
 from signatures import estimators as est
@@ -46,7 +46,7 @@ STAGES = ((bf, "_cube_stage"), (bf, "_subchirp_bins"), (be, "flash_series_batch"
 
 
 def _returns(preset: str, batch: int) -> tuple[list, list]:
-    """The batch bench's 60 returns (`authn.bench.batch.returns`), repeated to fill `batch` rows."""
+    """The batch bench's 60 returns (`lab.bench.batch.returns`), repeated to fill `batch` rows."""
     recs, gates = returns(preset)
     rows = [i % len(recs) for i in range(batch)]
     return [recs[i] for i in rows], [gates[i] for i in rows]

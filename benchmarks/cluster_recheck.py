@@ -41,7 +41,7 @@ ONE_THREAD = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
 def _archive(folder: Path, n: int) -> list[Path]:
-    from authn.bench.perf import _files, _mixed_serial
+    from lab.bench.perf import _files, _mixed_serial
 
     folder.mkdir(parents=True, exist_ok=True)
     have = sorted(folder.glob("paper-*.h5"))
@@ -90,7 +90,7 @@ def main() -> None:
     #: Dask's nanny gives each worker (distributed.nanny.pre-spawn-environ), so the one-process
     #: baseline is one process on one core, as each worker is
     os.environ.update({k: "1" for k in ONE_THREAD})
-    from authn.bench.decisions import register_identities
+    from lab.bench.decisions import register_identities
 
     files = _archive(tmp / "returns", args.returns)
     cores = os.cpu_count() or 1

@@ -1,7 +1,7 @@
 """Batched feature extraction (`signatures.batch_features.extract_batch`): time per return
 against batch size, both presets, both FFT backends, the whole extraction and its cube stage
 (scaling, clutter suppression, range FFT, profile, detection, gating) alone, beside the FFT
-floor of one return (`authn.bench.perf.fft_floor`).
+floor of one return (`lab.bench.perf.fft_floor`).
 
     python -m pytest benchmarks/test_bench_batch_features.py --benchmark-enable \
         --benchmark-json=batch.json   # extra_info: ms_per_return, fft_floor_ms, x_floor
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from authn.bench.perf import fft_floor
+from lab.bench.perf import fft_floor
 from signatures import batch_features as bf
 from signatures.dataset import DatasetSpec, draw_scene
 from signatures.profiles import shipped_profiles

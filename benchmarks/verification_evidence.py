@@ -35,12 +35,12 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from authn.bench.decisions import CLAIM_SCENES
-from authn.bench.verification import UNVERIFIED, eer
-from authn.bench.worlds import WORLD_CATEGORIES, _pair
-from signatures.accuracy import WORLDS, render_in_world
+from lab.bench.decisions import CLAIM_SCENES
+from lab.bench.verification import UNVERIFIED, eer
+from lab.bench.worlds import WORLD_CATEGORIES, _pair
+from lab.accuracy import WORLDS, render_in_world
 from signatures.features import extract
-from signatures.heldout import unseen_profiles
+from lab.heldout import unseen_profiles
 from signatures.inference import classifier_for
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import get_preset

@@ -11,7 +11,7 @@ import typer
 if TYPE_CHECKING:
     from rich.console import Console
 
-    from authn.bench.worlds import Trial
+    from lab.bench.worlds import Trial
 
 
 def bench(
@@ -53,7 +53,7 @@ def bench(
     Identity claims in two worlds: genuine claims, type spoofs and airframes never
     trained on (octocopter, 5-inch racer, coaxial X8, tricopter) claiming a registered
     serial, at each --snr, rendered by the training simulator and by the held-out model
-    (signatures.heldout, a different signal model), the same scenes in both; right
+    (lab.heldout, a different signal model), the same scenes in both; right
     decisions side by side, and the verification score's equal error rate and DET
     curves (det-<preset>.png with --plot).
 
@@ -75,10 +75,10 @@ def bench(
     from rich.console import Console
     from rich.progress import Progress
 
-    from authn.bench.decisions import (CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, latency, run_decisions,
+    from lab.bench.decisions import (CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, latency, run_decisions,
                                        summarise)
-    from authn.bench.tables import decision_table, imports_table, pareto_table, stage_table
-    from authn.bench.worlds import WORLD_CATEGORIES, world_choice
+    from lab.bench.tables import decision_table, imports_table, pareto_table, stage_table
+    from lab.bench.worlds import WORLD_CATEGORIES, world_choice
     from signatures.radar import get_preset
 
     if quick:
@@ -97,9 +97,9 @@ def bench(
         _worlds(tuple(preset), worlds, tuple(snr), n, tuple(range(seed, seed + seeds)), n_claims * seeds, plot_dir,
                 as_json)
         return
-    from authn.bench import pareto, perf
-    from authn.bench.variants import DWELL_DIVISORS
-    from authn.bench.worlds import plot_worlds, run_worlds, summarise_worlds
+    from lab.bench import pareto, perf
+    from lab.bench.variants import DWELL_DIVISORS
+    from lab.bench.worlds import plot_worlds, run_worlds, summarise_worlds
 
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n + n_claims)
@@ -184,8 +184,8 @@ def _batch(presets: tuple[str, ...], quick: bool, seed: int, plot_dir: Path | No
     from rich.console import Console
     from rich.progress import Progress
 
-    from authn.bench import batch
-    from authn.bench.tables import batch_table
+    from lab.bench import batch
+    from lab.bench.tables import batch_table
 
     sizes = (1, 8, 64) if quick else batch.SIZES
     report: dict[str, dict[str, object]] = {}
@@ -217,7 +217,7 @@ def _worlds(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float
     from rich.console import Console
     from rich.progress import Progress
 
-    from authn.bench.worlds import plot_worlds, run_worlds, summarise_worlds
+    from lab.bench.worlds import plot_worlds, run_worlds, summarise_worlds
 
     with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task("identity claims in " + " and ".join(worlds), total=total)
@@ -239,7 +239,7 @@ def _print_worlds(console: "Console", trials: "list[Trial]") -> None:
     """The two-world tables, then each cell's wrong decisions by reason."""
     from collections import Counter
 
-    from authn.bench.tables import eer_table, evidence_table, worlds_table
+    from lab.bench.tables import eer_table, evidence_table, worlds_table
 
     console.print(worlds_table(trials))
     console.print(evidence_table(trials))
@@ -257,7 +257,7 @@ def _stress(presets: tuple[str, ...], quick: bool, as_json: bool) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from authn.bench.stress import is_clean, run
+    from lab.bench.stress import is_clean, run
 
     report = run(presets, quick=quick)
     doc = report.as_dict()

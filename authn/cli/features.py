@@ -56,7 +56,7 @@ def accuracy(
 
     Example: authn features accuracy --snr=0,10 --world training --world randomised --world heldout
     """
-    from signatures.accuracy import WORLDS, evaluate
+    from lab.accuracy import WORLDS, evaluate
     from signatures.errors import SignaturesError
 
     try:

@@ -13,7 +13,7 @@ pytest.importorskip("distributed", reason="the cluster extra (pip install '.[clu
 @pytest.fixture(scope="module")
 def archive(tmp_path_factory) -> list[Path]:
     """40 recorded returns: genuine claims, type and position spoofs, unregistered, revoked."""
-    from authn.bench.perf import _files, _mixed_serial
+    from lab.bench.perf import _files, _mixed_serial
 
     folder = tmp_path_factory.mktemp("archive")
     return _files(folder, "paper", 40, 7, _mixed_serial)
@@ -37,7 +37,7 @@ def client(tmp_path_factory):
 @pytest.fixture(params=["sqlite", "postgresql"])
 def registry_url(request, tmp_path):
     """A registry holding the bench identities, on SQLite and (with a server) PostgreSQL."""
-    from authn.bench.decisions import register_identities
+    from lab.bench.decisions import register_identities
     from registry.db import dispose_engines
     from tests.conftest import fresh_pg_database
 

@@ -111,7 +111,7 @@ def test_the_workers_dask_settings_in_the_docs_are_the_local_clusters() -> None:
 
 def test_cli_cluster_check_decides_as_batch_mode(archive, tmp_path, capsys) -> None:
     """`--cluster local` prints the JSON array of batch mode with the same decisions and exit code."""
-    from authn.bench.decisions import register_identities
+    from lab.bench.decisions import register_identities
 
     folder = str(Path(archive[0]).parent)
     urls = [f"sqlite:///{tmp_path / name}.sqlite3" for name in ("batch", "cluster")]
@@ -146,7 +146,7 @@ def test_a_cold_check_does_not_import_the_engine(archive, tmp_path) -> None:
     import subprocess
     import sys
 
-    from authn.bench.decisions import register_identities
+    from lab.bench.decisions import register_identities
 
     url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     register_identities(url)

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from authn.bench.decisions import CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, run_decisions, summarise
-from authn.bench.pareto import Point, _mark_front, near_floor
+from lab.bench.decisions import CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, run_decisions, summarise
+from lab.bench.pareto import Point, _mark_front, near_floor
 
 
 def test_decision_rows_cover_every_category() -> None:
@@ -35,7 +35,7 @@ def test_claim_scenes_are_pinned() -> None:
     import numpy as np
     import pytest
 
-    from authn.bench.decisions import random_scene
+    from lab.bench.decisions import random_scene
 
     rng = np.random.default_rng(0)
     pinned = [("m600", 77.1887409, 32.5308096, 1.57362934, 28.2551115, 14.5899312, 195.704997),
@@ -69,7 +69,7 @@ def test_cold_times_run_real_processes(tmp_path) -> None:
     first-check script raises), and the ratios are computed from the medians."""
     from datetime import datetime, timezone
 
-    from authn.bench.decisions import bench_serial, cold_times, random_scene, register_identities
+    from lab.bench.decisions import bench_serial, cold_times, random_scene, register_identities
     from authn.scenario import Broadcast, simulate_flight
     import numpy as np
     from signatures.radar import get_preset
@@ -88,7 +88,7 @@ def test_cold_times_run_real_processes(tmp_path) -> None:
 def test_pareto_grid_runs_every_configuration_on_one_set() -> None:
     """A tiny grid: every configuration (shipped bundle and retrained RFs) gets a positive
     time, scores in [0, 1] and the front is not empty."""
-    from authn.bench.pareto import CONFIGS, RETRAINED, run
+    from lab.bench.pareto import CONFIGS, RETRAINED, run
 
     pts = run("paper", snrs=(20.0,), per_class=1, seed=3, n_train=60)
     names = [p.name for p in pts]
@@ -120,7 +120,7 @@ def test_bench_quick_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkey
 
 def test_batch_curve_times_every_size_interleaved_beside_the_floor() -> None:
     """`authn bench --batch`: one median per size and the floor over the same rounds (at least 3)."""
-    from authn.bench.batch import curve
+    from lab.bench.batch import curve
 
     c = curve("paper", (1, 8), distinct=5, seed=1, budget_s=0.0)
     assert c["rounds"] == 3

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from authn.bench.verification import UNVERIFIED, eer, roc, verification_score
+from lab.bench.verification import UNVERIFIED, eer, roc, verification_score
 
 scores = st.lists(st.integers(-20, 20), min_size=1, max_size=40)  # integers: ties happen, maps stay strict
 
@@ -60,7 +60,7 @@ def test_verification_score_is_the_checks_own_llr() -> None:
 
 
 def test_world_choice() -> None:
-    from authn.bench.worlds import world_choice
+    from lab.bench.worlds import world_choice
     from authn.errors import BadInput
 
     assert world_choice("both") == ("training", "heldout")
@@ -73,8 +73,8 @@ def test_two_worlds_check_the_same_claims() -> None:
     """One claim per category in each world: the pair of trials shares the scene (airframe,
     claim) and differs only by the renderer; training-world spoofs are rejected; the JSON view
     and the EERs cover every cell."""
-    from authn.bench.worlds import WORLD_CATEGORIES, correct_rates, equal_error_rates, run_worlds, summarise_worlds
-    from signatures.heldout import unseen_profiles
+    from lab.bench.worlds import WORLD_CATEGORIES, correct_rates, equal_error_rates, run_worlds, summarise_worlds
+    from lab.heldout import unseen_profiles
 
     trials = run_worlds(("paper",), ("training", "heldout"), 1, seed=4, snrs=(10.0,))
     assert [(t.category, t.world) for t in trials] == [(c, w) for c in WORLD_CATEGORIES
@@ -97,7 +97,7 @@ def test_two_worlds_check_the_same_claims() -> None:
 def test_summary_names_the_pairs_that_went_wrong() -> None:
     """Which airframe flew and which was claimed, counted over the wrong decisions only: where
     impostors pass is what the next estimator work needs to know."""
-    from authn.bench.worlds import Trial, summarise_worlds
+    from lab.bench.worlds import Trial, summarise_worlds
 
     def trial(flies: str, claims: str, decision: str) -> Trial:
         return Trial("wide", "heldout", 0.0, "type_spoof", flies, claims, decision, ("registered-active",),
@@ -114,8 +114,8 @@ def test_summary_splits_claims_by_rotor_evidence() -> None:
     """A claim whose rotors were not seen rests on the classifier alone: the summary says how
     many were seen, and how many of those were decided right, so that a world's misses split
     into "nothing seen" and "seen but misjudged"."""
-    from authn.bench.verification import eer, rotor_evidence
-    from authn.bench.worlds import Trial, equal_error_rates, evidence_rates, summarise_worlds
+    from lab.bench.verification import eer, rotor_evidence
+    from lab.bench.worlds import Trial, equal_error_rates, evidence_rates, summarise_worlds
 
     def trial(world: str, decision: str, seen: bool) -> Trial:
         return Trial("paper", world, 0.0, "genuine", "m300", "m300", decision, ("registered-active",), "m300",
@@ -174,11 +174,11 @@ def _fits(text: str, values: list[str]) -> None:
 
 
 def test_bench_tables_fit_80_columns() -> None:
-    from authn.bench.decisions import CATEGORIES, EXPECTED, Row
-    from authn.bench.pareto import Point
-    from authn.bench.tables import (decision_table, eer_table, evidence_table, imports_table, pareto_table,
+    from lab.bench.decisions import CATEGORIES, EXPECTED, Row
+    from lab.bench.pareto import Point
+    from lab.bench.tables import (decision_table, eer_table, evidence_table, imports_table, pareto_table,
                                     stage_table, worlds_table)
-    from authn.bench.worlds import Trial
+    from lab.bench.worlds import Trial
 
     rows = [Row(p, c, 300, 299, 300, 1234.5, {}) for p in ("paper", "wide") for c in CATEGORIES]
     _fits(_render(decision_table(rows, 300, EXPECTED)), ["position_spoof", "drip_replayed", "99.7%", "1234.5"])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from authn.bench.stress import run
+from lab.bench.stress import run
 
 
 @pytest.fixture(scope="module")

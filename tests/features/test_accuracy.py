@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from signatures.accuracy import evaluate
+from lab.accuracy import evaluate
 
 N = 30
 

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from authn.bench.stress import cases
+from lab.bench.stress import cases
 from signatures import batch_features as bf
 from signatures import features as F
 from signatures import rd

@@ -15,8 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures.heldout import render, simulate, unseen_profiles
-from signatures.heldout.synthesis import bessel_j, if_cube
+from lab.heldout import render, simulate, unseen_profiles
+from lab.heldout.synthesis import bessel_j, if_cube
 from signatures.profiles import load_profiles, shipped_profiles
 from signatures.radar import C, get_preset
 from signatures.scene import Scene
@@ -151,7 +151,7 @@ def test_shares_no_code_with_the_training_simulator() -> None:
             elif isinstance(node, ast.ImportFrom):
                 names = [node.module or ""] + [f"{node.module}.{a.name}" for a in node.names]
             assert not banned & set(names), f"{path.name} imports {banned & set(names)}"
-    code = "import sys, signatures.heldout; print(sorted(m for m in sys.modules if m in %r))" % (banned,)
+    code = "import sys, lab.heldout; print(sorted(m for m in sys.modules if m in %r))" % (banned,)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

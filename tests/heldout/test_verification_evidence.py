@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from authn.bench.verification import UNVERIFIED
+from lab.bench.verification import UNVERIFIED
 
 
 @pytest.fixture(scope="module")

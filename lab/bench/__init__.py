@@ -11,7 +11,7 @@ simulated claims and measures it:
 * `variants`: the feature variants (shorter dwell, quick tier) the front retrains on;
 * `stress`: the numerical stress suite (hostile but legal inputs, and illegal ones).
 
-Submodules are imported on demand (`from authn.bench import pareto`): importing the package
+Submodules are imported on demand (`from lab.bench import pareto`): importing the package
 loads nothing heavy.
 """
 

@@ -18,9 +18,9 @@ from importlib import resources
 import numpy as np
 
 from signatures.errors import SignaturesError
-from signatures.heldout.airframe import AirframeTruth, uav_points
-from signatures.heldout.receiver import ReceiverTruth, clutter, receive, thermal_noise
-from signatures.heldout.synthesis import if_cube
+from lab.heldout.airframe import AirframeTruth, uav_points
+from lab.heldout.receiver import ReceiverTruth, clutter, receive, thermal_noise
+from lab.heldout.synthesis import if_cube
 from signatures.profiles import UavProfile, parse_profiles
 from signatures.radar import C, Preset, RadarConfig
 from signatures.recording import RadarSite, Recording

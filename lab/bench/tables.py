@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING, Any
 from rich.table import Table
 
 if TYPE_CHECKING:
-    from authn.bench.decisions import Row
-    from authn.bench.pareto import Point
-    from authn.bench.worlds import Trial
+    from lab.bench.decisions import Row
+    from lab.bench.pareto import Point
+    from lab.bench.worlds import Trial
 
 WORLD_HEADERS = {"training": "training sim", "heldout": "held-out sim"}
 
@@ -64,7 +64,7 @@ def imports_table(imports: dict[str, float]) -> Table:
 
 def worlds_table(trials: list["Trial"]) -> Table:
     """Share of right decisions per preset, SNR and claim, one column per world."""
-    from authn.bench.worlds import WORLD_EXPECTED, correct_rates
+    from lab.bench.worlds import WORLD_EXPECTED, correct_rates
 
     rates = correct_rates(trials)
     worlds = list(dict.fromkeys(t.world for t in trials))
@@ -81,7 +81,7 @@ def worlds_table(trials: list["Trial"]) -> Table:
 def evidence_table(trials: list["Trial"]) -> Table:
     """Per preset, SNR and claim, one column per world: the share of returns whose rotors were
     seen (the physics term ran) and the share of right decisions among them."""
-    from authn.bench.worlds import evidence_rates
+    from lab.bench.worlds import evidence_rates
 
     rates = evidence_rates(trials)
     worlds = list(dict.fromkeys(t.world for t in trials))
@@ -101,7 +101,7 @@ def evidence_table(trials: list["Trial"]) -> Table:
 
 def eer_table(trials: list["Trial"]) -> Table:
     """Equal error rate of the verification score, genuine against each impostor kind."""
-    from authn.bench.worlds import equal_error_rates
+    from lab.bench.worlds import equal_error_rates
 
     eers = equal_error_rates(trials)
     worlds = list(dict.fromkeys(t.world for t in trials))

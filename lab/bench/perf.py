@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from authn.bench.decisions import UNREGISTERED, bench_serial, random_scene, register_identities
+from lab.bench.decisions import UNREGISTERED, bench_serial, random_scene, register_identities
 from authn.scenario import Broadcast, simulate_flight
 from signatures.radar import get_preset
 from signatures.recording import write_recording

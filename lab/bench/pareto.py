@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from authn.bench.variants import (features_half, features_quarter, features_quarter_quick, features_quick,
+from lab.bench.variants import (features_half, features_quarter, features_quarter_quick, features_quick,
                                   features_third)
 from signatures.features import FEATURE_NAMES, QUICK_FEATURES, extract
 from signatures.profiles import shipped_profiles

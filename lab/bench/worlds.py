@@ -2,12 +2,12 @@
 
 The same scenes (geometry, SNR, clutter, Remote ID, simulator seed) are rendered once by
 `signatures.simulate` (the world the classifiers were fitted to) and once by
-`signatures.heldout` (a different signal model they never saw), and each return is checked
-by the real `Checker` against the bench registry (`authn.bench.decisions`). Claims:
+`lab.heldout` (a different signal model they never saw), and each return is checked
+by the real `Checker` against the bench registry (`lab.bench.decisions`). Claims:
 genuine (a registered serial, its true airframe), type spoofs (a serial registered as one
-shipped model, flown by another) and unseen airframes (`signatures.heldout.unseen_profiles`,
+shipped model, flown by another) and unseen airframes (`lab.heldout.unseen_profiles`,
 never trained on) claiming a registered serial. Each return is also scored for verification
-(`authn.bench.verification.verification_score`: the check's own LLR). Nothing here may be used to train or tune anything.
+(`lab.bench.verification.verification_score`: the check's own LLR). Nothing here may be used to train or tune anything.
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from authn.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
-from authn.bench.verification import eer, rotor_evidence, verification_score
+from lab.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
+from lab.bench.verification import eer, rotor_evidence, verification_score
 from authn.scenario import Broadcast, remote_id_rows, simulate_flight
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import Preset, get_preset
@@ -78,7 +78,7 @@ def render_claim(world: str, scene: Scene, preset: Preset, seed: int, broadcast:
     """The return of `scene` in `world`, carrying the drone's Remote ID."""
     if world == "training":
         return simulate_flight(scene, preset, seed, broadcast, azimuth_deg=azimuth_deg, start_time=start_time)[0]
-    from signatures import heldout
+    from lab import heldout
 
     rec, _ = heldout.simulate(scene, preset, seed, start_time=start_time)
     rows, times = remote_id_rows(rec, scene, broadcast, azimuth_deg, preset.dwell_s)
@@ -98,7 +98,7 @@ def run_worlds(presets: tuple[str, ...], worlds: tuple[str, ...], n: int, seed: 
                snrs: tuple[float, ...] = DEFAULT_SNRS, progress: Callable[[int], None] | None = None) -> list[Trial]:
     """n claims per category, SNR and preset, each checked in every world (same scene and seed)."""
     from authn.check import Checker
-    from signatures.heldout import unseen_profiles
+    from lab.heldout import unseen_profiles
 
     profiles: dict[str, UavProfile] = {**shipped_profiles(), **unseen_profiles()}
     slugs, unseen = list(shipped_profiles()), list(unseen_profiles())
@@ -197,7 +197,7 @@ def summarise_worlds(trials: list[Trial]) -> dict[str, object]:
 def plot_worlds(trials: list[Trial], folder: Path) -> list[Path]:
     """`det-<preset>.png`: genuine against type spoofs and against unseen airframes, one curve per
     SNR and world (training solid, held-out dashed)."""
-    from authn.bench.verification import plot_det
+    from lab.bench.verification import plot_det
 
     groups = _group(trials)
     written = []

@@ -6,7 +6,7 @@ yaw, blade-to-body ratio and rotor phases (the simulator's defaults). SNR as in
 the simulator: target over noise power per IF sample, before processing gain.
 Worlds: `training` (the simulator the classifiers were fitted to), `randomised` (the same
 with a domain-randomisation draw per scene, `sampling.NuisanceDistribution`) and `heldout`
-(the independent signal model, `signatures.heldout`: measured, never tuned on).
+(the independent signal model, `lab.heldout`: measured, never tuned on).
 Truth: flash rate = the profile's flashes per turn x the mean rotor rate flown; rotor count;
 range at the first chirp; radial velocity (at mid-dwell where the target accelerates).
 """
@@ -59,7 +59,7 @@ def render_in_world(world: str, scene: Scene, preset, seed: int):
     if world not in WORLDS:
         raise ValueError(f"world {world!r} is not one of {', '.join(WORLDS)}")
     if world == "heldout":
-        from signatures import heldout
+        from lab import heldout
 
         rec, truth = heldout.simulate(scene, preset, seed)
         return rec, truth.rotor_rate_hz, truth.range_m, truth.radial_speed_mps

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from authn.bench.decisions import bench_serial, register_identities
+from lab.bench.decisions import bench_serial, register_identities
 from authn.scenario import Broadcast, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset

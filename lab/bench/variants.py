@@ -1,4 +1,4 @@
-"""Feature variants the run-time-against-error grid (`authn.bench.pareto`) retrains a classifier
+"""Feature variants the run-time-against-error grid (`lab.bench.pareto`) retrains a classifier
 on: a shorter dwell (the first 1/2, 1/3 or 1/4 of the chirps) and the quick tier.
 
 Each is a named module-level function because the training-set cache key names the featurizer

@@ -31,7 +31,7 @@ def _median_ms(fn: Callable[[], object], repeats: int) -> float:
 def returns(preset: str, distinct: int = 64, seed: int = 5) -> tuple[list, list[float | None]]:
     """The bench's returns: `distinct` // 5 simulated scenes per class at 10 dB (the shipped
     UAVs, a bird, an empty scene), as (recordings, their gates' expected ranges)."""
-    from authn.bench import pareto
+    from lab.bench import pareto
 
     data = [(rec, pareto._gate_of(label, rec, truth))
             for _, label, rec, truth in pareto._scenes(preset, (10.0,), max(1, distinct // 5), seed)]
@@ -49,7 +49,7 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
     **interleaved**: each round times the floor, the single path and every batch size once, in
     turn, so that a shared machine's drift hits them alike; rounds repeat until `budget_s` has
     passed (at least 3, at most 50), medians over rounds."""
-    from authn.bench import perf
+    from lab.bench import perf
     from signatures.batch_features import batch_size, extract_many
     from signatures.features import extract
     from signatures.inference import load_classifier
@@ -94,7 +94,7 @@ def accuracy(preset: str, per_class: int = 20, seed: int = 5) -> dict[str, objec
     """Macro F1 per SNR of the default configuration (gated features + ensemble, open set off as in
     the run-time-against-error grid) with single-return and with batched features, same returns,
     and the largest feature difference between the two paths (relative to max(|value|, 1))."""
-    from authn.bench import pareto
+    from lab.bench import pareto
     from signatures.batch_features import extract_many
     from signatures.evaluate import metrics
     from signatures.features import extract
@@ -126,8 +126,8 @@ def registry_only(preset: str, n: int = 200, seed: int = 5) -> dict[str, float]:
     """Registry-only rejections (an unregistered serial) in batch mode (`Checker.decide_many`,
     then one audit transaction), per check, against the I/O floor of the same files measured in
     the same run: open + validate (`read_recording`) + SHA-256 of the file + one Cedar decision."""
-    from authn.bench.decisions import UNREGISTERED, register_identities
-    from authn.bench.perf import _files
+    from lab.bench.decisions import UNREGISTERED, register_identities
+    from lab.bench.perf import _files
     from authn.check import Checker, Failure
     from authn.evidence import Evidence, RegistryFacts, read_claim
     from signatures.recording import read_recording

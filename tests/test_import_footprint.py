@@ -1,0 +1,54 @@
+"""A check needs only the product: training, plotting and the laboratory stay out of its
+process (they are pyproject extras), and a command that needs a missing extra names it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+from authn.errors import describe
+
+OPTIONAL = ("sklearn", "skl2onnx", "onnx", "matplotlib", "torch", "dask", "distributed", "locust", "lab")
+
+PROBE = """
+import json, sys
+from authn.cli import main
+code = main(sys.argv[1:])
+print(json.dumps({"code": code, "modules": sorted({m.split('.')[0] for m in sys.modules})}), file=sys.stderr)
+"""
+
+
+def test_a_check_imports_no_optional_dependency(tmp_path: Path) -> None:
+    from authn.demo import register_examples
+    from authn.scenario import Broadcast, simulate_flight
+    from signatures.profiles import shipped_profiles
+    from signatures.radar import get_preset
+    from signatures.recording import write_recording
+    from signatures.scene import Scene
+
+    url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    register_examples(url)
+    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
+                  elevation_deg=10.0)
+    rec, _ = simulate_flight(scene, get_preset("paper"), 3, Broadcast(serial="1581BDEM00000002"), azimuth_deg=60.0,
+                             start_time=datetime.now(timezone.utc))
+    genuine = write_recording(rec, tmp_path / "genuine.h5")
+    proc = subprocess.run([sys.executable, "-c", PROBE, "--db", url, "check", str(genuine), "--json"],
+                          capture_output=True, text=True, timeout=120)
+    report = json.loads(proc.stderr.strip().splitlines()[-1])
+    assert report["code"] == 0, proc.stderr
+    assert json.loads(proc.stdout)["decision"] == "accept"
+    loaded = set(report["modules"]) & set(OPTIONAL)
+    assert not loaded, f"a check imported {sorted(loaded)}"
+    assert "onnxruntime" in report["modules"] or "numpy" in report["modules"]
+
+
+def test_a_missing_extra_is_named() -> None:
+    exc = ModuleNotFoundError("No module named 'sklearn'", name="sklearn")
+    line = describe(exc)
+    assert "'train'" in line and "pip install 'uav-radar-authn[train]'" in line
+    assert describe(ModuleNotFoundError("x", name="matplotlib.pyplot")).count("[plot]") == 1
+    assert describe(ModuleNotFoundError("x", name="numpy")).startswith("internal error")
