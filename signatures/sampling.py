@@ -3,7 +3,7 @@
 What a random scene is: a target (a UAV profile, a bird or nothing), where it is (range and
 elevation), how it moves (hovering, or a radial speed of either sign), how loud it is (SNR)
 and whether ground clutter surrounds it. `sample_scene` draws one from a `SceneDistribution`;
-the training sets (`signatures.dataset`) and the benchmarks (`authn.bench`) each own their
+the training sets (`signatures.dataset`) and the benchmarks (`lab.bench`) each own their
 distribution and call this one sampler.
 
 Why a module of its own, beside `signatures.scene` rather than inside `signatures.dataset`:
