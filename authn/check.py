@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from authn.audit import NewEntry, append
-from authn.errors import EXIT_BAD_INPUT, describe, exit_code_for
+from core.errors import EXIT_BAD_INPUT, describe, exit_code_for
 from authn.evidence import (Claim, Evidence, KinematicsEvidence, RadarEvidence, RegistryFacts, RemoteIdAuth,
                             authenticate, read_claim)
 from authn.kinematics import expected_from_radar, residuals, sanity
@@ -295,7 +295,7 @@ class Checker:
         policy engine) stops the batch (`Batch.fault`). Radar timings are each return's share.
         `stop()` is asked before each return is read: once true, the returns read so far are
         decided and the rest are left out of `Batch.items`."""
-        from authn.errors import SystemFault
+        from core.errors import SystemFault
         from signatures.batch_features import batch_size
 
         done: dict[int, Outcome | Failure] = {}
@@ -346,7 +346,7 @@ class Checker:
         """Features of every pending return in batches, classes per bundle, then each decision."""
         import numpy as np
 
-        from authn.errors import SystemFault
+        from core.errors import SystemFault
         from signatures.batch_features import extract_many
 
         if not pending:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from typing import Any
 
-from authn.errors import AuthnError
+from core.errors import AuthnError
 from authn.kinematics import DeclaredState, Expected, Residuals
 
 __all__ = ["Claim", "RegistryFacts", "RemoteIdAuth", "RadarEvidence", "KinematicsEvidence", "Evidence", "authenticate",

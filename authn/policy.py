@@ -25,7 +25,7 @@ from typing import Any
 
 import cedarpy
 
-from authn.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault
 
 ACTION = {"type": "Action", "id": "authenticate"}
 SITE_ID = "site"

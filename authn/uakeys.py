@@ -11,7 +11,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from authn.errors import BadInput
+from core.errors import BadInput
 
 __all__ = ["DEFAULT_RAA", "DEFAULT_HDA", "UaKey", "det_of", "generate", "load", "load_trusted_registries",
            "read_public_key_arg"]
@@ -122,7 +122,7 @@ def load(path: Path, raa: int = DEFAULT_RAA, hda: int = DEFAULT_HDA) -> UaKey:
 def load_trusted_registries(path: Path) -> dict[bytes, bytes]:
     """Registries (HDAs) whose DRIP Links the site trusts: a JSON file
     `{"registries": [{"det": "<HDA DET, hex or IPv6 text>", "public_key": "<64 hex digits>"}]}`."""
-    from authn.parsing import JsonTooDeep, loads_json
+    from core.parsing import JsonTooDeep, loads_json
     from registry.remoteid.drip import DripError, parse_det
 
     try:

@@ -69,7 +69,7 @@ def alembic_config(connection: Connection | None = None):
     """Alembic Config built in code: works from an installed package, no alembic.ini."""
     from alembic.config import Config
 
-    import migrations
+    from registry import migrations
 
     cfg = Config()
     cfg.set_main_option("script_location", str(Path(migrations.__file__).parent))
@@ -81,7 +81,7 @@ def _is_current(conn: Connection) -> bool:
     """One SELECT against `alembic_version` (Alembic itself is imported only to upgrade)."""
     from sqlalchemy import inspect
 
-    import migrations
+    from registry import migrations
 
     if not inspect(conn).has_table("alembic_version"):  # a failed SELECT would abort a PostgreSQL transaction
         return migrations.is_current(None)

@@ -115,7 +115,7 @@ class Database:
             raise DatabaseFault(f"database {what} failed: {_first_line(exc)}") from None
 
     def _current(self, conn: Any) -> bool:
-        import migrations
+        from registry import migrations
 
         try:
             rows = self._fetch(conn, migrations.VERSION_QUERY, {})

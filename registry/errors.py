@@ -1,6 +1,6 @@
 """Errors of the registry layer: the caller's fault (exit code 2) or the database's (exit code 3)."""
 
-from authn.errors import BadInput, SystemFault
+from core.errors import BadInput, SystemFault
 
 __all__ = ["RegistryError", "DatabaseFault"]
 

@@ -53,8 +53,8 @@ from sqlalchemy import select
 from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.orm import Session
 
-from authn.errors import BadInput
-from authn.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
+from core.errors import BadInput
+from core.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile, utcnow
 from registry.serials import validate_uas_id

@@ -1,6 +1,6 @@
 """Errors of the radar layer that are the caller's fault (exit code 2)."""
 
-from authn.errors import BadInput
+from core.errors import BadInput
 
 __all__ = ["SignaturesError", "RecordingError"]
 

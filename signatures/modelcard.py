@@ -14,7 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from authn.parsing import JsonTooDeep, loads_json
+from core.parsing import JsonTooDeep, loads_json
 from signatures.errors import SignaturesError
 
 __all__ = ["CARD_FORMAT", "CARD_NAME", "ModelIntegrityError", "card_bytes", "library_versions", "read_card",

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from authn.parsing import JsonTooDeep, first_error, loads_json
+from core.parsing import JsonTooDeep, first_error, loads_json
 from signatures.errors import SignaturesError
 
 #: Classes the radar knows besides UAV profiles.

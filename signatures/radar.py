@@ -17,7 +17,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from authn.parsing import JsonTooDeep, loads_json
+from core.parsing import JsonTooDeep, loads_json
 from signatures.profiles import UavProfile
 
 C = 299_792_458.0  # speed of light, m/s

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from authn.parsing import first_error, parse_iso_time
+from core.parsing import first_error, parse_iso_time
 from signatures.errors import RecordingError
 from signatures.radar import RadarConfig
 

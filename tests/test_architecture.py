@@ -1,5 +1,7 @@
-"""The module graph stays a graph without cycles: module-level imports between our own
-modules (imports inside functions are deferred on purpose and do not count)."""
+"""The layers of docs/architecture.md hold: every import between our packages, at module
+level or inside a function, goes down (or stays within a layer), and the module-level
+graph has no cycles (imports inside functions are deferred on purpose: they may close a
+loop within a layer, never cross upwards)."""
 
 from __future__ import annotations
 
@@ -7,7 +9,17 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("authn", "registry", "signatures", "migrations")
+PACKAGES = ("core", "signatures", "registry", "authn", "lab")
+
+#: bottom to top; a module belongs to the longest prefix listed
+LAYERS = (
+    ("core",),                      # errors, exit codes, shared parsing, untrusted-text escaping
+    ("signatures",),                # radar: returns, features, classifiers, simulator
+    ("registry",),                  # storage (models, migrations, db) and the registry; Remote ID codec
+    ("authn",),                     # decision, audit, service, cluster
+    ("lab",),                       # benchmarks, the held-out world, accuracy runs
+    ("authn.cli", "authn.__main__"),  # the command line, composing all of the above
+)
 
 
 def _module_name(path: Path) -> str:
@@ -15,23 +27,41 @@ def _module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def _graph() -> dict[str, set[str]]:
-    modules = {_module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")
-               if "versions" not in p.parts}
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
+
+
+def _imports(path: Path, module_level: bool) -> list[str]:
+    tree = ast.parse(path.read_text())
+    nodes = tree.body if module_level else ast.walk(tree)
+    out: list[str] = []
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out += [f"{node.module}.{a.name}" for a in node.names] + [node.module]
+    return out
+
+
+def _graph(module_level: bool = True) -> dict[str, set[str]]:
+    modules = _modules()
     graph: dict[str, set[str]] = {m: set() for m in modules}
     for name, path in modules.items():
-        for node in ast.parse(path.read_text()).body:  # module level only
-            targets: list[str] = []
-            if isinstance(node, ast.Import):
-                targets = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                targets = [f"{node.module}.{a.name}" for a in node.names] + [node.module]
-            for target in targets:
-                while target and target not in modules:
-                    target = target.rpartition(".")[0]
-                if target and target != name:
-                    graph[name].add(target)
+        for target in _imports(path, module_level):
+            while target and target not in modules:
+                target = target.rpartition(".")[0]
+            if target and target != name:
+                graph[name].add(target)
     return graph
+
+
+def layer_of(module: str) -> int:
+    best, level = -1, -1
+    for i, prefixes in enumerate(LAYERS):
+        for p in prefixes:
+            if (module == p or module.startswith(p + ".")) and len(p) > best:
+                best, level = len(p), i
+    return level
 
 
 def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
@@ -54,6 +84,22 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
         if node not in state and (found := visit(node)):
             return found
     return None
+
+
+def test_every_module_has_a_layer() -> None:
+    assert all(layer_of(m) >= 0 for m in _modules())
+
+
+def test_imports_only_go_down_inside_functions_too() -> None:
+    graph = _graph(module_level=False)
+    assert sum(len(v) for v in graph.values()) > 300
+    up = sorted(f"{a} -> {b}" for a, targets in graph.items() for b in targets if layer_of(b) > layer_of(a))
+    assert not up, "imports that go up a layer:\n" + "\n".join(up)
+
+
+def test_layer_check_finds_a_planted_upward_import() -> None:
+    assert layer_of("registry.store") < layer_of("authn.check") < layer_of("lab.bench") < layer_of("authn.cli.check")
+    assert layer_of("core.errors") == 0
 
 
 def test_no_import_cycles() -> None:

@@ -9,7 +9,7 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
-from authn.errors import describe
+from core.errors import describe
 
 OPTIONAL = ("sklearn", "skl2onnx", "onnx", "matplotlib", "torch", "dask", "distributed", "locust", "lab")
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
-from authn.parsing import MAX_JSON_DEPTH, JsonTooDeep, loads_json, parse_iso_time
+from core.parsing import MAX_JSON_DEPTH, JsonTooDeep, loads_json, parse_iso_time
 
 SERIAL = "1581F5FJD12345678901"
 OUT_OF_RANGE = ["0001-01-01T00:00:00+23:59", "0001-01-01T00:00:00+00:01", "9999-12-31T23:59:59-23:59"]
@@ -37,7 +37,7 @@ def db(tmp_path: Path) -> str:
 
 @pytest.mark.parametrize("when", OUT_OF_RANGE)
 def test_parse_iso_time_refuses_what_utc_cannot_hold(when: str) -> None:
-    from authn.errors import BadInput
+    from core.errors import BadInput
 
     with pytest.raises(BadInput, match="out of range"):
         parse_iso_time(when, "--valid-from")
@@ -147,7 +147,7 @@ def test_trust_registry_file_of_deep_json_is_exit_2(capsys, db: str, tmp_path: P
 @pytest.mark.parametrize("depth", [MAX_JSON_DEPTH + 1, 5000])
 @pytest.mark.parametrize("reader", ["radar", "profiles", "dca1000", "modelcard"])
 def test_other_json_readers_refuse_deep_documents(tmp_path: Path, reader: str, depth: int) -> None:
-    from authn.errors import AuthnException
+    from core.errors import AuthnException
 
     path = tmp_path / ("card.json" if reader == "modelcard" else "doc.json")
     path.write_text('{"a": ' + _deep(depth) + "}")

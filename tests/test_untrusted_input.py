@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
-from authn.textsafe import printable
+from core.textsafe import printable
 
 ESC = "\x1b"
 SERIAL = "1581F5FJD12345678901"

@@ -24,7 +24,7 @@ from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, read_sth_log, sth_log_path, \
     write_latest_head
 from authn.audit.witness import Conflict, HttpWitness, WitnessStore, open_witness
-from authn.errors import AuthnError, SystemFault, one_line
+from core.errors import AuthnError, SystemFault, one_line
 from registry.dbapi import Database
 
 ENV_ORIGIN = "AUTHN_AUDIT_ORIGIN"

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from authn.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault
 
 ENV_KEY = "AUTHN_LOG_KEY"
 ENV_STH_LOG = "AUTHN_AUDIT_STH_LOG"

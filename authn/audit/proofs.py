@@ -13,7 +13,7 @@ from authn.audit.heads import _log_key, known_heads, newest
 from authn.audit.logkey import SignedTreeHead
 from authn.audit.signer import checkpoint
 from authn.audit.verifier import _when
-from authn.errors import AuthnError
+from core.errors import AuthnError
 from registry.dbapi import Database
 
 PROOF_FORMAT = "authn-inclusion-proof/1"

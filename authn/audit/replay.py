@@ -6,7 +6,7 @@ import hashlib
 from dataclasses import dataclass
 
 from authn.audit.entries import get_entry, get_policy
-from authn.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault
 from registry.dbapi import Database
 
 @dataclass(frozen=True)

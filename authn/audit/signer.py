@@ -15,7 +15,7 @@ from authn.audit.heads import _KEYS, HeadPlaces, _log_key, _store_head, log_orig
 from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, create_key_file, load_retired_keys, \
     retired_keys_path, write_latest_head
 from authn.audit.verifier import VerifyReport, verify
-from authn.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault
 from registry.dbapi import Database
 
 def _verified(db: Database, places: HeadPlaces, key: LogKey) -> VerifyReport:

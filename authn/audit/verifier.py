@@ -13,7 +13,7 @@ import authn.audit.merkle as merkle
 from authn.audit.entries import GENESIS, _iso_db, _rows, entry_bytes
 from authn.audit.heads import KnownHead, accepted_keys, log_origin
 from authn.audit.logkey import SignedTreeHead
-from authn.errors import AuthnError
+from core.errors import AuthnError
 from registry.dbapi import Database
 
 @dataclass(frozen=True)

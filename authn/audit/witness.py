@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import authn.audit.merkle as merkle
-from authn.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault
 from authn.audit.logkey import SignedTreeHead, parse_note
 
 ENV_WITNESS = "AUTHN_AUDIT_WITNESS"

@@ -39,7 +39,7 @@ from authn.audit.entries import _COLUMNS, GENESIS, Entry, NewEntry, _iso, _row_b
 from authn.audit.heads import HeadPlaces, KnownHead, _check_head, _head_of, _HEAD_COLUMNS, _Signed, _store_head, \
     log_origin, writer_key
 from authn.audit.logkey import LogKey, SignedTreeHead, canonical_json
-from authn.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault
 from registry.dbapi import Database
 
 ENV_EVERY = "AUTHN_AUDIT_CHECKPOINT_EVERY"

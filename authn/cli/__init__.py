@@ -22,8 +22,8 @@ from authn.cli import (audit, bench, check, db, demo, features, importer, inspec
                        simulate)
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
-from authn.errors import AuthnException, describe, exit_code_for
-from authn.textsafe import printable
+from core.errors import AuthnException, describe, exit_code_for
+from core.textsafe import printable
 
 __all__ = ["app", "main", "run"]
 

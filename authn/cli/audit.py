@@ -13,7 +13,7 @@ from pathlib import Path
 import typer
 
 from authn.cli.state import CliState
-from authn.parsing import parse_iso_time
+from core.parsing import parse_iso_time
 
 LOG_KEY_HELP = "Ed25519 log key (PEM; default $AUTHN_LOG_KEY, else audit-log-key.pem in the user data dir)."
 STH_LOG_HELP = "JSON-lines file of automatic signed tree heads (default $AUTHN_AUDIT_STH_LOG, else beside the key)."
@@ -23,7 +23,7 @@ audit_app = typer.Typer(help="Read and verify the tamper-evident audit log.", no
 
 
 def _write(text: str, out: Path | None) -> None:
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
 
     if out is None:
         typer.echo(text, nl=False)
@@ -41,7 +41,7 @@ def _entry_json(e) -> dict:
 
 
 def _since(text: str | None) -> datetime | None:
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
 
     if text is None:
         return None
@@ -63,7 +63,7 @@ def list_cmd(
     Example: authn audit list --decision reject --since 2026-01-01
     """
     from authn.audit import list_entries
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from registry.dbapi import Database
 
     if decision not in (None, "accept", "reject", "error", "registry"):
@@ -78,7 +78,7 @@ def list_cmd(
     from rich.console import Console
     from rich.table import Table
 
-    from authn.textsafe import cell
+    from core.textsafe import cell
 
     table = Table(title=f"audit log ({len(entries)} entries)",
                   caption="one entry in full, hashes included: `authn audit show SEQ`")
@@ -122,7 +122,7 @@ def show_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry numb
     Example: authn audit show 42
     """
     from authn.audit import get_entry
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from registry.dbapi import Database
 
     entry = get_entry(Database(ctx.obj.db_url), seq)
@@ -219,7 +219,7 @@ def checkpoint_cmd(
     Example: authn audit checkpoint --note --out /mnt/elsewhere/checkpoint-$(date +%F)
     """
     from authn.audit import checkpoint
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from registry.dbapi import Database
 
     try:
@@ -250,7 +250,7 @@ def rotate_key_cmd(
     Example: authn audit rotate-key --witness /mnt/witness
     """
     from authn.audit import rotate_key
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from registry.dbapi import Database
 
     try:
@@ -327,7 +327,7 @@ def prove_cmd(
     Example: authn audit prove 42 --out entry-42.proof.json
     """
     from authn.audit import prove
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from authn.audit.logkey import SignedTreeHead
     from registry.dbapi import Database
 
@@ -348,7 +348,7 @@ def verify_proof_cmd(
     Example: authn audit verify-proof entry-42.proof.json --public-key authn-log.pub
     """
     from authn.audit import verify_proof
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from authn.audit.logkey import load_public_key
 
     key = load_public_key(public_key)

@@ -27,7 +27,7 @@ CHECK_CHUNK = 256
 
 
 def _files(paths: list[Path]) -> list[Path]:
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
 
     out: list[Path] = []
     for p in paths:
@@ -43,7 +43,7 @@ def _files(paths: list[Path]) -> list[Path]:
 
 def _claims(path: Path) -> dict[str, str]:
     """file,serial CSV -> {file name or path: serial}."""
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
 
     try:
         reader = csv.DictReader(path.read_text().splitlines())
@@ -68,7 +68,7 @@ def _print_outcome(o) -> None:
 
     from rich.text import Text
 
-    from authn.textsafe import cell, printable
+    from core.textsafe import cell, printable
 
     console = Console()
     colour = "green" if o.decision == "accept" else "red"
@@ -172,7 +172,7 @@ def _record_failure(db_url, failures) -> None:
 
 def _single(checker, path: Path, serial: str | None, as_json: bool) -> None:
     from authn.check import Failure
-    from authn.errors import EXIT_BAD_INPUT, SystemFault
+    from core.errors import EXIT_BAD_INPUT, SystemFault
 
     try:
         outcome = checker.evaluate(path, serial)
@@ -231,7 +231,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     from rich.progress import Progress
 
     from authn.check import Failure
-    from authn.errors import EXIT_SYSTEM, SystemFault
+    from core.errors import EXIT_SYSTEM, SystemFault
 
     results: list = []
     out = sys.stdout
@@ -265,7 +265,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     else:
         _print_summary(results, len(paths))
     failures = [r for r in results if isinstance(r, Failure)]
-    from authn.textsafe import printable
+    from core.textsafe import printable
 
     for f in failures:
         print(printable(f"error: {f.file}: {f.error}"), file=sys.stderr)
@@ -282,7 +282,7 @@ def _print_summary(results: list, total: int) -> None:
     from rich.table import Table
 
     from authn.check import Failure
-    from authn.textsafe import cell
+    from core.textsafe import cell
 
     outcomes = [r for r in results if not isinstance(r, Failure)]
     failures = [r for r in results if isinstance(r, Failure)]

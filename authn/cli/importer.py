@@ -59,7 +59,7 @@ def dca1000(
     """
     from pydantic import ValidationError
 
-    from authn.parsing import first_error
+    from core.parsing import first_error
     from signatures.errors import SignaturesError
     from signatures.importers.dca1000 import Selection, dwells, load_config
     from signatures.importers.dwell import Capture

@@ -10,8 +10,8 @@ from typing import Optional
 
 import typer
 
-from authn.parsing import parse_iso_time
-from authn.textsafe import printable
+from core.parsing import parse_iso_time
+from core.textsafe import printable
 
 
 registry_app = typer.Typer(help="Inspect and change the registry of authorised UAVs.",
@@ -22,7 +22,7 @@ _PROFILE_OPTS = ("rotors", "arms", "blades_per_rotor", "blade_length_m", "rotor_
 
 
 def _time(value: Optional[str], option: str) -> Optional[datetime]:
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
 
     if value is None:
         return None
@@ -134,7 +134,7 @@ def register_cmd(
 def _table(records, title: str):
     from rich.table import Table
 
-    from authn.textsafe import cell
+    from core.textsafe import cell
 
     t = Table(title=title, caption="all fields: `authn registry show SERIAL` or --json")
     t.add_column("serial", overflow="fold", min_width=16)  # a DRIP session ID is 34 characters
@@ -198,7 +198,7 @@ def show_cmd(
     from rich.console import Console
     from rich.table import Table
 
-    from authn.textsafe import cell
+    from core.textsafe import cell
 
     t = Table(title=cell(rec.serial), show_header=False)  # notes, names: imported text, escaped
     data = _record_json(rec)
@@ -353,7 +353,7 @@ def models_cmd(
     from rich.console import Console
     from rich.table import Table
 
-    from authn.textsafe import cell
+    from core.textsafe import cell
 
     t = Table(title="model profiles")
     for col in ("slug", "name", "rotors", "arms", "blades", "blade m", "rotor Hz", "prop. dist. m"):

@@ -75,7 +75,7 @@ def decode_cmd(
     from rich.console import Console
     from rich.table import Table
 
-    from authn.textsafe import cell
+    from core.textsafe import cell
 
     t = Table(title=f"{len(rows)} Remote ID messages")
     for col in ("#", "captured", "transport", "type", "v", "fields"):
@@ -97,7 +97,7 @@ def _print_auth(wire: list, public_key: Optional[str], at: Optional[str], as_jso
         return
     from datetime import datetime, timezone
 
-    from authn.parsing import parse_iso_time
+    from core.parsing import parse_iso_time
     from registry.remoteid.drip import det_matches_key, det_to_text, parse_sam, reassemble, valid_time_text, verify
 
     when = datetime.now(timezone.utc) if at is None else parse_iso_time(at, "--at")
@@ -125,7 +125,7 @@ def _print_auth(wire: list, public_key: Optional[str], at: Optional[str], as_jso
         typer.echo(json.dumps({"authentication": lines, "verification": result.to_dict() if result else None},
                               indent=2))
         return
-    from authn.textsafe import printable
+    from core.textsafe import printable
 
     for line in lines:
         typer.echo(printable(line))

@@ -7,7 +7,7 @@ import signal
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from authn.errors import Interrupted
+from core.errors import Interrupted
 
 __all__ = ["handled", "interrupted"]
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from authn.parsing import first_error, parse_iso_time
+from core.parsing import first_error, parse_iso_time
 
 
 
@@ -29,7 +29,7 @@ def _scene_for(model: str, profiles_file: Path | None, **kw: object):  # -> Scen
 
 def _signing(key_file: Path | None, sam: str, det: str | None, age_s: float, tamper: bool,
              fec: bool = False):  # -> Signing | None
-    from authn.errors import BadInput
+    from core.errors import BadInput
 
     if key_file is None:
         if det is not None or age_s or tamper or fec:

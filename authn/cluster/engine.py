@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from authn.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault
 
 #: Seconds to wait for a remote scheduler before giving up (exit 3).
 CONNECT_TIMEOUT_S = 30

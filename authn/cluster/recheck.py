@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from authn.cluster.worker import CheckerArgs, Partition, PartitionResult, check_partition, record_lost
-from authn.textsafe import printable
+from core.textsafe import printable
 
 #: Default partitions per worker: enough to balance uneven files and to bound what a lost
 #: worker's retry re-does, few enough that one audit transaction per partition stays cheap.
@@ -49,7 +49,7 @@ def run_partitions(client: Any, checker: Any, args: CheckerArgs, parts: Sequence
     from distributed import as_completed
 
     from authn.cluster.engine import RETRIES
-    from authn.errors import describe
+    from core.errors import describe
 
     futures = {client.submit(check_partition, args, p, key=f"authn-{p.key.replace('/', '-')}", retries=RETRIES,
                              pure=False): p for p in parts}

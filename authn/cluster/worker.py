@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from authn.check import Checker, Failure, Outcome
-from authn.errors import EXIT_BAD_INPUT, EXIT_SYSTEM
+from core.errors import EXIT_BAD_INPUT, EXIT_SYSTEM
 
 
 @dataclass(frozen=True)

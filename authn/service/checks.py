@@ -17,7 +17,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, File, Form, Request, UploadFile
 from fastapi.responses import JSONResponse
 
-from authn.errors import EXIT_BAD_INPUT, SystemFault
+from core.errors import EXIT_BAD_INPUT, SystemFault
 from authn.service.auth import Caller
 from authn.service.deps import require, runtime
 
@@ -38,7 +38,7 @@ def _name(upload: UploadFile) -> str:
 
 def _read(data: bytes, name: str) -> Any:
     """The recording in `data`, read through a private temporary file (errors name the upload)."""
-    from authn.errors import AuthnException
+    from core.errors import AuthnException
     from signatures.recording import read_recording
 
     fd, tmp = tempfile.mkstemp(suffix=".upload", dir=_TMP)
@@ -120,7 +120,7 @@ async def check_batch(request: Request,
 
     rt = runtime(request)
     if len(files) > rt.settings.max_batch_files:
-        from authn.errors import AuthnError
+        from core.errors import AuthnError
 
         raise AuthnError(f"at most {rt.settings.max_batch_files} files per batch, got {len(files)}")
     loaded = [(_name(f), await f.read()) for f in files]

@@ -36,7 +36,7 @@ def _info(row: Any) -> ApiKeyInfo:
 
 def create_key(db_url: str | None, role: str, name: str | None = None) -> tuple[ApiKeyInfo, str]:
     """A new key: its record and the token (returned once, never stored)."""
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from registry.db import session_scope
     from registry.models import ApiKey, utcnow
 
@@ -63,7 +63,7 @@ def list_keys(db_url: str | None) -> list[ApiKeyInfo]:
 
 
 def revoke_key(db_url: str | None, key_id: int) -> ApiKeyInfo:
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from registry.db import session_scope
     from registry.models import ApiKey, utcnow
 

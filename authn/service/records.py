@@ -130,7 +130,7 @@ class IdentityIn(BaseModel):
         not an OverflowError later."""
         from datetime import timezone
 
-        from authn.parsing import in_utc_range
+        from core.parsing import in_utc_range
 
         if v is not None and not in_utc_range(v if v.tzinfo else v.replace(tzinfo=timezone.utc)):
             raise ValueError("out of range (UTC times from 0001-01-02 to 9999-12-30)")
@@ -162,7 +162,7 @@ async def _audited_write(rt: Any, caller: Caller, action: str, serial: str, deta
     followed by an `<action>-failed` entry with the one-line reason."""
     from starlette.concurrency import run_in_threadpool
 
-    from authn.errors import describe
+    from core.errors import describe
 
     await rt.run(lambda: _audit_change(rt, caller, action, serial, detail))
     try:
@@ -190,7 +190,7 @@ async def identities_register(request: Request, body: IdentityIn,
                               caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
     """Register an identity (admins); the change is audited with the acting key's id."""
     from pydantic import ValidationError
-    from authn.errors import AuthnError
+    from core.errors import AuthnError
     from registry.db import session_scope
     from registry.store import NewIdentity, describe_validation_error, register_identity
 

@@ -188,7 +188,7 @@ def ensure_bytecode() -> None:
     import compileall
     import importlib.util
 
-    for pkg in ("authn", "signatures", "registry", "migrations"):
+    for pkg in ("core", "authn", "signatures", "registry", "lab"):
         spec = importlib.util.find_spec(pkg)
         if spec is not None and spec.submodule_search_locations:
             for folder in spec.submodule_search_locations:

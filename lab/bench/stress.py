@@ -123,7 +123,7 @@ def cases(preset: str, quick: bool) -> Iterator[tuple[str, str, Callable[[], Rec
 def run(presets: tuple[str, ...] = ("paper",), quick: bool = False, db_url: str | None = None) -> StressReport:
     """Run every case through features and a full decision; NaN/Inf files through the file reader."""
     from authn.check import Checker
-    from authn.errors import BadInput
+    from core.errors import BadInput
     from signatures.features import extract
 
     report = StressReport()

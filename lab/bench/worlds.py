@@ -42,7 +42,7 @@ DEFAULT_SNRS = (0.0, 10.0)
 
 def world_choice(world: str) -> tuple[str, ...]:
     """The worlds a `--world` value names."""
-    from authn.errors import BadInput
+    from core.errors import BadInput
 
     if world == "both":
         return WORLDS

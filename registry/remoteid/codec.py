@@ -20,7 +20,7 @@ from decimal import Decimal
 
 from pydantic import BaseModel, ValidationError
 
-from authn.parsing import first_error
+from core.parsing import first_error
 from registry.remoteid.errors import RemoteIdError
 from registry.remoteid.messages import (
     SESSION_ID,

@@ -229,7 +229,7 @@ def waveform_config(w: Waveform, domain: str, n_cols: int, real_if: bool):
 def _checked(build):
     from pydantic import ValidationError
 
-    from authn.parsing import first_error
+    from core.parsing import first_error
 
     try:
         return build()

@@ -21,7 +21,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from authn.parsing import JsonTooDeep, first_error, loads_json
+from core.parsing import JsonTooDeep, first_error, loads_json
 from signatures.errors import SignaturesError
 from signatures.importers.dwell import Dwell, analytic_half_rate, radar_config
 from signatures.radar import RadarConfig

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from authn.parsing import first_error, parse_iso_time
+from core.parsing import first_error, parse_iso_time
 from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
 from signatures.recording import (EARLIEST_START, MAX_FUTURE_SKEW, MAX_IQ_CELLS, RadarSite, Recording,

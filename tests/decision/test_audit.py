@@ -14,7 +14,7 @@ from sqlalchemy.exc import DBAPIError
 from authn.audit import (NewEntry, append, checkpoint, get_policy, known_heads, list_entries, prove, replay,
                          verify, verify_proof)
 from authn.cli import main
-from authn.errors import SystemFault
+from core.errors import SystemFault
 from authn.audit.logkey import LogKey, SignedTreeHead
 from registry.db import get_engine
 from registry.dbapi import Database

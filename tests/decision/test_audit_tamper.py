@@ -16,7 +16,7 @@ import pytest
 
 from authn.audit import merkle
 from authn.audit import NewEntry, append, checkpoint, entry_bytes, verify
-from authn.errors import SystemFault
+from core.errors import SystemFault
 from authn.audit.logkey import LogKey, SignedTreeHead
 from registry.db import get_engine
 from registry.dbapi import Database

@@ -61,7 +61,7 @@ def test_verification_score_is_the_checks_own_llr() -> None:
 
 def test_world_choice() -> None:
     from lab.bench.worlds import world_choice
-    from authn.errors import BadInput
+    from core.errors import BadInput
 
     assert world_choice("both") == ("training", "heldout")
     assert world_choice("heldout") == ("heldout",)

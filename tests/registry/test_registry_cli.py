@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from migrations import HEAD_REVISION
+from registry.migrations import HEAD_REVISION
 
 from authn.cli import main
 

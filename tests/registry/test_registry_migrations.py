@@ -6,7 +6,7 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import inspect, text
 
-from migrations import HEAD_REVISION
+from registry.migrations import HEAD_REVISION
 from registry.db import create_db_engine, get_engine, upgrade
 from registry.models import Base
 
@@ -41,7 +41,7 @@ def test_head_revision_constant_matches_alembic() -> None:
     """`migrations.HEAD_REVISION` (read without importing Alembic) is Alembic's head."""
     from alembic.script import ScriptDirectory
 
-    import migrations
+    from registry import migrations
     from registry.db import alembic_config
 
     assert ScriptDirectory.from_config(alembic_config()).get_heads() == [migrations.HEAD_REVISION]

@@ -12,7 +12,7 @@ import json
 from datetime import datetime, timedelta, timezone
 from typing import Any
 
-from authn.errors import BadInput
+from core.errors import BadInput
 
 __all__ = ["parse_iso_time", "in_utc_range", "first_error", "loads_json", "JsonTooDeep", "MAX_JSON_DEPTH"]
 

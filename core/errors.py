@@ -3,17 +3,17 @@
 0 accept, 1 reject, 2 bad input (the caller's fault), 3 system error (database, locks,
 models, policy engine, log key). Every error the product raises on purpose derives from
 `AuthnException` and carries its exit code; the CLI maps exceptions to exit codes only
-through `exit_code_for`. This module imports nothing but the leaf `authn.textsafe`, so the
+through `exit_code_for`. This module imports nothing but the leaf `core.textsafe`, so the
 radar (`signatures`) and registry layers derive their own roots from it without importing
 the decision layer. The one line an error becomes has its control characters escaped
-(`authn.textsafe.printable`): a serial or file name with an ESC in it never reaches the
+(`core.textsafe.printable`): a serial or file name with an ESC in it never reaches the
 terminal raw.
 Rejections are not errors: they are decisions, with the policy ids as reasons.
 """
 
 from __future__ import annotations
 
-from authn.textsafe import printable
+from core.textsafe import printable
 
 __all__ = ["EXIT_ACCEPT", "EXIT_REJECT", "EXIT_BAD_INPUT", "EXIT_SYSTEM", "AuthnException", "BadInput",
            "SystemFault", "Interrupted", "AuthnError", "describe", "exit_code_for", "one_line"]
