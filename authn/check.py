@@ -75,10 +75,20 @@ class Failure:
     serial: str | None
     error: str
     exit_code: int = EXIT_BAD_INPUT
+    exc: BaseException | None = field(default=None, compare=False, repr=False)  # what raised, when one did
 
     @classmethod
     def of(cls, file: str, serial: str | None, exc: BaseException) -> "Failure":
-        return cls(file, serial, describe(exc), exit_code_for(exc))
+        return cls(file, serial, describe(exc), exit_code_for(exc), exc)
+
+    def raise_(self) -> None:
+        """Raise what stopped this check: bad input as itself (its message), anything else as
+        a SystemFault naming the file."""
+        from core.errors import SystemFault
+
+        if self.exit_code == EXIT_BAD_INPUT and self.exc is not None:
+            raise self.exc
+        raise SystemFault(f"{self.file}: {self.error}")
 
     def entry(self, policy_sha256: str | None) -> NewEntry:
         kind = "bad-input" if self.exit_code == EXIT_BAD_INPUT else "system"
@@ -100,6 +110,12 @@ class _Timer:
             yield
         finally:
             self.ms[name] = round(self.ms.get(name, 0.0) + (time.perf_counter() - t0) * 1e3, 3)  # a stage may recur
+
+
+def _batch_size(rec: Any) -> int:
+    from signatures.batch_features import batch_size
+
+    return batch_size(rec.n_chirps, rec.n_samples)
 
 
 def _file_sha256(path: Path) -> str:
@@ -141,9 +157,31 @@ class _Pending:
 
 
 @dataclass(frozen=True)
+class CheckInput:
+    """One return to check: its name (file or upload), the claimed serial (None: the return's
+    Remote ID), and how to load it, giving the Recording and the SHA-256 of its bytes."""
+
+    name: str
+    serial: str | None
+    load: Callable[[], tuple[Any, str]]
+
+    @classmethod
+    def file(cls, path: str | Path, serial: str | None = None) -> "CheckInput":
+        from signatures.recording import read_recording
+
+        p = Path(path)
+        return cls(str(p), serial, lambda: (read_recording(p), _file_sha256(p)))
+
+    @classmethod
+    def recording(cls, rec: Any, serial: str | None = None, name: str = "", digest: str = "") -> "CheckInput":
+        """An in-memory recording (benchmarks, the stress suite, uploads already read)."""
+        return cls(name, serial, lambda: (rec, digest))
+
+
+@dataclass(frozen=True)
 class Batch:
-    """What `Checker.evaluate_many` decided, in input order; `fault`: the SystemFault that stopped
-    it (its Failure is the last item, the files after it were not checked)."""
+    """What `Checker.decide` decided, in input order; `fault`: the SystemFault that stopped it
+    (its Failure is the last item, the returns after it were not checked)."""
 
     items: list[Outcome | Failure]
     fault: BaseException | None = None
@@ -250,53 +288,31 @@ class Checker:
                        model_card_sha256=evidence.radar.model_card_sha256 if evidence.radar else None,
                        file_sha256=digest, policy_errors=result.errors, policy_input=evidence.policy_input())
 
-    # --- one check ------------------------------------------------------------------
-    def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
-        """Decide one file (no audit write); raises package errors on bad input."""
-        path = Path(path)
-        timer = _Timer()
-        with timer.stage("read"):
-            rec = self._read(path)
-            digest = _file_sha256(path)
-        return self.evaluate_recording(rec, serial, str(path), digest, timer)
+    # --- the runner: every check goes through decide, and check records before it returns --
+    def check(self, items: Sequence[CheckInput], stop: Callable[[], bool] = lambda: False, *,
+              idempotency_key: str | None = None, record_on_fault: bool = True) -> Batch:
+        """Decide and record: the one way a check is made by the CLI (one file or many), the
+        service and the cluster. The decisions and failures are appended to the audit log in
+        one transaction before this returns, so nothing the caller emits is unaudited; a
+        commit that fails raises. A SystemFault that stopped the batch is in `Batch.fault`
+        (what was decided before it is recorded) or, with `record_on_fault=False` (a cluster
+        partition that must be retried whole), raised before anything is recorded."""
+        batch = self.decide(items, stop)
+        if batch.fault is not None and not record_on_fault:
+            raise batch.fault
+        self.record(batch.items, idempotency_key=idempotency_key)
+        return batch
 
-    def evaluate_recording(self, rec: Any, serial: str | None = None, file: str = "", digest: str = "",
-                           timer: _Timer | None = None) -> Outcome:
-        """Decide an in-memory recording (benchmarks and the stress suite skip the file)."""
-        front = self._front(rec, serial, file, digest, timer or _Timer())
-        if isinstance(front, Outcome):
-            return front
-        from signatures.features import extract
-
-        with front.timer.stage("radar_features"):
-            feats = extract(rec, expected_range_m=front.gate)
-        pred = None
-        if feats.detected:
-            with front.timer.stage("classify"):
-                pred = front.classifier.predict(feats.as_array(), lambda: feats.rd_patch)  # patch only if CNN runs
-        return self._finish(front, feats, pred)
-
-    # --- many checks ------------------------------------------------------------------
-    def evaluate_many(self, items: Sequence[tuple[str | Path, str | None]],
-                      stop: Callable[[], bool] = lambda: False) -> Batch:
-        """Decide many files, (path, claimed serial or None) each; see `decide_many`."""
-        def loader(path: Path) -> Callable[[], tuple[Any, str]]:
-            return lambda: (self._read(path), _file_sha256(path))
-
-        return self.decide_many([(str(path), serial, loader(Path(path))) for path, serial in items], stop)
-
-    def decide_many(self, items: Sequence[tuple[str, str | None, Callable[[], tuple[Any, str]]]],
-                    stop: Callable[[], bool] = lambda: False) -> Batch:
-        """Decide many returns (no audit write), each (name, claimed serial, a loader giving its
-        Recording and file SHA-256), the radar stages batched: the returns that need the radar
-        share one batched feature extraction (`signatures.batch_features`, grouped by waveform,
-        as many cubes at once as `batch_size` allows in memory) and one classifier call per bundle.
+    def decide(self, items: Sequence[CheckInput], stop: Callable[[], bool] = lambda: False) -> Batch:
+        """Decide many returns (no audit write), the radar stages batched: the returns that
+        need the radar share one batched feature extraction (`signatures.batch_features`,
+        grouped by waveform, as many cubes at once as `batch_size` allows in memory; a few
+        returns go through the single-return features) and one classifier call per bundle.
         Bad input or a crash in one return is that return's Failure; a SystemFault (database,
         policy engine) stops the batch (`Batch.fault`). Radar timings are each return's share.
         `stop()` is asked before each return is read: once true, the returns read so far are
         decided and the rest are left out of `Batch.items`."""
         from core.errors import SystemFault
-        from signatures.batch_features import batch_size
 
         done: dict[int, Outcome | Failure] = {}
         pending: dict[int, _Pending] = {}
@@ -305,24 +321,24 @@ class Checker:
             done.update(self._radar_batch(pending))
             pending.clear()
 
-        for i, (name, serial, load) in enumerate(items):
+        for i, item in enumerate(items):
             if stop():
                 items = items[:i]
                 break
             try:
                 timer = _Timer()
                 with timer.stage("read"):
-                    rec, digest = load()
-                front = self._front(rec, serial, name, digest, timer)
+                    rec, digest = item.load()
+                front = self._front(rec, item.serial, item.name, digest, timer)
             except SystemFault as exc:
-                return Batch([done[j] for j in sorted(done)] + [Failure.of(name, serial, exc)], exc)
+                return Batch([done[j] for j in sorted(done)] + [Failure.of(item.name, item.serial, exc)], exc)
             except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
-                front = Failure.of(name, serial, exc)
+                front = Failure.of(item.name, item.serial, exc)
             if not isinstance(front, _Pending):
                 done[i] = front
                 continue
             pending[i] = front
-            if len(pending) >= batch_size(rec.n_chirps, rec.n_samples):  # memory holds no more cubes
+            if len(pending) > 1 and len(pending) >= _batch_size(rec):  # memory holds no more cubes
                 try:
                     flush()
                 except SystemFault as exc:
@@ -332,6 +348,26 @@ class Checker:
         except SystemFault as exc:
             return Batch([done[j] for j in sorted(done)], exc)
         return Batch([done[j] for j in range(len(items))])
+
+    def decide_one(self, item: CheckInput) -> Outcome:
+        """One decision, not recorded (benchmarks, tests); raises what stopped it."""
+        batch = self.decide([item])
+        if batch.fault is not None:
+            raise batch.fault
+        result = batch.items[0]
+        if isinstance(result, Failure):
+            if result.exc is not None:
+                raise result.exc
+            result.raise_()
+        return result  # type: ignore[return-value]
+
+    def evaluate(self, path: str | Path, serial: str | None = None) -> Outcome:
+        """Decide one file, not recorded (benchmarks, tests)."""
+        return self.decide_one(CheckInput.file(path, serial))
+
+    def evaluate_recording(self, rec: Any, serial: str | None = None, file: str = "", digest: str = "") -> Outcome:
+        """Decide an in-memory recording, not recorded (benchmarks and the stress suite skip the file)."""
+        return self.decide_one(CheckInput.recording(rec, serial, file, digest))
 
     @staticmethod
     def _features_or_failure(p: _Pending) -> Any:
@@ -347,7 +383,6 @@ class Checker:
         import numpy as np
 
         from core.errors import SystemFault
-        from signatures.batch_features import extract_many
 
         if not pending:
             return {}
@@ -355,7 +390,14 @@ class Checker:
         keys = list(pending)
         t0 = time.perf_counter()
         try:
-            feats = extract_many([pending[k].rec for k in keys], [pending[k].gate for k in keys])
+            if len(keys) == 1:  # one return: the batch front end would send it here too, without its imports
+                from signatures.features import extract
+
+                feats = [extract(pending[keys[0]].rec, expected_range_m=pending[keys[0]].gate)]
+            else:
+                from signatures.batch_features import extract_many
+
+                feats = extract_many([pending[k].rec for k in keys], [pending[k].gate for k in keys])
         except Exception:  # noqa: BLE001 - find the file at fault: each return on its own
             feats = [self._features_or_failure(pending[k]) for k in keys]
             out = {k: f for k, f in zip(keys, feats) if isinstance(f, Failure)}

@@ -18,7 +18,7 @@ configuration, `cores` independent `authn check` processes on interleaved slices
 files at once (one registry), is what the machine gives that many processes without Dask:
 on a shared machine the cluster is held to it, not to cores x single. Every process runs
 with one BLAS/OpenMP thread, as Dask's nanny starts each worker: the baseline is the same
-batched check path (`Checker.evaluate_many`, one audit transaction per commit) in one
+batched check path (`Checker.check`, one audit transaction per chunk) in one
 process on one core. The log key and STH files go to --dir, not the user's.
 """
 

@@ -6,7 +6,6 @@ import csv
 import json
 import signal
 import sys
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -15,13 +14,11 @@ import typer
 
 from authn.cli.signals import handled, interrupted
 
-#: Batch mode commits the audit at least this often (entries, seconds), then prints what it
-#: committed: a crash or kill loses at most the unprinted tail, never a printed decision.
-COMMIT_EVERY_ENTRIES = 50
-COMMIT_EVERY_S = 0.5
-#: Files decided together (their radar stages batched, `Checker.evaluate_many`): the first chunk is
-#: small so results start soon, each next one twice as large up to CHECK_CHUNK. A stop signal is
-#: read before each file: the files read so far are still decided, committed and printed.
+#: Files decided and recorded together (`Checker.check`: their radar stages batched, one audit
+#: transaction, then printed): the first chunk is small so results start soon, each next one
+#: twice as large up to CHECK_CHUNK. A crash or kill loses at most the chunk in flight, never a
+#: printed decision. A stop signal is read before each file: the files read so far are still
+#: decided, committed and printed.
 FIRST_CHUNK = 8
 CHECK_CHUNK = 256
 
@@ -171,45 +168,16 @@ def _record_failure(db_url, failures) -> None:
 
 
 def _single(checker, path: Path, serial: str | None, as_json: bool) -> None:
-    from authn.check import Failure
-    from core.errors import EXIT_BAD_INPUT, SystemFault
+    from authn.check import CheckInput, Failure
 
-    try:
-        outcome = checker.evaluate(path, serial)
-    except Exception as exc:
-        failure = Failure.of(str(path), serial, exc)
-        checker.record([failure])  # a database fault here is reported instead (exit 3)
-        if failure.exit_code == EXIT_BAD_INPUT:
-            raise
-        raise SystemFault(f"{path}: {failure.error}") from None
-    checker.record([outcome])  # raises if the entry did not commit: then nothing is printed
+    outcome = checker.check([CheckInput.file(path, serial)]).items[0]  # recorded, or it raised
+    if isinstance(outcome, Failure):
+        outcome.raise_()
     if as_json:
         typer.echo(json.dumps(outcome.to_json(), indent=2))
     else:
         _print_outcome(outcome)
     raise typer.Exit(0 if outcome.decision == "accept" else 1)
-
-
-class _AuditedPrinter:
-    """Commits results to the audit in small transactions and prints each only after its commit."""
-
-    def __init__(self, checker, emit) -> None:
-        self.checker, self.emit = checker, emit
-        self.pending: list = []
-        self.last_commit = time.monotonic()
-
-    def add(self, item) -> None:
-        self.pending.append(item)
-        if len(self.pending) >= COMMIT_EVERY_ENTRIES or time.monotonic() - self.last_commit >= COMMIT_EVERY_S:
-            self.commit()
-
-    def commit(self) -> None:
-        if self.pending:
-            self.checker.record(self.pending)
-            for item in self.pending:
-                self.emit(item)
-            self.pending = []
-        self.last_commit = time.monotonic()
 
 
 @contextmanager
@@ -230,7 +198,7 @@ def _stop_signals() -> Iterator[list[int]]:
 def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | None, as_json: bool) -> None:
     from rich.progress import Progress
 
-    from authn.check import Failure
+    from authn.check import CheckInput, Failure
     from core.errors import EXIT_SYSTEM, SystemFault
 
     results: list = []
@@ -244,22 +212,19 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
             out.flush()
             first[0] = False
 
-    printer = _AuditedPrinter(checker, emit)
     with _stop_signals() as stop, Progress(transient=True, disable=as_json and not sys.stderr.isatty()) as progress:
         task = progress.add_task(f"checking {len(paths)} returns", total=len(paths))
         start, size = 0, FIRST_CHUNK
         while start < len(paths) and not stop:
             chunk = paths[start:start + size]
-            batch = checker.evaluate_many([(p, mapping.get(p.name, mapping.get(str(p), serial))) for p in chunk],
-                                          stop=lambda: bool(stop))
-            for item in batch.items:
-                printer.add(item)
+            batch = checker.check([CheckInput.file(p, mapping.get(p.name, mapping.get(str(p), serial))) for p in chunk],
+                                  stop=lambda: bool(stop))
+            for item in batch.items:  # recorded: printed only now
+                emit(item)
             if batch.fault is not None:  # the database or policy engine: the batch cannot go on
-                printer.commit()
                 raise batch.fault
             progress.advance(task, len(batch.items))
             start, size = start + len(chunk), min(2 * size, CHECK_CHUNK)
-        printer.commit()
     if as_json:
         out.write(("[" if first[0] else "\n") + "]\n")
     else:

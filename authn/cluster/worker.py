@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-from authn.check import Checker, Failure, Outcome
+from authn.check import CheckInput, Checker, Failure, Outcome
 from core.errors import EXIT_BAD_INPUT, EXIT_SYSTEM
 
 
@@ -85,20 +84,18 @@ def _from_entry(entry: Any) -> Outcome | Failure:
 
 
 def check_partition(args: CheckerArgs, part: Partition) -> PartitionResult:
-    """Check the partition's files as one batch (`Checker.evaluate_many`: a bad file is a
-    Failure entry, as in batch mode) and append all of them in one transaction keyed by
-    `part.key`. A system fault (database, policy engine) raises before anything is
-    appended: the task is retried, then the client records the partition as errors."""
+    """Check the partition's files as one batch (`Checker.check`: a bad file is a Failure
+    entry, as in batch mode), all of them appended in one transaction keyed by `part.key`. A
+    system fault (database, policy engine) raises before anything is appended: the task is
+    retried, then the client records the partition as errors."""
     from authn.audit import batch_entries
 
     checker = checker_for(args)
     done = batch_entries(checker.db, part.key)
     if done is not None:
         return PartitionResult.of(part.key, [_from_entry(e) for e in done], replayed=True)
-    batch = checker.evaluate_many([(Path(f), claim) for f, claim in zip(part.files, part.claims)])
-    if batch.fault is not None:
-        raise batch.fault
-    checker.record(batch.items, idempotency_key=part.key)
+    batch = checker.check([CheckInput.file(f, claim) for f, claim in zip(part.files, part.claims)],
+                          idempotency_key=part.key, record_on_fault=False)
     return PartitionResult.of(part.key, batch.items)
 
 

@@ -10,14 +10,13 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
-import time
 from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, File, Form, Request, UploadFile
 from fastapi.responses import JSONResponse
 
-from core.errors import EXIT_BAD_INPUT, SystemFault
+from core.errors import EXIT_BAD_INPUT
 from authn.service.auth import Caller
 from authn.service.deps import require, runtime
 
@@ -54,40 +53,27 @@ def _read(data: bytes, name: str) -> Any:
         os.unlink(tmp)
 
 
-def _evaluate(checker: Any, data: bytes, name: str, serial: str | None) -> Any:
-    """One decision (not yet audited); raises what the CLI's `evaluate` raises."""
-    t0 = time.perf_counter()
-    rec = _read(data, name)
-    digest = hashlib.sha256(data).hexdigest()
-    read_ms = round((time.perf_counter() - t0) * 1e3, 3)
-    outcome = checker.evaluate_recording(rec, serial, name, digest)
-    outcome.timings_ms = {"read": read_ms, **outcome.timings_ms}
-    return outcome
+def _input(data: bytes, name: str, serial: str | None) -> Any:
+    from authn.check import CheckInput
+
+    return CheckInput(name, serial, lambda: (_read(data, name), hashlib.sha256(data).hexdigest()))
 
 
 def _check_one(checker: Any, data: bytes, name: str, serial: str | None) -> Any:
+    """One decision, recorded before it is answered (`Checker.check`); a failure raises as
+    the CLI's does (bad input 400, anything else 503)."""
     from authn.check import Failure
 
-    try:
-        outcome = _evaluate(checker, data, name, serial)
-    except Exception as exc:
-        failure = Failure.of(name, serial, exc)
-        checker.record([failure])  # a database fault here is answered instead (503)
-        if failure.exit_code == EXIT_BAD_INPUT:
-            raise
-        raise SystemFault(f"{name}: {failure.error}") from None
-    checker.record([outcome])  # raises if the entry did not commit: then nothing is answered
+    outcome = checker.check([_input(data, name, serial)]).items[0]
+    if isinstance(outcome, Failure):
+        outcome.raise_()
     return outcome
 
 
 def _check_many(checker: Any, files: list[tuple[str, bytes]], serial: str | None) -> list[Any]:
-    """Every upload decided with the radar stages batched (`Checker.decide_many`), then audited in
-    one transaction; a SystemFault stops the batch after auditing what it decided."""
-    def loader(name: str, data: bytes) -> Any:
-        return lambda: (_read(data, name), hashlib.sha256(data).hexdigest())
-
-    batch = checker.decide_many([(name, serial, loader(name, data)) for name, data in files])
-    checker.record(batch.items)
+    """Every upload decided with the radar stages batched and recorded in one transaction
+    (`Checker.check`); a SystemFault stops the batch after recording what it decided."""
+    batch = checker.check([_input(data, name, serial) for name, data in files])
     if batch.fault is not None:  # the database or policy engine: the batch cannot go on
         raise batch.fault
     return batch.items

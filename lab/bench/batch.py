@@ -123,12 +123,12 @@ def accuracy(preset: str, per_class: int = 20, seed: int = 5) -> dict[str, objec
 
 
 def registry_only(preset: str, n: int = 200, seed: int = 5) -> dict[str, float]:
-    """Registry-only rejections (an unregistered serial) in batch mode (`Checker.decide_many`,
+    """Registry-only rejections (an unregistered serial) in batch mode (`Checker.decide`,
     then one audit transaction), per check, against the I/O floor of the same files measured in
     the same run: open + validate (`read_recording`) + SHA-256 of the file + one Cedar decision."""
     from lab.bench.decisions import UNREGISTERED, register_identities
     from lab.bench.perf import _files
-    from authn.check import Checker, Failure
+    from authn.check import CheckInput, Checker, Failure
     from authn.evidence import Evidence, RegistryFacts, read_claim
     from signatures.recording import read_recording
 
@@ -137,10 +137,10 @@ def registry_only(preset: str, n: int = 200, seed: int = 5) -> dict[str, float]:
         register_identities(db)
         files = _files(Path(tmp), preset, n, seed, lambda i, slug: UNREGISTERED)
         checker = Checker(db)
-        checker.record(checker.evaluate_many([(files[0], None)]).items)  # warm: policy, reader
+        checker.check([CheckInput.file(files[0])])  # warm: policy, reader
 
         def batch() -> object:
-            result = checker.evaluate_many([(f, None) for f in files])
+            result = checker.decide([CheckInput.file(f) for f in files])
             assert result.fault is None, f"the registry-only batch stopped: {result.fault}"
             for o in result.items:  # what is timed: rejections the registry alone decides
                 assert not isinstance(o, Failure), f"a registry-only check failed: {o.file}: {o.error}"

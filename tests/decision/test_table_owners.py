@@ -48,6 +48,8 @@ def test_audit_tables_have_a_single_writer() -> None:
     """Only the authn.audit package (and the migrations) writes the audit tables."""
     writers = set()
     for path in list((ROOT / "authn").rglob("*.py")) + list((ROOT / "registry").rglob("*.py")):
+        if "migrations" in path.parts:
+            continue
         if re.search(r"INSERT INTO audit_(log|policies|tree_heads|batches|log_meta)", path.read_text()):
             writers.add(path.relative_to(ROOT).parent.as_posix())
     assert writers == {"authn/audit"}
