@@ -3,12 +3,16 @@ concurrent clients.
 
     python benchmarks/locust_serve.py [--db URL --db2 URL] [--workers 2] [--users 2] [--duration 60]
                                       [--connection close|keep-alive] [--clients 4] [--checks-each 250]
+                                      [--idle-flood 600 [--flood-reopen]] [--serve-args "..."]
 
 1. Simulates paper-preset returns (genuine and spoofed claims), starts `authn serve
    --workers N` on a fresh database (SQLite in a temporary folder, or --db, which must be
    empty: give a fresh PostgreSQL database) and times start-up to /readyz green.
 2. Runs locust headless in this process (--users closed-loop clients, no think time) for
    --duration seconds after a 5 s warm-up: checks/s, p50, p99, failures.
+   With --idle-flood N, N TCP connections that never send a byte are held open to the
+   server during the load phase (tests/service/flood.py, a separate process; with
+   --flood-reopen every one the server closes is opened again each 0.5 s).
 3. On a second fresh database, --clients threads post --checks-each returns each, then
    `authn audit verify` must pass with exactly clients x checks-each entries.
 
@@ -96,12 +100,12 @@ def _fresh_db(base: str | None, tmp: Path, name: str) -> str:
     return url
 
 
-def _start(db_url: str, workers: int, port: int, log: Path) -> tuple[subprocess.Popen, float]:
+def _start(db_url: str, workers: int, port: int, log: Path, extra: list[str] = ()) -> tuple[subprocess.Popen, float]:
     import httpx
 
     t0 = time.monotonic()
     proc = subprocess.Popen([sys.executable, "-m", "authn", "--db", db_url, "serve", "--port", str(port),
-                             "--workers", str(workers)], stdout=log.open("w"), stderr=subprocess.STDOUT)
+                             "--workers", str(workers), *extra], stdout=log.open("w"), stderr=subprocess.STDOUT)
     while time.monotonic() - t0 < 60:
         if proc.poll() is not None:
             raise SystemExit(f"authn serve exited: {log.read_text()[-2000:]}")
@@ -118,6 +122,24 @@ def _start(db_url: str, workers: int, port: int, log: Path) -> tuple[subprocess.
 def _stop(proc: subprocess.Popen) -> None:
     proc.terminate()
     proc.wait(30)
+
+
+def _flood(port: int, n: int, reopen: bool, duration: float) -> subprocess.Popen:
+    """N idle connections held open in another process (tests/service/flood.py)."""
+    proc = subprocess.Popen([sys.executable, "-m", "tests.service.flood", "--port", str(port), "--n", str(n),
+                             "--duration", str(duration), *(["--reopen"] if reopen else [])], cwd=ROOT,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    first = proc.stdout.readline()
+    if json.loads(first or "{}").get("open") != n:
+        raise SystemExit(f"idle flood did not open {n} connections: {first!r}")
+    return proc
+
+
+def _flood_stop(proc: subprocess.Popen) -> dict:
+    proc.stdin.close()
+    out = proc.stdout.read()
+    proc.wait(30)
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def _locust(url: str, token: str, files: list[Path], users: int, duration: float) -> dict:
@@ -168,6 +190,10 @@ def main() -> None:
     ap.add_argument("--checks-each", type=int, default=250)
     ap.add_argument("--returns", type=int, default=12)
     ap.add_argument("--port", type=int, default=8765)
+    ap.add_argument("--idle-flood", type=int, default=0, metavar="N",
+                    help="hold N idle TCP connections to the server during the load phase")
+    ap.add_argument("--flood-reopen", action="store_true", help="reopen the idle connections the server closes")
+    ap.add_argument("--serve-args", default="", help="more `authn serve` options, e.g. \"--header-timeout-s 2\"")
     ap.add_argument("--connection", choices=("close", "keep-alive"), default="close",
                     help="a new connection per check (radars posting dwells; the kernel spreads them over the "
                          "workers) or one kept-alive connection per user (each stays on one worker)")
@@ -186,16 +212,23 @@ def main() -> None:
 
     db = _fresh_db(args.db, tmp, "load")
     token = create_key(db, "operator", "bench")[1]
-    proc, ready_s = _start(db, args.workers, args.port, tmp / "serve-load.log")
+    extra = args.serve_args.split()
+    proc, ready_s = _start(db, args.workers, args.port, tmp / "serve-load.log", extra)
     summary["readyz_s"] = round(ready_s, 2)
+    flood = None
     try:
+        if args.idle_flood:
+            flood = _flood(args.port, args.idle_flood, args.flood_reopen, args.duration + 60)
         summary["load"] = _locust(url, token, files, args.users, args.duration)
     finally:
+        if flood is not None:
+            summary["idle_flood"] = {"connections": args.idle_flood, "reopen": args.flood_reopen, **_flood_stop(flood)}
+            summary["idle_flood"].pop("final", None)
         _stop(proc)
 
     db2 = _fresh_db(args.db2 if args.db else None, tmp, "chain")
     token = create_key(db2, "operator", "bench")[1]
-    proc, _ = _start(db2, args.workers, args.port, tmp / "serve-chain.log")
+    proc, _ = _start(db2, args.workers, args.port, tmp / "serve-chain.log", extra)
     try:
         t0 = time.monotonic()
         statuses = _clients(url, token, files, args.clients, args.checks_each)

@@ -18,6 +18,17 @@ def serve(
     upload_timeout_s: float = typer.Option(60.0, "--upload-timeout-s", min=0.1, max=3600.0,
                                            help="Seconds an upload may take to arrive (408 after)."),
     timeout_keep_alive: int = typer.Option(5, "--keep-alive-s", min=1, max=300, help="Idle keep-alive timeout."),
+    header_timeout_s: float = typer.Option(5.0, "--header-timeout-s", min=0.1, max=300.0,
+                                           help="Seconds a connection may take to send a request head "
+                                                "(closed after)."),
+    max_connections: int = typer.Option(1024, "--max-connections", min=1, max=1_000_000,
+                                        help="Open connections per worker (the oldest idle one makes room)."),
+    max_connections_per_client: int = typer.Option(64, "--max-connections-per-client", min=1, max=1_000_000,
+                                                   help="Per client address and worker: open connections (its "
+                                                        "oldest idle one makes room) and requests in progress "
+                                                        "(503 beyond)."),
+    max_in_flight: int = typer.Option(256, "--max-in-flight", min=1, max=100_000,
+                                      help="Requests in progress per worker (503 beyond)."),
 ) -> None:
     """Serve checks, the audit log and the registry over HTTP (OpenAPI at /docs).
 
@@ -27,7 +38,13 @@ def serve(
     """
     import os
 
+    from authn.service.connections import ConnectionLimits
     from authn.service.settings import Settings
+
+    if max_connections_per_client > max_connections:
+        raise typer.BadParameter("may not exceed --max-connections", param_hint="--max-connections-per-client")
+    limits = ConnectionLimits(header_timeout_s=header_timeout_s, max_connections=max_connections,
+                              max_connections_per_client=max_connections_per_client, max_in_flight=max_in_flight)
 
     settings = Settings(db_url=ctx.obj.db_url, policy_path=str(policy) if policy else None,
                         max_upload_bytes=int(max_upload_mib * 2**20), upload_timeout_s=upload_timeout_s)
@@ -36,8 +53,8 @@ def serve(
 
     get_engine(settings.db_url)  # migrate once here, before the workers race to
     config = dict(app="authn.service.app:app_from_env", factory=True, timeout_keep_alive=timeout_keep_alive,
-                  limit_concurrency=256, log_level="info", server_header=False)
+                  log_level="info", server_header=False)  # connection and request limits: `limits`
     from authn.service.workers import run_workers
 
     typer.echo(f"authn serve: {workers} worker(s) on http://{host}:{port} (OpenAPI at /docs)", err=True)
-    raise typer.Exit(run_workers(host, port, workers, config))
+    raise typer.Exit(run_workers(host, port, workers, config, limits))

@@ -14,9 +14,9 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException
 
-from authn.errors import AuthnException, BadInput, describe, one_line
+from core.errors import AuthnException, BadInput, describe, one_line
 from authn.service.auth import Forbidden, Unauthenticated
-from authn.service.limits import UploadLimits
+from authn.service.limits import RequestLimit, UploadLimits
 from authn.service.runtime import Runtime
 from authn.service.settings import Settings
 
@@ -94,18 +94,26 @@ def create_app(settings: Settings) -> FastAPI:
         """The process is up (`worker`: its process id, to see how connections spread)."""
         return {"status": "ok", "worker": os.getpid()}
 
-    @app.get("/readyz", tags=["health"], responses={503: {"description": "not ready"}})
+    @app.get("/readyz", tags=["health"], responses={503: {"description": "not ready, or saturated"}})
     async def readyz(request: Request) -> Any:
-        """Database reachable, its schema at the current migration, classifiers loaded."""
-        from migrations import VERSION_QUERY, is_current
+        """Database reachable, its schema at the current migration, classifiers loaded, and this
+        worker not saturated (`load`: its connections and requests in flight against the limits;
+        `saturated`: new requests would get 503, or every connection slot holds a request). 503
+        unless ready."""
+        from authn.service.connections import current
+        from registry.migrations import VERSION_QUERY, is_current
 
         rt: Runtime = request.app.state.runtime
+        guard = current()
+        load = {"worker": os.getpid(), **(guard.snapshot() if guard is not None else {})}
+        saturated = guard is not None and guard.saturated()
         try:
-            current = is_current(await rt.run(lambda: rt.checker.db.fetch(VERSION_QUERY)))
+            current_schema = is_current(await rt.run(lambda: rt.checker.db.fetch(VERSION_QUERY)))
         except Exception as exc:  # noqa: BLE001 - any database failure means not ready
-            return JSONResponse({"ready": False, "error": one_line(describe(exc))}, status_code=503)
-        doc = {"ready": current and bool(rt.models), "database": "ok", "migrations_current": current,
-               "models": rt.models}
+            return JSONResponse({"ready": False, "error": one_line(describe(exc)), "saturated": saturated,
+                                 "load": load}, status_code=503)
+        doc = {"ready": current_schema and bool(rt.models) and not saturated, "database": "ok",
+               "migrations_current": current_schema, "models": rt.models, "saturated": saturated, "load": load}
         return JSONResponse(doc, status_code=200 if doc["ready"] else 503)
 
     @app.get("/metrics", tags=["health"], response_class=Response)
@@ -114,6 +122,7 @@ def create_app(settings: Settings) -> FastAPI:
         return Response(request.app.state.runtime.metrics.render(), media_type="text/plain; version=0.0.4")
 
     app.add_middleware(UploadLimits, max_upload_bytes=settings.max_upload_bytes, timeout_s=settings.upload_timeout_s)
+    app.add_middleware(RequestLimit)  # outermost: a slow upload counts as in flight while it arrives
     return app
 
 

@@ -53,9 +53,10 @@ def server_env(keys_dir: Path) -> dict[str, str]:
             "AUTHN_AUDIT_STH_LOG": str(keys_dir / "audit-sth.jsonl"), "AUTHN_MODELS_DIR": str(models)}
 
 
-def start(db_url: str, log: Path, env: dict[str, str], *extra: str, timeout_s: float = 60.0) -> Server:
+def start(db_url: str, log: Path, env: dict[str, str], *extra: str, timeout_s: float = 60.0,
+          port: int | None = None) -> Server:
     """Start `authn serve` and wait until /readyz is green; `ready_s` is how long that took."""
-    port = free_port()
+    port = port or free_port()
     url = f"http://127.0.0.1:{port}"
     fh = log.open("w")
     t0 = time.monotonic()
@@ -74,6 +75,29 @@ def start(db_url: str, log: Path, env: dict[str, str], *extra: str, timeout_s: f
         time.sleep(0.05)
     server.stop()
     raise RuntimeError(f"authn serve not ready after {timeout_s} s: {log.read_text()[-2000:]}")
+
+
+def children(pid: int) -> list[int]:
+    """The process ids whose parent is `pid` (a /proc scan; Linux)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+            found.append(int(entry.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    """Running (a zombie waiting to be reaped is not)."""
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
 
 
 def flight(out: Path, name: str, flies: str, serial: str | None, offset: float = 0.0, seed: int = 11) -> Path:
