@@ -31,39 +31,51 @@ RADAR_STAGES = ("radar_features", "classify", "kinematics")
 
 @dataclass
 class Outcome:
-    """Everything `authn check --json` prints (README, "authn check --json") plus what the audit keeps."""
+    """A decision and the typed evidence it was made on; rendered as `authn check --json`
+    (`to_json`) and as the audit payload (`audit_payload`) only at the edges."""
 
     file: str
     decision: str
     reasons: list[str]
-    dwell_start: str
-    claim: dict[str, Any]
-    registry: dict[str, Any]
-    radar: dict[str, Any] | None
-    kinematics: dict[str, Any] | None
-    remote_id: dict[str, Any]
+    evidence: Evidence
     skipped: list[str]
     timings_ms: dict[str, float]
     policy_sha256: str
-    model_card_sha256: str | None
     file_sha256: str
-    #: DRIP authentication of the Remote ID (status, SAM types, which messages it covers)
-    remote_id_auth: dict[str, Any] = field(default_factory=dict)
     #: Cedar's evaluation errors (a non-empty list means the claim was rejected with `policy-error`)
     policy_errors: list[str] = field(default_factory=list)
-    #: the exact Cedar request (serial, principal, resource, context): `authn audit replay` re-runs it
-    policy_input: dict[str, Any] = field(default_factory=dict)
     audit_id: int | None = None
 
+    @property
+    def serial(self) -> str:
+        return self.evidence.claim.serial
+
+    @property
+    def radar(self) -> RadarEvidence | None:
+        return self.evidence.radar
+
+    @property
+    def model_card_sha256(self) -> str | None:
+        return self.evidence.radar.model_card_sha256 if self.evidence.radar else None
+
     def to_json(self) -> dict[str, Any]:
-        doc = dict(self.__dict__)
-        doc.pop("policy_input")
-        return doc
+        """What `authn check --json` prints (docs/policies.md)."""
+        report = self.evidence.report()
+        return {"file": self.file, "decision": self.decision, "reasons": list(self.reasons),
+                "dwell_start": report["dwell_start"], "claim": report["claim"], "registry": report["registry"],
+                "radar": report["radar"], "kinematics": report["kinematics"], "remote_id": report["remote_id"],
+                "skipped": list(self.skipped), "timings_ms": dict(self.timings_ms),
+                "policy_sha256": self.policy_sha256, "model_card_sha256": self.model_card_sha256,
+                "file_sha256": self.file_sha256, "remote_id_auth": report["remote_id_auth"],
+                "policy_errors": list(self.policy_errors), "audit_id": self.audit_id}
 
     def audit_payload(self) -> dict[str, Any]:
-        doc = dict(self.__dict__)
+        """The audit entry's payload: the JSON without timings and audit id, with the exact
+        Cedar request (`authn audit replay` re-runs it)."""
+        doc = self.to_json()
         doc.pop("audit_id")
         doc.pop("timings_ms")
+        doc["policy_input"] = self.evidence.policy_input()
         return doc
 
 
@@ -282,11 +294,9 @@ class Checker:
         return self._outcome(p.file, p.digest, result, evidence, p.timer)
 
     def _outcome(self, file: str, digest: str, result: Any, evidence: Evidence, timer: _Timer) -> Outcome:
-        return Outcome(file=file, decision=result.decision, reasons=result.reasons, **evidence.report(),
+        return Outcome(file=file, decision=result.decision, reasons=list(result.reasons), evidence=evidence,
                        skipped=[s for s in RADAR_STAGES if s not in timer.ms], timings_ms=timer.ms,
-                       policy_sha256=self.policy.sha256,
-                       model_card_sha256=evidence.radar.model_card_sha256 if evidence.radar else None,
-                       file_sha256=digest, policy_errors=result.errors, policy_input=evidence.policy_input())
+                       policy_sha256=self.policy.sha256, file_sha256=digest, policy_errors=list(result.errors))
 
     # --- the runner: every check goes through decide, and check records before it returns --
     def check(self, items: Sequence[CheckInput], stop: Callable[[], bool] = lambda: False, *,
@@ -440,7 +450,7 @@ class Checker:
         """Append decisions and failed checks in one transaction; raises DatabaseFault if it
         does not commit (the caller then prints no decision). With `idempotency_key`, a key
         that already committed writes nothing and returns that transaction's entry ids."""
-        entries = [NewEntry("decision", o.claim["serial"], o.decision, o.audit_payload()) if isinstance(o, Outcome)
+        entries = [NewEntry("decision", o.serial, o.decision, o.audit_payload()) if isinstance(o, Outcome)
                    else o.entry(self.policy.sha256) for o in outcomes]
         t0 = time.perf_counter()
         written = append(self.db, entries, policy_text=self.policy.text, idempotency_key=idempotency_key)

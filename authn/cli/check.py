@@ -60,40 +60,47 @@ def _claims(path: Path) -> dict[str, str]:
 
 
 def _print_outcome(o) -> None:
+    from datetime import datetime, timezone
+
     from rich.console import Console
     from rich.table import Table
-
     from rich.text import Text
 
     from core.textsafe import cell, printable
 
+    ev = o.evidence
     console = Console()
     colour = "green" if o.decision == "accept" else "red"
     console.print(Text.assemble((o.decision.upper(), f"bold {colour}"),
-                                printable(f" {o.claim['serial']} ({o.claim['source']}) - {', '.join(o.reasons)}")))
+                                printable(f" {ev.claim.serial} ({ev.claim.source}) - {', '.join(o.reasons)}")))
     t = Table(show_header=False, box=None, pad_edge=False)
     t.add_column(style="dim")
     t.add_column()
-    reg = o.registry
-    t.add_row("registry", cell(f"{reg['status']}" + (f", declared {reg['model']}" if reg["model"] else "")))
-    if "outside-validity-window" in o.reasons:
-        t.add_row("validity", f"dwell at {o.dwell_start}; registered valid from {reg['valid_from']}"
-                  + (f" until {reg['valid_until']}" if reg["valid_until"] else ""))
-    if o.radar is None:
+    reg = ev.registry
+    t.add_row("registry", cell(reg.status + (f", declared {reg.model}" if reg.model else "")))
+    if "outside-validity-window" in o.reasons and reg.valid_from is not None:
+        dwell = datetime.fromtimestamp(ev.time_s, timezone.utc).isoformat()
+        t.add_row("validity", f"dwell at {dwell}; registered valid from {reg.valid_from.isoformat()}"
+                  + (f" until {reg.valid_until.isoformat()}" if reg.valid_until else ""))
+    r = ev.radar
+    if r is None:
         t.add_row("radar", "skipped (registry decided)")
     else:
-        r = o.radar
-        conf = "" if r["confidence"] is None else f" ({r['confidence']:.1%})"
-        where = "" if r["range_m"] is None else f", {r['range_m']:.1f} m, {r['radial_velocity_mps']:+.2f} m/s"
-        t.add_row("radar", cell(f"{r['model']}{conf}{where}" + (", gated" if r.get("gated") else "")))
-    if o.kinematics is not None:
-        k = o.kinematics
-        t.add_row("range residual", f"{k['range_residual_m']:.1f} m (tolerance {k['range_tolerance_m']:.1f} m)")
-        if k["radial_velocity_residual_mps"] is not None:
-            t.add_row("velocity residual", f"{k['radial_velocity_residual_mps']:.2f} m/s "
-                      f"(tolerance {k['radial_velocity_tolerance_mps']:.2f} m/s)")
-    if o.remote_id["issues"]:
-        t.add_row("remote id issues", cell(", ".join(o.remote_id["issues"])))
+        conf = "" if r.confidence is None else f" ({r.confidence:.1%})"
+        where = "" if r.radial_velocity_mps is None else (
+            (f", {r.range_m:.1f} m" if r.range_m is not None else ", range not measured")
+            + f", {r.radial_velocity_mps:+.2f} m/s")
+        t.add_row("radar", cell(f"{r.model}{conf}{where}" + (", gated" if r.gated else "")))
+    k = ev.kinematics
+    if k is not None:
+        res = k.residuals
+        if k.range_measured:
+            t.add_row("range residual", f"{res.range_residual_m:.1f} m (tolerance {res.range_tolerance_m:.1f} m)")
+        if res.radial_velocity_residual_mps is not None:
+            t.add_row("velocity residual", f"{res.radial_velocity_residual_mps:.2f} m/s "
+                      f"(tolerance {res.radial_velocity_tolerance_mps:.2f} m/s)")
+    if ev.remote_id_issues:
+        t.add_row("remote id issues", cell(", ".join(ev.remote_id_issues)))
     if o.skipped:
         t.add_row("skipped", cell(", ".join(o.skipped)))
     t.add_row("time", f"{sum(o.timings_ms.values()):.1f} ms  audit #{o.audit_id}")
@@ -262,8 +269,8 @@ def _print_summary(results: list, total: int) -> None:
         if isinstance(r, Failure):
             table.add_row(cell(Path(r.file).name), cell(r.serial), "[yellow]error[/]", cell(r.error), "", "")
             continue
-        radar = r.radar["model"] if r.radar else "skipped"
+        radar = r.radar.model if r.radar else "skipped"
         colour = "green" if r.decision == "accept" else "red"
-        table.add_row(cell(Path(r.file).name), cell(r.claim["serial"]), f"[{colour}]{r.decision}[/]",
+        table.add_row(cell(Path(r.file).name), cell(r.serial), f"[{colour}]{r.decision}[/]",
                       cell(", ".join(r.reasons)), cell(radar), f"{sum(r.timings_ms.values()):.1f}")
     Console().print(table)

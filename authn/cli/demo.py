@@ -51,8 +51,9 @@ def demo(
         ok = o.decision == sc.expected
         all_ok &= ok
         colour = "green" if o.decision == "accept" else "red"
-        radar = "skipped" if o.radar is None else f"{o.radar['model']} {o.radar['confidence'] or 0:.0%}"
-        table.add_row(str(o.audit_id), sc.name, o.registry["model"] or o.registry["status"], radar,
+        radar = "skipped" if o.radar is None else f"{o.radar.model} {o.radar.confidence or 0:.0%}"
+        reg = o.evidence.registry
+        table.add_row(str(o.audit_id), sc.name, reg.model or reg.status, radar,
                       f"[{colour}]{o.decision}[/]" + ("" if ok else " [yellow](unexpected)[/]"),
                       ", ".join(o.reasons))
     console.print(table)

@@ -48,8 +48,16 @@ class PartitionResult:
     replayed: bool = False
 
     @classmethod
-    def of(cls, key: str, results: Any, replayed: bool = False) -> "PartitionResult":
-        items = [_item(r) for r in results]
+    def of(cls, key: str, results: Any) -> "PartitionResult":
+        return cls._of(key, [_item(r) for r in results], False)
+
+    @classmethod
+    def of_entries(cls, key: str, entries: Any, replayed: bool = False) -> "PartitionResult":
+        """From committed audit entries: what they recorded (timings are not audited)."""
+        return cls._of(key, [_from_entry(e) for e in entries], replayed)
+
+    @classmethod
+    def _of(cls, key: str, items: list[tuple[dict[str, Any], int]], replayed: bool) -> "PartitionResult":
         return cls(key, tuple(json.dumps(doc, indent=2) for doc, _ in items), tuple(c for _, c in items), replayed)
 
 
@@ -74,13 +82,16 @@ def _item(o: Outcome | Failure) -> tuple[dict[str, Any], int]:
     return o.to_json(), 0 if o.decision == "accept" else 1
 
 
-def _from_entry(entry: Any) -> Outcome | Failure:
-    """A committed audit entry as the result it recorded (timings are not audited)."""
+def _from_entry(entry: Any) -> tuple[dict[str, Any], int]:
+    """A committed audit entry as the JSON and exit code of the result it recorded (the
+    check's JSON is its payload without the Cedar request; timings are not audited)."""
     p = dict(entry.payload)
     if entry.kind == "error":
         code = EXIT_BAD_INPUT if p.get("error_kind") == "bad-input" else EXIT_SYSTEM
-        return Failure(p["file"], entry.serial, p["error"], code)
-    return Outcome(**p, timings_ms={}, audit_id=entry.seq)
+        return _item(Failure(p["file"], entry.serial, p["error"], code))
+    p.pop("policy_input", None)
+    doc = {**p, "timings_ms": {}, "audit_id": entry.seq}
+    return doc, 0 if entry.decision == "accept" else 1
 
 
 def check_partition(args: CheckerArgs, part: Partition) -> PartitionResult:
@@ -93,7 +104,7 @@ def check_partition(args: CheckerArgs, part: Partition) -> PartitionResult:
     checker = checker_for(args)
     done = batch_entries(checker.db, part.key)
     if done is not None:
-        return PartitionResult.of(part.key, [_from_entry(e) for e in done], replayed=True)
+        return PartitionResult.of_entries(part.key, done, replayed=True)
     batch = checker.check([CheckInput.file(f, claim) for f, claim in zip(part.files, part.claims)],
                           idempotency_key=part.key, record_on_fault=False)
     return PartitionResult.of(part.key, batch.items)
@@ -108,4 +119,4 @@ def record_lost(checker: Checker, part: Partition, error: str) -> PartitionResul
     failures = [Failure(file, claim, f"cluster: {error}", EXIT_SYSTEM) for file, claim in zip(part.files, part.claims)]
     checker.record(failures, idempotency_key=part.key)  # writes nothing if the key committed
     committed = batch_entries(checker.db, part.key) or []
-    return PartitionResult.of(part.key, [_from_entry(e) for e in committed])
+    return PartitionResult.of_entries(part.key, committed)

@@ -124,9 +124,10 @@ def run_worlds(presets: tuple[str, ...], worlds: tuple[str, ...], n: int, seed: 
                             t0 = time.perf_counter()
                             out = checker.evaluate(path)
                             ms = (time.perf_counter() - t0) * 1e3
+                            radar = out.to_json()["radar"]
                             trials.append(Trial(preset, world, float(snr), cat, flies, claims, out.decision,
-                                                tuple(out.reasons), None if out.radar is None else out.radar["model"],
-                                                verification_score(out.radar), ms, rotor_evidence(out.radar)))
+                                                tuple(out.reasons), None if out.radar is None else out.radar.model,
+                                                verification_score(radar), ms, rotor_evidence(radar)))
                             if progress:
                                 progress(1)
     return trials
@@ -154,7 +155,8 @@ def evidence_rates(trials: list[Trial]) -> dict[tuple[str, float, str, str], tup
     return out
 
 
-def equal_error_rates(trials: list[Trial], rotor_evidence: bool | None = None) -> dict[tuple[str, float, str, str], float]:
+def equal_error_rates(trials: list[Trial],
+                      rotor_evidence: bool | None = None) -> dict[tuple[str, float, str, str], float]:
     """EER of genuine against each impostor kind per (preset, SNR, impostor, world); with
     `rotor_evidence` True or False, among the claims whose rotors were (not) seen only (cells
     where either side has no such claim are left out)."""

@@ -70,7 +70,7 @@ def test_train_like_then_check_decides_with_the_user_bundle(world: dict, capsys)
     from authn.check import Checker
 
     outcome = Checker(world["db"]).evaluate(world["cut"], M300)
-    assert outcome.policy_input["resource"]["preset"] == wf.name
+    assert outcome.evidence.preset == wf.name
 
     assert main(["--db", world["db"], "check", str(world["cut"]), "--serial", M300, "--model", str(folder)]) in (0, 1)
     assert main(["--db", world["db"], "check", str(world["paper"]), "--serial", M300, "--model", str(folder)]) == 2

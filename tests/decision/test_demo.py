@@ -36,9 +36,9 @@ def test_scenes_decide_as_expected(tmp_path: Path) -> None:
         o = checker.evaluate(path, None if sc.broadcast else claimed_serial(sc, keys))
         assert (o.decision, o.reasons) == WANT[sc.name], sc.name
         if sc.serial == KEYED_M300:
-            assert o.claim["serial"] == keys.owner.session_id
+            assert o.serial == keys.owner.session_id
             want_auth = {"owner": "valid", "impersonator": "unknown-key", None: "absent"}[sc.signer]
-            assert o.remote_id_auth["status"] == want_auth, sc.name
+            assert o.evidence.auth.status == want_auth, sc.name
             assert (o.radar is None) == (sc.expected == "reject")  # DRIP rejections end before the radar
 
 
