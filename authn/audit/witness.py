@@ -27,7 +27,6 @@ from __future__ import annotations
 import base64
 import binascii
 import hashlib
-import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -59,20 +58,11 @@ class WitnessStore:
         """Every head held for `origin`, oldest first (lines that do not parse: a fault)."""
         path = self._file(origin)
         try:
-            lines = path.read_bytes().splitlines()
+            return _held(path.read_bytes(), origin, f"witness {path}")
         except FileNotFoundError:
             return []
         except OSError as exc:
             raise SystemFault(f"witness {path}: cannot read ({exc.strerror})") from None
-        out = []
-        for i, line in enumerate(lines, 1):
-            if not line.strip():
-                continue
-            try:
-                out.append(SignedTreeHead.from_json(line, f"witness {path} line {i}"))
-            except AuthnError as exc:
-                raise SystemFault(str(exc)) from None
-        return [h for h in out if h.origin == origin]
 
     def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
         """Keep `head` if a key in `public_keys` signed it and `proof` proves it extends the
@@ -125,14 +115,7 @@ class HttpWitness:
         import urllib.parse
 
         body = self._request("GET", "/checkpoints?origin=" + urllib.parse.quote(origin, safe=""), None)
-        out = []
-        for i, line in enumerate(body.splitlines(), 1):
-            if line.strip():
-                try:
-                    out.append(SignedTreeHead.from_json(line, f"witness {self.url} line {i}"))
-                except AuthnError as exc:
-                    raise SystemFault(str(exc)) from None
-        return [h for h in out if h.origin == origin]
+        return _held(body, origin, f"witness {self.url}")
 
     def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
         self._request("POST", "/add-checkpoint", add_request(head, old_size, proof))
@@ -144,7 +127,7 @@ class HttpWitness:
         req = urllib.request.Request(self.url + path, data=data, method=method,
                                      headers={"Content-Type": "text/plain; charset=utf-8"})
         try:
-            with urllib.request.urlopen(req, timeout=TIMEOUT_S) as resp:  # noqa: S310 - the operator's URL
+            with urllib.request.urlopen(req, timeout=TIMEOUT_S) as resp:  # the operator's URL
                 return resp.read(1 << 24)
         except urllib.error.HTTPError as exc:
             text = exc.read(2000).decode("utf-8", "replace").strip().splitlines()
@@ -153,6 +136,18 @@ class HttpWitness:
             raise SystemFault(f"witness {self.url}: HTTP {exc.code}") from None
         except (urllib.error.URLError, OSError) as exc:
             raise SystemFault(f"witness {self.url}: not reached ({getattr(exc, 'reason', exc)})") from None
+
+
+def _held(text: bytes, origin: str, where: str) -> list[SignedTreeHead]:
+    """The heads of `origin` in a witness's JSON lines (a line that does not parse: a fault)."""
+    out = []
+    for i, line in enumerate(text.splitlines(), 1):
+        if line.strip():
+            try:
+                out.append(SignedTreeHead.from_json(line, f"{where} line {i}"))
+            except AuthnError as exc:
+                raise SystemFault(str(exc)) from None
+    return [h for h in out if h.origin == origin]
 
 
 def add_request(head: SignedTreeHead, old_size: int, proof: Sequence[bytes]) -> bytes:
@@ -201,7 +196,7 @@ def serve(store: WitnessStore, public_keys: Sequence[Any], host: str, port: int)
             self.end_headers()
             self.wfile.write(body)
 
-        def do_GET(self) -> None:  # noqa: N802 - http.server's name
+        def do_GET(self) -> None:  # http.server's name
             url = urllib.parse.urlsplit(self.path)
             origin = urllib.parse.parse_qs(url.query).get("origin", [""])[0]
             if url.path != "/checkpoints" or not origin:
@@ -209,7 +204,7 @@ def serve(store: WitnessStore, public_keys: Sequence[Any], host: str, port: int)
                 return
             self._answer(200, "".join(h.to_json() + "\n" for h in store.heads(origin)).encode())
 
-        def do_POST(self) -> None:  # noqa: N802
+        def do_POST(self) -> None:
             length = self.headers.get("Content-Length", "")
             if self.path != "/add-checkpoint" or not length.isdigit() or int(length) > 1 << 16:
                 self._answer(400, b"POST /add-checkpoint with a body under 64 KiB\n")
@@ -233,7 +228,3 @@ def serve(store: WitnessStore, public_keys: Sequence[Any], host: str, port: int)
         server.serve_forever()
     finally:
         server.server_close()
-
-
-def to_json_lines(heads: Sequence[SignedTreeHead]) -> str:
-    return "".join(json.dumps(h.to_dict()) + "\n" for h in heads)

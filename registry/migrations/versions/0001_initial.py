@@ -15,7 +15,8 @@ down_revision = None
 branch_labels = None
 depends_on = None
 
-#: The shipped profiles (signatures/data/profiles.json) as of this revision, frozen here so that this revision never changes.
+#: The shipped profiles (signatures/data/profiles.json) as of this revision, frozen here so that this
+#: revision never changes.
 SHIPPED_PROFILES = [
     {"slug": "m600", "name": "DJI Matrice 600", "rotors": 6, "arms": 6, "blades_per_rotor": 2,
      "blade_length_m": 0.50, "rotor_rate_hz": 36.6667, "propeller_distance_m": 1.13},

@@ -18,6 +18,7 @@ from datetime import datetime, timezone
 import sqlalchemy as sa
 from alembic import op
 
+from registry.migrations.triggers import append_only
 from registry.models import UtcDateTime
 
 revision = "0002"
@@ -26,24 +27,6 @@ branch_labels = None
 depends_on = None
 
 _NEW_TABLES = ("audit_policies", "audit_tree_heads")
-
-
-def _sqlite_triggers(table: str) -> list[str]:
-    return [f"CREATE TRIGGER {table}_no_update BEFORE UPDATE ON {table} "
-            f"BEGIN SELECT RAISE(ABORT, '{table} is append-only'); END",
-            f"CREATE TRIGGER {table}_no_delete BEFORE DELETE ON {table} "
-            f"BEGIN SELECT RAISE(ABORT, '{table} is append-only'); END"]
-
-
-def _pg_triggers(table: str) -> list[str]:
-    # audit_log_append_only() (revision 0001) raises 'audit_log is append-only'; one per table here
-    fn = f"{table}_append_only"
-    return [f"CREATE FUNCTION {fn}() RETURNS trigger LANGUAGE plpgsql AS $$ "
-            f"BEGIN RAISE EXCEPTION '{table} is append-only'; END; $$",
-            f"CREATE TRIGGER {table}_no_update BEFORE UPDATE ON {table} FOR EACH ROW EXECUTE FUNCTION {fn}()",
-            f"CREATE TRIGGER {table}_no_delete BEFORE DELETE ON {table} FOR EACH ROW EXECUTE FUNCTION {fn}()",
-            f"CREATE TRIGGER {table}_no_truncate BEFORE TRUNCATE ON {table} "
-            f"FOR EACH STATEMENT EXECUTE FUNCTION {fn}()"]
 
 
 def _iso(value) -> str:
@@ -113,8 +96,7 @@ def upgrade() -> None:
         last = rows[-1][0]
     _restore_no_update_trigger(dialect)
     for table in _NEW_TABLES:
-        for ddl in _pg_triggers(table) if dialect == "postgresql" else _sqlite_triggers(table) \
-                if dialect == "sqlite" else []:
+        for ddl in append_only(table, dialect):
             op.execute(ddl)
 
 

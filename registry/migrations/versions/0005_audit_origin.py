@@ -11,27 +11,14 @@ Create Date: 2026-11-26
 import sqlalchemy as sa
 from alembic import op
 
+from registry.migrations.triggers import append_only
+
 revision = "0005"
 down_revision = "0004"
 branch_labels = None
 depends_on = None
 
 _TABLE = "audit_log_meta"
-
-
-def _triggers(dialect: str) -> list[str]:
-    if dialect == "sqlite":
-        return [f"CREATE TRIGGER {_TABLE}_no_{op_} BEFORE {op_.upper()} ON {_TABLE} "
-                f"BEGIN SELECT RAISE(ABORT, '{_TABLE} is append-only'); END" for op_ in ("update", "delete")]
-    if dialect != "postgresql":
-        return []
-    fn = f"{_TABLE}_append_only"
-    return [f"CREATE FUNCTION {fn}() RETURNS trigger LANGUAGE plpgsql AS $$ "
-            f"BEGIN RAISE EXCEPTION '{_TABLE} is append-only'; END; $$",
-            f"CREATE TRIGGER {_TABLE}_no_update BEFORE UPDATE ON {_TABLE} FOR EACH ROW EXECUTE FUNCTION {fn}()",
-            f"CREATE TRIGGER {_TABLE}_no_delete BEFORE DELETE ON {_TABLE} FOR EACH ROW EXECUTE FUNCTION {fn}()",
-            f"CREATE TRIGGER {_TABLE}_no_truncate BEFORE TRUNCATE ON {_TABLE} "
-            f"FOR EACH STATEMENT EXECUTE FUNCTION {fn}()"]
 
 
 def upgrade() -> None:
@@ -41,7 +28,7 @@ def upgrade() -> None:
         sa.Column("value", sa.Text(), nullable=False),
         sa.PrimaryKeyConstraint("name", name=op.f("pk_audit_log_meta")),
     )
-    for ddl in _triggers(op.get_bind().dialect.name):
+    for ddl in append_only(_TABLE, op.get_bind().dialect.name):
         op.execute(ddl)
     with op.batch_alter_table("audit_tree_heads") as batch:
         batch.add_column(sa.Column("origin", sa.Text(), nullable=True))
