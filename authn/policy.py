@@ -11,7 +11,7 @@ those is satisfied before the radar runs, the deny holds whatever evidence the r
 could add (forbid overrides permit), so the decision over the registry and Remote ID
 evidence is final. This needs one ordinary
 `is_authorized` call; Cedar's partial evaluation, which answers the same question, is an
-experimental cedarpy API (not for final decisions, by its own docs) and took ~0.5 ms.
+experimental cedarpy API (not for final decisions, by its own docs) and costs ~0.5 ms.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ machine's speed drifts, so both see the same drift). Afterwards each registry mu
 exactly one audit entry per file and `authn audit verify` must pass. CPU time per return
 (every process of the command, the workers included) separates what the cluster costs
 from what the machine's other load takes from it. Prints one JSON object: throughputs,
-their ratio, and the issue's must-show ratio cluster / (cores x single process), to be
+their ratio, and the must-show ratio cluster / (cores x single process), whose target is
 >= 0.8 (the local cluster has one single-threaded worker process per core), over the
 medians and per turn (the three configurations run back to back) with its median. A third
 configuration, `cores` independent `authn check` processes on interleaved slices of the
@@ -117,14 +117,14 @@ def main() -> None:
     single = result["single_process"]["median_returns_per_s"]  # type: ignore[index]
     cluster = result["local_cluster"]["median_returns_per_s"]  # type: ignore[index]
     result["throughput_ratio"] = round(cluster / single, 3)
-    result["must_show_ratio"] = round(cluster / (cores * single), 3)  # issue 19: >= 0.8
+    result["must_show_ratio"] = round(cluster / (cores * single), 3)  # target: >= 0.8
     #: the same ratio within each turn (the configurations ran back to back), and its median: on a
     #: machine whose load changes between turns, medians of the columns pair runs of different turns
     turns = [c["returns_per_s"] / (cores * s["returns_per_s"])
              for s, c in zip(runs["single_process"], runs["local_cluster"])]
     result["must_show_ratio_per_turn"] = [round(t, 3) for t in turns]
     result["must_show_ratio_paired_median"] = round(statistics.median(turns), 3)
-    #: what this machine gave `cores` processes at the time, no Dask: the ceiling the cluster is held to here
+    #: what the machine gives `cores` processes in the same run, no Dask: the ceiling the cluster is held to
     result["cluster_vs_independent"] = round(cluster / result["independent_processes"]["median_returns_per_s"], 3)
     print(json.dumps(result, indent=2))
 

@@ -3,7 +3,7 @@
 `extract(recording)` is the entry point (`extract_iq(iq, config)` for a bare cube).
 Only the range FFT and the range profile touch the whole cube; everything in
 slow time runs on the target's range gate (detected, or around a caller's
-expected range). Exact definitions: README "Micro-Doppler processing and features".
+expected range). Exact definitions: docs/features.md.
 
 Numerics: the cube is first scaled by an exact power of two (`rd.prepare`), so
 every feature but `peak_amplitude_db` is independent of the IQ scale and no

@@ -1,6 +1,6 @@
 """The one place that picks the FFT backend for radar processing.
 
-Measured on the 2-core project machine (numpy 2.4.6, scipy 1.17.1; README
+Measured on a 2-core machine (numpy 2.4.6, scipy 1.17.1; docs/features.md
 "FFT backend"): importing `scipy.fft` costs 0.19-0.38 s, a third to half of the
 CLI's 0.6 s cold-start budget, while a warm `numpy.fft` transform of a 600x80
 cube takes 0.17-0.25 ms against scipy's 0.15 ms. numpy's apparent slowness on
@@ -27,9 +27,9 @@ from signatures.errors import SignaturesError
 __all__ = ["BACKENDS", "SCIPY_WORKERS", "backend", "fft", "resolve", "rfft"]
 
 BACKENDS = ("numpy", "scipy")
-#: Threads per scipy transform. One: on the 2-core project machine two threads were no faster on
-#: the 8192x64 `wide` cube (0.61 against 0.58 ms) and slower on the small transforms of one check
-#: (the gate's 8192x5 Doppler FFT 0.17 against 0.10 ms), and a fleet runs one process per core.
+#: Threads per scipy transform. One: on a 2-core machine two threads are no faster on the
+#: 8192x64 `wide` cube (0.61 against 0.58 ms, measured) and slower on the small transforms of one
+#: check (the gate's 8192x5 Doppler FFT 0.17 against 0.10 ms), and a fleet runs one process per core.
 #: Values do not depend on it (the threads split the rows, not a transform).
 SCIPY_WORKERS = 1
 #: 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s import); anything else: numpy

@@ -29,7 +29,7 @@ fitted values and hyper-parameters of the tests its mode applies, and nothing el
    runs when the tips are not aliased. `bird` and `none` are never checked here: they are
    classes, not airframes.
 
-   Rotor count is *not* tested: the distinct-flash-phase count is too noisy (README "Open set").
+   Rotor count is *not* tested: the distinct-flash-phase count is too noisy (docs/classifiers.md, "Open set").
 
 2. **Distance to the class manifold** (optional, all classes): mean Euclidean distance, in
    standardised feature space, to the k nearest training returns of the predicted class;
@@ -96,7 +96,7 @@ class PhysicsCheck:
     #: below this flash score the rate estimate is noise: the rate test abstains
     min_flash_score: float = 1.0
     #: The rate test is never sharper than the estimator's demonstrated accuracy on known
-    #: airframes (5 % for most returns, README "Estimator accuracy"): 8 % still separates
+    #: airframes (5 % for most returns, docs/features.md "Estimator accuracy"): 8 % still separates
     #: profiles 20 % apart, the open-set design point.
     min_rel_tol: float = 0.08
     #: Tip-speed upper bound slack: the spectral-edge estimate is ~2 % high on moving airframes

@@ -141,7 +141,7 @@ def sample_nuisance(rng: np.random.Generator, dist: NuisanceDistribution) -> tup
                  beam_taper_db=u(dist.beam_taper_db), clutter_spread_mps=u(dist.clutter_spread_mps))
     scene_fields = dict(rotor_rate_jitter=u(dist.rotor_rate_jitter), attitude_wobble_deg=u(dist.attitude_wobble_deg),
                         blade_to_body_db=u(dist.blade_to_body_db))
-    # drawn last, so that every earlier draw is what it was before this knob existed
+    # drawn last, so that a seed's earlier draws do not depend on whether the cone is drawn
     nz = Nuisance(**drawn, blade_cone_deg=u(dist.blade_cone_deg))
     return nz, scene_fields
 

@@ -24,14 +24,14 @@ RETRIES = 2
 #: - the nanny's MALLOC_TRIM_THRESHOLD_=65536 (set by Dask in every worker it spawns, to hand
 #:   freed memory back to the OS early) is left unset: setting it freezes glibc's mmap threshold
 #:   at 128 KiB, so every array larger than that (the batch's cubes, spectra, workspaces) is a
-#:   fresh mapping whose pages fault in on every use: measured on a 2,000-return re-check, 10x
-#:   the minor page faults of one process and +30-50 % CPU per worker (issue 19);
+#:   fresh mapping whose pages fault in on every use: on a 2,000-return re-check, 10x the
+#:   minor page faults of one process and +30-50 % CPU per worker (measured);
 #: - Dask's housekeeping runs less often: the event-loop tick (20 ms: it only times the loop to
 #:   warn when it was blocked), the memory monitors of workers and nannies (100 ms: they act on
 #:   memory limits, which a re-check's fixed-size partitions do not approach) and the system
 #:   monitor (500 ms: the dashboard's CPU and disk plots). An idle local cluster of 2 workers
-#:   took 1.0 s of CPU per 20 s (client 0.5, each worker 0.27) with the defaults, 0.22 s
-#:   with these: ~2 % of the machine during a re-check.
+#:   uses 1.0 s of CPU per 20 s (client 0.5, each worker 0.27) with the defaults, 0.22 s
+#:   with these: ~2 % of a 2-core machine during a re-check (measured).
 LOCAL_CONFIG = {"distributed.worker.profile.enabled": False,
                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
                 "distributed.admin.tick.interval": "1s",
