@@ -70,7 +70,7 @@ def collect(preset_name: str, snr: float, n: int, seed: int, dwells: int = 1) ->
                 rec, rate, _, _ = render_in_world(world, scene, preset, sim_seed)
                 classifier = classifier or classifier_for(rec, None, "bench")
                 result = extract(rec, expected_range_m=scene.range_m)
-                pred = classifier.predict(result.as_array(), lambda: result.rd_patch) if result.detected else None
+                pred = classifier.predict(result.as_array(), lambda r=result: r.rd_patch) if result.detected else None
                 rows.append(dict(world=world, cat=cat, claim=i, dwell=dwell, flies=profiles[flies],
                                  claims=profiles[claims], rate=rate, detected=result.detected,
                                  estimates={**asdict(result.features), **result.physics},
@@ -140,7 +140,8 @@ def main() -> None:
     if not math.isfinite(args.snr) or args.n < 2 or args.dwells < 1:
         ap.error("--snr must be finite, --n at least 2 and --dwells at least 1")
     rows = collect(args.preset, args.snr, args.n, args.seed, args.dwells)
-    print(f"{args.preset}, {args.snr:g} dB, {args.n} claims per category, {args.dwells} dwell(s) each, seed {args.seed}")
+    print(f"{args.preset}, {args.snr:g} dB, {args.n} claims per category, {args.dwells} dwell(s) each, "
+          f"seed {args.seed}")
     report(rows)
 
 

@@ -683,8 +683,8 @@ def _event_half_rule(lags: np.ndarray, vote: np.ndarray, found_n: np.ndarray, va
         lag0 = np.where(going, lags[j], lag0)
 
 
-def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndarray, rate_hz: float,
-            n_bins: int, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndarray, rate_hz: float, n_bins: int,
+            fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The tail of `estimators.periodicity` for a group: rate, rate std, score, phases, tolerance
     (in periods), period (series samples). After a search wider than TOL_FRACTION the lag is
     refined and matched again closely where that matches anything, as the single path; the score

@@ -593,9 +593,10 @@ def periodicity(series: FlashSeries) -> Periodicity:
     """Flash period from flash events (module docstring).
 
     Each event checks for a partner event within +-(TOL_SAMPLES + f L) of t - L and
-    of t + L (f: TOL_FRACTION, or EVENT_TOL_FRACTION where no coherent checks apply), where that window lies inside the dwell; a partner
-    counts when its range position agrees (POSITION_TOL_BINS after the body's
-    migration; positions at the gate's edge agree with any). With checks weighted
+    of t + L (f: TOL_FRACTION, or EVENT_TOL_FRACTION where no coherent checks apply),
+    where that window lies inside the dwell; a partner counts when its range position
+    agrees (POSITION_TOL_BINS after the body's migration; positions at the gate's edge
+    agree with any). With checks weighted
     by the event's strength (FULL_VOTE_DB), the found share s is compared with the
     chance share p0 (event density x window width x share of position-compatible
     event pairs): score(L) = s [F ln(s / p0) + (V - F) ln((1 - s) / (1 - p0))], 0

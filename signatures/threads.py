@@ -43,7 +43,7 @@ def _get_controller():
 
                     controller = ThreadpoolController()
                     _controller = controller if controller.select(user_api="blas").lib_controllers else None
-                except Exception:  # no threadpoolctl, or a library it cannot inspect: leave BLAS as it is
+                except Exception:  # noqa: BLE001 - no threadpoolctl, or a library it cannot inspect: leave BLAS alone
                     _controller = None
                 _tried = True
     return _controller

@@ -140,7 +140,7 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     val = generate(DatasetSpec(split="val", n=cfg.n_val, **common), featurizer,
                    workers=cfg.workers, cache=cache, progress=progress)
     y, yv = _codes(train), _codes(val)
-    n_cls, n_all = len(train.classes), train.X.shape[1]
+    n_cls = len(train.classes)
     cols = [i for i, n in enumerate(train.feature_names) if n not in GEOMETRY_FEATURES + LEVEL_FEATURES]
     Xt, Xv, n_feat = train.X[:, cols], val.X[:, cols], len(cols)
     members = clf.fit_members(Xt, y, cfg.seed)

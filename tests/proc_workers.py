@@ -8,7 +8,7 @@ import multiprocessing as mp
 def _call(fn, args, barrier, results, i) -> None:
     try:
         results.put((i, fn(*args, barrier)))
-    except BaseException as exc:  # reported to the parent test, not swallowed
+    except BaseException as exc:  # noqa: BLE001 - reported to the parent test, not swallowed
         results.put((i, exc))
 
 

@@ -35,7 +35,8 @@ def test_rotor_rate_scale_moves_the_measured_flash_rate() -> None:
     """A rotor 12 % faster flashes 12 % faster: truth and the estimator both follow."""
     rates = []
     for scale in (1.0, 1.12):
-        sc = _scene(snr_db=30.0, clutter_db=None, yaw_deg=0.0, rotor_rate_jitter=0.0, nuisance=Nuisance(rotor_rate_scale=scale))
+        sc = _scene(snr_db=30.0, clutter_db=None, yaw_deg=0.0, rotor_rate_jitter=0.0,
+                    nuisance=Nuisance(rotor_rate_scale=scale))
         rec, truth = simulate(sc, WIDE, seed=4)
         assert abs(truth.rotor_rate_hz - scale * M300.rotor_rate_hz) < 1e-9
         rates.append(extract(rec).features.flash_rate_hz)

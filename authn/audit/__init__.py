@@ -25,8 +25,8 @@ Modules, each with one job:
 
 from authn.audit.entries import GENESIS, Entry, NewEntry, _iso_db, batch_entries, compute_hash, db_label, entry_bytes, \
     get_entry, get_policy, list_entries
-from authn.audit.heads import HeadPlaces, KnownHead, accepted_keys, consistency_proof, known_heads, log_origin, newest, \
-    writer_key
+from authn.audit.heads import HeadPlaces, KnownHead, accepted_keys, consistency_proof, known_heads, log_origin, \
+    newest, writer_key
 from authn.audit.proofs import PROOF_FORMAT, prove, verify_proof
 from authn.audit.replay import ReplayResult, replay
 from authn.audit.signer import checkpoint, rotate_key

@@ -18,8 +18,8 @@ os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
 import typer
 
-from authn.cli import (audit, bench, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid, serve,
-                       simulate)
+from authn.cli import (audit, bench, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid,
+                       serve, simulate)
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
 from core.errors import AuthnException, describe, exit_code_for

@@ -149,7 +149,8 @@ def verify_cmd(
     ctx: typer.Context,
     against: Path | None = typer.Option(None, "--against", help="A signed head file (`authn audit checkpoint`)."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
-    public_key: Path | None = typer.Option(None, "--public-key", help="Check head signatures with this PEM public key."),
+    public_key: Path | None = typer.Option(None, "--public-key",
+                                           help="Check head signatures with this PEM public key."),
     sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
     witness: str | None = typer.Option(None, "--witness", help=WITNESS_HELP),
 ) -> None:
@@ -315,7 +316,8 @@ def witness_serve_cmd(
 def prove_cmd(
     ctx: typer.Context,
     seq: int = typer.Argument(..., help="Entry number (seq)."),
-    sth_file: Path | None = typer.Option(None, "--sth", help="Prove against this STH (default: the newest covering N)."),
+    sth_file: Path | None = typer.Option(None, "--sth",
+                                         help="Prove against this STH (default: the newest covering N)."),
     out: Path | None = typer.Option(None, "--out", help="Write the proof to this file instead of stdout."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
     sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
@@ -390,7 +392,8 @@ def replay_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry nu
 @audit_app.command("export")
 def export_cmd(
     ctx: typer.Context,
-    checkpoint_only: bool = typer.Option(False, "--checkpoint", help="Write a signed tree head instead (as `checkpoint`)."),
+    checkpoint_only: bool = typer.Option(False, "--checkpoint",
+                                         help="Write a signed tree head instead (as `checkpoint`)."),
     out: Path | None = typer.Option(None, "--out", help="Write to this file instead of stdout."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
 ) -> None:

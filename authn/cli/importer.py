@@ -47,7 +47,8 @@ def dca1000(
     site_alt: float = _ALT,
     lanes: int = typer.Option(2, "--lanes", help="LVDS lanes of the capture: 2 (xWR14/16/18/68xx) or 4 (xWR12/22xx)."),
     rx: int | None = typer.Option(None, "--rx", help="RX antenna (physical index 0-3; default: the lowest enabled)."),
-    tx: int | None = typer.Option(None, "--tx", help="TDM-MIMO: keep the loop's chirp on this TX (default: the first)."),
+    tx: int | None = typer.Option(None, "--tx",
+                                  help="TDM-MIMO: keep the loop's chirp on this TX (default: the first)."),
     frame: int | None = typer.Option(None, "--frame", min=0, help="Import this frame only (0-based; default: all)."),
     frames_per_dwell: int = typer.Option(1, "--frames-per-dwell", min=1,
                                          help="Frames joined into one dwell (only when frames follow without a gap)."),
@@ -55,7 +56,8 @@ def dca1000(
 ) -> None:
     """TI mmWave + DCA1000EVM raw ADC data: one dwell (file) per frame.
 
-    Example: authn import dca1000 adc_data_Raw_0.bin --config profile.cfg --start-time 2025-06-01T10:00:00Z --site-lat 59.35 --site-lon 18.07 --site-alt 30 --out frames/
+    Example: authn import dca1000 adc_data_Raw_0.bin --config profile.cfg --start-time 2025-06-01T10:00:00Z \\
+      --site-lat 59.35 --site-lon 18.07 --site-alt 30 --out frames/
     """
     from pydantic import ValidationError
 
@@ -94,20 +96,26 @@ def array(
     range_bin_m: float | None = typer.Option(None, "--range-bin-m", help="range: range-bin spacing, m."),
     first_range_m: float | None = typer.Option(None, "--first-range-m",
                                                help="if/range: range of the first bin (window start), m; default 0."),
-    var: str | None = typer.Option(None, "--var", help="Variable of a .npz/.mat (default: its only one); I with --imag-var."),
+    var: str | None = typer.Option(None, "--var",
+                                   help="Variable of a .npz/.mat (default: its only one); I with --imag-var."),
     imag_var: str | None = typer.Option(None, "--imag-var", help="Variable holding Q when I and Q are real arrays."),
     interleaved: bool = typer.Option(False, "--interleaved", help="Real I, Q, I, Q, ... along the last stored axis."),
     axis_order: str = typer.Option("pulses,samples", "--axis-order",
-                                   help="pulses,samples (rows are pulses) or samples,pulses (e.g. range bins x pulses)."),
+                                   help="pulses,samples (rows are pulses) or samples,pulses (e.g. range bins x "
+                                        "pulses)."),
     transpose: bool = typer.Option(False, "--transpose", help="Same as --axis-order samples,pulses."),
     pulses_per_dwell: int | None = typer.Option(None, "--pulses-per-dwell", min=1,
                                                 help="Split into dwells of this many pulses (default: one dwell)."),
 ) -> None:
     """A numpy or MATLAB array of dechirped IF, range-compressed pulses or CW Doppler IQ.
 
-    Example (range bins x pulses): authn import array scan.mat --var data --domain range --transpose --carrier-hz 77e9 --pri-s 1e-4 --range-bin-m 0.5 --first-range-m 20 --start-time 2025-06-01T10:00:00Z --site-lat 59.35 --site-lon 18.07 --site-alt 30 --out scan.h5
+    Example (range bins x pulses): authn import array scan.mat --var data --domain range --transpose \\
+      --carrier-hz 77e9 --pri-s 1e-4 --range-bin-m 0.5 --first-range-m 20 --start-time 2025-06-01T10:00:00Z \\
+      --site-lat 59.35 --site-lon 18.07 --site-alt 30 --out scan.h5
 
-    Example (CW I and Q): authn import array cw.mat --var I --imag-var Q --domain cw --carrier-hz 24e9 --sample-rate-hz 20000 --pulses-per-dwell 4096 --start-time 2025-06-01T10:00:00Z --site-lat 59.35 --site-lon 18.07 --site-alt 30 --out cw/
+    Example (CW I and Q): authn import array cw.mat --var I --imag-var Q --domain cw --carrier-hz 24e9 \\
+      --sample-rate-hz 20000 --pulses-per-dwell 4096 --start-time 2025-06-01T10:00:00Z --site-lat 59.35 \\
+      --site-lon 18.07 --site-alt 30 --out cw/
     """
     from signatures.errors import SignaturesError
     from signatures.importers.array import ArraySource, Waveform, dwells

@@ -22,7 +22,8 @@ def generate_cmd(
 
     Register the public key with the drone's identity, then sign what it broadcasts:
 
-    Example: authn keys generate --out ua.pem && authn register --serial 1581BDEM00000099 --model m300 --public-key ua.pub.pem
+    Example: authn keys generate --out ua.pem && \\
+      authn register --serial 1581BDEM00000099 --model m300 --public-key ua.pub.pem
     """
     from authn.uakeys import generate, write
     from registry.remoteid.drip import det_to_text

@@ -59,7 +59,8 @@ def train(
 
     Example: authn models train --like my_radar_capture.h5
 
-    Example (rebuild a shipped bundle): authn models train --preset paper --cnn --out signatures/models/paper --overwrite-shipped
+    Example (rebuild a shipped bundle): authn models train --preset paper --cnn --out signatures/models/paper \\
+      --overwrite-shipped
     """
     from rich.console import Console
 

@@ -57,11 +57,13 @@ def _record_json(rec) -> dict:
 
 def register_cmd(
     ctx: typer.Context,
-    serial: Optional[str] = typer.Option(None, "--serial", help="Remote ID UAS ID (ANSI/CTA-2063-A serial by default)."),
+    serial: Optional[str] = typer.Option(None, "--serial",
+                                         help="Remote ID UAS ID (ANSI/CTA-2063-A serial by default)."),
     model: str = typer.Option(..., "--model", help="Model profile slug (m600, m300, phantom4 or a new one)."),
     id_type: str = typer.Option("serial", "--id-type", help="serial | caa_registration | utm_uuid | specific_session."),
     operator_id: Optional[str] = typer.Option(None, "--operator-id", help="Operator registration ID (max 20 chars)."),
-    public_key: Optional[Path] = typer.Option(None, "--public-key", help="Ed25519 public key file: 32 raw bytes, hex or PEM."),
+    public_key: Optional[Path] = typer.Option(None, "--public-key",
+                                              help="Ed25519 public key file: 32 raw bytes, hex or PEM."),
     valid_from: Optional[str] = typer.Option(None, "--valid-from",
                                              help="ISO 8601 start (naive = UTC; default: 24 h before now, so that a "
                                                   "return recorded shortly before registering is inside the window)."),
@@ -73,7 +75,8 @@ def register_cmd(
     blades_per_rotor: int = typer.Option(2, "--blades-per-rotor", help="New model: blades per rotor."),
     blade_length_m: Optional[float] = typer.Option(None, "--blade-length", help="New model: blade length, m."),
     rotor_rate_hz: Optional[float] = typer.Option(None, "--rotor-rate", help="New model: rotor rate, Hz."),
-    propeller_distance_m: Optional[float] = typer.Option(None, "--propeller-distance", help="New model: propeller distance, m."),
+    propeller_distance_m: Optional[float] = typer.Option(None, "--propeller-distance",
+                                                         help="New model: propeller distance, m."),
     as_json: bool = typer.Option(False, "--json", help="Print the registered identity as JSON."),
 ) -> None:
     """Register an authorised UAV identity, and optionally a new model profile.
@@ -85,7 +88,8 @@ def register_cmd(
 
     Example: authn register --serial 1581F5FJD12345678901 --model m300 --operator-id FIN87astrdge12k
 
-    Example: authn register --model x8 --model-name "Octo X8" --rotors 8 --arms 4 --blade-length 0.38 --rotor-rate 45 --propeller-distance 1.2
+    Example: authn register --model x8 --model-name "Octo X8" --rotors 8 --arms 4 --blade-length 0.38 \\
+      --rotor-rate 45 --propeller-distance 1.2
     """
     from registry.errors import RegistryError
     from registry.keys import read_public_key

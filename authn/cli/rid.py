@@ -26,7 +26,8 @@ def decode_cmd(
                                              help="Verify DRIP authentication pages (RFC 9575) with this Ed25519 key: "
                                                   "a key file (PEM, 32 raw bytes or 64 hex digits) or the 64 hex "
                                                   "digits themselves."),
-    at: Optional[str] = typer.Option(None, "--at", help="Time the signatures must be valid at (ISO 8601; default now)."),
+    at: Optional[str] = typer.Option(None, "--at",
+                                     help="Time the signatures must be valid at (ISO 8601; default now)."),
 ) -> None:
     """Decode F3411 broadcast messages (all types, protocol versions 0-2).
 

@@ -84,10 +84,12 @@ def simulate(
                                     "cw (a CW radar at the preset's carrier and PRI; docs/format.md)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (scene i of --count uses seed + i)."),
     elevation: float = typer.Option(10.0, "--elevation", help="Elevation of the target seen from the radar, degrees."),
-    clutter: float | None = typer.Option(None, "--clutter", help="Ground clutter-to-noise ratio, dB (default: no clutter)."),
+    clutter: float | None = typer.Option(None, "--clutter",
+                                         help="Ground clutter-to-noise ratio, dB (default: no clutter)."),
     range_offset: float | None = typer.Option(None, "--range-offset",
                                               help="Start of the range gate, m (default: target mid-window)."),
-    count: int = typer.Option(1, "--count", min=1, max=1_000_000, help="Number of returns (writes DIR/scene_NNNNNN.h5)."),
+    count: int = typer.Option(1, "--count", min=1, max=1_000_000,
+                              help="Number of returns (writes DIR/scene_NNNNNN.h5)."),
     profiles: Path | None = typer.Option(None, "--profiles",
                                          help="JSON file of UAV profiles added to (or overriding) the shipped ones."),
     azimuth: float = typer.Option(0.0, "--azimuth", help="Azimuth of the target from the radar, degrees from north."),
@@ -97,7 +99,8 @@ def simulate(
     rid_lon: float | None = typer.Option(None, "--rid-lon", help="Declared longitude (spoof; default: the truth)."),
     rid_alt: float | None = typer.Option(None, "--rid-alt", help="Declared WGS-84 altitude, m (spoof)."),
     rid_offset: float = typer.Option(0.0, "--rid-offset",
-                                     help="Declare a position this many metres beyond the true one along the line of sight."),
+                                     help="Declare a position this many metres beyond the true one along the line of "
+                                          "sight."),
     rid_ua_type: int = typer.Option(2, "--rid-ua-type", min=0, max=15,
                                     help="Declared F3411 UA type (2 = helicopter/multirotor)."),
     rid_id_type: int | None = typer.Option(None, "--rid-id-type", min=0, max=15,
@@ -106,7 +109,8 @@ def simulate(
     start_time: str | None = typer.Option(None, "--start-time",
                                           help="ISO 8601 UTC time of the first chirp (default: now)."),
     sign_key: Path | None = typer.Option(None, "--sign-key",
-                                         help="Sign the Remote ID with this key (`authn keys generate`): DRIP, RFC 9575."),
+                                         help="Sign the Remote ID with this key (`authn keys generate`): DRIP, "
+                                              "RFC 9575."),
     sam: str = typer.Option("wrapper", "--sam", help="DRIP authentication: wrapper, manifest or frame."),
     sign_det: str | None = typer.Option(None, "--sign-det",
                                         help="Name this DET in the signature instead of the key's own (a forgery)."),
@@ -122,9 +126,11 @@ def simulate(
 
     Example: authn simulate --model m300 --range 500 --speed 5 --snr 10 --out m300.h5
 
-    Example (spoofed position): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000002 --rid-offset 300 --out spoof.h5
+    Example (spoofed position): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000002 \\
+      --rid-offset 300 --out spoof.h5
 
-    Example (signed): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000099 --sign-key ua.pem --out signed.h5
+    Example (signed): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000099 \\
+      --sign-key ua.pem --out signed.h5
     """
     from pydantic import ValidationError
 

@@ -77,7 +77,8 @@ def plot_det(panels: dict[str, list[tuple[str, Sequence[float], Sequence[float],
     for ax, (name, curves) in zip(axes[0], panels.items()):
         for label, genuine, impostor, style, colour in curves:
             far, frr = roc(genuine, impostor)
-            ax.plot(probit(far), probit(frr), linestyle=style, color=colour, label=f"{label} (EER {eer(genuine, impostor):.1%})")
+            ax.plot(probit(far), probit(frr), linestyle=style, color=colour,
+                    label=f"{label} (EER {eer(genuine, impostor):.1%})")
         ax.plot(probit([lo, 1 - lo]), probit([lo, 1 - lo]), ":", color="grey", lw=0.8)
         ax.set_xticks(probit(ticks), [f"{100 * p:g}" for p in ticks])
         ax.set_yticks(probit(ticks), [f"{100 * p:g}" for p in ticks])

@@ -224,7 +224,8 @@ def _body(p: UavProfile, lay: _Layout, rates: np.ndarray, t: np.ndarray, w: np.n
     return Points(along.astype(np.float32), norm_sq.astype(np.float32), amp.astype(np.float32))
 
 
-def uav_points(scene: Scene, t: np.ndarray, wavelength: float, rng: np.random.Generator) -> tuple[Points, AirframeTruth]:
+def uav_points(scene: Scene, t: np.ndarray, wavelength: float,
+               rng: np.random.Generator) -> tuple[Points, AirframeTruth]:
     """Every scatterer of the scene's UAV over the dwell; blades scaled to their power share."""
     p = scene.profile
     assert p is not None

@@ -72,7 +72,8 @@ def thermal_noise(n_chirps: int, n_samples: int, power: float, rng: np.random.Ge
 def receive(through_air: np.ndarray | None, noise: np.ndarray | None, shape: tuple[int, int],
             rng: np.random.Generator) -> tuple[np.ndarray, ReceiverTruth]:
     """What the ADC hands over: phase noise on the echoes, noise added, IQ imbalance, DC, quantisation."""
-    truth = ReceiverTruth(phase_walk_rad=float(rng.uniform(2e-5, 2e-4)), phase_jitter_rad=float(rng.uniform(1e-3, 5e-3)),
+    truth = ReceiverTruth(phase_walk_rad=float(rng.uniform(2e-5, 2e-4)),
+                          phase_jitter_rad=float(rng.uniform(1e-3, 5e-3)),
                           iq_gain=float(rng.uniform(-0.05, 0.05)), iq_phase_deg=float(rng.uniform(-2.0, 2.0)),
                           dc_dbc=float(rng.uniform(-30.0, -20.0)), adc_bits=12)
     n_chirps, n_samples = shape

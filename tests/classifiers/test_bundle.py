@@ -63,7 +63,8 @@ def test_predict_one_return(tiny_bundle: Path) -> None:
 
     clf = load_classifier(path=tiny_bundle)
     assert load_classifier(path=tiny_bundle) is clf  # loaded once per process
-    rec, _ = simulate(Scene(kind="uav", profile=shipped_profiles()["m600"], range_m=300, snr_db=20), get_preset("paper"), 5)
+    scene = Scene(kind="uav", profile=shipped_profiles()["m600"], range_m=300, snr_db=20)
+    rec, _ = simulate(scene, get_preset("paper"), 5)
     res = standin_extract(rec)
     pred = clf.predict(res.as_array(), res.rd_patch)
     assert pred.label in (*clf.classes, "unknown") and 0 < pred.confidence <= 1

@@ -67,7 +67,7 @@ def test_a_killed_worker_loses_no_entry(client, archive, registry_url) -> None:
         if victim is None:
             busy = [(w, keys) for w, keys in client.processing().items() if keys]
             assert busy and len(results) < len(parts), "nothing left running to kill"
-            (worker, lost), victim = busy[0], pids[busy[0][0]]
+            (_, lost), victim = busy[0], pids[busy[0][0]]
             os.kill(victim, signal.SIGKILL)
     for key in lost:  # the partitions the dead worker held were run again
         assert sum(len(t) > 2 and t[2] == "processing" for t in client.story(key)) >= 2, key

@@ -182,7 +182,8 @@ def test_a_link_from_a_trusted_registry_delivers_the_key(world: dict, tmp_path: 
 
     hda, ua = generate(hda=2), generate()
     now = datetime.now(timezone.utc)
-    link = encode_link(ua.det, ua.public_raw, hda.det, hda.private_raw, now - timedelta(days=1), now + timedelta(days=1))
+    day = timedelta(days=1)
+    link = encode_link(ua.det, ua.public_raw, hda.det, hda.private_raw, now - day, now + day)
     assert main(["--db", world["db"], "register", "--serial", ua.session_id, "--id-type", "specific_session",
                  "--model", "m300", "--valid-from", "2026-01-01"]) == 0
     scene = Scene(profile=shipped_profiles()["m300"], range_m=500.0, radial_speed_mps=3.0, snr_db=20.0)

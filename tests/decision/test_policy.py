@@ -107,7 +107,8 @@ def test_active_identity_needs_the_evidence(engine: PolicyEngine) -> None:
 
 def test_only_forbids_that_read_no_radar_context_are_final_early(tmp_path: Path) -> None:
     text = ('@id("ctx")\nforbid (principal, action, resource) when { context.radar_run };\n'
-            '@id("whole")\nforbid (principal, action, resource) when { context == context && principal.model == "x" };\n'
+            '@id("whole")\nforbid (principal, action, resource) '
+            'when { context == context && principal.model == "x" };\n'
             '@id("reg")\nforbid (principal, action, resource) when { principal.status == "revoked" };\n'
             '@id("auth")\nforbid (principal, action, resource) when { context.remote_id_auth == "invalid" };\n'
             '@id("ok")\npermit (principal, action, resource);\n')

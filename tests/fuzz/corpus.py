@@ -151,7 +151,8 @@ def _attribute_cases(b: _Builder) -> None:
         "string": "77 GHz", "numeric_string": "1.5", "array": np.array([1.0, 2.0]), "bool": True,
         "complex": 7.7e10 + 1e3j, "complex_zero_imag": np.complex128(1.0 + 0j), "nan": np.nan,
         "inf": np.inf, "neg_inf": -np.inf, "huge": 1e308, "int64_max": np.int64(2**63 - 1),
-        "opaque": _opaque(), "empty": h5py.Empty("f8"), "compound": np.array((1, 2.0), dtype=[("a", "i4"), ("b", "f8")]),
+        "opaque": _opaque(), "empty": h5py.Empty("f8"),
+        "compound": np.array((1, 2.0), dtype=[("a", "i4"), ("b", "f8")]),
         "negative": -1.0, "bytes": np.bytes_(b"\x80\x81"),
     }
     for attr in NUMERIC_ATTRS:
@@ -269,8 +270,8 @@ def _iq_cases(b: _Builder) -> None:
     b.h5("iq_shape", VALID, "iq_shape_1x1", _replace_ds("iq", data=np.ones((1, 1), np.complex64)))
     for dt in ["f4", "f8", "i2", "u1", "i8", "f2", "S8", "c8", "c16"]:
         expect = VALID if dt in ("c8", "c16") else BAD
-        b.h5("iq_dtype", expect, f"iq_dtype_{dt}", _replace_ds("iq", data=(iq if dt[0] == "c" else iq.real).astype(dt) if dt[0] != "S" else
-                                                                np.zeros(iq.shape, dt)))
+        data = np.zeros(iq.shape, dt) if dt[0] == "S" else (iq if dt[0] == "c" else iq.real).astype(dt)
+        b.h5("iq_dtype", expect, f"iq_dtype_{dt}", _replace_ds("iq", data=data))
     b.h5("iq_dtype", BAD, "iq_dtype_vlen_str",
          _replace_ds("iq", data=np.array([["a", "b"]], dtype=object), dtype=h5py.string_dtype()))
     b.h5("iq_dtype", BAD, "iq_dtype_compound_xy",
@@ -455,12 +456,14 @@ def _npz_cases(b: _Builder) -> None:
     b.npz("npz_member", BAD, "npz_carrier_nan", {**base, "carrier_hz": np.array(np.nan)})
     b.npz("npz_member", BAD, "npz_start_9999", {**base, "start_time": np.array("9999-12-31T23:59:59+00:00")})
     b.npz("npz_member", BAD, "npz_start_0001", {**base, "start_time": np.array("0001-01-01T00:00:00+00:00")})
-    b.npz("npz_member", BAD, "npz_times_strings", {**base, "remote_id_time_s": np.array(["a"] * len(base["remote_id"]))})
+    b.npz("npz_member", BAD, "npz_times_strings",
+          {**base, "remote_id_time_s": np.array(["a"] * len(base["remote_id"]))})
     b.npz("npz_member", BAD, "npz_rid_float", {**base, "remote_id": base["remote_id"].astype("f4")})
     b.npz("npz_member", BAD, "npz_attr_huge_array", {**base, "simulation": np.zeros(300_000)})
     b.npz("npz_bigendian", VALID, "npz_iq_bigendian_c8", {**base, "iq": base["iq"].astype(">c8")})
     b.npz("npz_bigendian", VALID, "npz_iq_bigendian_c16", {**base, "iq": base["iq"].astype(">c16")})
-    b.npz("npz_bigendian", VALID, "npz_times_bigendian", {**base, "remote_id_time_s": base["remote_id_time_s"].astype(">f8")})
+    b.npz("npz_bigendian", VALID, "npz_times_bigendian",
+          {**base, "remote_id_time_s": base["remote_id_time_s"].astype(">f8")})
     b.npz("npz_bigendian", VALID, "npz_carrier_bigendian", {**base, "carrier_hz": np.array(base["carrier_hz"], ">f8")})
     b.npz("npz_layout", VALID, "npz_iq_fortran", {**base, "iq": np.asfortranarray(base["iq"])})
     path = b.dir / "npz_compressed.npz"
@@ -486,7 +489,8 @@ def _npz_cases(b: _Builder) -> None:
               patched_member("iq.npy", shape_txt, new.ljust(len(shape_txt))), ".npz")
     b.raw("npz_header", BAD, "npz_iq_header_dtype",
           patched_member("iq.npy", b"'<c8'", b"'|O8'"), ".npz")
-    b.raw("npz_header", BAD, "npz_iq_npy_version_9", patched_member("iq.npy", b"\x93NUMPY\x01", b"\x93NUMPY\x09"), ".npz")
+    b.raw("npz_header", BAD, "npz_iq_npy_version_9",
+          patched_member("iq.npy", b"\x93NUMPY\x01", b"\x93NUMPY\x09"), ".npz")
     b.raw("npz_header", BAD, "npz_attr_header_huge",
           patched_member("carrier_hz.npy", b"'shape': ()", b"'shape': (1099511627776,)"), ".npz")
     b.raw("npz_header", BAD, "npz_iq_header_garbage",

@@ -61,7 +61,7 @@ def check_recording(rec) -> None:
     assert rec.iq.ndim == 2 and rec.iq.size > 0
     assert rec.iq.dtype in (np.dtype(np.complex64), np.dtype(np.complex128))  # native byte order
     assert np.isfinite(rec.iq).all()
-    rec.mid_time  # no OverflowError
+    _ = rec.mid_time  # a property: computing it raises no OverflowError
     if rec.remote_id is not None:
         assert rec.remote_id.dtype == np.uint8 and rec.remote_id.shape[1:] == (25,)
     if rec.remote_id_time_s is not None:

@@ -16,7 +16,8 @@ from tests.decision.test_policy import ACTIVE, GOOD, SITE
     (dict(range_measured=False, target_detected=False), "reject", ["no-target"]),
     (dict(range_measured=True), "accept", ["registered-active"]),
     ({}, "accept", ["registered-active"]),  # an audit entry from before range_measured
-    (dict(range_measured=False, verification_llr_cn=-300), "reject", ["radar-claim-inconsistent", "range-not-measured"]),
+    (dict(range_measured=False, verification_llr_cn=-300), "reject",
+     ["radar-claim-inconsistent", "range-not-measured"]),
 ])
 def test_missing_range_is_not_a_pass(extra: dict, decision: str, reasons: list[str]) -> None:
     result = PolicyEngine.load().decide("S1", ACTIVE, SITE, {**GOOD, **extra})

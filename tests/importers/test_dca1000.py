@@ -159,7 +159,8 @@ def _args(root: Path, files: list[Path], cfg: Path, rec, *extra: str) -> list[st
 
 
 CFG_EDITS = {
-    "no frameCfg": (lambda t: "\n".join(l for l in t.splitlines() if not l.startswith("frameCfg")), "missing frameCfg"),
+    "no frameCfg": (lambda t: "\n".join(ln for ln in t.splitlines() if not ln.startswith("frameCfg")),
+                    "missing frameCfg"),
     "short profileCfg": (lambda t: t.replace("profileCfg 0", "profileCfg 0 77 1\n%", 1), "profileCfg: expected 14"),
     "not a number": (lambda t: t.replace("channelCfg 10", "channelCfg ten"), "not a number"),
     "advanced frames": (lambda t: t + "advFrameCfg 1 0 0 1 0\n", "advFrameCfg"),
@@ -175,7 +176,7 @@ def test_bad_config_is_one_line(scene_rec, two_lane_capture, tmp_path: Path, cli
     edit, expected = CFG_EDITS[case]
     if expected is None:  # ADC sampling longer than the ramp: rampEnd shortened
         text = cfg.read_text()
-        parts = [l.split() for l in text.splitlines()]
+        parts = [ln.split() for ln in text.splitlines()]
         line = next(p for p in parts if p and p[0] == "profileCfg")
         line[5] = repr(float(line[5]) * 0.5)
         text = "\n".join(" ".join(p) for p in parts)

@@ -102,7 +102,8 @@ def _mutants(data: bytes, rng: random.Random, n: int):
             del b[rng.randrange(len(b)):]
         elif mode == 2:  # a length or timestamp field overwritten with an extreme value
             i = rng.randrange(max(1, len(b) - 4))
-            b[i:i + 4] = rng.choice([b"\xff\xff\xff\xff", b"\x00\x00\x00\x00", b"\x7f\xff\xff\xff", b"\x80\x00\x00\x00"])
+            b[i:i + 4] = rng.choice([b"\xff\xff\xff\xff", b"\x00\x00\x00\x00", b"\x7f\xff\xff\xff",
+                                     b"\x80\x00\x00\x00"])
         elif mode == 3:  # a random byte
             b[rng.randrange(len(b))] = rng.randrange(256)
         else:  # a slice duplicated or removed
