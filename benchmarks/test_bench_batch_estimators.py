@@ -4,7 +4,7 @@ batched module against the single-return loop, per batch size and preset.
     python -m pytest benchmarks/test_bench_batch_estimators.py --benchmark-enable
 
 Per-return time is the reported time / B (the group names carry B). The gates are distinct
-simulated dataset scenes (tests/features/flash_gates.py; ~10 s to simulate), as many as the
+simulated dataset scenes (lab/flash_gates.py; ~10 s to simulate), as many as the
 largest batch, so the batches hold the realistic spread of event counts.
 """
 
@@ -15,14 +15,16 @@ import pytest
 
 from signatures import batch_estimators as be
 from signatures import estimators as est
-from tests.features.flash_gates import simulated_gates
+from lab.flash_gates import simulated_gates
+
+pytestmark = pytest.mark.slow  # ~18 s to simulate the gates of both presets
 
 SIZES = {"paper": (1, 8, 64, 256), "wide": (1, 8, 64)}
 CASES = [(p, b) for p, sizes in SIZES.items() for b in sizes]
 
 
-@pytest.fixture(scope="module", params=["paper", "wide"])
-def gates(request):
+@pytest.fixture(scope="module")
+def gates(request):  # request.param: the preset (parametrized indirectly with its batch sizes, CASES)
     found = simulated_gates(request.param, int(max(SIZES[request.param]) * 1.1))
     return request.param, [g for g in found if g.slow.shape[1] == 3]
 
@@ -32,12 +34,10 @@ def _batch(gates, size: int):
     return np.stack([g.slow for g in picks]), np.array([g.body_hz for g in picks]), picks[0]
 
 
-@pytest.mark.parametrize("size", sorted({b for _, b in CASES}))
+@pytest.mark.parametrize(("gates", "size"), CASES, indirect=["gates"])
 @pytest.mark.parametrize("path", ["batched", "loop"])
 def test_flash_estimators(benchmark, gates, size: int, path: str) -> None:
     preset, found = gates
-    if size not in SIZES[preset]:
-        pytest.skip(f"{preset}: batch sizes {SIZES[preset]}")
     slow, body, g = _batch(found, size)
     benchmark.group = f"flash estimators {preset} B={size}"
     benchmark.extra_info["returns"] = size  # per-return time = time / returns (--benchmark-json keeps it)

@@ -31,7 +31,9 @@ def _batch(preset: str, rows: int):
     return np.stack([recs[i % len(recs)].iq for i in range(rows)]), recs[0].config
 
 
-CASES = [(p, b, backend) for p, sizes in SIZES.items() for b in sizes for backend in ("numpy", "scipy")]
+#: The `wide` batches of 32 and 64 take 1-3 s each (~17 s together): slow, so the quick loop keeps the rest.
+CASES = [pytest.param(p, b, backend, marks=[pytest.mark.slow] if p == "wide" and b >= 32 else [])
+         for p, sizes in SIZES.items() for b in sizes for backend in ("numpy", "scipy")]
 
 
 @pytest.mark.parametrize("preset,rows,backend", CASES)

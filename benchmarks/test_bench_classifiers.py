@@ -11,9 +11,10 @@ import pytest
 from signatures.inference import bundle_dir, load_classifier
 
 PRESETS = [p for p in ("paper", "wide") if (bundle_dir(p) / "card.json").is_file()]
+NO_BUNDLE = pytest.param("none", marks=pytest.mark.skip(reason="no trained classifier bundle (authn models train)"))
 
 
-@pytest.fixture(scope="module", params=PRESETS or [pytest.param("none", marks=pytest.mark.skip("no bundle"))])
+@pytest.fixture(scope="module", params=PRESETS or [NO_BUNDLE])
 def model(request: pytest.FixtureRequest):
     clf = load_classifier(request.param)
     rng = np.random.default_rng(0)
@@ -36,7 +37,7 @@ def test_ensemble(benchmark, model) -> None:
 def test_cnn(benchmark, model) -> None:
     clf, x, rd = model
     if not clf.has_cnn:
-        pytest.skip("bundle has no CNN")
+        pytest.skip(f"the {clf.preset} bundle has no CNN member")
     benchmark(clf.cnn_proba, rd[None])
 
 

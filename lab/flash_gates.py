@@ -1,6 +1,8 @@
 """Realistic blade-flash gates for the batched estimators: the exact `flash_series` inputs
 that `features.extract` computes for simulated dataset scenes (all airframes, birds, noise
-only; hovering and moving; SNR -5..30 dB)."""
+only; hovering and moving; SNR -5..30 dB). Shared by the equality tests
+(tests/features/test_batch_estimators.py) and the benchmark (benchmarks/test_bench_batch_estimators.py),
+which import no test module."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from signatures import estimators as est
 from signatures.dataset import DatasetSpec, draw_scene
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
-from signatures.radar import RadarConfig, get_preset
+from signatures.radar import RadarConfig
 from signatures.simulate import simulate
 
 
@@ -39,11 +41,10 @@ def simulated_gates(preset: str, n: int, seed: int = 0) -> list[Gate]:
         rec, _ = simulate(scene, spec.waveform, seed=sim_seed)
         seen: list[tuple] = []
 
-        def capture(slow, config, body_hz, range_bin_m, n_fft, _seen=seen):
+        def capture(slow, config, body_hz, range_bin_m, n_fft, _seen=seen, _real=est.flash_series):
             _seen.append((np.array(slow), config, body_hz, range_bin_m, n_fft))
-            return real(slow, config, body_hz, range_bin_m, n_fft)
+            return _real(slow, config, body_hz, range_bin_m, n_fft)
 
-        real = est.flash_series
         with mock.patch.object(est, "flash_series", capture):
             extract(rec)
         slow, config, body_hz, bin_m, n_fft = seen[0]

@@ -44,6 +44,7 @@ def test_walkthrough_block_is_well_formed():
     assert any("|| true" in ln for ln in checks) and any("|| true" not in ln for ln in checks)
 
 
+@pytest.mark.slow  # ~11 s: a dozen CLI processes
 def test_readme_walkthrough_runs_in_order(tmp_path):
     home = tmp_path / "home"
     work = tmp_path / "work"

@@ -12,6 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 #: What the child pytest runs: the probes below and two quick files that drive the CLI and
 #: the audit log (key, signed heads) through `authn.cli.main`.
@@ -63,6 +65,7 @@ def test_cli_with_its_defaults_stays_in_the_session_folder(tmp_path: Path) -> No
     assert any(root.rglob("registry.sqlite3")) and any(root.rglob("*.h5"))
 
 
+@pytest.mark.slow  # ~11 s: a child pytest
 def test_an_empty_home_stays_empty(tmp_path: Path) -> None:
     home = tmp_path / "home"
     home.mkdir()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from proc_workers import check_many, run_in_processes
 
 from authn.audit import list_entries, verify
@@ -18,6 +19,7 @@ from signatures.scene import Scene
 PROCS, PER_PROC = 4, 250
 
 
+@pytest.mark.slow  # 7-11 s per database: 4 processes x 250 checks
 def test_concurrent_checks_keep_one_chain(db_url: str, tmp_path: Path) -> None:
     scene = Scene(profile=shipped_profiles()["m300"], range_m=300.0, snr_db=15.0)
     rec, _ = simulate_flight(scene, get_preset("paper"), 1, Broadcast(serial="1581BDEM00000002"))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from lab.bench.decisions import CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, run_decisions, summarise
 from lab.bench.pareto import Point, _mark_front, near_floor
 
@@ -85,6 +87,7 @@ def test_cold_times_run_real_processes(tmp_path) -> None:
     assert t["cold_vs_import_numpy"] == t["cold_process_ms"] / t["import_numpy_ms"]
 
 
+@pytest.mark.slow  # ~14 s
 def test_pareto_grid_runs_every_configuration_on_one_set() -> None:
     """A tiny grid: every configuration (shipped bundle and retrained RFs) gets a positive
     time, scores in [0, 1] and the front is not empty."""
@@ -100,6 +103,7 @@ def test_pareto_grid_runs_every_configuration_on_one_set() -> None:
     assert default.f1_by_snr[20.0] >= 0.8  # 5 returns at 20 dB: the shipped ensemble gets (almost) all
 
 
+@pytest.mark.slow  # ~80 s: `authn bench --quick` end to end
 def test_bench_quick_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkeypatch) -> None:
     """`authn bench --quick` end to end (latency skipped: it spawns processes): the JSON report has
     every section, and the error-versus-time PNG is written."""

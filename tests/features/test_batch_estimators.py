@@ -16,7 +16,7 @@ from signatures import batch_estimators as be
 from signatures import estimators as est
 from signatures.errors import SignaturesError
 from signatures.radar import get_preset
-from tests.features.flash_gates import Gate, simulated_gates
+from lab.flash_gates import Gate, simulated_gates
 
 CONTINUOUS = ("flash_rate_hz", "flash_rate_std_hz", "score", "flash_par_db", "rotor_count_std", "rotors_seen",
               "rotors_seen_std")

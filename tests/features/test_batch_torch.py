@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch")
+torch = pytest.importorskip("torch", reason="torch is not installed (the cnn extra: pip install -e '.[cnn]')")
 
 from signatures import batch_features as bf  # noqa: E402
 from signatures import batch_torch  # noqa: E402

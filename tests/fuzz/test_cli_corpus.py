@@ -8,6 +8,8 @@ import sqlite3
 import time
 from pathlib import Path
 
+import pytest
+
 from tests.fuzz.corpus import BAD, EITHER, SERIAL, VALID
 from tests.fuzz.helpers import CASE_SECONDS, Hang, deadline
 
@@ -22,6 +24,7 @@ def _audit_rows(db_file: Path) -> int:
             return 0
 
 
+@pytest.mark.slow  # ~30 s: hundreds of files through the CLI
 def test_every_case_through_authn_check(corpus, tmp_path: Path, capsys) -> None:
     from authn.cli import main
     from registry.db import dispose_engines
