@@ -141,7 +141,7 @@ def _file_sha256(path: Path) -> str:
 def _issues(claim: Claim, auth: RemoteIdAuth, mid: datetime, rotorcraft: bool | None) -> list[str]:
     """Remote ID sanity issues; with a valid signature, a Location message it does not cover
     is one too (`unsigned-location`: someone may be broadcasting beside the signer)."""
-    from registry.remoteid import Location
+    from remoteid import Location
 
     issues = sanity(claim.state, claim.ua_type, claim.rid_serial, claim.serial, mid, rotorcraft)
     if auth.status == "valid" and any(isinstance(m, Location) and i not in auth.covered

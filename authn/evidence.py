@@ -50,7 +50,7 @@ class Claim:
 
 def _nearest_state(messages: list[Any], reference: datetime, mid: datetime) -> DeclaredState | None:
     """The declared state of the Location message nearest the middle of the dwell."""
-    from registry.remoteid import Location
+    from remoteid import Location
 
     states = [s for s in (DeclaredState.from_location(m, reference) for m in messages
                           if isinstance(m, Location)) if s is not None]
@@ -59,8 +59,8 @@ def _nearest_state(messages: list[Any], reference: datetime, mid: datetime) -> D
 
 def read_claim(rec: Any, serial: str | None) -> Claim:
     """The claimed serial (--serial wins) and what the Remote ID messages declare."""
-    from registry.remoteid import BasicId
-    from registry.remoteid.codec import decode_rows_raw
+    from remoteid import BasicId
+    from remoteid.codec import decode_rows_raw
 
     wire = tuple(decode_rows_raw(rec.remote_id)) if rec.remote_id is not None else ()
     msgs = [m for m, _ in wire]
@@ -84,11 +84,11 @@ def authenticate(claim: Claim, facts: "RegistryFacts", dwell_time: datetime,
     registry (HDA DET -> key) vouches for. A valid signature counts only if its DET is the
     claimed identity's: the DET of its registered key, or the DET in its DRIP session ID;
     else the status is `unknown-key` (signed, but by someone else)."""
-    from registry.remoteid import AuthPage, AuthPage0
+    from remoteid import AuthPage, AuthPage0
 
     if not any(isinstance(m, (AuthPage0, AuthPage)) for m, _ in claim.wire):
         return RemoteIdAuth()  # absent: cryptography is not even imported
-    from registry.remoteid.drip import det_matches_key, verify
+    from remoteid.drip import det_matches_key, verify
 
     def key_for(det: bytes) -> bytes | None:
         key = facts.public_key
@@ -102,7 +102,7 @@ def authenticate(claim: Claim, facts: "RegistryFacts", dwell_time: datetime,
 
 
 def _is_claimed(det_hex: str | None, claim: Claim, facts: "RegistryFacts") -> bool:
-    from registry.remoteid.drip import det_matches_key
+    from remoteid.drip import det_matches_key
 
     if det_hex is None:
         return False

@@ -51,7 +51,7 @@ class DeclaredState:
     @classmethod
     def from_location(cls, loc, reference: datetime) -> "DeclaredState | None":
         """From a decoded `Location` (None when it carries no usable position)."""
-        from registry.remoteid import location_time
+        from remoteid import location_time
 
         alt = loc.altitude_geo_m if loc.altitude_geo_m is not None else loc.altitude_baro_m
         if loc.latitude_deg is None or loc.longitude_deg is None or alt is None:

@@ -66,7 +66,7 @@ def remote_id_rows(rec: Recording, scene: Scene, bc: Broadcast, azimuth_deg: flo
     """(n, 25) uint8 messages and their times (s after the first chirp)."""
     import pymap3d
 
-    from registry.remoteid import BasicId, Location, encode
+    from remoteid import BasicId, Location, encode
 
     u = _line_of_sight(scene.elevation_deg, azimuth_deg)
     vel = scene.radial_speed_mps * u
@@ -101,8 +101,8 @@ def remote_id_rows(rec: Recording, scene: Scene, bc: Broadcast, azimuth_deg: flo
 def _signed(rows: list[bytes], times: list[float], signing: Signing, start: datetime,
             dwell_s: float) -> tuple[list[bytes], list[float]]:
     """The messages followed by the Authentication pages of one DRIP SAM over them."""
-    from registry.remoteid import Location, decode, encode
-    from registry.remoteid.drip import FRAME_F3411_MESSAGES, encode_frame, encode_manifest, encode_wrapper, paginate
+    from remoteid import Location, decode, encode
+    from remoteid.drip import FRAME_F3411_MESSAGES, encode_frame, encode_manifest, encode_wrapper, paginate
 
     shift = timedelta(seconds=signing.signed_at_offset_s)
     vnb = start + shift + timedelta(seconds=signing.window_s[0])

@@ -38,7 +38,7 @@ class UaKey:
 
 
 def _det(public_raw: bytes, raa: int, hda: int) -> bytes:
-    from registry.remoteid.drip import det_from_public_key
+    from remoteid.drip import det_from_public_key
 
     if not (0 <= raa < 1 << 14 and 0 <= hda < 1 << 14):
         raise BadInput(f"RAA and HDA are 14-bit numbers (0..16383), got {raa} and {hda}")
@@ -123,7 +123,7 @@ def load_trusted_registries(path: Path) -> dict[bytes, bytes]:
     """Registries (HDAs) whose DRIP Links the site trusts: a JSON file
     `{"registries": [{"det": "<HDA DET, hex or IPv6 text>", "public_key": "<64 hex digits>"}]}`."""
     from core.parsing import JsonTooDeep, loads_json
-    from registry.remoteid.drip import DripError, parse_det
+    from remoteid.drip import DripError, parse_det
 
     try:
         doc = loads_json(Path(path).read_text())

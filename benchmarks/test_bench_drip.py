@@ -10,8 +10,8 @@ from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from authn import uakeys
-from registry.remoteid import BasicId, Location, decode_rows_raw, encode
-from registry.remoteid.drip import (
+from remoteid import BasicId, Location, decode_rows_raw, encode
+from remoteid.drip import (
     det_from_public_key,
     encode_link,
     encode_manifest,

@@ -9,13 +9,13 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("core", "signatures", "registry", "authn", "lab")
+PACKAGES = ("core", "signatures", "remoteid", "registry", "authn", "lab")
 
 #: bottom to top; a module belongs to the longest prefix listed
 LAYERS = (
     ("core",),                      # errors, exit codes, shared parsing, untrusted-text escaping
-    ("signatures",),                # radar: returns, features, classifiers, simulator
-    ("registry",),                  # storage (models, migrations, db) and the registry; Remote ID codec
+    ("signatures", "remoteid"),     # radar: returns, features, classifiers, simulator; Remote ID codec, DRIP
+    ("registry",),                  # storage (models, migrations, db) and the registry
     ("authn",),                     # decision, audit, service, cluster
     ("lab",),                       # benchmarks, the held-out world, accuracy runs
     ("authn.cli", "authn.__main__"),  # the command line, composing all of the above

@@ -26,7 +26,7 @@ def generate_cmd(
       authn register --serial 1581BDEM00000099 --model m300 --public-key ua.pub.pem
     """
     from authn.uakeys import generate, write
-    from registry.remoteid.drip import det_to_text
+    from remoteid.drip import det_to_text
 
     key = generate(raa, hda)
     private_path, public_path = write(key, out)
@@ -55,7 +55,7 @@ def show_cmd(
     Example: authn keys show --public-key ua.pub.pem
     """
     from authn.uakeys import det_of, read_public_key_arg
-    from registry.remoteid.drip import det_to_text
+    from remoteid.drip import det_to_text
 
     key = read_public_key_arg(public_key)
     det = det_of(key, raa, hda)

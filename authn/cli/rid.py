@@ -48,12 +48,12 @@ def decode_cmd(
     not-yet-valid ("verified-but-expired"), never as invalid. Pages ending with a
     forward-error-correction page are checked (parity) and one lost page is rebuilt.
     """
-    from registry.remoteid.errors import RemoteIdError
+    from remoteid.errors import RemoteIdError
 
     if bool(messages) == bool(pcap):
         raise RemoteIdError("give hex messages or --pcap FILE (one of them)")
     if pcap is not None:
-        from registry.remoteid.capture import read_capture
+        from remoteid.capture import read_capture
 
         found = read_capture(pcap)
         wire = [m for c in found for m in _flat(c.message)]  # re-encoded when verified (canonical senders)
@@ -64,7 +64,7 @@ def decode_cmd(
         rows = [(str(c.frame), c.captured_at.isoformat() if c.captured_at else "", c.transport, m)
                 for c in found for m in _flat(c.message)]
     else:
-        from registry.remoteid.codec import decode_hex, decode_rows_raw
+        from remoteid.codec import decode_hex, decode_rows_raw
 
         decoded = [decode_hex(h) for h in messages]
         wire = decode_rows_raw([bytes.fromhex(h.replace(" ", "")) for h in messages])
@@ -89,7 +89,7 @@ def decode_cmd(
 
 def _print_auth(wire: list, public_key: Optional[str], at: Optional[str], as_json: bool) -> None:
     """The DRIP authentication of the decoded messages, when they carry authentication pages."""
-    from registry.remoteid import AuthPage, AuthPage0
+    from remoteid import AuthPage, AuthPage0
 
     messages = [w[0] if isinstance(w, tuple) else w for w in wire]
     if not any(isinstance(m, (AuthPage0, AuthPage)) for m in messages):
@@ -99,7 +99,7 @@ def _print_auth(wire: list, public_key: Optional[str], at: Optional[str], as_jso
     from datetime import datetime, timezone
 
     from core.parsing import parse_iso_time
-    from registry.remoteid.drip import det_matches_key, det_to_text, parse_sam, reassemble, valid_time_text, verify
+    from remoteid.drip import det_matches_key, det_to_text, parse_sam, reassemble, valid_time_text, verify
 
     when = datetime.now(timezone.utc) if at is None else parse_iso_time(at, "--at")
     lines = []

@@ -39,7 +39,7 @@ def _signing(key_file: Path | None, sam: str, det: str | None, age_s: float, tam
         raise BadInput(f"--sam: {sam!r} is not wrapper, manifest or frame")
     from authn.scenario import Signing
     from authn.uakeys import load
-    from registry.remoteid.drip import DripError, parse_det
+    from remoteid.drip import DripError, parse_det
 
     key = load(key_file)
     try:

@@ -126,7 +126,7 @@ def _with_pages(src: Path, dst: Path, pages: list[bytes]) -> Path:
 def test_malformed_authentication_pages_are_invalid(world: dict, damage: str, capsys) -> None:
     from datetime import datetime, timezone
 
-    from registry.remoteid.drip import paginate
+    from remoteid.drip import paginate
 
     base = _fly(world, "unsigned-base", GENUINE)
     pages = paginate(bytes(range(1, 60)), datetime.now(timezone.utc))  # 59 bytes: pages 0..2
@@ -175,7 +175,7 @@ def test_a_link_from_a_trusted_registry_delivers_the_key(world: dict, tmp_path: 
 
     from authn.scenario import Broadcast, Signing, simulate_flight
     from authn.uakeys import generate
-    from registry.remoteid.drip import encode_link
+    from remoteid.drip import encode_link
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.scene import Scene
@@ -208,7 +208,7 @@ def test_a_valid_signature_by_someone_else_does_not_count(world: dict, tmp_path:
 
     from authn.scenario import Broadcast, Signing, simulate_flight
     from authn.uakeys import generate
-    from registry.remoteid.drip import encode_link
+    from remoteid.drip import encode_link
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.scene import Scene

@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
-from registry.remoteid import BasicId, encode
-from registry.remoteid.capture import extract, read_capture
-from registry.remoteid.errors import CaptureError
+from remoteid import BasicId, encode
+from remoteid.capture import extract, read_capture
+from remoteid.errors import CaptureError
 
 SAMPLES = Path(__file__).resolve().parents[1] / "data" / "remoteid-captures"
 MUTATIONS = max(150, int(os.environ.get("AUTHN_FUZZ_EXAMPLES", "0")) // 10)

@@ -26,7 +26,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from registry.remoteid import (
+from remoteid import (
     AuthPage,
     AuthPage0,
     BasicId,
@@ -37,7 +37,7 @@ from registry.remoteid import (
     encode,
     flatten,
 )
-from registry.remoteid.drip import (
+from remoteid.drip import (
     DripError,
     cshake128,
     det_fields,
@@ -342,8 +342,8 @@ def test_decode_rows_raw_matches_decode_rows() -> None:
 
 
 def test_cryptography_is_imported_only_with_auth_pages() -> None:
-    code = ("import sys; from registry.remoteid.drip import verify; "
-            "from registry.remoteid import decode_rows_raw, encode, Location; "
+    code = ("import sys; from remoteid.drip import verify; "
+            "from remoteid import decode_rows_raw, encode, Location; "
             "from datetime import datetime, timezone; "
             "r = verify(decode_rows_raw([encode(Location())]), lambda d: None, datetime.now(timezone.utc)); "
             "assert r.status == 'absent'; assert 'cryptography' not in sys.modules, 'imported'")

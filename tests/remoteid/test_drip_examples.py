@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
-from registry.remoteid import decode, decode_rows_raw
-from registry.remoteid.drip import (
+from remoteid import decode, decode_rows_raw
+from remoteid.drip import (
     det_fields,
     det_from_public_key,
     det_matches_key,

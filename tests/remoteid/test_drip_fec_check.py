@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
-from registry.remoteid import AuthPage, AuthPage0, decode
+from remoteid import AuthPage, AuthPage0, decode
 from signatures.recording import read_recording, write_recording
 
 SERIAL = "1581BDEM00000077"

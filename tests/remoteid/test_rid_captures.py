@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
-from registry.remoteid import CaptureError, flatten
-from registry.remoteid.capture import extract, read_capture
+from remoteid import CaptureError, flatten
+from remoteid.capture import extract, read_capture
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "remoteid-captures"
 
@@ -105,7 +105,7 @@ def _pcap(linktype: int, packets: list[bytes], magic=b"\xd4\xc3\xb2\xa1") -> byt
 
 
 def test_bluetooth4_legacy_and_ble_ll(tmp_path):
-    from registry.remoteid import BasicId, encode
+    from remoteid import BasicId, encode
 
     msg = encode(BasicId(uas_id="1581F5FJD12345678901"))
     ad = bytes([30, 0x16, 0xFA, 0xFF, 0x0D, 7]) + msg

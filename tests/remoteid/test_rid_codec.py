@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from registry.remoteid import (
+from remoteid import (
     AuthPage,
     AuthPage0,
     BasicId,

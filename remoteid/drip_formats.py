@@ -48,8 +48,8 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import NamedTuple
 
-from registry.remoteid.errors import RemoteIdError
-from registry.remoteid.messages import ODID_EPOCH
+from remoteid.errors import RemoteIdError
+from remoteid.messages import ODID_EPOCH
 
 PAGE_SIZE = 25
 PAGE0_DATA = 17
@@ -376,7 +376,7 @@ def _raw(message) -> bytes:
     if isinstance(message, (bytes, bytearray, memoryview)):
         raw = bytes(message)
     else:
-        from registry.remoteid.codec import encode
+        from remoteid.codec import encode
 
         raw = encode(message)
     if len(raw) != 25:

@@ -21,9 +21,9 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict
 
-from registry.remoteid.codec import MESSAGE_SIZE, decode
-from registry.remoteid.errors import CaptureError, RemoteIdError
-from registry.remoteid.messages import Message
+from remoteid.codec import MESSAGE_SIZE, decode
+from remoteid.errors import CaptureError, RemoteIdError
+from remoteid.messages import Message
 
 Transport = Literal["wifi_beacon", "wifi_nan", "bt_legacy", "bt_extended"]
 

@@ -21,8 +21,8 @@ from decimal import Decimal
 from pydantic import BaseModel, ValidationError
 
 from core.parsing import first_error
-from registry.remoteid.errors import RemoteIdError
-from registry.remoteid.messages import (
+from remoteid.errors import RemoteIdError
+from remoteid.messages import (
     SESSION_ID,
     ODID_EPOCH,
     AuthPage,

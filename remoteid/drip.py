@@ -4,7 +4,7 @@ One import point; the formats are in `drip_formats`, the verification in `drip_v
 """
 
 # The public surface, re-exported (tests import the same names: a deliberate repeat).
-from registry.remoteid.drip_formats import (
+from remoteid.drip_formats import (
     AUTH_TYPE_SAM,
     FRAME_F3411_MESSAGES,
     SAM_FRAME,
@@ -37,7 +37,7 @@ from registry.remoteid.drip_formats import (
     valid_time_text,
     xor_pages,
 )
-from registry.remoteid.drip_verify import STATUSES, AuthMessage, AuthResult, reassemble, verify
+from remoteid.drip_verify import STATUSES, AuthMessage, AuthResult, reassemble, verify
 
 __all__ = [
     "AUTH_TYPE_SAM", "FRAME_F3411_MESSAGES", "AuthMessage", "AuthResult", "DetFields", "DripError", "Link", "SAM_FRAME",

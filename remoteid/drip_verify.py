@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 
-from registry.remoteid.drip_formats import (
+from remoteid.drip_formats import (
     AUTH_TYPE_SAM,
     PAGE0_DATA,
     PAGE_DATA,
@@ -30,8 +30,8 @@ from registry.remoteid.drip_formats import (
     valid_time_text,
     xor_pages,
 )
-from registry.remoteid.errors import RemoteIdError
-from registry.remoteid.messages import ODID_EPOCH, AuthPage, AuthPage0, BasicId, Location
+from remoteid.errors import RemoteIdError
+from remoteid.messages import ODID_EPOCH, AuthPage, AuthPage0, BasicId, Location
 
 STATUSES = ("valid", "invalid", "absent", "unknown-key", "expired", "not-yet-valid")
 
@@ -213,7 +213,7 @@ def _split(item) -> tuple[object, bytes | None]:
     if isinstance(item, tuple) and len(item) == 2:
         return item[0], bytes(item[1])
     if isinstance(item, (bytes, bytearray, memoryview)):
-        from registry.remoteid.codec import decode
+        from remoteid.codec import decode
 
         raw = bytes(item)
         try:
@@ -228,7 +228,7 @@ def _raw_of(msg, raw: bytes | None) -> bytes | None:
         return raw
     if msg is None:
         return None
-    from registry.remoteid.codec import encode
+    from remoteid.codec import encode
 
     try:
         return encode(msg)

@@ -1,9 +1,9 @@
 """Errors of the Remote ID codec and capture reader (all bad input, exit code 2)."""
 
-from registry.errors import RegistryError
+from core.errors import BadInput
 
 
-class RemoteIdError(RegistryError):
+class RemoteIdError(BadInput):
     """A Remote ID message that cannot be decoded or encoded (one-line reason)."""
 
 
