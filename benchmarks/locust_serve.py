@@ -50,7 +50,8 @@ class CheckUser(HttpUser):
 
     def on_start(self) -> None:
         if not CheckUser.files and os.environ.get("AUTHN_BENCH_RETURNS"):
-            CheckUser.files = [(p.name, p.read_bytes()) for p in sorted(Path(os.environ["AUTHN_BENCH_RETURNS"]).glob("*.h5"))]
+            returns = sorted(Path(os.environ["AUTHN_BENCH_RETURNS"]).glob("*.h5"))
+            CheckUser.files = [(p.name, p.read_bytes()) for p in returns]
         # the multipart bodies are built once: the client's CPU is the server's on a 2-core box
         self.bodies = itertools.cycle([self._multipart(name, data) for name, data in CheckUser.files])
         self.headers = {"Authorization": f"Bearer {self.token}",

@@ -47,7 +47,7 @@ def demo(
         table.add_column(col)
     table.add_column("reasons", overflow="fold")
     all_ok = True
-    for (sc, path), o in zip(scenes, outcomes):
+    for (sc, _path), o in zip(scenes, outcomes):
         ok = o.decision == sc.expected
         all_ok &= ok
         colour = "green" if o.decision == "accept" else "red"

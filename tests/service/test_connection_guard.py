@@ -108,7 +108,8 @@ def test_requests_in_flight_per_worker_and_per_address() -> None:
     assert g.request_started("a") is None and g.request_started("a") is None
     assert "from your address" in g.request_started("a")  # one address: at most 2
     assert not g.saturated() and g.request_started("b") is None
-    assert g.in_flight == 3 and g.saturated() and "requests in flight on this worker (limit 3)" in g.request_started("c")
+    assert g.in_flight == 3 and g.saturated()
+    assert "requests in flight on this worker (limit 3)" in g.request_started("c")
     g.request_done("a")
     assert not g.saturated() and g.request_started("c") is None
     for addr in ("a", "b", "c"):

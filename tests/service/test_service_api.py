@@ -7,7 +7,6 @@ import shutil
 
 import h5py
 import numpy as np
-import pytest
 
 from authn.cli import main
 from tests.service.server import M300
@@ -47,7 +46,8 @@ def test_check_answers_the_cli_json_object(server, keys, returns, sqlite_db, cap
     assert main(["--db", sqlite_db, "check", str(returns["genuine"]), "--json"]) == 0
     cli = json.loads(capsys.readouterr().out)
     assert CONTRACT_KEYS <= set(out) and set(out) == set(cli)
-    assert (out["decision"], out["reasons"], out["file_sha256"]) == (cli["decision"], cli["reasons"], cli["file_sha256"])
+    fields = ("decision", "reasons", "file_sha256")
+    assert [out[k] for k in fields] == [cli[k] for k in fields]
     assert "read" in out["timings_ms"] and "audit" in out["timings_ms"]
     assert entry["kind"] == "decision" and entry["payload"]["file_sha256"] == out["file_sha256"]
 
@@ -80,7 +80,8 @@ def test_bad_uploads_are_4xx_one_line_and_audited(server, keys, returns, tmp_pat
         before = c.get("/v1/audit", params={"limit": 500}).json()["entries"]
         junk = c.post("/v1/checks", files={"file": ("junk.h5", b"not an HDF5 file at all", "application/x-hdf5")})
         nan_resp = c.post("/v1/checks", files=_upload(nan))
-        pickle = c.post("/v1/checks", files={"file": ("p.npz", b"\x80\x04\x95" + b"x" * 64, "application/octet-stream")})
+        pickled = b"\x80\x04\x95" + b"x" * 64
+        pickle = c.post("/v1/checks", files={"file": ("p.npz", pickled, "application/octet-stream")})
         big = c.post("/v1/checks", files={"file": ("big.h5", b"\0" * (5 * 2**20), "application/x-hdf5")})
         as_json = c.post("/v1/checks", json={"file": "genuine.h5"})
         no_file = c.post("/v1/checks", files={"other": ("x", b"x")}, data={"serial": M300})
