@@ -10,6 +10,8 @@ largest batch, so the batches hold the realistic spread of event counts.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -23,10 +25,15 @@ SIZES = {"paper": (1, 8, 64, 256), "wide": (1, 8, 64)}
 CASES = [(p, b) for p, sizes in SIZES.items() for b in sizes]
 
 
-@pytest.fixture(scope="module")
+@functools.cache
+def _gates(preset: str) -> tuple:
+    found = simulated_gates(preset, int(max(SIZES[preset]) * 1.1))
+    return preset, [g for g in found if g.slow.shape[1] == 3]
+
+
+@pytest.fixture
 def gates(request):  # request.param: the preset (parametrized indirectly with its batch sizes, CASES)
-    found = simulated_gates(request.param, int(max(SIZES[request.param]) * 1.1))
-    return request.param, [g for g in found if g.slow.shape[1] == 3]
+    return _gates(request.param)  # simulated once per preset and process
 
 
 def _batch(gates, size: int):
