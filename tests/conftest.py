@@ -62,6 +62,21 @@ PINNED_ROOT = _pin_user_dirs()
 def pytest_unconfigure(config) -> None:
     shutil.rmtree(PINNED_ROOT, ignore_errors=True)
 
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
+    """What was skipped and why, one line per reason with its count (pytest's own -rs lists
+    every location: a hundred lines when the PostgreSQL cases skip)."""
+    from collections import Counter
+
+    reasons: Counter[str] = Counter()
+    for report in terminalreporter.stats.get("skipped", []):
+        if isinstance(report.longrepr, tuple):
+            reasons[str(report.longrepr[2]).removeprefix("Skipped: ")] += 1
+    if reasons:
+        terminalreporter.section("skipped, by reason")
+        for reason, n in reasons.most_common():
+            terminalreporter.write_line(f"{n:5d}  {reason}")
+
 PG_URL = os.environ.get("AUTHN_TEST_POSTGRES_URL")
 #: PostgreSQL cases are always collected; without a server they show as skipped, with the reason.
 BACKENDS = ["sqlite", "postgresql"]
