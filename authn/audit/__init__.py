@@ -23,17 +23,30 @@ Modules, each with one job:
     merkle    RFC 9162 hashing and proofs
 """
 
-from authn.audit.entries import GENESIS, Entry, NewEntry, _iso_db, batch_entries, compute_hash, db_label, entry_bytes, \
-    get_entry, get_policy, list_entries
-from authn.audit.heads import HeadPlaces, KnownHead, accepted_keys, consistency_proof, known_heads, log_origin, \
-    newest, writer_key
-from authn.audit.proofs import PROOF_FORMAT, prove, verify_proof
-from authn.audit.replay import ReplayResult, replay
-from authn.audit.signer import checkpoint, rotate_key
-from authn.audit.verifier import VerifyReport, verify
-from authn.audit.writer import append
+from importlib import import_module
+from typing import Any
 
-__all__ = ["GENESIS", "Entry", "NewEntry", "_iso_db", "batch_entries", "compute_hash", "db_label", "entry_bytes",
-           "get_entry", "get_policy", "list_entries", "HeadPlaces", "KnownHead", "accepted_keys", "consistency_proof",
-           "known_heads", "log_origin", "newest", "writer_key", "PROOF_FORMAT", "prove", "verify_proof",
-           "ReplayResult", "replay", "checkpoint", "rotate_key", "VerifyReport", "verify", "append"]
+#: the public API, by the module that defines it: loaded on first use (PEP 562), so a check,
+#: which needs only the writer, does not import the verifier, the prover or the witness client
+_WHERE = {
+    "entries": ("GENESIS", "Entry", "NewEntry", "_iso_db", "batch_entries", "compute_hash", "db_label", "entry_bytes",
+                "get_entry", "get_policy", "list_entries"),
+    "heads": ("HeadPlaces", "KnownHead", "accepted_keys", "consistency_proof", "known_heads", "log_origin", "newest",
+              "writer_key"),
+    "proofs": ("PROOF_FORMAT", "prove", "verify_proof"),
+    "replay": ("ReplayResult", "replay"),
+    "signer": ("checkpoint", "rotate_key"),
+    "verifier": ("VerifyReport", "verify"),
+    "writer": ("append",),
+}
+_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module 'authn.audit' has no attribute {name!r}")
+    value = getattr(import_module(f"authn.audit.{module}"), name)
+    globals()[name] = value
+    return value

@@ -16,16 +16,18 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
 from authn.audit.entries import GENESIS, db_label
 from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append_sth_log, check_origin, \
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, read_sth_log, sth_log_path, \
     write_latest_head
-from authn.audit.witness import Conflict, HttpWitness, WitnessStore, open_witness
 from core.errors import AuthnError, SystemFault, one_line
 from registry.dbapi import Database
+
+if TYPE_CHECKING:
+    from authn.audit.witness import HttpWitness, WitnessStore
 
 ENV_ORIGIN = "AUTHN_AUDIT_ORIGIN"
 _KEYS: dict[Path, tuple[tuple[int, int] | None, LogKey]] = {}
@@ -174,7 +176,7 @@ class HeadPlaces:
            witness: str | None = None) -> "HeadPlaces":
         path = sth_log_path(sth_log, log_key)
         label = db_label(db)
-        return cls(db, label, path, latest_head_path(path, label), key_path(log_key), open_witness(witness))
+        return cls(db, label, path, latest_head_path(path, label), key_path(log_key), _witness(witness))
 
     def _db_heads(self, where: str, params: dict[str, Any] | None = None) -> list[KnownHead]:
         out = []
@@ -235,6 +237,8 @@ class HeadPlaces:
         """Give the witness `sth` with a consistency proof from the newest head it holds. A
         refusal is a fault (it holds history this log no longer has); an unreachable
         witness is only reported: the next periodic head carries the proof from where it is."""
+        from authn.audit.witness import Conflict
+
         assert self.witness is not None and sth.origin is not None
         try:
             held = _newest_of(self.witness.heads(sth.origin))
@@ -247,6 +251,15 @@ class HeadPlaces:
         except SystemFault as exc:
             print(f"authn: warning: {one_line(str(exc))}; the witness gets the next periodic head", file=sys.stderr)
 
+
+
+def _witness(spec: str | None) -> WitnessStore | HttpWitness | None:
+    """--witness, else $AUTHN_AUDIT_WITNESS (authn.audit.witness, loaded only when one is set)."""
+    if not (spec or os.environ.get("AUTHN_AUDIT_WITNESS")):
+        return None
+    from authn.audit.witness import open_witness
+
+    return open_witness(spec)
 
 
 def consistency_proof(db: Database, old: int, new: int) -> list[bytes]:
