@@ -138,7 +138,6 @@ def accepted_keys(heads: Sequence[KnownHead], current: Any, retired: Sequence[An
 class _Signed:
     sth: SignedTreeHead
     due: bool  # periodic: also to the STH log and the witness
-    frontier: merkle.Frontier  # at sth.tree_size
 
 
 
@@ -188,7 +187,7 @@ class HeadPlaces:
                                      "database (malformed)"))
         return out
 
-    def newest_heads(self, db: Database) -> list[KnownHead]:
+    def newest_heads(self) -> list[KnownHead]:
         """What the writer trusts: the newest head in the database, the latest-head file, the
         newest STH log line for this database (the witness is asked separately)."""
         out = self._db_heads("ORDER BY tree_size DESC, id DESC LIMIT 1")

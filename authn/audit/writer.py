@@ -213,7 +213,7 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     back, and nothing is appended to a log that does not extend what was signed."""
     origin = log_origin(db, create=True)
     assert origin is not None
-    heads = places.newest_heads(db)
+    heads = places.newest_heads()
     key = writer_key(db, heads, places.log_key)
     for h in heads:
         _check_head(h, key, origin, size_before)
@@ -263,4 +263,4 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     sth = key.sign_tree_head(size, frontier.root(), now_ms, origin)
     edge = json.dumps({"before_last": [h.hex() for h in before_last]}) if due else None
     _store_head(db, sth, edge)
-    return _Signed(sth, due, frontier)
+    return _Signed(sth, due)
