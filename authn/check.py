@@ -45,6 +45,9 @@ class Outcome:
     #: Cedar's evaluation errors (a non-empty list means the claim was rejected with `policy-error`)
     policy_errors: list[str] = field(default_factory=list)
     audit_id: int | None = None
+    #: with a Remote ID capture: the return's radar targets that no claim explains
+    #: (`Checker._non_cooperative`); None without a capture
+    non_cooperative: list[dict[str, float]] | None = None
 
     @property
     def serial(self) -> str:
@@ -67,7 +70,8 @@ class Outcome:
                 "skipped": list(self.skipped), "timings_ms": dict(self.timings_ms),
                 "policy_sha256": self.policy_sha256, "model_card_sha256": self.model_card_sha256,
                 "file_sha256": self.file_sha256, "remote_id_auth": report["remote_id_auth"],
-                "policy_errors": list(self.policy_errors), "audit_id": self.audit_id}
+                "policy_errors": list(self.policy_errors), "audit_id": self.audit_id,
+                **({} if self.non_cooperative is None else {"non_cooperative": list(self.non_cooperative)})}
 
     def audit_payload(self) -> dict[str, Any]:
         """The audit entry's payload: the JSON without timings and audit id, with the exact
@@ -176,18 +180,108 @@ class CheckInput:
     name: str
     serial: str | None
     load: Callable[[], tuple[Any, str]]
+    #: a Remote ID capture heard beside the radar (`--rid-capture`): its messages replace the
+    #: return's own, one claim per drone heard in the dwell's window (docs/remoteid.md)
+    rid_capture: "RidCapture | None" = None
 
     @classmethod
-    def file(cls, path: str | Path, serial: str | None = None) -> "CheckInput":
+    def file(cls, path: str | Path, serial: str | None = None, rid_capture: "RidCapture | None" = None) -> "CheckInput":
         from signatures.recording import read_recording
 
         p = Path(path)
-        return cls(str(p), serial, lambda: (read_recording(p), _file_sha256(p)))
+        return cls(str(p), serial, lambda: (read_recording(p), _file_sha256(p)), rid_capture)
 
     @classmethod
     def recording(cls, rec: Any, serial: str | None = None, name: str = "", digest: str = "") -> "CheckInput":
         """An in-memory recording (benchmarks, the stress suite, uploads already read)."""
         return cls(name, serial, lambda: (rec, digest))
+
+
+@dataclass(frozen=True)
+class RidCapture:
+    """A pcap/pcapng capture of Remote ID and the clock-skew tolerance it is aligned with."""
+
+    name: str
+    #: the CapturedMessages (remoteid.capture) of the packets in a time window; raises CaptureError
+    read: Callable[[tuple[datetime, datetime]], list[Any]]
+    skew_s: float = 2.0
+
+    @classmethod
+    def file(cls, path: str | Path, skew_s: float = 2.0) -> "RidCapture":
+        from remoteid.capture import read_capture
+
+        return cls(str(path), lambda window: read_capture(path, window), skew_s)
+
+    @classmethod
+    def data(cls, name: str, data: bytes, skew_s: float = 2.0) -> "RidCapture":
+        from remoteid.capture import extract
+        from remoteid.errors import CaptureError
+
+        def read(window: tuple[datetime, datetime]) -> list[Any]:
+            try:
+                return extract(data, window)
+            except CaptureError as exc:  # name the upload, as read_capture names a file
+                raise CaptureError(f"{name}: {exc}") from None
+
+        return cls(name, read, skew_s)
+
+    def heard(self, rec: Any) -> list[Any]:
+        """The drones (`remoteid.capture.Broadcaster`) heard in the dwell's window, by UAS ID;
+        nothing heard at all is bad input."""
+        from core.errors import AuthnError
+        from remoteid.capture import WINDOW_MARGIN_S, broadcasters, window
+
+        end = rec.start_time + (rec.mid_time - rec.start_time) * 2
+        found, unattributed = broadcasters(self.read(window(rec.start_time, end, self.skew_s)), rec.start_time, end,
+                                           self.skew_s)
+        if not found:
+            margin = WINDOW_MARGIN_S + max(self.skew_s, 0.0)
+            raise AuthnError(f"{self.name}: no Remote ID message with a UAS ID in the dwell's window "
+                             f"({rec.start_time.isoformat()} to {end.isoformat()} +- {margin:g} s"
+                             + (f"; {unattributed} messages from transmitters that sent no Basic ID" if unattributed
+                                else "") + ")")
+        return sorted(found, key=lambda b: b.uas_id)
+
+    @staticmethod
+    def with_messages(rec: Any, b: Any) -> Any:
+        """The return with the messages of one drone heard (its own Remote ID replaced)."""
+        from dataclasses import replace as dreplace
+
+        import numpy as np
+
+        rows = np.frombuffer(b"".join(b.rows), dtype=np.uint8).reshape(-1, 25).copy()
+        return dreplace(rec, remote_id=rows, remote_id_time_s=np.asarray(b.heard_s, dtype=np.float64),
+                        remote_id_source="capture")
+
+    def claims(self, rec: Any, serial: str | None) -> list[tuple[Any, str | None]]:
+        """(the return with one drone's messages, the serial to claim) for each drone heard in
+        the dwell's window; with `serial`, that drone only (no Remote ID at all when it was not
+        heard: rejected with no-remote-id). Nothing heard at all in the window is bad input."""
+        from dataclasses import replace as dreplace
+
+        found = self.heard(rec)
+        if serial is None:
+            return [(self.with_messages(rec, b), None) for b in found]
+        match = [b for b in found if b.uas_id == serial]
+        if not match:
+            return [(dreplace(rec, remote_id=None, remote_id_time_s=None, remote_id_source=None), serial)]
+        return [(self.with_messages(rec, match[0]), serial)]
+
+    def attach(self, rec: Any, serial: str | None = None) -> Any:
+        """The return with the messages of the one drone heard in its window (`authn import
+        --rid-capture`); with several drones heard, `serial` must name one."""
+        from core.errors import AuthnError
+
+        found = self.heard(rec)
+        ids = ", ".join(b.uas_id for b in found)
+        if serial is not None:
+            found = [b for b in found if b.uas_id == serial]
+            if not found:
+                raise AuthnError(f"{self.name}: nothing from {serial} in the dwell's window (heard: {ids})")
+        if len(found) > 1:
+            raise AuthnError(f"{self.name}: {len(found)} drones heard in the dwell's window ({ids}); "
+                             "name one with --rid-serial")
+        return self.with_messages(rec, found[0])
 
 
 @dataclass(frozen=True)
@@ -234,11 +328,13 @@ class Checker:
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
                       rec.config.unambiguous_velocity_mps, known=pred.known)
 
-    def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer) -> Outcome | _Pending:
+    def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer,
+               captured: bool = False) -> Outcome | _Pending:
         """Everything before the radar: the claim, the registry, DRIP, and the policy with the radar
-        not run. An Outcome when that already decides; otherwise what the radar stages need."""
+        not run. An Outcome when that already decides; otherwise what the radar stages need.
+        `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`)."""
         with timer.stage("remote_id"):
-            claim = read_claim(rec, serial)
+            claim = read_claim(rec, serial, capture=captured)
         with timer.stage("registry"):
             facts = RegistryFacts.of(self.db.identity(claim.serial))
         mid = rec.mid_time
@@ -324,8 +420,9 @@ class Checker:
         decided and the rest are left out of `Batch.items`."""
         from core.errors import SystemFault
 
-        done: dict[int, Outcome | Failure] = {}
-        pending: dict[int, _Pending] = {}
+        done: dict[tuple[int, int], Outcome | Failure] = {}  # (input, claim of that input)
+        pending: dict[tuple[int, int], _Pending] = {}
+        targets: dict[int, tuple[list[dict[str, float]], float]] = {}  # capture input -> its targets, range bin
 
         def flush() -> None:
             done.update(self._radar_batch(pending))
@@ -339,15 +436,27 @@ class Checker:
                 timer = _Timer()
                 with timer.stage("read"):
                     rec, digest = item.load()
-                front = self._front(rec, item.serial, item.name, digest, timer)
+                if item.rid_capture is None:
+                    fronts = [self._front(rec, item.serial, item.name, digest, timer)]
+                else:  # one claim per drone heard: each its own decision (and audit entry)
+                    with timer.stage("rid_capture"):
+                        claims = item.rid_capture.claims(rec, item.serial)
+                    fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True)
+                              for j, (r, s) in enumerate(claims)]
+                    with timer.stage("non_cooperative"):
+                        targets[i] = self._targets(rec)
+                    shared = {k: v for k, v in timer.ms.items() if k in ("read", "rid_capture")}
+                    for f in fronts[1:]:  # the shared read is each claim's too
+                        (f.timer.ms if isinstance(f, _Pending) else f.timings_ms).update(shared)
             except SystemFault as exc:
                 return Batch([done[j] for j in sorted(done)] + [Failure.of(item.name, item.serial, exc)], exc)
             except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
-                front = Failure.of(item.name, item.serial, exc)
-            if not isinstance(front, _Pending):
-                done[i] = front
-                continue
-            pending[i] = front
+                fronts = [Failure.of(item.name, item.serial, exc)]
+            for j, front in enumerate(fronts):
+                if isinstance(front, _Pending):
+                    pending[(i, j)] = front
+                else:
+                    done[(i, j)] = front
             if len(pending) > 1 and len(pending) >= _batch_size(rec):  # memory holds no more cubes
                 try:
                     flush()
@@ -357,7 +466,35 @@ class Checker:
             flush()
         except SystemFault as exc:
             return Batch([done[j] for j in sorted(done)], exc)
-        return Batch([done[j] for j in range(len(items))])
+        self._non_cooperative(done, targets)
+        return Batch([done[j] for j in sorted(done)])
+
+    @staticmethod
+    def _targets(rec: Any) -> tuple[list[dict[str, float]], float]:
+        """The return's radar targets (`signatures.features.detections`: none for CW) and its
+        range bin in metres."""
+        from signatures.features import detections
+
+        found = [{"range_m": round(r, 3), "snr_db": round(snr, 1)} for r, snr in detections(rec)]
+        return found, rec.config.range_bin_m(rec.n_samples)
+
+    @staticmethod
+    def _non_cooperative(done: dict[tuple[int, int], Any],
+                         targets: dict[int, tuple[list[dict[str, float]], float]]) -> None:
+        """Report, on every decision of a return checked with a capture, its targets that no claim
+        explains: none whose declared position matched the radar (range residual within
+        tolerance) at that target (its radar range within 3 range bins of it)."""
+        def explains(o: Outcome, target: dict[str, float], bin_m: float) -> bool:
+            kin, radar = o.evidence.kinematics, o.radar
+            return (kin is not None and radar is not None and radar.range_m is not None
+                    and kin.residuals.range_residual_m <= kin.residuals.range_tolerance_m
+                    and abs(radar.range_m - target["range_m"]) <= 3 * bin_m)
+
+        for i, (found, bin_m) in targets.items():
+            outs = [o for (k, _), o in done.items() if k == i and isinstance(o, Outcome)]
+            silent = [t for t in found if not any(explains(o, t, bin_m) for o in outs)]
+            for o in outs:
+                o.non_cooperative = [dict(t) for t in silent]
 
     def decide_one(self, item: CheckInput) -> Outcome:
         """One decision, not recorded (benchmarks, tests); raises what stopped it."""
@@ -388,7 +525,7 @@ class Checker:
         except Exception as exc:  # noqa: BLE001 - this file's failure, not the batch's
             return Failure.of(p.file, p.claim.serial, exc)
 
-    def _radar_batch(self, pending: dict[int, _Pending]) -> dict[int, Outcome | Failure]:
+    def _radar_batch(self, pending: dict[Any, _Pending]) -> dict[Any, Outcome | Failure]:
         """Features of every pending return in batches, classes per bundle, then each decision."""
         import numpy as np
 
@@ -396,7 +533,7 @@ class Checker:
 
         if not pending:
             return {}
-        out: dict[int, Outcome | Failure] = {}
+        out: dict[Any, Outcome | Failure] = {}
         keys = list(pending)
         t0 = time.perf_counter()
         try:
@@ -414,8 +551,8 @@ class Checker:
             keys = [k for k, f in zip(keys, feats) if not isinstance(f, Failure)]
             feats = [f for f in feats if not isinstance(f, Failure)]
         share = (time.perf_counter() - t0) * 1e3 / max(len(keys), 1)
-        preds: dict[int, Any] = {}
-        by_bundle: dict[int, list[int]] = {}
+        preds: dict[Any, Any] = {}
+        by_bundle: dict[int, list[Any]] = {}
         for k, f in zip(keys, feats):
             pending[k].timer.ms["radar_features"] = round(share, 3)
             if f.detected:

@@ -37,6 +37,11 @@ class Claim:
     n_messages: int = 0
     #: every single message as (decoded, its 25 wire bytes): what DRIP verification reads
     wire: tuple[tuple[Any, bytes], ...] = ()
+    #: when a sniffer heard each message of `wire` (s after the dwell's start), for a claim from a
+    #: capture (`--rid-capture`): the time of record of its Locations; empty otherwise
+    heard_s: tuple[float, ...] = ()
+    #: the check was given a capture: a claim with no Remote ID in it is rejected (`no-remote-id`)
+    capture: bool = False
 
     def to_json(self) -> dict[str, Any]:
         return {"serial": self.serial, "source": self.source, "remote_id_serial": self.rid_serial}
@@ -44,26 +49,43 @@ class Claim:
     def signed_only(self, covered: tuple[int, ...], reference: datetime, mid: datetime) -> "Claim":
         """The same claim with the declared state taken only from Location messages that a
         verified signature covers (none covered: no declared state, hence no kinematics)."""
-        locations = [self.wire[i][0] for i in covered if i < len(self.wire)]
-        return replace(self, state=_nearest_state(locations, reference, mid))
+        idx = [i for i in covered if i < len(self.wire)]
+        heard = [self.heard_s[i] for i in idx] if self.heard_s else None
+        return replace(self, state=_nearest_state([self.wire[i][0] for i in idx], reference, mid, heard))
 
 
-def _nearest_state(messages: list[Any], reference: datetime, mid: datetime) -> DeclaredState | None:
-    """The declared state of the Location message nearest the middle of the dwell."""
+def _nearest_state(messages: list[Any], reference: datetime, mid: datetime,
+                   heard_s: list[float] | None = None) -> DeclaredState | None:
+    """The declared state of the Location message nearest the middle of the dwell. With
+    `heard_s` (a capture's reception times, s after `reference`) a Location's time is when the
+    sniffer heard it, not the tenth-of-hour timestamp the drone wrote (docs/remoteid.md)."""
+    from datetime import timedelta
+
     from remoteid import Location
 
-    states = [s for s in (DeclaredState.from_location(m, reference) for m in messages
-                          if isinstance(m, Location)) if s is not None]
+    states = []
+    for i, m in enumerate(messages):
+        s = DeclaredState.from_location(m, reference) if isinstance(m, Location) else None
+        if s is not None and heard_s is not None:
+            s = replace(s, time=reference + timedelta(seconds=heard_s[i]))
+        if s is not None:
+            states.append(s)
     return min(states, key=lambda s: abs((s.time - mid).total_seconds()) if s.time else 1e9, default=None)
 
 
-def read_claim(rec: Any, serial: str | None) -> Claim:
-    """The claimed serial (--serial wins) and what the Remote ID messages declare."""
+def read_claim(rec: Any, serial: str | None, capture: bool = False) -> Claim:
+    """The claimed serial (--serial wins) and what the Remote ID messages declare. Messages from
+    a capture (`rec.remote_id_source == "capture"`: `--rid-capture`, or written by `authn import
+    --rid-capture`) have `remote_id_time_s`, when the sniffer heard each, as their time of record.
+    `capture`: the check was given a capture (its absence of messages is evidence)."""
     from remoteid import BasicId
     from remoteid.codec import decode_rows_raw
 
     wire = tuple(decode_rows_raw(rec.remote_id)) if rec.remote_id is not None else ()
     msgs = [m for m, _ in wire]
+    times = rec.remote_id_time_s
+    heard = getattr(rec, "remote_id_source", None) == "capture" and times is not None and len(times) == len(wire)
+    heard_s = tuple(float(t) for t in times) if heard else ()
     basic = next((m for m in msgs if isinstance(m, BasicId) and m.uas_id), None)
     rid_serial = basic.uas_id.strip() if basic else None
     if serial is None and rid_serial is None:
@@ -72,7 +94,8 @@ def read_claim(rec: Any, serial: str | None) -> Claim:
         raise AuthnError(f"--serial: {serial!r} is not a UAS ID (1-64 printable ASCII characters, no spaces)")
     return Claim(serial=serial or rid_serial, source="cli" if serial else "remote_id", rid_serial=rid_serial,
                  ua_type=basic.ua_type if basic else None,
-                 state=_nearest_state(msgs, rec.start_time, rec.mid_time), n_messages=len(msgs), wire=wire)
+                 state=_nearest_state(msgs, rec.start_time, rec.mid_time, list(heard_s) if heard_s else None),
+                 n_messages=len(msgs), wire=wire, heard_s=heard_s, capture=capture)
 
 
 def authenticate(claim: Claim, facts: "RegistryFacts", dwell_time: datetime,
@@ -278,6 +301,8 @@ class Evidence:
             "velocity_residual_cmps": 0, "velocity_tolerance_cmps": 0,
             "remote_id_present": self.claim.n_messages > 0, "remote_id_issues": list(self.remote_id_issues),
             "remote_id_auth": self.auth.status, "range_measured": self.range_measured}
+        if self.claim.capture:  # only with --rid-capture: the request of any other check is unchanged
+            ctx["remote_id_expected"] = True
         if radar is not None and radar.verification is not None and radar.verification.terms:
             ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, radar.verification.llr * 100.0))))
         if self.kinematics is not None:

@@ -126,7 +126,8 @@ def sanity(state: DeclaredState | None, ua_type: int | None, rid_serial: str | N
     issues: list[str] = []
     if rid_serial is not None and rid_serial != claimed_serial:
         issues.append("serial-mismatch")
-    if ua_type is not None and rotorcraft_seen and ua_type not in ROTORCRAFT_UA_TYPES:
+    # UA type 0 is F3411's "none": not declared, so nothing to contradict (real senders send it)
+    if ua_type not in (None, 0) and rotorcraft_seen and ua_type not in ROTORCRAFT_UA_TYPES:
         issues.append("not-rotorcraft")
     if state is None:
         return issues

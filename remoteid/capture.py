@@ -19,7 +19,7 @@ from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from remoteid.codec import MESSAGE_SIZE, decode
 from remoteid.errors import CaptureError, RemoteIdError
@@ -53,6 +53,10 @@ class CapturedMessage(BaseModel):
     transport: Transport
     counter: int  # the transport's message counter byte
     message: Message
+    #: the transmitter's address (Wi-Fi source MAC, BLE AdvA) as aa:bb:..; None when the frame has none
+    sender: str | None = None
+    #: the payload's wire bytes (one 25-byte message or a whole pack); not in the JSON
+    raw: bytes = Field(default=b"", exclude=True, repr=False)
 
 
 # ------------------------------------------------------------------ containers
@@ -194,17 +198,23 @@ def _ies(body: bytes) -> Iterator[tuple[int, bytes]]:
         off += 2 + length
 
 
-def _wifi(frame: bytes) -> Iterator[tuple[Transport, bytes]]:
+def _mac(b: bytes) -> str:
+    return ":".join(f"{x:02x}" for x in b)
+
+
+def _wifi(frame: bytes) -> Iterator[tuple[Transport, bytes, str | None]]:
     if len(frame) < 24 or (frame[0] >> 2) & 0x3 != 0:
         return
     subtype = frame[0] >> 4
     body = frame[24:]
+    sender = _mac(frame[10:16])  # address 2: the transmitter of a management frame
     if subtype in (5, 8):  # probe response, beacon
         for eid, ie in _ies(body[12:]):
             if eid == 221 and ie[:4] == ODID_OUI_TYPE and len(ie) > 5:
-                yield "wifi_beacon", ie[4:]
+                yield "wifi_beacon", ie[4:], sender
     elif subtype in (13, 14) and body[:2] == b"\x04\x09" and body[2:6] == NAN_OUI_TYPE:
-        yield from _nan_attributes(body[6:])
+        for transport, info in _nan_attributes(body[6:]):
+            yield transport, info, sender
 
 
 def _nan_attributes(attrs: bytes) -> Iterator[tuple[Transport, bytes]]:
@@ -228,7 +238,7 @@ def _nan_attributes(attrs: bytes) -> Iterator[tuple[Transport, bytes]]:
 
 
 # ------------------------------------------------------------------ Bluetooth
-def _ble_ll(pkt: bytes, coded: bool = False) -> Iterator[tuple[Transport, bytes]]:
+def _ble_ll(pkt: bytes, coded: bool = False) -> Iterator[tuple[Transport, bytes, str | None]]:
     if len(pkt) < 6 or struct.unpack_from("<I", pkt)[0] != BLE_ADV_ACCESS_ADDRESS:
         return
     off = 5 if coded else 4  # coded PHY: coding indicator byte
@@ -236,10 +246,14 @@ def _ble_ll(pkt: bytes, coded: bool = False) -> Iterator[tuple[Transport, bytes]
         return
     pdu_type, length = pkt[off] & 0xF, pkt[off + 1]
     payload = pkt[off + 2:off + 2 + length]
+    sender = None
     if pdu_type in (0, 2, 4, 6):  # ADV_IND, ADV_NONCONN_IND, SCAN_RSP, ADV_SCAN_IND
         adv, transport = payload[6:], "bt_legacy"
+        sender = _mac(payload[5::-1]) if len(payload) >= 6 else None  # AdvA, little-endian on air
     elif pdu_type == 7 and payload:  # extended advertising (AUX_ADV_IND, AUX_CHAIN_IND)
         adv, transport = payload[1 + (payload[0] & 0x3F):], "bt_extended"
+        if payload[0] & 0x3F >= 7 and payload[1] & 0x01:  # extended header with AdvA
+            sender = _mac(payload[7:1:-1])
     else:
         return
     off = 0
@@ -250,10 +264,10 @@ def _ble_ll(pkt: bytes, coded: bool = False) -> Iterator[tuple[Transport, bytes]
         ad_type, ad = adv[off + 1], adv[off + 2:off + 1 + length]
         off += 1 + length
         if ad_type == 0x16 and ad[:2] == ODID_BT_UUID and len(ad) > 4 and ad[2] == ODID_APP_CODE:
-            yield transport, ad[3:]
+            yield transport, ad[3:], sender
 
 
-def _nordic(pkt: bytes) -> Iterator[tuple[Transport, bytes]]:
+def _nordic(pkt: bytes) -> Iterator[tuple[Transport, bytes, str | None]]:
     """Nordic nRF Sniffer (link type 272): board id, header, then the BLE LL packet.
 
     Packets whose CRC failed are skipped.
@@ -268,7 +282,7 @@ def _nordic(pkt: bytes) -> Iterator[tuple[Transport, bytes]]:
     yield from _ble_ll(pkt[7 + hdr_len:], coded)
 
 
-def _payloads(linktype: int, pkt: bytes) -> Iterator[tuple[Transport, bytes]]:
+def _payloads(linktype: int, pkt: bytes) -> Iterator[tuple[Transport, bytes, str | None]]:
     if linktype == LINKTYPE_RADIOTAP:
         frame = _radiotap(pkt)
         if frame is not None:
@@ -311,15 +325,19 @@ def _guarded(found: Iterator[tuple[datetime | None, int, bytes]]) -> Iterator[tu
         yield item
 
 
-def extract(data: bytes) -> list[CapturedMessage]:
-    """Every Open Drone ID payload in the bytes of a pcap/pcapng file, in capture order."""
+def extract(data: bytes, window: tuple[datetime, datetime] | None = None) -> list[CapturedMessage]:
+    """Every Open Drone ID payload in the bytes of a pcap/pcapng file, in capture order; with
+    `window` (first, last), only those of packets captured in it (the others' framing is still
+    checked, their payloads are not decoded: a long capture costs little beyond a dwell's)."""
     out = []
     for frame_no, (ts, linktype, pkt) in enumerate(_guarded(packets(data)), start=1):
+        if window is not None and (ts is None or not window[0] <= ts <= window[1]):
+            continue
         try:
-            for transport, payload in _payloads(linktype, pkt):
+            for transport, payload, sender in _payloads(linktype, pkt):
                 counter, raw = _odid(payload)
                 out.append(CapturedMessage(frame=frame_no, captured_at=ts, transport=transport,
-                                           counter=counter, message=decode(raw)))
+                                           counter=counter, message=decode(raw), sender=sender, raw=bytes(raw)))
         except CaptureError:
             raise
         except RemoteIdError as exc:
@@ -329,8 +347,8 @@ def extract(data: bytes) -> list[CapturedMessage]:
     return out
 
 
-def read_capture(path: str | Path) -> list[CapturedMessage]:
-    """`extract` of a file; unreadable or malformed files raise CaptureError.
+def read_capture(path: str | Path, window: tuple[datetime, datetime] | None = None) -> list[CapturedMessage]:
+    """`extract` of a file (`window`: as there); unreadable or malformed files raise CaptureError.
 
     Only regular files are read (stat first): a FIFO or device would block or never end.
     """
@@ -342,6 +360,75 @@ def read_capture(path: str | Path) -> list[CapturedMessage]:
     if not regular:
         raise CaptureError(f"{path}: not a regular file (directory, FIFO, socket or device)")
     try:
-        return extract(data)
+        return extract(data, window)
     except CaptureError as exc:
         raise CaptureError(f"{path}: {exc}") from None
+
+
+# ------------------------------------------------------------------ claims of a capture
+#: Messages heard this long before the dwell's first chirp or after its last one still belong to it
+#: (a Location is broadcast at >= 1 Hz: the window holds several); the clock-skew tolerance is added.
+WINDOW_MARGIN_S = 5.0
+#: Default tolerance for the sniffer's clock against the radar's (`--rid-skew`)
+DEFAULT_SKEW_S = 2.0
+
+
+class Broadcaster(BaseModel):
+    """One drone heard in a capture during a dwell: its UAS ID and its single messages."""
+
+    model_config = ConfigDict(frozen=True)
+
+    uas_id: str
+    senders: tuple[str, ...]
+    rows: tuple[bytes, ...]  # 25-byte messages, in capture order
+    heard_s: tuple[float, ...]  # when each was heard, seconds after the dwell's start
+
+
+def window(start: datetime, end: datetime, skew_s: float = DEFAULT_SKEW_S) -> tuple[datetime, datetime]:
+    """The capture times that belong to a dwell from `start` to `end`: WINDOW_MARGIN_S and the
+    clock-skew tolerance on either side."""
+    margin = timedelta(seconds=WINDOW_MARGIN_S + max(skew_s, 0.0))
+    return start - margin, end + margin
+
+
+def broadcasters(captured: list[CapturedMessage], start: datetime, end: datetime,
+                 skew_s: float = DEFAULT_SKEW_S) -> tuple[list[Broadcaster], int]:
+    """The drones heard in [start - margin - skew, end + margin + skew], grouped by UAS ID, and
+    how many messages in that window could not be attributed to one.
+
+    A payload belongs to the UAS ID of a Basic ID in the same pack, else to the one its
+    transmitter (Wi-Fi source address, BLE AdvA) sent anywhere in `captured` (what was read:
+    `window` below). A transmitter that sent no Basic ID there cannot be attributed: its
+    messages are counted, not guessed."""
+    from remoteid.codec import split_raw
+    from remoteid.messages import BasicId, MessagePack
+
+    def basic_ids(c: CapturedMessage) -> list[str]:
+        msgs = c.message.messages if isinstance(c.message, MessagePack) else [c.message]
+        return [m.uas_id.strip() for m in msgs if isinstance(m, BasicId) and m.uas_id and m.uas_id.strip()]
+
+    by_sender: dict[str, str] = {}
+    for c in captured:
+        ids = basic_ids(c)
+        if ids and c.sender is not None:
+            by_sender.setdefault(c.sender, ids[0])
+    lo, hi = window(start, end, skew_s)
+    groups: dict[str, tuple[set[str], list[bytes], list[float]]] = {}
+    unattributed = 0
+    for c in captured:
+        if c.captured_at is None or not lo <= c.captured_at <= hi:
+            continue
+        ids = basic_ids(c)
+        uas = ids[0] if ids else by_sender.get(c.sender or "")
+        singles = split_raw(c.raw) if c.raw else []
+        if uas is None:
+            unattributed += len(singles)
+            continue
+        senders, rows, heard = groups.setdefault(uas, (set(), [], []))
+        if c.sender:
+            senders.add(c.sender)
+        t = (c.captured_at - start).total_seconds()
+        rows.extend(singles)
+        heard.extend([t] * len(singles))
+    return [Broadcaster(uas_id=u, senders=tuple(sorted(s)), rows=tuple(r), heard_s=tuple(h))
+            for u, (s, r, h) in groups.items()], unattributed

@@ -558,3 +558,45 @@ def _empty(config: RadarConfig, n_chirps: int, n_bins: int, within: tuple[int, i
     centre = (within[0] + within[1]) // 2 if within else n_bins // 2
     return FeatureResult(False, Features(**values), _no_patch,
                          _window(centre, GATE_BINS, n_bins))
+
+
+#: What `detections` calls a target: its CFAR cluster's peak this far above the profile's median
+DETECTION_MIN_SNR_DB = 10.0
+
+
+def detections(recording, clutter_suppression: bool = True,
+               min_snr_db: float = DETECTION_MIN_SNR_DB) -> list[tuple[float, float]]:
+    """The targets of the range profile: (range m, SNR dB over the profile's median) of the peak
+    of each CFAR cluster (contiguous bins over threshold) at least `min_snr_db` strong, strongest
+    first; a cluster within GATE_BINS of a stronger one is that one's (range sidelobes, blade
+    flashes). [] for a CW return (no range) or an all-zero one. What `authn check --rid-capture`
+    compares with the claims (non-cooperative targets); the features look at one target only."""
+    if recording.domain == "cw":
+        return []
+    prep = rd.prepare(recording.iq)
+    if prep.all_zero:
+        return []
+    config = recording.config
+    n_chirps, n_bins = prep.iq.shape
+    profile = rd.range_profile(_range_spectrum(prep.iq, clutter_suppression, recording.domain))
+    looks = max(1, n_chirps - 1) if clutter_suppression else n_chirps
+    hits, _ = rd.cfar(profile, looks)
+    noise = max(float(median(profile)), 1e-30)
+    peaks: list[tuple[int, float]] = []
+    k = 0
+    while k < n_bins:
+        end = k
+        while end < n_bins and hits[end]:
+            end += 1
+        if end > k:
+            peak = k + int(np.argmax(profile[k:end]))
+            snr = 10.0 * math.log10(max(float(profile[peak]) / noise, 1e-30))
+            if snr >= min_snr_db:
+                peaks.append((peak, snr))
+        k = max(end, k + 1)
+    kept: list[tuple[int, float]] = []
+    for peak, snr in sorted(peaks, key=lambda p: -p[1]):
+        if all(abs(peak - other) > GATE_BINS for other, _ in kept):
+            kept.append((peak, snr))
+    bin_m = config.range_bin_m(n_bins)
+    return [(config.range_offset_m + rd._interp_peak(profile, peak) * bin_m, snr) for peak, snr in kept]

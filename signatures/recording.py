@@ -89,6 +89,9 @@ class Recording:
     simulation: str | None = None
     #: what `iq` holds, one of DOMAINS (attribute `domain`; absent = "if")
     domain: str = "if"
+    #: "capture": /remote_id came from a Remote ID capture and /remote_id_time_s is when the
+    #: sniffer heard each message (attribute `remote_id_source`; docs/remoteid.md); None otherwise
+    remote_id_source: str | None = None
 
     @property
     def n_chirps(self) -> int:
@@ -294,8 +297,25 @@ def _simulation_attr(attrs: dict[str, Any]) -> str | None:
     return value
 
 
+def _rid_source_attr(attrs: dict[str, Any]) -> str | None:
+    """`remote_id_source`: absent, or "capture" (the message times are a sniffer's)."""
+    if "remote_id_source" not in attrs:
+        return None
+    value = _scalar(attrs, "remote_id_source")
+    if value != "capture":
+        raise RecordingError(f"attribute 'remote_id_source': expected 'capture', got {_show(value)}")
+    return value
+
+
+def _check_rid_source(source: str | None, times: np.ndarray | None) -> None:
+    if source is not None and (source != "capture" or times is None):
+        raise RecordingError("remote_id_source: 'capture' needs /remote_id and /remote_id_time_s"
+                             if source == "capture" else f"remote_id_source: expected 'capture', got {_show(source)}")
+
+
 #: Every attribute the format defines; others are ignored (never even read).
-_ATTR_NAMES = ("format", "domain", *_CONFIG_ATTRS, "range_offset_m", *_SITE_ATTRS, "start_time", "simulation")
+_ATTR_NAMES = ("format", "domain", *_CONFIG_ATTRS, "range_offset_m", *_SITE_ATTRS, "start_time", "simulation",
+               "remote_id_source")
 
 #: What h5py, numpy, zipfile and the OS raise on corrupt, truncated or hostile files
 #: (bit flips in HDF5 metadata give RuntimeError/ValueError/KeyError/TypeError/OSError;
@@ -448,6 +468,7 @@ def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
         domain = _domain(attrs)
         config, site, when = _metadata(attrs)
         simulation = _simulation_attr(attrs)
+        source = _rid_source_attr(attrs)
         try:
             _check_iq_header(ds.shape, ds.dtype, max_cells, max_bytes)
             _check_domain_shape(domain, ds.shape)
@@ -474,7 +495,8 @@ def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
                                  f"{_reason(exc)})") from None
     _check_iq_values(iq)
     _check_rid(rid, times)
-    return Recording(config, site, when, iq, rid, times, simulation, domain)
+    _check_rid_source(source, times)
+    return Recording(config, site, when, iq, rid, times, simulation, domain, source)
 
 
 def _attrs_of(rec: Recording) -> dict[str, Any]:
@@ -487,6 +509,8 @@ def _attrs_of(rec: Recording) -> dict[str, Any]:
     attrs["start_time"] = rec.start_time.astimezone(timezone.utc).isoformat()
     if rec.simulation is not None:
         attrs["simulation"] = rec.simulation
+    if rec.remote_id_source is not None:
+        attrs["remote_id_source"] = rec.remote_id_source
     return attrs
 
 
@@ -552,6 +576,7 @@ def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
             _check_domain_shape(domain, iq.shape)
             config, site, when = _metadata(attrs)
             simulation = _simulation_attr(attrs)
+            source = _rid_source_attr(attrs)
             data: dict[str, np.ndarray | None] = {"remote_id": None, "remote_id_time_s": None}
             for name in data:
                 if name in members:
@@ -567,7 +592,8 @@ def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
     times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
     _check_iq_values(iq)
     _check_rid(rid, times)
-    return Recording(config, site, when, iq, rid, times, simulation, domain)
+    _check_rid_source(source, times)
+    return Recording(config, site, when, iq, rid, times, simulation, domain, source)
 
 
 def _write_npz(rec: Recording, path: Path) -> None:
@@ -650,6 +676,7 @@ def write_recording(rec: Recording, path: str | Path) -> Path:
     _check_domain_shape(rec.domain, tuple(rec.iq.shape))
     _check_iq_values(rec.iq)
     _check_rid(rec.remote_id, rec.remote_id_time_s)
+    _check_rid_source(rec.remote_id_source, rec.remote_id_time_s)
     path.parent.mkdir(parents=True, exist_ok=True)
     (_write_npz if path.suffix.lower() == ".npz" else _write_h5)(rec, path)
     return path

@@ -39,7 +39,8 @@ def _files(paths: list[Path]) -> list[Path]:
 
 
 def _claims(path: Path) -> dict[str, str]:
-    """file,serial CSV -> {file name or path: serial}."""
+    """file,serial CSV -> {file name or path: serial}; a row with a rid_capture column may leave
+    the serial empty (every drone heard in the capture is then a claim)."""
     from core.errors import AuthnError
 
     try:
@@ -53,10 +54,27 @@ def _claims(path: Path) -> dict[str, str]:
     claims: dict[str, str] = {}
     for line, row in enumerate(rows, start=2):
         file, claimed = (row.get("file") or "").strip(), (row.get("serial") or "").strip()
-        if not file or not claimed:
-            raise AuthnError(f"{path}: line {line}: needs both a file and a serial")
-        claims[file] = claimed
+        capture = (row.get("rid_capture") or "").strip()
+        if not file or not (claimed or capture):
+            raise AuthnError(f"{path}: line {line}: needs a file and a serial (or a rid_capture)")
+        if claimed:
+            claims[file] = claimed
     return claims
+
+
+def _captures(path: Path) -> dict[str, Path]:
+    """The optional rid_capture column of the claims CSV -> {file: capture path}; a relative
+    capture path is taken from the CSV's folder."""
+    try:
+        rows = list(csv.DictReader(path.read_text().splitlines()))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return {}  # _claims already reported it
+    out: dict[str, Path] = {}
+    for row in rows:
+        file, capture = (row.get("file") or "").strip(), (row.get("rid_capture") or "").strip()
+        if file and capture:
+            out[file] = path.parent / capture
+    return out
 
 
 def _print_outcome(o) -> None:
@@ -101,6 +119,9 @@ def _print_outcome(o) -> None:
                       f"(tolerance {res.radial_velocity_tolerance_mps:.2f} m/s)")
     if ev.remote_id_issues:
         t.add_row("remote id issues", cell(", ".join(ev.remote_id_issues)))
+    if o.non_cooperative:  # with --rid-capture: radar targets no broadcast explains
+        t.add_row("non-cooperative",
+                  ", ".join(f"{x['range_m']:.1f} m ({x['snr_db']:.0f} dB)" for x in o.non_cooperative))
     if o.skipped:
         t.add_row("skipped", cell(", ".join(o.skipped)))
     t.add_row("time", f"{sum(o.timings_ms.values()):.1f} ms  audit #{o.audit_id}")
@@ -124,6 +145,11 @@ def check(
                                             "scheduler address (needs the cluster extra; docs/cluster.md)."),
     partition_size: int | None = typer.Option(None, "--partition-size", min=1,
                                               help="Files per --cluster partition (default: 4 per worker, <= 250)."),
+    rid_capture: Path | None = typer.Option(None, "--rid-capture",
+                                            help="pcap/pcapng Remote ID capture heard beside the radar: each drone "
+                                                 "heard in the dwell's window is a claim (docs/remoteid.md)."),
+    rid_skew: float = typer.Option(2.0, "--rid-skew", min=0.0, max=3600.0,
+                                   help="Clock-skew tolerance (s) between the capture and the radar."),
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
@@ -148,18 +174,33 @@ def check(
         checker = Checker(state.db_url, policy, trusted, model=model)
         paths = _files(files)
         mapping = _claims(claims) if claims else {}
+        captures = _captures(claims) if claims else {}
+        if cluster is not None and (rid_capture is not None or captures):
+            from core.errors import AuthnError
+
+            raise AuthnError("--rid-capture (or a rid_capture column) is not supported with --cluster yet")
     except Exception as exc:
         _record_failure(state.db_url, [Failure.of(str(f), serial, exc) for f in files])
         raise
+    if rid_capture is not None or captures:
+        from authn.check import RidCapture
+
+        def capture_of(p: Path):
+            c = captures.get(p.name, captures.get(str(p), rid_capture))
+            return None if c is None else RidCapture.file(c, rid_skew)
+    else:
+        def capture_of(p: Path):
+            return None
     if cluster is not None:  # the engine is imported only here (a cold check never loads it)
         from authn.cluster.recheck import cli_recheck
 
         raise typer.Exit(cli_recheck(checker, paths, mapping, serial, cluster, partition_size, as_json,
                                      policy=policy, trusted=trusted, model=model))
     if len(paths) == 1:
-        _single(checker, paths[0], mapping.get(paths[0].name, mapping.get(str(paths[0]), serial)), as_json)
+        _single(checker, paths[0], mapping.get(paths[0].name, mapping.get(str(paths[0]), serial)), as_json,
+                capture_of(paths[0]))
         return
-    _batch(checker, paths, mapping, serial, as_json)
+    _batch(checker, paths, mapping, serial, as_json, capture_of)
 
 
 def _record_failure(db_url, failures) -> None:
@@ -174,12 +215,20 @@ def _record_failure(db_url, failures) -> None:
         pass
 
 
-def _single(checker, path: Path, serial: str | None, as_json: bool) -> None:
+def _single(checker, path: Path, serial: str | None, as_json: bool, capture=None) -> None:
     from authn.check import CheckInput, Failure
 
-    outcome = checker.check([CheckInput.file(path, serial)]).items[0]  # recorded, or it raised
+    items = checker.check([CheckInput.file(path, serial, capture)]).items  # recorded, or it raised
+    outcome = items[0]
     if isinstance(outcome, Failure):
         outcome.raise_()
+    if len(items) > 1:  # a capture with several drones: one decision each, a JSON array
+        if as_json:
+            typer.echo(json.dumps([o.to_json() for o in items], indent=2))
+        else:
+            for o in items:
+                _print_outcome(o)
+        raise typer.Exit(0 if all(o.decision == "accept" for o in items) else 1)
     if as_json:
         typer.echo(json.dumps(outcome.to_json(), indent=2))
     else:
@@ -202,7 +251,8 @@ def _stop_signals() -> Iterator[list[int]]:
         yield stop
 
 
-def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | None, as_json: bool) -> None:
+def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | None, as_json: bool,
+           capture_of=lambda p: None) -> None:
     from rich.progress import Progress
 
     from authn.check import CheckInput, Failure
@@ -224,13 +274,13 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
         start, size = 0, FIRST_CHUNK
         while start < len(paths) and not stop:
             chunk = paths[start:start + size]
-            batch = checker.check([CheckInput.file(p, mapping.get(p.name, mapping.get(str(p), serial))) for p in chunk],
-                                  stop=lambda: bool(stop))
+            batch = checker.check([CheckInput.file(p, mapping.get(p.name, mapping.get(str(p), serial)), capture_of(p))
+                                   for p in chunk], stop=lambda: bool(stop))
             for item in batch.items:  # recorded: printed only now
                 emit(item)
             if batch.fault is not None:  # the database or policy engine: the batch cannot go on
                 raise batch.fault
-            progress.advance(task, len(batch.items))
+            progress.advance(task, len({r.file for r in batch.items}))
             start, size = start + len(chunk), min(2 * size, CHECK_CHUNK)
     if as_json:
         out.write(("[" if first[0] else "\n") + "]\n")

@@ -13,9 +13,28 @@ _LAT = typer.Option(..., "--site-lat", help="Radar site latitude, degrees (WGS-8
 _LON = typer.Option(..., "--site-lon", help="Radar site longitude, degrees (WGS-84).")
 _ALT = typer.Option(..., "--site-alt", help="Radar site altitude, m above the WGS-84 ellipsoid.")
 _OUT = typer.Option(..., "--out", help="Output .h5/.npz for one dwell; a directory when several result.")
+_RID = typer.Option(None, "--rid-capture", help="pcap/pcapng Remote ID capture: the messages heard in each dwell's "
+                                                 "window are written into it (docs/remoteid.md).")
+_RID_SERIAL = typer.Option(None, "--rid-serial", help="With --rid-capture: the drone (UAS ID) whose messages to "
+                                                      "write when the capture heard several.")
+_RID_SKEW = typer.Option(2.0, "--rid-skew", min=0.0, max=3600.0, help="Capture clock-skew tolerance, s.")
 
 
-def _write(dwells, n_dwells: int, capture, out: Path, domain: str) -> None:
+def _attach(rid_capture: Path | None, rid_serial: str | None, rid_skew: float):
+    """What writes a capture's messages into each dwell (None without --rid-capture). The capture
+    is read once, before any dwell is written: a bad capture writes nothing."""
+    if rid_capture is None:
+        return None
+    from authn.check import RidCapture
+    from remoteid.capture import read_capture
+
+    messages = read_capture(rid_capture)  # every dwell's window: read (and checked) once, whole
+    capture = RidCapture(str(rid_capture), lambda window: [m for m in messages if m.captured_at is not None
+                                                           and window[0] <= m.captured_at <= window[1]], rid_skew)
+    return lambda rec: capture.attach(rec, rid_serial)
+
+
+def _write(dwells, n_dwells: int, capture, out: Path, domain: str, attach=None) -> None:
     """Write the dwells (a progress bar when there are several) and say what was written."""
     from rich.progress import Progress
 
@@ -30,7 +49,7 @@ def _write(dwells, n_dwells: int, capture, out: Path, domain: str) -> None:
 
     with Progress(transient=True, disable=n_dwells < 2) as progress:
         task = progress.add_task(f"writing {n_dwells} dwells", total=n_dwells)
-        paths = write_dwells(seen(dwells), n_dwells, capture, out, lambda: progress.advance(task))
+        paths = write_dwells(seen(dwells), n_dwells, capture, out, lambda: progress.advance(task), attach)
     where = paths[0] if len(paths) == 1 and paths[0] == out else f"{out}/"
     typer.echo(f"wrote {len(paths)} '{domain}' dwell{'s' if len(paths) != 1 else ''} of "
                f"{shapes[0][0]}x{shapes[0][1]} to {where}")
@@ -53,6 +72,9 @@ def dca1000(
     frames_per_dwell: int = typer.Option(1, "--frames-per-dwell", min=1,
                                          help="Frames joined into one dwell (only when frames follow without a gap)."),
     iq_swap: bool = typer.Option(False, "--iq-swap", help="The capture stores Q before I (adcbufCfg IQSwap 1)."),
+    rid_capture: Path | None = _RID,
+    rid_serial: str | None = _RID_SERIAL,
+    rid_skew: float = _RID_SKEW,
 ) -> None:
     """TI mmWave + DCA1000EVM raw ADC data: one dwell (file) per frame.
 
@@ -72,8 +94,9 @@ def dca1000(
         loc, msg, _ = first_error(exc)
         raise SignaturesError(f"--{loc.replace('_', '-')}: {msg}") from None
     capture = Capture.parse(start_time, site_lat, site_lon, site_alt)
+    attach = _attach(rid_capture, rid_serial, rid_skew)
     plan, found = dwells(raw, load_config(config), sel)
-    _write(found, plan.n_dwells, capture, out, "if")
+    _write(found, plan.n_dwells, capture, out, "if", attach)
 
 
 @import_app.command("array")
@@ -106,6 +129,9 @@ def array(
     transpose: bool = typer.Option(False, "--transpose", help="Same as --axis-order samples,pulses."),
     pulses_per_dwell: int | None = typer.Option(None, "--pulses-per-dwell", min=1,
                                                 help="Split into dwells of this many pulses (default: one dwell)."),
+    rid_capture: Path | None = _RID,
+    rid_serial: str | None = _RID_SERIAL,
+    rid_skew: float = _RID_SKEW,
 ) -> None:
     """A numpy or MATLAB array of dechirped IF, range-compressed pulses or CW Doppler IQ.
 
@@ -132,5 +158,6 @@ def array(
     wave = Waveform(carrier_hz=carrier_hz, pri_s=pri_s, bandwidth_hz=bandwidth_hz, ramp_s=ramp_s,
                     sample_rate_hz=sample_rate_hz, range_bin_m=range_bin_m, first_range_m=first_range_m)
     capture = Capture.parse(start_time, site_lat, site_lon, site_alt)
+    attach = _attach(rid_capture, rid_serial, rid_skew)
     found = dwells(file, src, domain, wave, pulses_per_dwell)
-    _write(found, len(found), capture, out, domain)
+    _write(found, len(found), capture, out, domain, attach)

@@ -53,21 +53,22 @@ def _read(data: bytes, name: str) -> Any:
         os.unlink(tmp)
 
 
-def _input(data: bytes, name: str, serial: str | None) -> Any:
+def _input(data: bytes, name: str, serial: str | None, capture: Any = None) -> Any:
     from authn.check import CheckInput
 
-    return CheckInput(name, serial, lambda: (_read(data, name), hashlib.sha256(data).hexdigest()))
+    return CheckInput(name, serial, lambda: (_read(data, name), hashlib.sha256(data).hexdigest()), capture)
 
 
-def _check_one(checker: Any, data: bytes, name: str, serial: str | None) -> Any:
-    """One decision, recorded before it is answered (`Checker.check`); a failure raises as
-    the CLI's does (bad input 400, anything else 503)."""
+def _check_one(checker: Any, data: bytes, name: str, serial: str | None, capture: Any = None) -> list[Any]:
+    """The decisions (one; one per drone heard with a Remote ID capture), recorded before they
+    are answered (`Checker.check`); a failure raises as the CLI's does (bad input 400, anything
+    else 503)."""
     from authn.check import Failure
 
-    outcome = checker.check([_input(data, name, serial)]).items[0]
-    if isinstance(outcome, Failure):
-        outcome.raise_()
-    return outcome
+    items = checker.check([_input(data, name, serial, capture)]).items
+    if isinstance(items[0], Failure):
+        items[0].raise_()
+    return items
 
 
 def _check_many(checker: Any, files: list[tuple[str, bytes]], serial: str | None) -> list[Any]:
@@ -86,13 +87,23 @@ def _serial(serial: str | None) -> str | None:
 @router.post("/checks", responses=_ERRORS, summary="Check one recorded return")
 async def check(request: Request, file: Annotated[UploadFile, File(description="HDF5 or .npz recorded return")],
                 serial: Annotated[str | None, Form(max_length=64, description="claimed serial")] = None,
+                rid_capture: Annotated[UploadFile | None, File(description="pcap/pcapng Remote ID capture "
+                                                                           "heard beside the radar")] = None,
+                rid_skew: Annotated[float, Form(ge=0.0, le=3600.0, description="capture clock skew, s")] = 2.0,
                 _caller: Caller = Depends(require("check"))) -> JSONResponse:
-    """Decide one return: the `authn check --json` object, status 200 for accept and reject alike."""
+    """Decide one return: the `authn check --json` object, status 200 for accept and reject alike;
+    with `rid_capture`, a JSON array when it heard several drones (one decision each)."""
     rt = runtime(request)
     data, name = await file.read(), _name(file)
-    outcome = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial)))
-    rt.metrics.outcome(outcome.decision, outcome.reasons, outcome.timings_ms)
-    return JSONResponse(outcome.to_json())
+    capture = None
+    if rid_capture is not None:
+        from authn.check import RidCapture
+
+        capture = RidCapture.data(_name(rid_capture), await rid_capture.read(), rid_skew)
+    items = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial), capture))
+    for o in items:
+        rt.metrics.outcome(o.decision, o.reasons, o.timings_ms)
+    return JSONResponse(items[0].to_json() if len(items) == 1 else [o.to_json() for o in items])
 
 
 @router.post("/checks:batch", responses=_ERRORS, summary="Check several recorded returns")

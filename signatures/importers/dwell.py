@@ -98,10 +98,11 @@ def _start(capture: Capture, dwell: Dwell) -> datetime:
 
 
 def write_dwells(dwells: Iterable[Dwell], n_dwells: int, capture: Capture, out: Path,
-                 advance: Callable[[], None] = lambda: None) -> list[Path]:
-    """Write each dwell as a recorded return at the capture's site and time (no Remote ID);
-    `--out` is the file when there is one dwell and it has a recording suffix (.h5, .hdf5,
-    .npz), else a directory of `<label>.h5`."""
+                 advance: Callable[[], None] = lambda: None,
+                 attach: Callable[[Recording], Recording] | None = None) -> list[Path]:
+    """Write each dwell as a recorded return at the capture's site and time (no Remote ID;
+    `attach` may add it: `authn import --rid-capture`); `--out` is the file when there is one
+    dwell and it has a recording suffix (.h5, .hdf5, .npz), else a directory of `<label>.h5`."""
     as_file = out.suffix.lower() in FILE_SUFFIXES
     if as_file and n_dwells != 1:
         raise SignaturesError(f"--out: {n_dwells} dwells result; give a directory, not the file name {out}")
@@ -112,6 +113,8 @@ def write_dwells(dwells: Iterable[Dwell], n_dwells: int, capture: Capture, out: 
                                   f"reader's limit of {MAX_IQ_CELLS}; import fewer pulses per dwell")
         rec = Recording(config=dwell.config, site=capture.site, start_time=_start(capture, dwell), iq=dwell.iq,
                         domain=dwell.domain)
+        if attach is not None:
+            rec = attach(rec)
         paths.append(write_recording(rec, out if as_file else out / f"{dwell.label}.h5"))
         advance()
     return paths

@@ -1,0 +1,61 @@
+"""POST /v1/checks with a `rid_capture` multipart field: one decision per drone the capture heard."""
+
+from __future__ import annotations
+
+from datetime import datetime, timezone
+
+import pytest
+
+from registry.db import session_scope
+from registry.store import NewIdentity, register_identity
+from signatures.recording import write_recording
+from tests.remoteid.capture_tools import BEACON, SERIAL, locations, merge_pcaps, radar_return, rewrite, site_and_scene
+
+SECOND = "MFG1A9876543210"
+
+
+@pytest.fixture(scope="module")
+def capture_world(sqlite_db, tmp_path_factory):
+    root = tmp_path_factory.mktemp("svc-ridcap")
+    with session_scope(sqlite_db) as s:
+        for serial, model in ((SERIAL, "m300"), (SECOND, "m600")):
+            register_identity(s, NewIdentity(serial=serial, model=model, operator_id="TEST",
+                                             valid_from=datetime(2020, 1, 1, tzinfo=timezone.utc)))
+    c, loc = locations(BEACON)[8]
+    az = (loc.direction_deg + 80.0) % 360.0
+    site, a = site_and_scene(loc, 400.0, az, "m300")
+    _, b = site_and_scene(loc, 440.0, az, "m600")
+    two = write_recording(radar_return(site, [a, b], c.captured_at), root / "two.h5")
+    b_only = rewrite(BEACON, root / "b.pcap", shift_m=40.0, az_deg=az, uas_id=SECOND,
+                     sender=bytes.fromhex("02aabbccddee"))
+    return {"two": two, "both": merge_pcaps(BEACON, b_only, root / "both.pcap")}
+
+
+def _files(ret, capture):
+    return {"file": (ret.name, ret.read_bytes(), "application/x-hdf5"),
+            "rid_capture": (capture.name, capture.read_bytes(), "application/vnd.tcpdump.pcap")}
+
+
+def test_capture_field_gives_one_decision_per_drone(server, keys, capture_world) -> None:
+    with server.client(keys.operator) as c:
+        resp = c.post("/v1/checks", files=_files(capture_world["two"], capture_world["both"]))
+        assert resp.status_code == 200, resp.text
+        out = resp.json()
+        entries = [c.get(f"/v1/audit/{o['audit_id']}").json() for o in out]
+    assert isinstance(out, list) and {o["claim"]["serial"] for o in out} == {SERIAL, SECOND}
+    assert all(o["decision"] == "accept" for o in out)
+    assert {e["serial"] for e in entries} == {SERIAL, SECOND}
+
+
+def test_capture_field_with_serial_answers_one_object(server, keys, capture_world) -> None:
+    with server.client(keys.operator) as c:
+        resp = c.post("/v1/checks", files=_files(capture_world["two"], capture_world["both"]), data={"serial": SECOND})
+    assert resp.status_code == 200 and resp.json()["claim"]["serial"] == SECOND
+
+
+def test_truncated_capture_is_400(server, keys, capture_world, tmp_path) -> None:
+    cut = tmp_path / "cut.pcap"
+    cut.write_bytes(capture_world["both"].read_bytes()[:1000])
+    with server.client(keys.operator) as c:
+        resp = c.post("/v1/checks", files=_files(capture_world["two"], cut))
+    assert resp.status_code == 400 and "cut.pcap" in resp.json()["error"]
