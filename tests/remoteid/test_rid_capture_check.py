@@ -179,6 +179,7 @@ def test_a_target_with_no_broadcast_is_reported_non_cooperative(world, capsys):
     assert len(out["non_cooperative"]) == 1  # the drone's broadcast puts it 300 m away: the target is unexplained
 
 
+@pytest.mark.slow
 def test_a_capture_of_a_million_frames(world, capsys, tmp_path):
     """1e6 frames (223 MB): the real sample, then copies of its frames 10 ms apart after it.
     Measured (docs/remoteid.md): 2.2 s and 296 MB peak RSS for the whole `authn check`."""
