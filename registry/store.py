@@ -297,6 +297,7 @@ class ImportResult:
     identities: int
     profiles_added: int
     profiles_existing: int
+    identities_skipped: int = 0  # already registered, left as they are (`skip_existing`)
 
 
 def _check_unique_serials(items: list[tuple[str, NewIdentity]]) -> None:
@@ -460,13 +461,14 @@ def _profile_difference(a: UavProfile, b: UavProfile) -> str:
     return "identical"
 
 
-def import_records(session: Session, data: RegistryImport) -> ImportResult:
+def import_records(session: Session, data: RegistryImport, skip_existing: bool = False) -> ImportResult:
     """Write a validated import in the caller's single transaction, or nothing.
 
     Profiles: missing ones are added, identical registered ones accepted,
     conflicting ones refused. Identities: every model must be registered or in
-    the file; no serial may be registered already. Status and timestamps are
-    kept as given (a revoked identity stays revoked).
+    the file; no serial may be registered already (with `skip_existing`, registered
+    serials are left as they are and counted: a second import of a file is a no-op).
+    Status and timestamps are kept as given (a revoked identity stays revoked).
     """
     registered = {p.slug: p for p in list_profiles(session)}
     added, existing = [], 0
@@ -489,16 +491,17 @@ def import_records(session: Session, data: RegistryImport) -> ImportResult:
     for i in range(0, len(serials), 500):  # stay below the bind-parameter limits
         taken |= set(session.scalars(select(Identity.serial).where(
             Identity.serial.in_(serials[i:i + 500]))))
-    if taken:
+    if taken and not skip_existing:
         raise RegistryError(f"serial {sorted(taken)[0]}: already registered "
-                            f"({len(taken)} of the file's serials are)")
+                            f"({len(taken)} of the file's serials are; --skip-existing leaves them as they are)")
+    new_ones = [new for _, new in data.identities if new.serial not in taken]
     session.add_all(ModelProfile(**p.model_dump()) for p in added)
     _flush(session, "import (profiles)")
     now = utcnow()
-    session.add_all(_row(new, now) for _, new in data.identities)
+    session.add_all(_row(new, now) for new in new_ones)
     _flush(session, "import")
-    return ImportResult(identities=len(data.identities), profiles_added=len(added),
-                        profiles_existing=existing)
+    return ImportResult(identities=len(new_ones), profiles_added=len(added),
+                        profiles_existing=existing, identities_skipped=len(data.identities) - len(new_ones))
 
 
 def import_csv(session: Session, text: str) -> int:

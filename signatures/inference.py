@@ -14,6 +14,7 @@ rejection (physical consistency with the predicted profile, see `signatures.open
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,12 +28,12 @@ from signatures.errors import SignaturesError
 from signatures.modelcard import CARD_NAME, read_card
 from signatures.openset import OpenSet
 from signatures.profiles import NON_UAV_CLASSES, UNKNOWN
-from signatures.radar import (PRESETS, TRAINABLE_DOMAINS, Preset, RadarConfig, get_preset, parse_waveform,
-                              recording_waveform, shipped_preset)
+from signatures.radar import (PRESETS, SERVES, TRAINABLE_DOMAINS, WAVEFORM_FIELDS, WAVEFORM_REL_TOL, Preset,
+                              RadarConfig, get_preset, parse_waveform, recording_waveform, shipped_preset)
 
 __all__ = ["MEMBERS", "Classifier", "ForestArrays", "KnnArrays", "NoModelError", "Prediction", "bundle_dir",
            "calibrate", "card_waveform", "classifier_for", "find_bundle", "load_classifier", "match_preset",
-           "models_dir", "user_bundles"]
+           "models_dir", "nearest_bundle", "user_bundles", "waveform_differences"]
 
 #: The ensemble's members, in the order of the card's `ensemble.weights` (training and inference).
 MEMBERS = ("knn", "rf", "svm")
@@ -332,9 +333,68 @@ def find_bundle(wf: Preset, source: str = "FILE") -> Path:
             return folder
     if wf.domain not in TRAINABLE_DOMAINS:
         raise NoModelError(f"no classifier for this waveform ({wf.describe()}): training for domain "
-                           f"{wf.domain} is not supported yet")
+                           f"{wf.domain} is not supported yet{nearest_hint(wf)}")
     raise NoModelError(f"no classifier for this waveform ({wf.describe()}): build one with "
-                       f"`authn models train --like {source}`")
+                       f"`authn models train --like {source}`{nearest_hint(wf)}")
+
+
+def waveform_differences(bundle: Preset, wf: Preset) -> list[tuple[str, Any, Any]]:
+    """The parameters in which a bundle's waveform differs from a file's, as (name, bundle value,
+    file value): cube size, domain, and each of WAVEFORM_FIELDS beyond `Preset.matches`'s 1e-6
+    relative tolerance."""
+    out: list[tuple[str, Any, Any]] = []
+    for name in ("n_chirps", "n_samples"):
+        if getattr(bundle, name) != getattr(wf, name):
+            out.append((name, getattr(bundle, name), getattr(wf, name)))
+    if wf.domain not in SERVES[bundle.domain]:
+        out.append(("domain", bundle.domain, wf.domain))
+    for f in WAVEFORM_FIELDS:
+        a, b = getattr(bundle.config, f), getattr(wf.config, f)
+        if not math.isclose(a, b, rel_tol=WAVEFORM_REL_TOL):
+            out.append((f, a, b))
+    return out
+
+
+def _distance(diffs: list[tuple[str, Any, Any]]) -> tuple[int, float]:
+    """How far apart: the number of differing parameters, then the summed |log ratio| of the numbers."""
+    spread = sum(abs(math.log(a / b)) for _, a, b in diffs
+                 if isinstance(a, (int, float)) and isinstance(b, (int, float)) and a > 0 and b > 0)
+    return len(diffs), spread
+
+
+def nearest_bundle(wf: Preset) -> tuple[str, list[tuple[str, Any, Any]]] | None:
+    """The bundle (shipped or user, by name) whose waveform differs from `wf` in the fewest
+    parameters (then by the least), with those differences; None when there is no bundle."""
+    cands: list[tuple[str, Preset]] = [(name, p) for name, p in PRESETS.items()]
+    for folder, card in user_bundles():
+        try:
+            if card is not None:
+                cands.append((folder.name, card_waveform(card)))
+        except (SignaturesError, KeyError, TypeError):
+            continue
+    scored = [(_distance(d), name, d) for name, p in cands for d in [waveform_differences(p, wf)]]
+    if not scored:
+        return None
+    _, name, diffs = min(scored, key=lambda t: (t[0], t[1]))
+    return name, diffs
+
+
+def _value(name: str, v: Any) -> str:
+    return repr(v) if isinstance(v, float) else str(v)
+
+
+def nearest_hint(wf: Preset) -> str:
+    """'; nearest bundle paper differs in pri_s: 4.4029e-05 there, 4.403e-05 here (tolerance 1e-06
+    relative); exact values: `authn models list --json`', or '' when there is no bundle."""
+    found = nearest_bundle(wf)
+    if found is None or not found[1]:
+        return ""
+    name, diffs = found
+    parts = []
+    for field, theirs, ours in diffs:
+        tol = f", tolerance {WAVEFORM_REL_TOL:g} relative" if field in WAVEFORM_FIELDS else ""
+        parts.append(f"{field} {_value(field, theirs)} there, {_value(field, ours)} here{tol}")
+    return (f"; nearest bundle {name} differs in {'; '.join(parts)} (exact values: `authn models list --json`)")
 
 
 def load_classifier(preset: str | None = None, path: str | Path | None = None) -> Classifier:

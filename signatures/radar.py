@@ -124,6 +124,8 @@ SERVES = {"if": ("if", "range"), "range": ("range",), "cw": ("cw",)}
 DEFAULT_MAX_RANGE_M = 1200.0
 #: The waveform parameters that identify a bundle's radar (range offset aside: it moves with the target).
 WAVEFORM_FIELDS = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz")
+#: How close (relative) each of WAVEFORM_FIELDS must be for a bundle to serve a recording.
+WAVEFORM_REL_TOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -174,7 +176,8 @@ class Preset:
         """A bundle of this waveform serves a recording of that one: same cube size and parameters
         (range offset aside; within 1e-6 relative), a domain it serves (`SERVES`)."""
         return (self.n_chirps, self.n_samples) == (n_chirps, n_samples) and domain in SERVES[self.domain] and all(
-            math.isclose(getattr(config, f), getattr(self.config, f), rel_tol=1e-6) for f in WAVEFORM_FIELDS)
+            math.isclose(getattr(config, f), getattr(self.config, f), rel_tol=WAVEFORM_REL_TOL)
+            for f in WAVEFORM_FIELDS)
 
     def as_json(self) -> dict[str, Any]:
         """The radar-configuration document (`load_waveform` reads it back)."""

@@ -58,10 +58,13 @@ def test_version(capsys) -> None:
 
 def test_list_tables_fit_80_columns(tmp_path: Path, capsys, monkeypatch) -> None:
     """`registry list` and `audit list` stay readable in a standard terminal: no cell of the
-    serial or decision truncated with an ellipsis."""
+    serial or decision truncated with an ellipsis. (On a terminal: piped, they are tab-separated
+    lines, tests/test_cli_output.py.)"""
+    from authn.cli import output
     from authn.demo import register_examples
 
     monkeypatch.setenv("COLUMNS", "80")
+    monkeypatch.setattr(output, "is_terminal", lambda: True)
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     register_examples(db)
     assert main(["--db", db, "check", str(tmp_path / "missing.h5"), "--serial", "1581BDEM00000002"]) == 2

@@ -9,6 +9,7 @@ commands that need them, never at module level, so `authn --help` and a single
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
@@ -20,19 +21,22 @@ import typer
 
 from authn.cli import (audit, bench, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid,
                        serve, simulate)
+from authn.cli.output import json_error, json_requested
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
 from core.errors import AuthnException, describe, exit_code_for
 from core.textsafe import printable
 
-__all__ = ["app", "main", "run"]
+__all__ = ["app", "command", "main", "run"]
+HELP_OPTIONS = ["-h", "--help"]
 
 app = typer.Typer(
     name="authn",
-    help="Radar micro-Doppler + Remote ID identity authentication for UAVs.",
+    help="Radar micro-Doppler + Remote ID identity authentication for UAVs.\n\nExample: authn demo",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
-    add_completion=False,
+    add_completion=True,  # --install-completion / --show-completion (bash, zsh, fish, PowerShell)
+    context_settings={"help_option_names": HELP_OPTIONS},  # inherited by every subcommand
 )
 
 
@@ -66,10 +70,16 @@ for _name, _command in (("check", check.check), ("simulate", simulate.simulate),
                         ("register", registry.register_cmd), ("demo", demo.demo), ("plot", plot.plot),
                         ("bench", bench.bench), ("serve", serve.serve)):
     app.command(_name)(_command)
+#: One example per command group (each command's own examples are in its docstring).
+GROUP_EXAMPLES = {"registry": "authn registry list", "audit": "authn audit verify --json",
+                  "rid": "authn rid decode --pcap odid_wifi_bcn_sample.pcap", "db": "authn db upgrade",
+                  "features": "authn features show m300.h5", "models": "authn models list --json",
+                  "keys": "authn keys generate --out ua.pem",
+                  "import": "authn import dca1000 adc_data_Raw_0.bin --config profile.cfg"}
 for _name, _group in (("registry", registry.registry_app), ("audit", audit.audit_app), ("rid", rid.rid_app),
                       ("db", db.db_app), ("features", features.features_app), ("models", models.models_app),
                       ("keys", keys.keys_app), ("import", importer.import_app)):
-    app.add_typer(_group, name=_name)
+    app.add_typer(_group, name=_name, help=f"{_group.info.help}\n\nExample: {GROUP_EXAMPLES[_name]}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,28 +89,86 @@ def main(argv: list[str] | None = None) -> int:
     (database, policy engine, models, an unexpected bug) exits 3. Never a traceback. A usage
     error (unknown option, value out of range) is bad input too: one line naming the command's
     help, not click's boxed usage text; a bare group (`authn registry`) still prints its help.
+    With `--json` on the command line, that line is instead one JSON object on stdout,
+    `{"error": "...", "exit_code": N}` (a `--json` reader never has to parse text).
     """
     import registry.urls
 
+    args = _global_options_first(sys.argv[1:] if argv is None else list(argv))
+    as_json = _json_mode(args)
     previous, registry.urls.created_notice = registry.urls.created_notice, _announce_created
     try:
         with handled(_raise_interrupted):
-            code = app(args=_global_options_first(sys.argv[1:] if argv is None else list(argv)), prog_name="authn",
-                       standalone_mode=False)
+            code = command()(args=args, prog_name="authn", standalone_mode=False)
         return code if isinstance(code, int) else 0
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
     except typer.Abort:
-        print("error: aborted", file=sys.stderr)
-        return 130
+        return _fail("aborted", 130, as_json, prefix="error: ")
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes an exit code
         if _is_usage_error(exc):
-            return _usage_error(exc)
-        print(("error: " if isinstance(exc, AuthnException) else "") + describe(exc), file=sys.stderr)
-        return exit_code_for(exc)
+            return _usage_error(exc, as_json)
+        return _fail(describe(exc), exit_code_for(exc), as_json,
+                     prefix="error: " if isinstance(exc, AuthnException) else "")
     finally:
         registry.urls.created_notice = previous
+
+
+@functools.cache
+def command():  # -> click Command
+    """The click command tree of `app` (built once per process), with on/off flags shown in
+    help without a `<bool>` type: a flag takes no value."""
+    _help_tables_wrap_prose_only()
+    cmd = typer.main.get_command(app)
+    _plain_flags(cmd)
+    return cmd
+
+
+def _help_tables_wrap_prose_only() -> None:
+    """Help at 80 columns: typer's option and command tables let rich squeeze every column, so a
+    long option name (`--max-connections-per-client`) came out cut (`--max-connections-per…`).
+    The option-name columns are made no-wrap: only the type and the help text wrap."""
+    import typer.rich_utils as ru
+    from rich.table import Table
+
+    if getattr(ru.Table, "_authn_prose_only", False):
+        return
+
+    class HelpTable(Table):
+        _authn_prose_only = True
+
+        def add_row(self, *renderables, **kwargs):  # type: ignore[no-untyped-def]
+            super().add_row(*renderables, **kwargs)
+            for column in self.columns[:-2]:  # the option names (the type and help columns wrap)
+                column.no_wrap = True
+
+    ru.Table = HelpTable
+
+
+def _plain_flags(cmd) -> None:
+    help_option = cmd.get_help_option(cmd.context_class(cmd, info_name=cmd.name, help_option_names=HELP_OPTIONS))
+    for param in [*cmd.params, *([help_option] if help_option is not None else [])]:  # help: built once, cached
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""
+    for sub in getattr(cmd, "commands", {}).values():
+        _plain_flags(sub)
+
+
+def _json_mode(args: list[str]) -> bool:
+    """Errors as JSON: `--json` given to a command whose `--json` is a switch (`models evaluate
+    --json FILE` writes a report file: its errors stay text)."""
+    words = [a for a in args if not a.startswith("-")][:2]
+    return json_requested(args) and words != ["models", "evaluate"]
+
+
+def _fail(message: str, code: int, as_json: bool, prefix: str = "error: ") -> int:
+    """The error: one line on stderr, or one JSON object on stdout with --json."""
+    if as_json:
+        json_error(printable(message), code)
+    else:
+        print(prefix + message, file=sys.stderr)
+    return code
 
 
 def _announce_created(url: str) -> None:
@@ -114,7 +182,7 @@ def _is_usage_error(exc: Exception) -> bool:
     return isinstance(getattr(exc, "exit_code", None), int) and callable(getattr(exc, "format_message", None))
 
 
-def _usage_error(exc: Exception) -> int:
+def _usage_error(exc: Exception, as_json: bool = False) -> int:
     """One line on stderr naming the command's help; a bare group's help as click prints it."""
     if type(exc).__name__ == "NoArgsIsHelpError":
         exc.show()  # type: ignore[attr-defined]
@@ -122,8 +190,7 @@ def _usage_error(exc: Exception) -> int:
     ctx = getattr(exc, "ctx", None)
     where = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
     message = printable(" ".join(exc.format_message().split()))  # type: ignore[attr-defined]
-    print(f"error: {message}{where}", file=sys.stderr)
-    return int(exc.exit_code)  # type: ignore[attr-defined]
+    return _fail(f"{message}{where}", int(exc.exit_code), as_json)  # type: ignore[attr-defined]
 
 
 def _global_options_first(argv: list[str]) -> list[str]:

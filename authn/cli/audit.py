@@ -75,23 +75,23 @@ def list_cmd(
     if as_json:
         typer.echo(json.dumps([_entry_json(e) for e in entries], indent=2))
         return
-    from rich.console import Console
     from rich.table import Table
 
+    from authn.cli.output import print_table
     from core.textsafe import cell
 
     table = Table(title=f"audit log ({len(entries)} entries)",
                   caption="one entry in full, hashes included: `authn audit show SEQ`")
     table.add_column("seq", justify="right", no_wrap=True)
     table.add_column("time (UTC)", no_wrap=True)
-    table.add_column("serial", overflow="fold", min_width=16)
+    table.add_column("serial", no_wrap=True, min_width=16)  # identifiers: never split
     table.add_column("decision", no_wrap=True)
     table.add_column("reasons / error / change", overflow="fold", ratio=1)
     for e in entries:  # serials, errors and notes come from outside: escaped, never rich markup
         label, detail = _list_row(e)
         table.add_row(str(e.seq), e.created_at.strftime("%Y-%m-%d %H:%M"), cell(e.serial or ""),
                       cell(label), cell(detail))
-    Console().print(table)
+    print_table(table)
 
 
 def _list_row(e) -> tuple[str, str]:
@@ -153,6 +153,7 @@ def verify_cmd(
                                            help="Check head signatures with this PEM public key."),
     sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
     witness: str | None = typer.Option(None, "--witness", help=WITNESS_HELP),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object (docs/audit.md)."),
 ) -> None:
     """Recompute the hash chain and the Merkle tree; check the log against signed heads.
 
@@ -183,16 +184,30 @@ def verify_cmd(
         forged = [h for h in heads if not any(h.sth.verify_signature(k) for k in keys)]
         if forged:
             h = min(forged, key=lambda h: h.sth.tree_size)
-            typer.echo(f"BROKEN: tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
-                       "(forged or altered)", err=True)
+            problem = (f"tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
+                       "(forged or altered)")
+            if as_json:
+                typer.echo(json.dumps({"ok": False, "first_bad_seq": None, "problem": problem}))
+            else:
+                typer.echo(f"BROKEN: {problem}", err=True)
             raise typer.Exit(1)
     report = verify(db, heads, public_key=key, retired=retired, require_signed_to_end=sth is None)
+    best = newest(heads)
+    if as_json:
+        doc = {"ok": report.ok, "first_bad_seq": report.first_bad_seq, "problem": report.problem or None}
+        if report.ok:
+            doc.update(entries=report.size, chain_head=report.head, tree_root=report.root, heads=len(heads),
+                       newest_head=None if best is None else {"tree_size": best.sth.tree_size, "source": best.source},
+                       unsigned=report.unsigned)
+        typer.echo(json.dumps(doc, indent=2))
+        if not report.ok:
+            raise typer.Exit(1)
+        return
     if not report.ok:
         where = f" at entry {report.first_bad_seq}" if report.first_bad_seq is not None else ""
         typer.echo(f"BROKEN{where}: {report.problem}", err=True)
         raise typer.Exit(1)
     line = f"ok: {report.size} entries, chain head {report.head[:16]}, tree root {report.root[:16]}"
-    best = newest(heads)
     if best is None:
         line += "; no signed tree head found (truncation cannot be detected; run `authn audit checkpoint`)"
     else:
@@ -286,7 +301,9 @@ def public_key_cmd(
     typer.echo(f"log_key_id {key.key_id}", err=True)
 
 
-witness_app = typer.Typer(help="Run a witness of audit log heads on another host.", no_args_is_help=True)
+witness_app = typer.Typer(help="Run a witness of audit log heads on another host.\n\n"
+                               "Example: authn audit witness serve --dir /srv/authn-witness --public-key authn-log.pub",
+                          no_args_is_help=True)
 audit_app.add_typer(witness_app, name="witness")
 
 
@@ -369,7 +386,8 @@ def verify_proof_cmd(
 
 
 @audit_app.command("replay")
-def replay_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry number (seq).")) -> None:
+def replay_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry number (seq)."),
+               as_json: bool = typer.Option(False, "--json", help="Print one JSON object (docs/audit.md).")) -> None:
     """Re-decide entry N with the recorded policy text and inputs; exit 0 same, 1 different.
 
     Entries without recorded policy inputs (older ones, errors): "not replayable", exit 2.
@@ -380,6 +398,13 @@ def replay_cmd(ctx: typer.Context, seq: int = typer.Argument(..., help="Entry nu
     from registry.dbapi import Database
 
     r = replay(Database(ctx.obj.db_url), seq)
+    if as_json:
+        typer.echo(json.dumps({"seq": seq, "same": r.same, "policy_sha256": r.policy_sha256,
+                               "recorded": {"decision": r.recorded[0], "reasons": list(r.recorded[1])},
+                               "replayed": {"decision": r.replayed[0], "reasons": list(r.replayed[1])}}, indent=2))
+        if not r.same:
+            raise typer.Exit(1)
+        return
     rec = f"{r.recorded[0]} [{', '.join(r.recorded[1])}]"
     now = f"{r.replayed[0]} [{', '.join(r.replayed[1])}]"
     if r.same:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -12,6 +13,7 @@ def demo(
     ctx: typer.Context,
     out: Path | None = typer.Option(None, "--out", help="Where to write the simulated returns "
                                     "(default: a 'demo' folder in the user cache directory)."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object: each scene's decision."),
 ) -> None:
     """Register example UAVs, simulate nine scenes, check each and print the decisions.
 
@@ -30,6 +32,7 @@ def demo(
     from rich.table import Table
 
     from authn.check import Checker
+    from authn.cli.output import print_table
     from authn.demo import DemoKeys, claimed_serial, register_examples, write_scenes
 
     t0 = time.perf_counter()
@@ -42,10 +45,21 @@ def demo(
     checker = Checker(ctx.obj.db_url)
     outcomes = [checker.evaluate(path, None if sc.broadcast else claimed_serial(sc, keys)) for sc, path in scenes]
     checker.record(outcomes)
+    if as_json:
+        scenes_json = [{"seq": o.audit_id, "scene": sc.name, "file": str(path), "expected": sc.expected,
+                        "decision": o.decision, "reasons": list(o.reasons),
+                        "claimed": o.evidence.registry.model or o.evidence.registry.status,
+                        "radar": None if o.radar is None else {"model": o.radar.model,
+                                                              "confidence": o.radar.confidence}}
+                       for (sc, path), o in zip(scenes, outcomes)]
+        ok = all(s["decision"] == s["expected"] for s in scenes_json)
+        typer.echo(json.dumps({"ok": ok, "out": str(out), "seconds": round(time.perf_counter() - t0, 3),
+                               "scenes": scenes_json}, indent=2))
+        raise typer.Exit(0 if ok else 1)
     table = Table(title="authn demo: is the drone the radar sees the UAV it claims to be?")
     for col in ("#", "scene", "claimed", "radar sees", "decision"):
-        table.add_column(col)
-    table.add_column("reasons", overflow="fold")
+        table.add_column(col, no_wrap=True)  # identifiers: never split
+    table.add_column("reasons", overflow="fold")  # prose: wraps between reasons
     all_ok = True
     for (sc, _path), o in zip(scenes, outcomes):
         ok = o.decision == sc.expected
@@ -56,7 +70,7 @@ def demo(
         table.add_row(str(o.audit_id), sc.name, reg.model or reg.status, radar,
                       f"[{colour}]{o.decision}[/]" + ("" if ok else " [yellow](unexpected)[/]"),
                       ", ".join(o.reasons))
-    console.print(table)
+    print_table(table, console)
     console.print(f"returns in {out}; inspect one with `authn check {scenes[0][1]}`; "
                   f"audit with `authn audit verify`.  ({time.perf_counter() - t0:.1f} s)")
     raise typer.Exit(0 if all_ok else 1)

@@ -18,21 +18,39 @@ def show(
     as_json: bool = typer.Option(False, "--json", help="One JSON object."),
 ) -> None:
     """Print the named feature vector of one return (order = signatures.features.FEATURE_NAMES), then
-    the estimates only verification reads (rotors seen)."""
+    the estimates only verification reads (rotors seen).
+
+    Example: authn features show m300.h5 --expected-range 500 --json
+    """
     from signatures.features import FEATURE_NAMES, extract
     from signatures.recording import read_recording
 
-    res = extract(read_recording(file), expected_range_m=expected_range)
-    values = dict(zip(FEATURE_NAMES, (float(x) for x in res.as_array())))
-    if as_json:
-        typer.echo(json.dumps({"detected": res.detected, "gate": list(res.gate), "features": values,
-                               "physics": dict(res.physics)}))
+    rec = read_recording(file)
+    res = extract(rec, expected_range_m=expected_range)
+    values: dict[str, float | None] = dict(zip(FEATURE_NAMES, (float(x) for x in res.as_array())))
+    unmeasured = _unmeasured(values, getattr(rec, "domain", "if"))
+    if as_json:  # an unmeasured value is null (the classifier reads it as 0)
+        typer.echo(json.dumps({"detected": res.detected, "gate": list(res.gate),
+                               "features": {k: None if k in unmeasured else v for k, v in values.items()},
+                               "unmeasured": sorted(unmeasured), "physics": dict(res.physics)}))
         return
     typer.echo(f"detected: {res.detected}   gate: range bins {res.gate[0]}..{res.gate[1] - 1}")
     for name, v in values.items():
-        typer.echo(f"{name:26s} {v:14.6g}")
+        typer.echo(f"{name:26s} {'n/a':>14s}   ({unmeasured[name]})" if name in unmeasured
+                   else f"{name:26s} {v:14.6g}")
     for name, v in res.physics.items():  # verification-only estimates, not classifier inputs
         typer.echo(f"{name:26s} {v:14.6g}   (verification only)")
+
+
+def _unmeasured(values: dict, domain: str) -> dict[str, str]:
+    """Features this return cannot measure, with why: the blade length when the blade tips alias
+    (the classifier gets 0), the range features of a CW recording (no range axis)."""
+    out: dict[str, str] = {}
+    if values.get("tip_aliased"):
+        out.update({k: "blade tips alias" for k in ("blade_length_m", "blade_length_std_m")})
+    if domain == "cw":
+        out.update({k: "CW: no range axis" for k in ("mean_range_m", "std_range_m", "range_m", "range_std_m")})
+    return {k: v for k, v in out.items() if k in values}
 
 
 @features_app.command("accuracy")

@@ -68,7 +68,8 @@ def show_cmd(
         typer.echo(f"{name:16} {value}")
 
 
-api_app = typer.Typer(help="API keys of `authn serve` (the secret is shown once; only its hash is stored).",
+api_app = typer.Typer(help="API keys of `authn serve` (the secret is shown once; only its hash is stored)."
+                           "\n\nExample: authn keys api create --role operator --json",
                       no_args_is_help=True)
 keys_app.add_typer(api_app, name="api")
 

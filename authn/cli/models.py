@@ -54,6 +54,7 @@ def train(
     cluster: str | None = typer.Option(None, "--cluster",
                                        help="Simulate the datasets as tasks on Dask workers instead: 'local' or a "
                                             "scheduler address (needs the cluster extra; docs/cluster.md)."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object at the end (progress on stderr)."),
 ) -> None:
     """Simulate, train and export a model bundle (numpy arrays, ONNX files, model card).
 
@@ -78,7 +79,7 @@ def train(
     cfg = TrainConfig(preset=wf, profiles=known, n_train=n, n_val=n_val, seed=seed, cnn=cnn, workers=workers,
                       unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20), n_test=n_test,
                       nuisance=NuisanceDistribution() if randomise else None)
-    console = Console()
+    console = Console(stderr=as_json)  # with --json, stdout carries only the JSON object
     per = seconds_per_return(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed))
     total = n + n_val + cfg.n_unknown_val + len(cfg.test_snrs) * (n_test + (max(n_test // 2, 10) if n_test else 0))
     eta = total * per / min(workers, os.cpu_count() or 1)
@@ -87,12 +88,16 @@ def train(
                   f"{eta / 60:.1f} min with {workers} workers, plus fitting (cached datasets are reused).")
     t0 = time.perf_counter()
     if cluster is None:
-        card = train_bundle(cfg, folder, progress=True)
+        card = train_bundle(cfg, folder, progress=not as_json)
     else:  # the engine is imported only here
         from authn.cluster.engine import training_on
 
         with training_on(cluster):
-            card = train_bundle(cfg, folder, progress=True)
+            card = train_bundle(cfg, folder, progress=not as_json)
+    if as_json:
+        typer.echo(json.dumps({"name": wf.name, "folder": str(folder), "waveform": wf.as_json(),
+                               "seconds": round(time.perf_counter() - t0, 3), "metrics": card["metrics"]}, indent=2))
+        return
     console.print(f"[bold]{wf.name}[/] bundle written to {folder} in {time.perf_counter() - t0:.0f} s")
     for name, m in card["metrics"]["validation"].items():
         console.print(f"  validation {name}: {m}")
@@ -165,44 +170,68 @@ def _print_test(console, card: dict) -> None:
 
 
 @models_app.command("list")
-def list_models() -> None:
+def list_models(
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON array with each bundle's exact waveform."),
+) -> None:
     """Shipped and user model bundles: name, waveform, airframes, validation accuracy.
 
-    Example: authn models list
+    With --json, each bundle's waveform carries the exact parameter values a file must match
+    (within 1e-6 relative): the radar-configuration document `--radar-config` reads.
+
+    Example: authn models list --json
     """
     from rich import box
-    from rich.console import Console
     from rich.table import Table
 
-    from signatures.errors import SignaturesError
-    from signatures.inference import bundle_dir, card_waveform, models_dir, user_bundles
+    from authn.cli.output import print_table
+    from signatures.inference import bundle_dir, models_dir, user_bundles
     from signatures.modelcard import CARD_NAME
-    from signatures.profiles import NON_UAV_CLASSES
     from signatures.radar import PRESETS
 
-    rows = [(name, "shipped", json.loads((bundle_dir(name) / CARD_NAME).read_text()))
+    rows = [(name, "shipped", bundle_dir(name), json.loads((bundle_dir(name) / CARD_NAME).read_text()))
             for name in PRESETS if (bundle_dir(name) / CARD_NAME).is_file()]
-    rows += [(folder.name, "user", card) for folder, card in user_bundles()]
+    rows += [(folder.name, "user", folder, card) for folder, card in user_bundles()]
+    docs = [_bundle_json(name, kind, folder, card) for name, kind, folder, card in rows]
+    if as_json:
+        typer.echo(json.dumps(docs, indent=2))
+        return
     t = Table(title=f"model bundles (user bundles in {models_dir()})", title_justify="left", box=box.SIMPLE_HEAD)
-    t.add_column("name", no_wrap=True)  # user bundle names are 21+ characters: the other columns fold
-    for col in ("kind", "waveform", "airframes", "val acc"):
-        t.add_column(col, overflow="fold", justify="right" if col == "val acc" else "left")
-    for name, kind, card in rows:
-        try:
-            wave = card_waveform(card).describe()
-            airframes = ", ".join(c for c in card["classes"] if c not in NON_UAV_CLASSES)
-            acc = f"{card['metrics']['validation']['ensemble']['accuracy']:.3f}"
-        except (SignaturesError, KeyError, TypeError):  # a broken card is listed as such, not a stop
-            wave, airframes, acc = "unreadable card", "", ""
-        t.add_row(name, kind, wave, airframes, acc)
-    Console(width=80).print(t)
+    for col in ("name", "kind"):
+        t.add_column(col, no_wrap=True)  # identifiers: never split
+    t.add_column("waveform", overflow="fold")
+    t.add_column("airframes", overflow="fold")  # a comma-separated list: wraps between names
+    t.add_column("val acc", justify="right", no_wrap=True)
+    for d in docs:
+        wave = d["waveform"]["description"] if d["waveform"] else "unreadable card"
+        acc = "" if d["validation_accuracy"] is None else f"{d['validation_accuracy']:.3f}"
+        t.add_row(d["name"], d["kind"], wave, ", ".join(d["airframes"]), acc)
+    print_table(t)
+
+
+def _bundle_json(name: str, kind: str, folder: Path, card) -> dict:
+    """One bundle of `models list --json`: a broken card is listed with its error, not a stop."""
+    from signatures.errors import SignaturesError
+    from signatures.inference import card_waveform
+    from signatures.profiles import NON_UAV_CLASSES
+
+    doc: dict = {"name": name, "kind": kind, "folder": str(folder), "waveform": None, "airframes": [],
+                 "validation_accuracy": None, "error": None}
+    try:
+        wf = card_waveform(card)
+        doc["waveform"] = {**wf.as_json(), "description": wf.describe(), "key": wf.key}
+        doc["airframes"] = [c for c in card["classes"] if c not in NON_UAV_CLASSES]
+        doc["validation_accuracy"] = float(card["metrics"]["validation"]["ensemble"]["accuracy"])
+    except (SignaturesError, KeyError, TypeError, ValueError) as exc:
+        doc["error"] = "unreadable card" + (f" ({exc})" if isinstance(exc, SignaturesError) else "")
+    return doc
 
 
 @models_app.command("evaluate")
 def evaluate(
     preset: str = typer.Option("paper", "--preset", help="Shipped preset or user bundle name to evaluate."),
     model: Path | None = typer.Option(None, "--model", help="Bundle folder (default: the one --preset names)."),
-    snr: str = typer.Option("-20,-15,-10,-5,0,5,10,20,30", "--snr", help="Comma-separated SNRs (dB)."),
+    snr: str = typer.Option("-20,-15,-10,-5,0,5,10,20,30", "--snr", show_default=False,
+                            help="Comma-separated SNRs, dB (default: -20, -15, -10, -5, 0, 5, 10, 20, 30)."),
     samples: int = typer.Option(500, "--samples", min=10, help="Test returns per SNR."),
     seed: int = typer.Option(1000, "--seed", help="Test seed (use one never used in training)."),
     unknown: Path | None = typer.Option(None, "--unknown-profiles",

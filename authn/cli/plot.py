@@ -17,7 +17,8 @@ def plot(
     """Plot the paper's figures 2-6 of one return (or the mean of several) as PNG files.
 
     Writes rd_map.png, spectrogram.png, mean_spectrogram.png, doppler_intensity.png
-    and cadence_velocity.png (several files of the same shape are averaged).
+    and cadence_velocity.png (several files of the same shape are averaged). A CW file has
+    no range axis: no rd_map.png (a line on stderr says so).
 
     Example: authn plot m300.h5 --out plots/
     """
@@ -57,13 +58,16 @@ def plot(
         plt.close(fig)
         written.append(path)
 
-    rd_power = mean_of([v.rd_map.power for v in vs])
-    fig, ax = plt.subplots(figsize=(7, 5))
-    m = ax.pcolormesh(v0.rd_map.range_m, v0.rd_map.velocity_mps, norm_db(rd_power), vmin=-60, vmax=0,
-                      shading="auto", cmap="viridis")
-    ax.set(xlabel="range (m)", ylabel="radial velocity (m/s, + receding)", title=f"Range-Doppler map: {label}")
-    fig.colorbar(m, label="dB")
-    save(fig, "rd_map.png")
+    if getattr(recs[0], "domain", "if") == "cw":  # one sample per pulse: no range axis to map
+        typer.echo("rd_map.png: skipped (a CW recording has no range axis)", err=True)
+    else:
+        rd_power = mean_of([v.rd_map.power for v in vs])
+        fig, ax = plt.subplots(figsize=(7, 5))
+        m = ax.pcolormesh(v0.rd_map.range_m, v0.rd_map.velocity_mps, norm_db(rd_power), vmin=-60, vmax=0,
+                          shading="auto", cmap="viridis")
+        ax.set(xlabel="range (m)", ylabel="radial velocity (m/s, + receding)", title=f"Range-Doppler map: {label}")
+        fig.colorbar(m, label="dB")
+        save(fig, "rd_map.png")
 
     t_ms = v0.spectrogram.time_s * 1e3
     f_khz = v0.spectrogram.doppler_hz / 1e3

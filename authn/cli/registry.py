@@ -141,7 +141,7 @@ def _table(records, title: str):
     from core.textsafe import cell
 
     t = Table(title=title, caption="all fields: `authn registry show SERIAL` or --json")
-    t.add_column("serial", overflow="fold", min_width=16)  # a DRIP session ID is 34 characters
+    t.add_column("serial", no_wrap=True, min_width=16)  # an identifier: never split (a DRIP session ID is 34)
     for col in ("model", "status", "valid (UTC)"):
         t.add_column(col, no_wrap=True)
     t.add_column("key", no_wrap=True)
@@ -173,9 +173,9 @@ def list_cmd(
     if as_json:
         typer.echo(json.dumps([_record_json(r) for r in records], indent=2))
         return
-    from rich.console import Console
+    from authn.cli.output import print_table
 
-    Console().print(_table(records, f"{len(records)} registered identities"))
+    print_table(_table(records, f"{len(records)} registered identities"))
 
 
 @registry_app.command("show")
@@ -199,19 +199,21 @@ def show_cmd(
     if as_json:
         typer.echo(json.dumps(_record_json(rec), indent=2))
         return
-    from rich.console import Console
     from rich.table import Table
 
+    from authn.cli.output import print_table
     from core.textsafe import cell
 
     t = Table(title=cell(rec.serial), show_header=False)  # notes, names: imported text, escaped
+    t.add_column("field", no_wrap=True)
+    t.add_column("value", overflow="fold")
     data = _record_json(rec)
     profile = data.pop("profile")
     for k, v in data.items():
         t.add_row(k, cell(v))
     for k, v in profile.items():
         t.add_row(f"profile.{k}", cell(v))
-    Console().print(t)
+    print_table(t)
 
 
 @registry_app.command("revoke")
@@ -232,7 +234,7 @@ def revoke_cmd(
     typer.echo(printable(f"revoked {rec.serial}"))
 
 
-_CSV_COLUMNS_HELP = "serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key"
+_CSV_COLUMNS_HELP = "serial, id_type, model, operator_id, valid_from, valid_until, notes, status, public_key"
 
 
 @registry_app.command("import")
@@ -240,6 +242,9 @@ def import_cmd(
     ctx: typer.Context,
     file: Path = typer.Argument(..., help="A JSON export (authn-registry/1) or a CSV file; - for stdin."),
     fmt: str = typer.Option("auto", "--format", help="auto (JSON if the file starts with '{', else CSV), json or csv."),
+    skip_existing: bool = typer.Option(False, "--skip-existing",
+                                       help="Leave serials already registered as they are (a re-import is a "
+                                            "no-op) instead of refusing the file."),
 ) -> None:
     """Restore a JSON export or register every row of a CSV file: all or nothing, one transaction.
 
@@ -248,7 +253,7 @@ def import_cmd(
     added, identical registered ones accepted, conflicting ones refused.
     Revoked identities stay revoked.
 
-    CSV columns: serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key
+    CSV columns: serial, id_type, model, operator_id, valid_from, valid_until, notes, status, public_key
     (header row required; only serial and model must be filled; id_type
     defaults to serial, status to active; public_key is 64 hex digits; times
     are ISO 8601, naive = UTC; files without status/public_key still import).
@@ -256,6 +261,8 @@ def import_cmd(
     or use a JSON export.
 
     Example: authn registry import registry.json
+
+    Example (a re-import adds only new serials): authn registry import registry.json --skip-existing
 
     Example: authn registry import fleet.csv
     """
@@ -278,10 +285,12 @@ def import_cmd(
         raise RegistryError(f"{file}: {exc}") from None
     with session_scope(ctx.obj.db_url) as session:
         try:
-            result = import_records(session, data)
+            result = import_records(session, data, skip_existing=skip_existing)
         except RegistryError as exc:
             raise RegistryError(f"{file}: {exc}") from None
     msg = f"imported {result.identities} identities from {file}"
+    if skip_existing:
+        msg += f", skipped {result.identities_skipped} already registered"
     if data.format == "json":
         msg += (f" ({result.profiles_added} new model profiles, "
                 f"{result.profiles_existing} already registered)")
@@ -301,7 +310,7 @@ def export_cmd(
     (hex), validity, notes, created_at/updated_at. `authn registry import`
     restores it into another database exactly.
 
-    CSV (serial,id_type,model,operator_id,valid_from,valid_until,notes,status,public_key)
+    CSV (serial, id_type, model, operator_id, valid_from, valid_until, notes, status, public_key)
     is for spreadsheets and bulk onboarding: it carries NO model profiles and no
     created_at/updated_at, so identities of a custom model do not import into a
     fresh registry from it; use JSON for backups and migrations.
@@ -354,15 +363,17 @@ def models_cmd(
     if as_json:
         typer.echo(json.dumps([p.model_dump() for p in profiles], indent=2))
         return
-    from rich.console import Console
     from rich.table import Table
 
+    from authn.cli.output import print_table
     from core.textsafe import cell
 
     t = Table(title="model profiles")
-    for col in ("slug", "name", "rotors", "arms", "blades", "blade m", "rotor Hz", "prop. dist. m"):
-        t.add_column(col)
+    t.add_column("slug", no_wrap=True)
+    t.add_column("name", overflow="fold")
+    for col in ("rotors", "arms", "blades", "blade m", "rotor Hz", "prop. dist. m"):
+        t.add_column(col, justify="right", no_wrap=True)
     for p in profiles:
         t.add_row(cell(p.slug), cell(p.name), str(p.rotors), str(p.arms), str(p.blades_per_rotor),
                   f"{p.blade_length_m:g}", f"{p.rotor_rate_hz:g}", f"{p.propeller_distance_m:g}")
-    Console().print(t)
+    print_table(t)

@@ -73,17 +73,18 @@ def decode_cmd(
             _print_auth(wire, public_key, at, as_json=True)
             return
         rows = [(str(i), "", "", m) for i, d in enumerate(decoded, 1) for m in _flat(d)]
-    from rich.console import Console
     from rich.table import Table
 
+    from authn.cli.output import print_table
     from core.textsafe import cell
 
     t = Table(title=f"{len(rows)} Remote ID messages")
-    for col in ("#", "captured", "transport", "type", "v", "fields"):
-        t.add_column(col, overflow="fold")
+    for col in ("#", "captured", "transport", "type", "v"):
+        t.add_column(col, no_wrap=True)  # identifiers and times: never split
+    t.add_column("fields", overflow="fold")
     for frame, ts, transport, m in rows:  # the fields are broadcast text: escaped, never markup
         t.add_row(frame, ts, cell(transport), cell(m.type), str(m.protocol_version), cell(_summary(m)))
-    Console().print(t)
+    print_table(t)
     _print_auth(wire, public_key, at, as_json=False)
 
 

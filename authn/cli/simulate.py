@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -89,7 +90,7 @@ def simulate(
     range_offset: float | None = typer.Option(None, "--range-offset",
                                               help="Start of the range gate, m (default: target mid-window)."),
     count: int = typer.Option(1, "--count", min=1, max=1_000_000,
-                              help="Number of returns (writes DIR/scene_NNNNNN.h5)."),
+                              help="Number of returns (written to the --out folder as scene_NNNNNN.h5)."),
     profiles: Path | None = typer.Option(None, "--profiles",
                                          help="JSON file of UAV profiles added to (or overriding) the shipped ones."),
     azimuth: float = typer.Option(0.0, "--azimuth", help="Azimuth of the target from the radar, degrees from north."),
@@ -102,7 +103,7 @@ def simulate(
                                      help="Declare a position this many metres beyond the true one along the line of "
                                           "sight."),
     rid_ua_type: int = typer.Option(2, "--rid-ua-type", min=0, max=15,
-                                    help="Declared F3411 UA type (2 = helicopter/multirotor)."),
+                                    help="Declared F3411 UA type (2 = helicopter or multirotor)."),
     rid_id_type: int | None = typer.Option(None, "--rid-id-type", min=0, max=15,
                                            help="F3411 UAS ID type (default: 4, a session ID, for a DRIP session ID "
                                                 "such as `authn keys generate` prints; else 1, a serial number)."),
@@ -119,8 +120,9 @@ def simulate(
     tamper_after_signing: bool = typer.Option(False, "--tamper-after-signing",
                                               help="Move the first Location 50 m after signing it (a spoof)."),
     rid_fec: bool = typer.Option(False, "--rid-fec",
-                                 help="End the authentication pages with a forward-error-correction page "
+                                 help="End the authentication pages with an error-correction (FEC) page "
                                       "(XOR parity, as RFC 9575's examples; a receiver rebuilds one lost page)."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object naming the files written."),
 ) -> None:
     """Simulate the radar return of one scene and write it as a recorded-return file.
 
@@ -140,6 +142,12 @@ def simulate(
     from signatures.recording import write_recording
     from authn.scenario import Broadcast, simulate_flight
 
+    from authn.evidence import _SERIAL
+
+    _check_out(out, count)
+    if rid_serial is not None and not _SERIAL.fullmatch(rid_serial):  # what `check --serial` accepts
+        raise SignaturesError(f"--rid-serial: {rid_serial!r} is not a UAS ID (1-64 printable ASCII characters, "
+                              "no spaces)")
     pre = get_preset(preset)
     if chirps is not None:
         pre = waveform_of(pre.config, chirps, pre.n_samples, max_range_m=pre.max_range_m)
@@ -176,21 +184,51 @@ def simulate(
             loc, msg, _ = first_error(exc)
             raise SignaturesError(f"--rid-*: {loc}: {msg}") from None
 
-    if count > 1 and out.suffix.lower() in (".h5", ".hdf5", ".npz"):
-        raise SignaturesError(f"--out: with --count {count}, give a directory, not the file name {out}")
+    def written(path: Path, rec, truth) -> dict:
+        return {"file": str(path), "range_gate_m": rec.config.range_offset_m,
+                "blade_flash_rate_hz": truth.blade_flash_rate_hz}
+
+    def report(files: list[dict], rec) -> None:
+        typer.echo(json.dumps({"model": scene.label, "waveform": pre.name, "domain": pre.domain,
+                               "shape": [rec.n_chirps, rec.n_samples], "files": files}, indent=2))
+
     if count == 1 and out.suffix:
         rec, truth = run_simulation(0)
         write_recording(rec, out)
+        if as_json:
+            report([written(out, rec, truth)], rec)
+            return
         typer.echo(f"wrote {out} ({scene.label}, {rec.n_chirps}x{rec.n_samples}, "
                    f"range gate {rec.config.range_offset_m:g} m, flash rate {truth.blade_flash_rate_hz:.1f} Hz)")
         return
     from rich.progress import Progress
 
     out.mkdir(parents=True, exist_ok=True)
-    with Progress(transient=True) as progress:
+    files = []
+    with Progress(transient=True, disable=as_json) as progress:
         task = progress.add_task(f"simulating {count} x {scene.label}", total=count)
         for i in range(count):
-            rec, _ = run_simulation(i)
-            write_recording(rec, out / f"scene_{i:06d}.h5")
+            rec, truth = run_simulation(i)
+            path = write_recording(rec, out / f"scene_{i:06d}.h5")
+            files.append(written(path, rec, truth))
             progress.advance(task)
+    if as_json:
+        report(files, rec)
+        return
     typer.echo(f"wrote {count} returns to {out}/")
+
+
+#: What a recorded-return file may be called: the suffix picks the container (docs/format.md).
+OUT_SUFFIXES = (".h5", ".hdf5", ".npz")
+
+
+def _check_out(out: Path, count: int) -> None:
+    """--out: a .h5/.hdf5/.npz file for one scene, a directory (no suffix) for --count N."""
+    from signatures.errors import SignaturesError
+
+    suffix = out.suffix.lower()
+    if count > 1 and suffix in OUT_SUFFIXES:
+        raise SignaturesError(f"--out: with --count {count}, give a directory, not the file name {out}")
+    if count == 1 and suffix and suffix not in OUT_SUFFIXES and not out.is_dir():
+        raise SignaturesError(f"--out {out}: a recorded return is written as .h5 (HDF5) or .npz, "
+                              f"not {out.suffix}; a directory of returns: --count N")

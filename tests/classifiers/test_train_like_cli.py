@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from authn.cli import main
+from authn.cli import main, output
 from authn.demo import register_examples
 from signatures.inference import bundle_dir
 from signatures.radar import recording_waveform
@@ -49,7 +49,7 @@ def test_no_bundle_names_the_command_that_builds_one(world: dict, capsys) -> Non
             f"`authn models train --like {world['cut']}`") in _err(capsys)
 
 
-def test_train_like_then_check_decides_with_the_user_bundle(world: dict, capsys) -> None:
+def test_train_like_then_check_decides_with_the_user_bundle(world: dict, capsys, monkeypatch) -> None:
     wf = recording_waveform(read_recording(world["cut"]))
     capsys.readouterr()
     assert main(["models", "train", "--like", str(world["cut"]), "--samples", "150", "--val-samples", "50",
@@ -77,8 +77,13 @@ def test_train_like_then_check_decides_with_the_user_bundle(world: dict, capsys)
     assert "this bundle is for 512x80 at 77 GHz, PRI 44 us, the file's waveform is 600x80" in _err(capsys)
 
     assert main(["models", "list"]) == 0
+    rows = [line.split("\t") for line in capsys.readouterr().out.splitlines()]  # piped: tab-separated
+    assert [wf.name, "user"] in [r[:2] for r in rows] and ["paper", "shipped"] in [r[:2] for r in rows]
+    monkeypatch.setenv("COLUMNS", "80")
+    monkeypatch.setattr(output, "is_terminal", lambda: True)
+    assert main(["models", "list"]) == 0
     listing = capsys.readouterr().out
-    assert wf.name in listing and "shipped" in listing
+    assert wf.name in listing and "shipped" in listing and "…" not in listing
     assert max(len(line) for line in listing.splitlines()) <= 80
 
 
