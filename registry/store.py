@@ -493,7 +493,7 @@ def import_records(session: Session, data: RegistryImport, skip_existing: bool =
             Identity.serial.in_(serials[i:i + 500]))))
     if taken and not skip_existing:
         raise RegistryError(f"serial {sorted(taken)[0]}: already registered "
-                            f"({len(taken)} of the file's serials are; --skip-existing leaves them as they are)")
+                            f"({len(taken)} of the file's serials are)")
     new_ones = [new for _, new in data.identities if new.serial not in taken]
     session.add_all(ModelProfile(**p.model_dump()) for p in added)
     _flush(session, "import (profiles)")

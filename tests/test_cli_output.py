@@ -219,7 +219,7 @@ def test_registry_import_skip_existing_makes_a_re_import_idempotent(tmp_path: Pa
     assert main(["--db", db, "registry", "import", str(csv)]) == 0
     capsys.readouterr()
     assert main(["--db", db, "registry", "import", str(csv)]) == 2  # refused as before: nothing changes
-    assert "--skip-existing" in capsys.readouterr().err
+    assert f"serial {M300}: already registered" in capsys.readouterr().err
     csv.write_text(csv.read_text() + "1581BDEM00000044,phantom4\n")
     assert main(["--db", db, "registry", "import", str(csv), "--skip-existing"]) == 0
     assert "imported 1 identities" in (out := capsys.readouterr().out) and "skipped 2 already registered" in out

@@ -160,7 +160,7 @@ def test_registry_entries_list_as_registry_not_error(capsys, db: str) -> None:
     assert "register(modelm300);byAPIkey7(admin)" in flat
     assert "revoke(reasonstolen\\x1b[31m)" in flat
     assert "register-failed;byAPIkey7(admin);serial1581F5FJD12345678901:alreadyregistered" in flat
-    assert sum(" registry " in row for row in rows) == 3 and sum(" error " in row for row in rows) == 1, out
+    assert sum("registry" in row.split() for row in rows) == 3 and sum("error" in row.split() for row in rows) == 1, out
     code, out, _ = run(capsys, db, "audit", "list", "--decision", "registry", "--json")
     assert code == 0 and [e["payload"]["action"] for e in json.loads(out)] == ["register", "revoke",
                                                                               "register-failed"]

@@ -157,9 +157,14 @@ def _plain_flags(cmd) -> None:
 
 def _json_mode(args: list[str]) -> bool:
     """Errors as JSON: `--json` given to a command whose `--json` is a switch (`models evaluate
-    --json FILE` writes a report file: its errors stay text)."""
-    words = [a for a in args if not a.startswith("-")][:2]
-    return json_requested(args) and words != ["models", "evaluate"]
+    --json FILE` writes a report file: its errors stay text). `check` keeps its own contract:
+    per-file errors inside its JSON output, a fatal error (exit 3) on stderr only, stdout
+    holding only what was decided and audited (docs/policies.md)."""
+    rest = list(args)
+    while rest and rest[0].startswith("--db"):  # `_global_options_first` put them in front
+        rest = rest[1:] if "=" in rest[0] else rest[2:]
+    words = [a for a in rest if not a.startswith("-")][:2]
+    return json_requested(args) and words != ["models", "evaluate"] and words[:1] != ["check"]
 
 
 def _fail(message: str, code: int, as_json: bool, prefix: str = "error: ") -> int:
