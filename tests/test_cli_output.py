@@ -62,6 +62,9 @@ def test_every_command_has_help_with_an_example_at_80_columns() -> None:
 def test_shell_completion_is_offered() -> None:
     out = _help(())
     assert "--install-completion" in out and "--show-completion" in out
+    env = {**os.environ, "_AUTHN_COMPLETE": "complete_bash", "COMP_WORDS": "authn audi", "COMP_CWORD": "1"}
+    run = subprocess.run([sys.executable, "-m", "authn"], capture_output=True, text=True, env=env, timeout=120)
+    assert run.stdout.split() == ["audit"], run  # what the installed completion asks, answered
 
 
 # --- tables -----------------------------------------------------------------------------------
