@@ -118,8 +118,8 @@ def main(argv: list[str] | None = None) -> int:
 @functools.cache
 def command():  # -> click Command
     """The click command tree of `app` (built once per process), with on/off flags shown in
-    help without a `<bool>` type: a flag takes no value."""
-    _help_tables_wrap_prose_only()
+    help without a `<bool>` type: a flag takes no value, and help tables that wrap prose only
+    (installed when help is first rendered: a check never imports rich's help machinery)."""
     cmd = typer.main.get_command(app)
     _plain_flags(cmd)
     return cmd
@@ -151,6 +151,13 @@ def _plain_flags(cmd) -> None:
     for param in [*cmd.params, *([help_option] if help_option is not None else [])]:  # help: built once, cached
         if getattr(param, "is_flag", False) and param.metavar is None:
             param.metavar = ""
+    render = cmd.format_help
+
+    def format_help(ctx, formatter):  # type: ignore[no-untyped-def]
+        _help_tables_wrap_prose_only()
+        return render(ctx, formatter)
+
+    cmd.format_help = format_help
     for sub in getattr(cmd, "commands", {}).values():
         _plain_flags(sub)
 
