@@ -290,7 +290,8 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     from core.textsafe import printable
 
     for f in failures:
-        print(printable(f"error: {f.file}: {f.error}"), file=sys.stderr)
+        named = f.error.startswith(f"{f.file}:")  # the reader's messages name the file already
+        print(printable(f"error: {f.error}" if named else f"error: {f.file}: {f.error}"), file=sys.stderr)
     if stop:
         raise SystemFault(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
                           "returns; every printed result is in the audit log")

@@ -126,3 +126,15 @@ def test_registry_rejection_skips_radar(good_file: Path, tmp_path: Path, cli_ser
     assert out["claim"] == {"serial": cli_serial or SERIAL, "source": "cli" if cli_serial else "remote_id",
                             "remote_id_serial": SERIAL}
     assert out["audit_id"] == 1 and "radar_features" not in out["timings_ms"]
+
+
+def test_batch_error_lines_name_the_file_once(tmp_path, capsys) -> None:
+    """`error: fake.h5: ...`, not `error: fake.h5: fake.h5: ...` (the reader names the file)."""
+    from authn.cli import main
+
+    a, b = tmp_path / "fake-a.h5", tmp_path / "fake-b.h5"
+    a.write_bytes(b"junk")
+    b.write_bytes(b"junk too")
+    assert main(["--db", f"sqlite:///{tmp_path / 'r.sqlite3'}", "check", str(a), str(b)]) == 2
+    lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith("error: ")]
+    assert len(lines) == 2 and all(x.count("fake-") == 1 for x in lines), lines
