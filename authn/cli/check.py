@@ -117,6 +117,11 @@ def _print_outcome(o) -> None:
         if res.radial_velocity_residual_mps is not None:
             t.add_row("velocity residual", f"{res.radial_velocity_residual_mps:.2f} m/s "
                       f"(tolerance {res.radial_velocity_tolerance_mps:.2f} m/s)")
+    auth = ev.auth
+    if auth.status != "absent":  # signed Remote ID: what the signature came to
+        what = auth.status + (f" ({', '.join(auth.sam_types)})" if auth.sam_types else "")
+        what += f", covers {len(auth.covered)} messages" if auth.status == "valid" else ""
+        t.add_row("remote id auth", cell(what + (f": {auth.reason}" if auth.reason else "")))
     if ev.remote_id_issues:
         t.add_row("remote id issues", cell(", ".join(ev.remote_id_issues)))
     if o.non_cooperative:  # with --rid-capture: radar targets no broadcast explains
@@ -269,7 +274,10 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
             out.flush()
             first[0] = False
 
-    with _stop_signals() as stop, Progress(transient=True, disable=as_json and not sys.stderr.isatty()) as progress:
+    from rich.console import Console
+
+    bar = Progress(transient=True, console=Console(stderr=True), disable=not sys.stderr.isatty())  # never on stdout
+    with _stop_signals() as stop, bar as progress:
         task = progress.add_task(f"checking {len(paths)} returns", total=len(paths))
         start, size = 0, FIRST_CHUNK
         while start < len(paths) and not stop:
@@ -304,6 +312,7 @@ def _print_summary(results: list, total: int) -> None:
     from rich.console import Console
     from rich.table import Table
 
+    from authn.cli.output import print_table
     from authn.check import Failure
     from core.textsafe import cell
 
@@ -311,11 +320,11 @@ def _print_summary(results: list, total: int) -> None:
     failures = [r for r in results if isinstance(r, Failure)]
     table = Table(title=f"{total} returns: {sum(o.decision == 'accept' for o in outcomes)} accepted, "
                         f"{sum(o.decision == 'reject' for o in outcomes)} rejected, {len(failures)} errors")
-    for col in ("file", "serial", "decision"):
-        table.add_column(col, overflow="fold")
+    for col in ("file", "serial", "decision"):  # identifiers: never split
+        table.add_column(col, no_wrap=True)
     table.add_column("reasons", overflow="fold")
-    table.add_column("radar")
-    table.add_column("ms", justify="right")
+    table.add_column("radar", no_wrap=True)
+    table.add_column("ms", justify="right", no_wrap=True)
     for r in results:
         if isinstance(r, Failure):
             table.add_row(cell(Path(r.file).name), cell(r.serial), "[yellow]error[/]", cell(r.error), "", "")
@@ -324,4 +333,4 @@ def _print_summary(results: list, total: int) -> None:
         colour = "green" if r.decision == "accept" else "red"
         table.add_row(cell(Path(r.file).name), cell(r.serial), f"[{colour}]{r.decision}[/]",
                       cell(", ".join(r.reasons)), cell(radar), f"{sum(r.timings_ms.values()):.1f}")
-    Console().print(table)
+    print_table(table, Console())  # piped: one tab-separated line per return

@@ -228,3 +228,20 @@ def test_a_valid_signature_by_someone_else_does_not_count(world: dict, tmp_path:
         assert main(["--db", world["db"], "check", str(path), "--json", "--trust-registry", str(trust)]) == code
         out = json.loads(capsys.readouterr().out)
         assert out["remote_id_auth"]["status"] == "unknown-key" and "not the claimed" in out["remote_id_auth"]["reason"]
+
+
+def test_human_output_shows_the_remote_id_authentication(world: dict, capsys) -> None:
+    """`authn check signed.h5` without --json names what the signature came to; a batch piped
+    is one tab-separated line per return, identifiers whole."""
+    signed = _fly(world, "human-signed", GENUINE, "--sign-key", str(world["keys"]["ua"]))
+    unsigned = _fly(world, "human-unsigned", "1581BDEM00000097")
+    capsys.readouterr()
+    assert main(["--db", world["db"], "check", str(signed)]) == 0
+    out = capsys.readouterr().out
+    assert "remote id auth" in out and "valid (wrapper), covers" in out, out
+    assert main(["--db", world["db"], "check", str(unsigned)]) == 0
+    assert "remote id auth" not in capsys.readouterr().out  # nothing signed, nothing to say
+    assert main(["--db", world["db"], "check", str(signed), str(unsigned)]) == 0
+    rows = [line.split("\t") for line in capsys.readouterr().out.splitlines()]
+    assert [r[:3] for r in rows] == [["human-signed.h5", GENUINE, "accept"],
+                                     ["human-unsigned.h5", "1581BDEM00000097", "accept"]]
