@@ -102,9 +102,13 @@ def dca1000(
 @import_app.command("array")
 def array(
     file: Path = typer.Argument(..., help="Samples: .npy, .npz or .mat (MATLAB v4/v5 or v7.3)."),
-    domain: str = typer.Option(..., "--domain", help="What the samples are: if, range or cw (docs/format.md)."),
-    carrier_hz: float = typer.Option(..., "--carrier-hz", help="Carrier: frequency at the first sample of the sweep; "
-                                                               "the CW frequency."),
+    domain: str | None = typer.Option(None, "--domain", help="What the samples are: if, range or cw "
+                                                             "(docs/format.md); default: --radar-config's."),
+    carrier_hz: float | None = typer.Option(None, "--carrier-hz", help="Carrier: frequency at the first sample of the "
+                                                                     "sweep; the CW frequency."),
+    radar_config: Path | None = typer.Option(None, "--radar-config",
+                                             help="if: the waveform as a radar-configuration JSON (`authn models list "
+                                                  "--json` prints one per bundle); options given override it."),
     out: Path = _OUT,
     start_time: str = _START,
     site_lat: float = _LAT,
@@ -148,6 +152,20 @@ def array(
     from signatures.importers.dwell import Capture
     from signatures.recording import DOMAINS
 
+    if radar_config is not None:  # an IF waveform's exact values; each option given overrides its field
+        from signatures.radar import load_waveform
+
+        wf = load_waveform(radar_config)
+        if wf.domain != "if" or (domain or "if") != "if":
+            raise SignaturesError(f"--radar-config {radar_config}: describes an IF waveform only; give range or CW "
+                                  "parameters as options")
+        cfg = wf.config
+        domain, carrier_hz = "if", carrier_hz or cfg.carrier_hz
+        pri_s, bandwidth_hz = pri_s or cfg.pri_s, bandwidth_hz or cfg.bandwidth_hz
+        ramp_s, sample_rate_hz = ramp_s or cfg.ramp_s, sample_rate_hz or cfg.sample_rate_hz
+        pulses_per_dwell = pulses_per_dwell or wf.n_chirps
+    if domain is None or carrier_hz is None:
+        raise SignaturesError("--domain and --carrier-hz are required (or --radar-config FILE.json)")
     if domain not in DOMAINS:
         raise SignaturesError(f"--domain: {domain!r} is not one of {', '.join(DOMAINS)}")
     orders = {"pulses,samples": False, "samples,pulses": True}

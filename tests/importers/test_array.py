@@ -211,3 +211,30 @@ def test_bad_input_is_one_line_exit_2(scene_rec, cli, tmp_path) -> None:
         file, domain, *extra = args
         code, _, err = _import(cli, tmp_path / file, scene_rec, domain, tmp_path / f"{len(case)}.h5", *extra)
         assert code == 2 and expected in err and err.count("\n") == 1, (case, err)
+
+
+def test_if_import_with_the_bundles_radar_config_matches_its_classifier(scene_rec, registry_db, cli,
+                                                                         tmp_path) -> None:
+    """`models list --json` prints a bundle's exact waveform; given to `import array
+    --radar-config`, the imported IF file is served by that bundle (no "no classifier"), with
+    the waveform's values to the bit and one dwell of the bundle's chirps."""
+    import json
+
+    code, out, err = cli("models", "list", "--json")
+    assert code == 0, err
+    paper = next(b for b in json.loads(out) if b["name"] == "paper")["waveform"]
+    config = {k: v for k, v in paper.items() if k not in ("description", "key")}
+    (tmp_path / "paper.json").write_text(json.dumps(config))
+    np.save(tmp_path / "if.npy", np.asarray(scene_rec.iq))
+    code, out, err = cli("import", "array", str(tmp_path / "if.npy"), "--radar-config", str(tmp_path / "paper.json"),
+                         *site_args(scene_rec), "--out", str(tmp_path / "if.h5"))
+    assert code == 0, err
+    back = read_recording(tmp_path / "if.h5")
+    assert back.domain == "if" and back.n_chirps == config["n_chirps"]
+    for name in ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz"):
+        assert getattr(back.config, name) == config[name], name
+    code, doc = check_json(cli, registry_db, tmp_path / "if.h5")
+    assert code in (0, 1) and doc["radar"] is not None, doc
+    code, out, err = cli("import", "array", str(tmp_path / "if.npy"), "--radar-config", str(tmp_path / "paper.json"),
+                         "--domain", "cw", *site_args(scene_rec), "--out", str(tmp_path / "cw.h5"))
+    assert code == 2 and "describes an IF waveform only" in err
