@@ -155,6 +155,8 @@ def check(
                                                  "heard in the dwell's window is a claim (docs/remoteid.md)."),
     rid_skew: float = typer.Option(2.0, "--rid-skew", min=0.0, max=3600.0,
                                    help="Clock-skew tolerance (s) between the capture and the radar."),
+    plot: Path | None = typer.Option(None, "--plot", help="Write one evidence figure (PNG) per decision into this "
+                                                          "folder (the plot extra; docs/policies.md)."),
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
@@ -201,11 +203,34 @@ def check(
 
         raise typer.Exit(cli_recheck(checker, paths, mapping, serial, cluster, partition_size, as_json,
                                      policy=policy, trusted=trusted, model=model))
+    figures = _Figures(plot) if plot is not None else None
     if len(paths) == 1:
         _single(checker, paths[0], mapping.get(paths[0].name, mapping.get(str(paths[0]), serial)), as_json,
-                capture_of(paths[0]))
+                capture_of(paths[0]), figures)
         return
-    _batch(checker, paths, mapping, serial, as_json, capture_of)
+    _batch(checker, paths, mapping, serial, as_json, capture_of, figures)
+
+
+class _Figures:
+    """`--plot DIR`: the evidence figure of each recorded decision (authn.figure), `<file>.png`,
+    or `<file>-<serial>.png` when one return carried several claims; each path on stderr."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+
+    def __call__(self, outcomes: list) -> None:
+        from authn.check import Outcome
+        from authn.figure import draw
+        from signatures.recording import read_recording
+
+        decided = [o for o in outcomes if isinstance(o, Outcome)]
+        per_file: dict[str, int] = {}
+        for o in decided:
+            per_file[o.file] = per_file.get(o.file, 0) + 1
+        for o in decided:
+            stem = Path(o.file).stem + (f"-{o.serial}" if per_file[o.file] > 1 else "")
+            path = draw(read_recording(o.file), o.to_json(), self.folder / f"{stem}.png")
+            typer.echo(f"wrote {path}", err=True)
 
 
 def _record_failure(db_url, failures) -> None:
@@ -220,13 +245,15 @@ def _record_failure(db_url, failures) -> None:
         pass
 
 
-def _single(checker, path: Path, serial: str | None, as_json: bool, capture=None) -> None:
+def _single(checker, path: Path, serial: str | None, as_json: bool, capture=None, figures=None) -> None:
     from authn.check import CheckInput, Failure
 
     items = checker.check([CheckInput.file(path, serial, capture)]).items  # recorded, or it raised
     outcome = items[0]
     if isinstance(outcome, Failure):
         outcome.raise_()
+    if figures is not None:
+        figures(items)
     if len(items) > 1:  # a capture with several drones: one decision each, a JSON array
         if as_json:
             typer.echo(json.dumps([o.to_json() for o in items], indent=2))
@@ -257,7 +284,7 @@ def _stop_signals() -> Iterator[list[int]]:
 
 
 def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | None, as_json: bool,
-           capture_of=lambda p: None) -> None:
+           capture_of=lambda p: None, figures=None) -> None:
     from rich.progress import Progress
 
     from authn.check import CheckInput, Failure
@@ -286,6 +313,8 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
                                    for p in chunk], stop=lambda: bool(stop))
             for item in batch.items:  # recorded: printed only now
                 emit(item)
+            if figures is not None:
+                figures(batch.items)
             if batch.fault is not None:  # the database or policy engine: the batch cannot go on
                 raise batch.fault
             progress.advance(task, len({r.file for r in batch.items}))

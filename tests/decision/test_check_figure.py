@@ -1,0 +1,74 @@
+"""`authn check --plot DIR`: one evidence figure per recorded decision, of a fixed size, with
+the range-Doppler map, the spectrogram and the flash-rate panel, the verdict in its title."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from authn.cli import main
+
+pytest.importorskip("matplotlib", reason="the plot extra (matplotlib) is not installed")
+
+M300 = "1581BDEM00000002"
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory) -> dict:
+    from authn.demo import register_examples
+
+    root = tmp_path_factory.mktemp("figure")
+    db = f"sqlite:///{root / 'r.sqlite3'}"
+    register_examples(db)
+    files = {}
+    for name, model, extra in (("genuine", "m300", []), ("type", "phantom4", []), ("moved", "m300", ["--rid-offset",
+                                                                                                    "300"])):
+        files[name] = root / f"{name}.h5"
+        assert main(["simulate", "--model", model, "--range", "400", "--speed", "3", "--rid-serial", M300,
+                     "--out", str(files[name]), *extra]) == 0
+    return {"db": db, "root": root, "files": files}
+
+
+def test_one_figure_per_decision_with_its_panels(world: dict, capsys) -> None:
+    import matplotlib.image as mpimg
+
+    from authn import figure
+
+    out = world["root"] / "figs"
+    files = world["files"]
+    code = main(["--db", world["db"], "check", str(files["genuine"]), str(files["type"]), str(files["moved"]),
+                 "--plot", str(out)])
+    assert code == 1  # two rejections
+    err = capsys.readouterr().err
+    written = sorted(p.name for p in out.iterdir())
+    assert written == ["genuine.png", "moved.png", "type.png"]
+    assert err.count("wrote ") == 3
+    height, width = mpimg.imread(out / "type.png").shape[:2]
+    assert (width, height) == (round(figure.SIZE_IN[0] * figure.DPI), round(figure.SIZE_IN[1] * figure.DPI))
+
+
+def test_the_figure_shows_the_evidence(world: dict, monkeypatch, tmp_path: Path, capsys) -> None:
+    """The panels, axes and marks as drawn (read back from matplotlib, not from pixels)."""
+    import json
+
+    import matplotlib.pyplot as plt
+
+    from authn import figure
+    from signatures.recording import read_recording
+
+    seen = {}
+    monkeypatch.setattr(plt, "close", lambda fig: seen.setdefault("fig", fig))
+    capsys.readouterr()
+    assert main(["--db", world["db"], "check", str(world["files"]["type"]), "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    figure.draw(read_recording(world["files"]["type"]), doc, tmp_path / "t.png")
+    fig = seen["fig"]
+    rd, spectrogram, cadence = [a for a in fig.axes if a.get_title()]
+    assert rd.get_xlabel() == "range (m)" and "radial velocity" in rd.get_ylabel()
+    assert spectrogram.get_xlabel() == "time (ms)" and cadence.get_xlabel() == "cadence frequency (Hz)"
+    labels = [t.get_text() for t in cadence.get_legend().get_texts()]
+    assert any(t.startswith("claimed 80 Hz") for t in labels) and any(t.startswith("measured") for t in labels)
+    assert [t.get_text() for t in rd.get_legend().get_texts()] == ["radar: phantom4", "Remote ID"]
+    assert "REJECT" in fig._suptitle.get_text() and "radar-claim-inconsistent" in fig._suptitle.get_text()
+
