@@ -29,6 +29,9 @@ def serve(
                                                         "(503 beyond)."),
     max_in_flight: int = typer.Option(256, "--max-in-flight", min=1, max=100_000,
                                       help="Requests in progress per worker (503 beyond)."),
+    figures_dir: Path | None = typer.Option(None, "--figures-dir",
+                                            help="Where figure=true checks keep their evidence figures "
+                                                 "(default: figures in the user data directory)."),
 ) -> None:
     """Serve checks, the audit log and the registry over HTTP (OpenAPI at /docs).
 
@@ -47,7 +50,8 @@ def serve(
                               max_connections_per_client=max_connections_per_client, max_in_flight=max_in_flight)
 
     settings = Settings(db_url=ctx.obj.db_url, policy_path=str(policy) if policy else None,
-                        max_upload_bytes=int(max_upload_mib * 2**20), upload_timeout_s=upload_timeout_s)
+                        max_upload_bytes=int(max_upload_mib * 2**20), upload_timeout_s=upload_timeout_s,
+                        figures_dir=str(figures_dir) if figures_dir else None)
     os.environ.update(settings.to_env())  # read by each worker process's app factory
     from registry.db import get_engine
 

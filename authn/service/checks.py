@@ -14,7 +14,8 @@ from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, File, Form, Request, UploadFile
-from fastapi.responses import JSONResponse
+from fastapi import Path as FastPath
+from fastapi.responses import JSONResponse, Response
 
 from core.errors import EXIT_BAD_INPUT
 from authn.service.auth import Caller
@@ -71,6 +72,17 @@ def _check_one(checker: Any, data: bytes, name: str, serial: str | None, capture
     return items
 
 
+def _draw(folder: Path, data: bytes, name: str, items: list[Any]) -> None:
+    """Each decision's evidence figure (authn.figure) as `<audit id>.png` in `folder`."""
+    from authn.figure import draw
+
+    rec = _read(data, name)
+    for o in items:
+        tmp = folder / f".{o.audit_id}.{os.getpid()}.png"
+        draw(rec, o.to_json(), tmp)
+        os.replace(tmp, folder / f"{o.audit_id}.png")  # whole or absent, never half written
+
+
 def _check_many(checker: Any, files: list[tuple[str, bytes]], serial: str | None) -> list[Any]:
     """Every upload decided with the radar stages batched and recorded in one transaction
     (`Checker.check`); a SystemFault stops the batch after recording what it decided."""
@@ -90,6 +102,8 @@ async def check(request: Request, file: Annotated[UploadFile, File(description="
                 rid_capture: Annotated[UploadFile | None, File(description="pcap/pcapng Remote ID capture "
                                                                            "heard beside the radar")] = None,
                 rid_skew: Annotated[float, Form(ge=0.0, le=3600.0, description="capture clock skew, s")] = 2.0,
+                figure: Annotated[bool, Form(description="also draw the evidence figure: "
+                                                         "GET /v1/checks/{audit_id}/figure.png")] = False,
                 _caller: Caller = Depends(require("check"))) -> JSONResponse:
     """Decide one return: the `authn check --json` object, status 200 for accept and reject alike;
     with `rid_capture`, a JSON array when it heard several drones (one decision each)."""
@@ -103,7 +117,26 @@ async def check(request: Request, file: Annotated[UploadFile, File(description="
     items = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial), capture))
     for o in items:
         rt.metrics.outcome(o.decision, o.reasons, o.timings_ms)
+    if figure:  # after the decisions are recorded and counted: a figure never holds one back
+        await rt.run(lambda: _draw(rt.settings.figures_folder(), data, name, items))
     return JSONResponse(items[0].to_json() if len(items) == 1 else [o.to_json() for o in items])
+
+
+@router.get("/checks/{audit_id}/figure.png", response_class=Response, summary="A check's evidence figure",
+            responses={**_ERRORS, 404: {"description": "no figure for that check"},
+                       200: {"content": {"image/png": {}}, "description": "the PNG"}})
+async def check_figure(request: Request, audit_id: Annotated[int, FastPath(ge=1, le=2**62)],
+                       _caller: Caller = Depends(require("read_audit"))) -> Response:
+    """The evidence figure of check `audit_id`, drawn when it was posted with `figure=true`
+    (docs/policies.md, "A picture of a decision")."""
+    from fastapi import HTTPException
+
+    path = runtime(request).settings.figures_folder() / f"{audit_id}.png"
+    try:
+        png = path.read_bytes()
+    except FileNotFoundError:
+        raise HTTPException(404, f"no figure for check {audit_id}: post the check with figure=true") from None
+    return Response(png, media_type="image/png")
 
 
 @router.post("/checks:batch", responses=_ERRORS, summary="Check several recorded returns")

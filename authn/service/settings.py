@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 ENV_PREFIX = "AUTHN_SERVE_"
 
@@ -18,6 +19,14 @@ class Settings:
     max_batch_files: int = 64
     #: seconds an upload's body may take to arrive (408 after)
     upload_timeout_s: float = 60.0
+    #: where `figure=true` checks keep their evidence figures (`<audit id>.png`); None: the
+    #: user data directory's `figures`
+    figures_dir: str | None = None
+
+    def figures_folder(self) -> Path:
+        from platformdirs import user_data_dir
+
+        return Path(self.figures_dir or Path(user_data_dir("authn")) / "figures").expanduser()
 
     def to_env(self) -> dict[str, str]:
         """The settings as environment variables for worker processes."""
@@ -28,6 +37,8 @@ class Settings:
             env[f"{ENV_PREFIX}DB_URL"] = self.db_url
         if self.policy_path:
             env[f"{ENV_PREFIX}POLICY"] = self.policy_path
+        if self.figures_dir:
+            env[f"{ENV_PREFIX}FIGURES_DIR"] = self.figures_dir
         return env
 
     @classmethod
@@ -37,4 +48,5 @@ class Settings:
                    policy_path=env.get(f"{ENV_PREFIX}POLICY"),
                    max_upload_bytes=int(env.get(f"{ENV_PREFIX}MAX_UPLOAD_BYTES", 64 * 2**20)),
                    max_batch_files=int(env.get(f"{ENV_PREFIX}MAX_BATCH_FILES", 64)),
-                   upload_timeout_s=float(env.get(f"{ENV_PREFIX}UPLOAD_TIMEOUT_S", 60.0)))
+                   upload_timeout_s=float(env.get(f"{ENV_PREFIX}UPLOAD_TIMEOUT_S", 60.0)),
+                   figures_dir=env.get(f"{ENV_PREFIX}FIGURES_DIR"))
