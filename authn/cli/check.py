@@ -247,10 +247,13 @@ def _record_failure(db_url, failures) -> None:
 
 def _single(checker, path: Path, serial: str | None, as_json: bool, capture=None, figures=None) -> None:
     from authn.check import CheckInput, Failure
+    from core.errors import EXIT_BAD_INPUT
 
     items = checker.check([CheckInput.file(path, serial, capture)]).items  # recorded, or it raised
     outcome = items[0]
     if isinstance(outcome, Failure):
+        if as_json and outcome.exit_code == EXIT_BAD_INPUT:  # as a batch reports a bad file: in its JSON
+            typer.echo(json.dumps(outcome.to_json(), indent=2))
         outcome.raise_()
     if figures is not None:
         figures(items)

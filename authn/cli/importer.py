@@ -34,8 +34,14 @@ def _attach(rid_capture: Path | None, rid_serial: str | None, rid_skew: float):
     return lambda rec: capture.attach(rec, rid_serial)
 
 
-def _write(dwells, n_dwells: int, capture, out: Path, domain: str, attach=None) -> None:
-    """Write the dwells (a progress bar when there are several) and say what was written."""
+_JSON = typer.Option(False, "--json", help="Print what was written as JSON: {\"files\", \"domain\", \"shape\"}.")
+
+
+def _write(dwells, n_dwells: int, capture, out: Path, domain: str, attach=None, as_json: bool = False) -> None:
+    """Write the dwells (a progress bar on stderr when there are several) and say what was written."""
+    import json
+
+    from rich.console import Console
     from rich.progress import Progress
 
     from signatures.importers.dwell import write_dwells
@@ -47,9 +53,15 @@ def _write(dwells, n_dwells: int, capture, out: Path, domain: str, attach=None) 
             shapes.append(dwell.iq.shape)
             yield dwell
 
-    with Progress(transient=True, disable=n_dwells < 2) as progress:
+    import sys
+
+    bar = Progress(transient=True, console=Console(stderr=True), disable=n_dwells < 2 or not sys.stderr.isatty())
+    with bar as progress:
         task = progress.add_task(f"writing {n_dwells} dwells", total=n_dwells)
         paths = write_dwells(seen(dwells), n_dwells, capture, out, lambda: progress.advance(task), attach)
+    if as_json:
+        typer.echo(json.dumps({"files": [str(p) for p in paths], "domain": domain, "shape": list(shapes[0][:2])}))
+        return
     where = paths[0] if len(paths) == 1 and paths[0] == out else f"{out}/"
     typer.echo(f"wrote {len(paths)} '{domain}' dwell{'s' if len(paths) != 1 else ''} of "
                f"{shapes[0][0]}x{shapes[0][1]} to {where}")
@@ -75,6 +87,7 @@ def dca1000(
     rid_capture: Path | None = _RID,
     rid_serial: str | None = _RID_SERIAL,
     rid_skew: float = _RID_SKEW,
+    as_json: bool = _JSON,
 ) -> None:
     """TI mmWave + DCA1000EVM raw ADC data: one dwell (file) per frame.
 
@@ -96,7 +109,7 @@ def dca1000(
     capture = Capture.parse(start_time, site_lat, site_lon, site_alt)
     attach = _attach(rid_capture, rid_serial, rid_skew)
     plan, found = dwells(raw, load_config(config), sel)
-    _write(found, plan.n_dwells, capture, out, "if", attach)
+    _write(found, plan.n_dwells, capture, out, "if", attach, as_json)
 
 
 @import_app.command("array")
@@ -136,6 +149,7 @@ def array(
     rid_capture: Path | None = _RID,
     rid_serial: str | None = _RID_SERIAL,
     rid_skew: float = _RID_SKEW,
+    as_json: bool = _JSON,
 ) -> None:
     """A numpy or MATLAB array of dechirped IF, range-compressed pulses or CW Doppler IQ.
 
@@ -178,4 +192,4 @@ def array(
     capture = Capture.parse(start_time, site_lat, site_lon, site_alt)
     attach = _attach(rid_capture, rid_serial, rid_skew)
     found = dwells(file, src, domain, wave, pulses_per_dwell)
-    _write(found, len(found), capture, out, domain, attach)
+    _write(found, len(found), capture, out, domain, attach, as_json)

@@ -138,3 +138,21 @@ def test_batch_error_lines_name_the_file_once(tmp_path, capsys) -> None:
     assert main(["--db", f"sqlite:///{tmp_path / 'r.sqlite3'}", "check", str(a), str(b)]) == 2
     lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith("error: ")]
     assert len(lines) == 2 and all(x.count("fake-") == 1 for x in lines), lines
+
+
+def test_json_reports_a_bad_file_as_json_one_file_or_many(tmp_path, capsys) -> None:
+    """With --json a bad file is `{"file", "error", "exit_code"}` on stdout whether it is checked
+    alone or in a batch (system faults stay on stderr: stdout holds only what was audited)."""
+    import json
+
+    from authn.cli import main
+
+    bad = tmp_path / "fake.h5"
+    bad.write_bytes(b"junk")
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    capsys.readouterr()
+    assert main(["--db", db, "check", str(bad), "--json"]) == 2
+    alone = json.loads(capsys.readouterr().out)
+    assert main(["--db", db, "check", str(bad), str(bad), "--json"]) == 2
+    batch = json.loads(capsys.readouterr().out)
+    assert alone == batch[0] and alone["exit_code"] == 2 and "not a readable HDF5 file" in alone["error"]

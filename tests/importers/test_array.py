@@ -238,3 +238,19 @@ def test_if_import_with_the_bundles_radar_config_matches_its_classifier(scene_re
     code, out, err = cli("import", "array", str(tmp_path / "if.npy"), "--radar-config", str(tmp_path / "paper.json"),
                          "--domain", "cw", *site_args(scene_rec), "--out", str(tmp_path / "cw.h5"))
     assert code == 2 and "describes an IF waveform only" in err
+
+
+def test_import_json_names_what_it_wrote(scene_rec, cli, tmp_path) -> None:
+    import json
+
+    np.save(tmp_path / "if.npy", np.asarray(scene_rec.iq))
+    c = scene_rec.config
+    code, out, err = cli("import", "array", str(tmp_path / "if.npy"), "--domain", "if", "--carrier-hz",
+                         repr(c.carrier_hz), "--pri-s", repr(c.pri_s), "--bandwidth-hz", repr(c.bandwidth_hz),
+                         "--ramp-s", repr(c.ramp_s), "--sample-rate-hz", repr(c.sample_rate_hz),
+                         *site_args(scene_rec), "--out", str(tmp_path / "parts"), "--pulses-per-dwell", "200",
+                         "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["domain"] == "if" and doc["shape"] == [200, 80] and len(doc["files"]) == 3
+    assert all(Path(f).exists() for f in doc["files"])
