@@ -32,9 +32,13 @@ class UaKey:
 
     @property
     def session_id(self) -> str:
-        """The UAS ID of a DRIP identity: Specific Session ID type 1 (IETF DRIP) + the DET, as
-        hex (what Basic ID type 4 broadcasts and what `authn register --id-type specific_session` takes)."""
-        return ("01" + self.det.hex()).upper()
+        return session_id_of(self.det)
+
+
+def session_id_of(det: bytes) -> str:
+    """The UAS ID of a DRIP identity: Specific Session ID type 1 (IETF DRIP) + the DET, as
+    hex (what Basic ID type 4 broadcasts and what `authn register --id-type specific_session` takes)."""
+    return ("01" + det.hex()).upper()
 
 
 def _det(public_raw: bytes, raa: int, hda: int) -> bytes:

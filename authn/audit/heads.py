@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
 from authn.audit.entries import GENESIS, db_label
-from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append_sth_log, check_origin, \
+from authn.audit.logkey import CHECKPOINT_FORMAT, ENV_WITNESS, LogKey, SignedTreeHead, append_sth_log, check_origin, \
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, read_sth_log, sth_log_path, \
     write_latest_head
 from core.errors import AuthnError, SystemFault, one_line
@@ -148,16 +148,6 @@ class KnownHead:
 
 
 
-def _newest_of(heads: Sequence[SignedTreeHead]) -> SignedTreeHead | None:
-    """The largest head, the last written among equals (a rotation's new-key head)."""
-    best = None
-    for h in heads:
-        if best is None or h.tree_size >= best.tree_size:
-            best = h
-    return best
-
-
-
 @dataclass
 class HeadPlaces:
     """Every place a head of this log is kept: the database, the latest-head file, the STH
@@ -217,10 +207,11 @@ class HeadPlaces:
 
     def witness_heads(self, origin: str, *, newest_only: bool) -> list[KnownHead]:
         assert self.witness is not None
-        held = self.witness.heads(origin)
         if newest_only:
-            newest_held = _newest_of(held)
-            held = [newest_held] if newest_held is not None else []
+            last = self.witness.newest(origin)
+            held = [last] if last is not None else []
+        else:
+            held = self.witness.heads(origin)
         return [KnownHead(h, f"witness {self.witness.name}") for h in held]
 
     def publish(self, signed: _Signed) -> None:
@@ -240,7 +231,7 @@ class HeadPlaces:
 
         assert self.witness is not None and sth.origin is not None
         try:
-            held = _newest_of(self.witness.heads(sth.origin))
+            held = self.witness.newest(sth.origin)
             old = held.tree_size if held is not None else 0
             proof = consistency_proof(self.db, old, sth.tree_size)
             for head in (sth, *cosigned):
@@ -254,7 +245,7 @@ class HeadPlaces:
 
 def _witness(spec: str | None) -> WitnessStore | HttpWitness | None:
     """--witness, else $AUTHN_AUDIT_WITNESS (authn.audit.witness, loaded only when one is set)."""
-    if not (spec or os.environ.get("AUTHN_AUDIT_WITNESS")):
+    if not (spec or os.environ.get(ENV_WITNESS)):
         return None
     from authn.audit.witness import open_witness
 

@@ -26,6 +26,7 @@ import hashlib
 import json
 import os
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,7 @@ from core.errors import AuthnError, SystemFault
 
 ENV_KEY = "AUTHN_LOG_KEY"
 ENV_STH_LOG = "AUTHN_AUDIT_STH_LOG"
+ENV_WITNESS = "AUTHN_AUDIT_WITNESS"  # authn.audit.witness: a folder or an http(s) URL
 STH_FORMAT = "authn-sth/1"  # legacy heads: JSON, no origin
 CHECKPOINT_FORMAT = "authn-checkpoint/1"  # JSON carrying a C2SP checkpoint and its fields
 TIMESTAMP_EXTENSION = "authn-timestamp-ms"
@@ -244,10 +246,6 @@ class SignedTreeHead:
                                    "root_hash": self.root_hash, "log_key_id": self.log_key_id}).encode()
         return self.note_body().encode()
 
-    def same_head(self, other: "SignedTreeHead") -> bool:
-        """The same signed content (a rotation head carries it under two keys)."""
-        return self.signed_bytes() == other.signed_bytes() if self.origin is not None else False
-
     def note(self, *cosigned: "SignedTreeHead") -> str:
         """The C2SP signed note: body, blank line, one signature line per head of this body."""
         if self.origin is None:
@@ -406,15 +404,15 @@ def read_sth_log(path: Path) -> list[tuple[str | None, SignedTreeHead]]:
     return out
 
 
-def newest_in_sth_log(path: Path, db_label: str) -> SignedTreeHead | None:
-    """The last well-formed line for `db_label`, read backwards from the end of the file a
-    block at a time (the writer asks on every append; the file grows with the log)."""
+def lines_from_end(path: Path, what: str) -> Iterator[bytes]:
+    """The lines of a file, last first, read backwards a block at a time: the newest head of
+    an append-only file that grows with the log, without reading all of it (none: no file)."""
     try:
         fh = open(path, "rb")
     except FileNotFoundError:
-        return None
+        return
     except OSError as exc:
-        raise SystemFault(f"{path}: cannot read the STH log ({exc.strerror})") from None
+        raise SystemFault(f"{path}: cannot read the {what} ({exc.strerror})") from None
     with fh:
         end = fh.seek(0, os.SEEK_END)
         tail = b""
@@ -424,16 +422,21 @@ def newest_in_sth_log(path: Path, db_label: str) -> SignedTreeHead | None:
             block = fh.read(end - start) + tail
             lines = block.split(b"\n")
             tail = lines.pop(0) if start > 0 else b""  # maybe cut: joined with the next block
-            for line in reversed(lines):
-                if db_label.encode() not in line:
-                    continue
-                try:
-                    doc = json.loads(line.decode("utf-8"))
-                    if doc.get("db") == db_label:
-                        return SignedTreeHead.from_dict({k: v for k, v in doc.items() if k != "db"})
-                except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
-                    continue
+            yield from reversed(lines)
             end = start
+
+
+def newest_in_sth_log(path: Path, db_label: str) -> SignedTreeHead | None:
+    """The last well-formed line for `db_label` (the writer asks on every append)."""
+    for line in lines_from_end(path, "STH log"):
+        if db_label.encode() not in line:
+            continue
+        try:
+            doc = json.loads(line.decode("utf-8"))
+            if doc.get("db") == db_label:
+                return SignedTreeHead.from_dict({k: v for k, v in doc.items() if k != "db"})
+        except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
+            continue
     return None
 
 

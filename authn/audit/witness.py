@@ -34,9 +34,8 @@ from typing import Any
 
 import authn.audit.merkle as merkle
 from core.errors import AuthnError, SystemFault
-from authn.audit.logkey import SignedTreeHead, parse_note
+from authn.audit.logkey import ENV_WITNESS, SignedTreeHead, lines_from_end, parse_note
 
-ENV_WITNESS = "AUTHN_AUDIT_WITNESS"
 TIMEOUT_S = 5.0
 
 
@@ -64,6 +63,16 @@ class WitnessStore:
         except OSError as exc:
             raise SystemFault(f"witness {path}: cannot read ({exc.strerror})") from None
 
+    def newest(self, origin: str) -> SignedTreeHead | None:
+        """The last head held for `origin` (its file's last line, read from the end: each head
+        appended extends the one before, so the last is the newest)."""
+        path = self._file(origin)
+        for line in lines_from_end(path, "witness file"):
+            if line.strip():
+                held = _held(line, origin, f"witness {path} (last line)")
+                return held[0] if held else None
+        return None
+
     def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
         """Keep `head` if a key in `public_keys` signed it and `proof` proves it extends the
         newest head held for its origin (of size `old_size`); else Conflict / AuthnError."""
@@ -81,8 +90,7 @@ class WitnessStore:
             raise SystemFault(f"witness {self.root}: cannot write ({exc.strerror})") from None
         try:
             fcntl.flock(lock, fcntl.LOCK_EX)
-            held = self.heads(head.origin)
-            last = max(held, key=lambda h: h.tree_size, default=None)
+            last = self.newest(head.origin)
             if last is not None:
                 if last.tree_size != old_size:
                     raise Conflict(f"witness holds size {last.tree_size}, the proof starts at {old_size}")
@@ -116,6 +124,10 @@ class HttpWitness:
 
         body = self._request("GET", "/checkpoints?origin=" + urllib.parse.quote(origin, safe=""), None)
         return _held(body, origin, f"witness {self.url}")
+
+    def newest(self, origin: str) -> SignedTreeHead | None:
+        held = self.heads(origin)
+        return held[-1] if held else None
 
     def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
         self._request("POST", "/add-checkpoint", add_request(head, old_size, proof))

@@ -32,11 +32,7 @@ def generate_cmd(
     private_path, public_path = write(key, out)
     doc = {"private_key": str(private_path), "public_key_file": str(public_path), "public_key": key.public_raw.hex(),
            "det": det_to_text(key.det), "det_hex": key.det.hex(), "session_id": key.session_id}
-    if as_json:
-        typer.echo(json.dumps(doc, indent=2))
-        return
-    for name, value in doc.items():
-        typer.echo(f"{name:16} {value}")
+    _emit(doc, as_json)
 
 
 @keys_app.command("show")
@@ -54,13 +50,18 @@ def show_cmd(
 
     Example: authn keys show --public-key ua.pub.pem
     """
-    from authn.uakeys import det_of, read_public_key_arg
+    from authn.uakeys import det_of, read_public_key_arg, session_id_of
     from remoteid.drip import det_to_text
 
     key = read_public_key_arg(public_key)
     det = det_of(key, raa, hda)
     doc = {"public_key": key.hex(), "det": det_to_text(det), "det_hex": det.hex(),
-           "session_id": ("01" + det.hex()).upper()}
+           "session_id": session_id_of(det)}
+    _emit(doc, as_json)
+
+
+def _emit(doc: dict, as_json: bool) -> None:
+    """A key's facts: JSON, or one `name value` line each."""
     if as_json:
         typer.echo(json.dumps(doc, indent=2))
         return
