@@ -519,3 +519,15 @@ def test_checkpoint_note_is_a_c2sp_signed_note(db_url: str, tmp_path: Path, caps
     assert dash == "\u2014" and name == origin and raw[:4] == note_key_hash(origin, public_raw(key))
     key.verify(raw[4:], (body + "\n").encode())  # the signature covers the note text, final newline included
     assert main(["--db", db_url, "audit", "verify", "--against", str(note)]) == 0
+
+
+@pytest.mark.parametrize("body", [b"", b"old x\n\nnote", b"old 3\nnot-base64!\n\nnote", b"old 0\n\nno note",
+                                  b"\xff\xfe", b"old 1\n" + b"QQ==\n" + b"\n"])
+def test_a_malformed_add_checkpoint_request_is_bad_input(body: bytes) -> None:
+    """What `authn audit witness serve` answers 400 to: anything that is not `old N`, base64
+    32-byte proof hashes, a blank line and a signed note."""
+    from authn.audit.witness import parse_add_request
+    from core.errors import AuthnError
+
+    with pytest.raises(AuthnError, match="add-checkpoint"):
+        parse_add_request(body)

@@ -254,3 +254,11 @@ def test_import_json_names_what_it_wrote(scene_rec, cli, tmp_path) -> None:
     doc = json.loads(out)
     assert doc["domain"] == "if" and doc["shape"] == [200, 80] and len(doc["files"]) == 3
     assert all(Path(f).exists() for f in doc["files"])
+
+
+def test_array_without_a_waveform_is_one_line_exit_2(scene_rec, cli, tmp_path) -> None:
+    np.save(tmp_path / "if.npy", np.asarray(scene_rec.iq))
+    code, _, err = cli("import", "array", str(tmp_path / "if.npy"), *site_args(scene_rec), "--out",
+                       str(tmp_path / "x.h5"))
+    assert code == 2 and "--domain and --carrier-hz are required (or --radar-config" in err
+    assert err.count("\n") == 1 and not (tmp_path / "x.h5").exists()
