@@ -5,6 +5,7 @@ A `Scene` is plain data (validated); `signatures.simulate` turns it into IQ.
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -80,6 +81,20 @@ class Scene(BaseModel):
     attitude_wobble_deg: float = Field(default=1.0, ge=0, le=20)
     rotor_rate_jitter: float = Field(default=0.005, ge=0, le=0.1, description="std of per-rotor rate offset")
     nuisance: Nuisance | None = None
+    # --- conditions of real radars the estimators must hold on (docs/signal-model.md "Test conditions").
+    # Every default reproduces the plain simulator: a scene that sets none of them renders the same cube.
+    rotor_rate_hz: float | None = Field(
+        default=None, gt=1.0, le=500.0,
+        description="common mechanical rotor rate flown, rev/s (None: the profile's); e.g. idle 63-71 Hz")
+    blade_weights: tuple[tuple[float, ...], ...] | None = Field(
+        default=None, description="field amplitude of every blade, rotors x blades_per_rotor (1 = untagged)")
+    tagged_blades: int = Field(default=0, ge=0, le=128,
+                               description="blades carrying a reflective tag, chosen by the seed")
+    tag_gain_db: float = Field(default=10.0, ge=0.0, le=40.0, description="power gain of a tagged blade")
+    tag_layout: Literal["random", "spread"] = Field(
+        default="random", description="random: any blades; spread: one per rotor before a second on any rotor")
+    clutter_to_signal_db: float | None = Field(
+        default=None, ge=-30, le=80, description="clutter power over the target's (instead of clutter_db)")
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":
@@ -91,6 +106,30 @@ class Scene(BaseModel):
             raise ValueError("bird parameters given for a scene that is not a bird")
         if self.clutter_db is not None and self.snr_db is None and self.kind != "none":
             raise ValueError("clutter_db is relative to noise: give snr_db too")
+        if self.clutter_to_signal_db is not None:
+            if self.clutter_db is not None:
+                raise ValueError("give clutter_db (over noise) or clutter_to_signal_db (over the target), not both")
+            if self.kind == "none":
+                raise ValueError("clutter_to_signal_db needs a target: use clutter_db for an empty scene")
+        blades = (self.profile.rotors * self.profile.blades_per_rotor) if self.profile is not None else 0
+        if self.kind != "uav" and (self.rotor_rate_hz is not None or self.blade_weights is not None
+                                   or self.tagged_blades):
+            raise ValueError("rotor_rate_hz, blade_weights and tagged_blades describe a UAV's rotors")
+        if self.blade_weights is not None:
+            p = self.profile
+            assert p is not None
+            if self.tagged_blades:
+                raise ValueError("give blade_weights or tagged_blades, not both")
+            if len(self.blade_weights) != p.rotors or any(len(r) != p.blades_per_rotor for r in self.blade_weights):
+                raise ValueError(f"blade_weights must be {p.rotors} rotors x {p.blades_per_rotor} blades "
+                                 f"(profile {p.slug!r})")
+            flat = [w for r in self.blade_weights for w in r]
+            if not all(math.isfinite(w) and 0.0 <= w <= 100.0 for w in flat):
+                raise ValueError("blade_weights must be finite amplitudes in [0, 100]")
+            if not any(w > 0 for w in flat):
+                raise ValueError("blade_weights: at least one blade must reflect")
+        if self.tagged_blades > blades:
+            raise ValueError(f"tagged_blades ({self.tagged_blades}) exceeds the airframe's {blades} blades")
         return self
 
     @property
@@ -101,3 +140,33 @@ class Scene(BaseModel):
     @property
     def hovering(self) -> bool:
         return abs(self.radial_speed_mps) < 0.5
+
+
+class MultiScene(BaseModel):
+    """Several targets in one dwell (two drones and a bird, say), each with its own truth.
+
+    Powers: the noise has power 1 per IF sample; target i has mean power 10**(snr_db_i/10) (its own
+    `snr_db`, so each keeps the single-scene meaning); clutter has power 10**(clutter_db/10)
+    (clutter-to-noise) or 10**(clutter_to_signal_db/10) times the first target's power. The
+    targets' own clutter settings must be unset: the ground is shared.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    targets: tuple[Scene, ...] = Field(min_length=1, max_length=8)
+    clutter_db: float | None = Field(default=None, ge=-30, le=80, description="clutter-to-noise ratio")
+    clutter_to_signal_db: float | None = Field(default=None, ge=-30, le=80,
+                                               description="clutter over the first target's power")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "MultiScene":
+        for i, t in enumerate(self.targets):
+            if t.kind == "none":
+                raise ValueError(f"targets[{i}]: an empty scene is not a target")
+            if t.snr_db is None:
+                raise ValueError(f"targets[{i}]: snr_db sets the target's power over the common noise")
+            if t.clutter_db is not None or t.clutter_to_signal_db is not None:
+                raise ValueError(f"targets[{i}]: clutter is the scene's, not a target's")
+        if self.clutter_db is not None and self.clutter_to_signal_db is not None:
+            raise ValueError("give clutter_db (over noise) or clutter_to_signal_db (over the target), not both")
+        return self

@@ -27,10 +27,12 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from signatures.domain import as_recorded
+from signatures.errors import SignaturesError
 from signatures.profiles import UavProfile
 from signatures.radar import C, Preset, RadarConfig
 from signatures.recording import RadarSite, Recording
-from signatures.scene import BirdParams, Nuisance, Scene
+from signatures.scene import BirdParams, MultiScene, Nuisance, Scene
 
 SIMULATOR_VERSION = "2"  # bump when simulate() draws or computes different returns (cached datasets key on it)
 DEFAULT_SITE = RadarSite(lat_deg=52.0, lon_deg=4.4, alt_m=2.0)
@@ -54,15 +56,37 @@ class Truth:
     blade_length_m: float = 0.0
     flap_rate_hz: float = 0.0
     range_offset_m: float = 0.0
+    #: field amplitude of every blade (rotors x blades), () when all blades are alike (weight 1)
+    blade_weights: tuple[tuple[float, ...], ...] = ()
+    rotors: int = 0
 
     @property
     def rotor_rate_hz(self) -> float:
+        """Mean mechanical rotor rate, rev/s: the truth a rotor-rate estimate is scored against."""
         return float(np.mean(self.rotor_rates_hz)) if self.rotor_rates_hz else 0.0
 
     @property
     def blade_flash_rate_hz(self) -> float:
+        """Flashes per second of one rotor (N*f for even N blades, 2*N*f for odd), tags or not."""
         n = self.blades_per_rotor
         return (n if n % 2 == 0 else 2 * n) * self.rotor_rate_hz if n else 0.0
+
+    @property
+    def pattern_rates_hz(self) -> tuple[float, ...]:
+        """Per rotor, the rate at which its flash pattern repeats: its mechanical rate when its
+        blades reflect unequally (a tagged blade marks each turn), else its flash rate."""
+        n = self.blades_per_rotor
+        per_turn = n if n % 2 == 0 else 2 * n
+        out = []
+        for i, f in enumerate(self.rotor_rates_hz):
+            w = self.blade_weights[i] if self.blade_weights else ()
+            out.append(f if w and max(w) - min(w) > 1e-9 else per_turn * f)
+        return tuple(out)
+
+    @property
+    def pattern_rate_hz(self) -> float:
+        """Mean of `pattern_rates_hz`: the flash rate the blade pattern implies."""
+        return float(np.mean(self.pattern_rates_hz)) if self.rotor_rates_hz else 0.0
 
     @property
     def tip_speed_mps(self) -> float:
@@ -171,7 +195,8 @@ def _uav_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
     # rotors: alternating spin, independent phases, small rate jitter
     jitter = np.clip(rng.normal(0, scene.rotor_rate_jitter, p.rotors), -3 * scene.rotor_rate_jitter,
                      3 * scene.rotor_rate_jitter)
-    rates = p.rotor_rate_hz * (nz.rotor_rate_scale if nz else 1.0) * (1.0 + jitter)
+    nominal = scene.rotor_rate_hz if scene.rotor_rate_hz is not None else p.rotor_rate_hz
+    rates = nominal * (nz.rotor_rate_scale if nz else 1.0) * (1.0 + jitter)
     spin = np.where(np.arange(p.rotors) % 2 == 0, 1.0, -1.0)
     phase0 = rng.uniform(0, 2 * math.pi, p.rotors)
     blade_off = 2 * math.pi * np.arange(p.blades_per_rotor) / p.blades_per_rotor
@@ -195,12 +220,40 @@ def _uav_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
     p_body = float(np.mean(np.abs(body_part.sum(axis=1)) ** 2))
     p_blades = float(np.mean(np.abs(blades.sum(axis=1)) ** 2))
     blade_gain = math.sqrt(p_body / max(p_blades, 1e-300) * 10 ** (ratio_db / 10))
+    weights = blade_weights(scene, rng)  # drawn last: an untagged scene draws what it always drew
+    if weights is not None:  # a tag adds RCS: untagged blades keep the power ratio, tagged ones exceed it
+        blades = (per_blade * weights[None, :, :]).sum(axis=2)
     amps = np.concatenate([body.sum(axis=1, keepdims=True), hub_amp * hub_pts + blade_gain * blades], axis=1)
     offsets = np.concatenate([[0.0], hub_proj.mean(axis=0)])
     truth = Truth(label=p.slug, range_m=scene.range_m, radial_speed_mps=scene.radial_speed_mps,
                   elevation_deg=scene.elevation_deg, rotor_rates_hz=tuple(float(r) for r in rates),
-                  blades_per_rotor=p.blades_per_rotor, blade_length_m=p.blade_length_m)
+                  blades_per_rotor=p.blades_per_rotor, blade_length_m=p.blade_length_m, rotors=p.rotors,
+                  blade_weights=() if weights is None else tuple(tuple(float(x) for x in r) for r in weights))
     return amps, offsets, truth
+
+
+def blade_weights(scene: Scene, rng: np.random.Generator) -> np.ndarray | None:
+    """Field amplitude of every blade (rotors, blades) of a UAV scene, None when all are alike.
+
+    `scene.blade_weights` as given; else `tagged_blades` blades get amplitude 10**(tag_gain_db/20)
+    and the rest 1. Layout `random` picks the tagged blades uniformly (drawing from `rng` only when
+    there are tags); `spread` tags blade 0 of rotors 0, 1, ... in turn, then blade 1, so that up to
+    one tag per rotor every rotor carries one."""
+    p = scene.profile
+    assert p is not None
+    if scene.blade_weights is not None:
+        return np.asarray(scene.blade_weights, dtype=np.float64)
+    if not scene.tagged_blades:
+        return None
+    total = p.rotors * p.blades_per_rotor
+    if scene.tag_layout == "random":
+        chosen = rng.choice(total, size=scene.tagged_blades, replace=False)
+    else:  # blade-major order: (rotor 0, blade 0), (rotor 1, blade 0), ...
+        order = (np.arange(total) % p.rotors) * p.blades_per_rotor + np.arange(total) // p.rotors
+        chosen = order[:scene.tagged_blades]
+    w = np.ones(total)
+    w[chosen] = 10 ** (scene.tag_gain_db / 20)
+    return w.reshape(p.rotors, p.blades_per_rotor)
 
 
 def _nuisance_scatterers(nz: Nuisance, p: UavProfile, per_blade: np.ndarray, hub_proj: np.ndarray,
@@ -356,8 +409,13 @@ def render(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: int,
         None if scene.snr_db is None else 10 ** (-scene.snr_db / 10))
     clutter = None
     nz = scene.nuisance
+    clutter_power = None
     if scene.clutter_db is not None and noise_power is not None:
-        clutter = _clutter_cube(config, n_chirps, n_samples, noise_power * 10 ** (scene.clutter_db / 10), rng,
+        clutter_power = noise_power * 10 ** (scene.clutter_db / 10)
+    elif scene.clutter_to_signal_db is not None:  # the target's power per IF sample is 1
+        clutter_power = 10 ** (scene.clutter_to_signal_db / 10)
+    if clutter_power is not None:
+        clutter = _clutter_cube(config, n_chirps, n_samples, clutter_power, rng,
                                 nz.clutter_spread_mps if nz else 0.0)
     noise = None if noise_power is None else _noise_cube(n_chirps, n_samples, noise_power, rng)
     if nz is None:
@@ -375,15 +433,61 @@ def centred_offset(preset: Preset, range_m: float, radial_speed_mps: float = 0.0
 def simulate(scene: Scene, preset: Preset, seed: int | None = None, *,
              range_offset_m: float | None = None, site: RadarSite = DEFAULT_SITE,
              start_time: datetime = DEFAULT_START, dtype: type = np.complex64) -> tuple[Recording, Truth]:
-    """Simulate one dwell of `preset` on `scene` into a Recording (+ its ground truth)."""
+    """Simulate one dwell of `preset` on `scene` into a Recording (+ its ground truth), in the
+    preset's domain (`signatures.domain.as_recorded`: a `cw` preset's cube is its CW samples)."""
     offset = centred_offset(preset, scene.range_m, scene.radial_speed_mps) if range_offset_m is None \
         else range_offset_m
+    if preset.domain == "cw":
+        offset = 0.0  # a CW radar has no range gate (docs/format.md)
     config = preset.with_offset(offset)
     comps = render(scene, config, preset.n_chirps, preset.n_samples, seed)
     iq = comps.total(dtype)
     rec = Recording(config=config, site=site, start_time=start_time, iq=iq,
                     simulation=truth_json(scene, comps.truth, preset.name, seed))
-    return rec, comps.truth
+    return as_recorded(rec, preset.domain), comps.truth
+
+
+def simulate_many(multi: MultiScene, preset: Preset, seed: int | None = None, *,
+                  range_offset_m: float | None = None, site: RadarSite = DEFAULT_SITE,
+                  start_time: datetime = DEFAULT_START) -> tuple[Recording, list[Truth]]:
+    """One dwell of `preset` on several targets (`MultiScene`): a truth per target, in order.
+
+    Each target is rendered as alone (its own stream of `seed`) and scaled to its power over the
+    common unit noise; the range gate is centred on the targets' mid-dwell ranges, and a target
+    outside it is refused (a CW preset has no gate)."""
+    streams = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(len(multi.targets) + 1)]
+    cw = preset.domain == "cw"
+    if range_offset_m is None:
+        mids = [t.range_m + t.radial_speed_mps * preset.dwell_s / 2 for t in multi.targets]
+        range_offset_m = 0.0 if cw else centred_offset(preset, 0.5 * (min(mids) + max(mids)))
+    config = preset.with_offset(0.0 if cw else range_offset_m)
+    lo, hi = config.range_window_m
+    cube = np.zeros((preset.n_chirps, preset.n_samples), dtype=np.complex64)
+    truths = []
+    for i, (target, rng) in enumerate(zip(multi.targets, streams)):
+        ends = (target.range_m, target.range_m + target.radial_speed_mps * preset.dwell_s)
+        if not cw and not (lo <= min(ends) and max(ends) < hi):
+            raise SignaturesError(f"targets[{i}]: range {target.range_m:g} m leaves the gate [{lo:g}, {hi:g}) m")
+        part, truth = _target_cube(target, config, preset.n_chirps, preset.n_samples, rng)
+        assert part is not None and target.snr_db is not None
+        cube += part * np.float32(10 ** (target.snr_db / 20))
+        truths.append(Truth(**{**truth.__dict__, "range_offset_m": config.range_offset_m}))
+    rng = streams[-1]
+    clutter_power = None
+    if multi.clutter_db is not None:
+        clutter_power = 10 ** (multi.clutter_db / 10)
+    elif multi.clutter_to_signal_db is not None:
+        first = multi.targets[0].snr_db
+        assert first is not None
+        clutter_power = 10 ** ((multi.clutter_to_signal_db + first) / 10)
+    if clutter_power is not None:
+        cube += _clutter_cube(config, preset.n_chirps, preset.n_samples, clutter_power, rng)
+    cube += _noise_cube(preset.n_chirps, preset.n_samples, 1.0, rng)
+    doc = {"preset": preset.name, "seed": seed, "scene": multi.model_dump(mode="json"),
+           "truths": [{**t.__dict__, "rotor_rates_hz": list(t.rotor_rates_hz)} for t in truths]}
+    rec = Recording(config=config, site=site, start_time=start_time, iq=cube,
+                    simulation=json.dumps(doc, sort_keys=True, separators=(",", ":")))
+    return as_recorded(rec, preset.domain), truths
 
 
 def truth_json(scene: Scene, truth: Truth, preset: str, seed: int | None) -> str:

@@ -40,6 +40,20 @@ class AirframeTruth:
     attitude_rms_deg: float
     tilt_deg: float
     n_points: int
+    blades_per_rotor: int = 2
+    #: per rotor and blade: the tag's (or the scene's weight's) power gain in dB over the blade's
+    #: own RCS, 0 where none; () when the scene tags nothing
+    tag_db: tuple[tuple[float, ...], ...] = ()
+
+    @property
+    def pattern_rates_hz(self) -> tuple[float, ...]:
+        """Per rotor, the rate at which its flash pattern repeats: its mechanical rate when a tag or
+        a weight makes its blades unequal, else its flash rate (the model's own +-1.5 dB blade
+        spread aside)."""
+        n = self.blades_per_rotor
+        per_turn = n if n % 2 == 0 else 2 * n
+        return tuple(f if self.tag_db and max(self.tag_db[i]) - min(self.tag_db[i]) > 1e-6 else per_turn * f
+                     for i, f in enumerate(self.rotor_rates_hz))
 
 
 def _rotate(v: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -132,6 +146,8 @@ def _rotor_phases(p: UavProfile, lay: _Layout, scene: Scene, t: np.ndarray, yaw0
         scale = rng.uniform(0.90, 1.10)
     else:
         scale = rng.uniform(0.95, 1.12)
+    if scene.rotor_rate_hz is not None:  # the scene fixes the common rate flown (idle, say)
+        scale = scene.rotor_rate_hz / p.rotor_rate_hz
     spread = np.clip(rng.normal(0.0, rng.uniform(0.01, 0.03), p.rotors), -0.06, 0.06)
     rates = p.rotor_rate_hz * scale * (1.0 + spread)
     rates = np.where(lay.lower, rates * rng.uniform(1.03, 1.10), rates)  # the lower prop works in the upper's wash
@@ -188,6 +204,40 @@ def _blades(p: UavProfile, lay: _Layout, theta: np.ndarray, w: np.ndarray, wavel
     return Points(along.reshape(shape), norm_sq.reshape(shape), amp.reshape(shape)), n_st
 
 
+def _tags(scene: Scene, n_st: int, rng: np.random.Generator) -> tuple[np.ndarray | None, np.ndarray]:
+    """Per-station amplitude factors (r, b, stations + 1) of the scene's tags or blade weights, and
+    each blade's power gain in dB (r, b); None when the scene has neither.
+
+    A tag here is a strip of reflective tape: it covers 2-4 adjacent stations at 45-90 % of the
+    span (the tip point untouched), and raises those stations so that the blade's summed station
+    power grows by the scene's `tag_gain_db`. The tagged blades are drawn from the held-out
+    model's own stream. Blade weights scale a whole blade."""
+    p = scene.profile
+    assert p is not None
+    r, b = p.rotors, p.blades_per_rotor
+    if scene.blade_weights is not None:
+        w = np.asarray(scene.blade_weights, dtype=np.float64)
+        return np.broadcast_to(w[:, :, None], (r, b, n_st + 1)).copy(), 20 * np.log10(np.maximum(w, 1e-6))
+    if not scene.tagged_blades:
+        return None, np.zeros((r, b))
+    if scene.tag_layout == "spread":  # one per rotor first (rotor order shuffled), then a second
+        rotor_order = rng.permutation(r)
+        flat = [int(rotor_order[k % r]) * b + (k // r) for k in range(scene.tagged_blades)]
+    else:
+        flat = list(rng.choice(r * b, size=scene.tagged_blades, replace=False))
+    factor = np.ones((r * b, n_st + 1))
+    db = np.zeros(r * b)
+    gain = 10 ** (scene.tag_gain_db / 10)  # power of the blade with its tag over the blade without
+    for k in flat:
+        width = int(rng.integers(2, 5))
+        first = int(rng.integers(int(0.45 * n_st), max(int(0.45 * n_st) + 1, int(0.9 * n_st) - width + 1)))
+        strip = np.arange(first, min(first + width, n_st))
+        # stations' powers sum; a strip of s stations of the n must carry (gain - 1) x n extra
+        factor[k, strip] = math.sqrt(1.0 + (gain - 1.0) * n_st / strip.size)
+        db[k] = scene.tag_gain_db
+    return factor.reshape(r, b, n_st + 1), db.reshape(r, b)
+
+
 def _body(p: UavProfile, lay: _Layout, rates: np.ndarray, t: np.ndarray, w: np.ndarray,
           rng: np.random.Generator) -> Points:
     """Fuselage, spinners, vibrating motors, flexing arms and landing gear."""
@@ -239,9 +289,14 @@ def uav_points(scene: Scene, t: np.ndarray, wavelength: float,
     p_body = float(np.sum(body.amplitude[0] ** 2))
     p_blades = float(np.mean(np.sum(blades.amplitude ** 2, axis=1)))
     k = np.float32(math.sqrt(p_body / p_blades * 10 ** (ratio_db / 10)))
+    tag_factor, tag_db = _tags(scene, n_st, rng)  # drawn last: an untagged scene is unchanged
+    if tag_factor is not None:  # a tag adds RCS on top of the blade's share
+        blades = Points(blades.along_los, blades.norm_sq,
+                        blades.amplitude * tag_factor.reshape(-1).astype(np.float32)[None, :])
     pts = Points(np.concatenate([body.along_los, blades.along_los], axis=1),
                  np.concatenate([body.norm_sq, blades.norm_sq], axis=1),
                  np.concatenate([body.amplitude, k * blades.amplitude], axis=1))
     truth = AirframeTruth(tuple(float(r) for r in rates), tuple(int(s) for s in lay.spin), n_st, ratio_db,
-                          rms_deg, tilt_deg, int(pts.amplitude.shape[1]))
+                          rms_deg, tilt_deg, int(pts.amplitude.shape[1]), p.blades_per_rotor,
+                          () if tag_factor is None else tuple(tuple(float(x) for x in row) for row in tag_db))
     return pts, truth
