@@ -3,7 +3,8 @@
 `load_classifier(preset)` verifies the bundle's digests against its card and keeps the
 result for the process (batch mode reuses it). `classifier_for(recording)` picks the bundle of
 the recording's waveform: the shipped preset's, else a user bundle (`authn models train --like`,
-under `models_dir()`) whose card describes the same waveform. The kNN (`knn.npz`) and the Random
+under `models_dir()`) whose card describes the same waveform; a site bundle (`authn models enrol`)
+that `active.json` in `models_dir()` names for the waveform goes ahead of both. The kNN (`knn.npz`) and the Random
 Forests (`rf.npz`, `rf_state.npz`) are plain arrays evaluated in numpy, so the usual
 check never imports onnxruntime; the SVM and the CNN are ONNX files, opened on first use. `Classifier.predict` turns one
 feature vector (and optionally the RD patch) into a `Prediction`: calibrated soft-vote of
@@ -31,10 +32,14 @@ from signatures.profiles import NON_UAV_CLASSES, UNKNOWN
 from signatures.radar import (PRESETS, SERVES, TRAINABLE_DOMAINS, WAVEFORM_FIELDS, WAVEFORM_REL_TOL, Preset,
                               RadarConfig, get_preset, parse_waveform, recording_waveform, shipped_preset)
 
-__all__ = ["MEMBERS", "Classifier", "ForestArrays", "KnnArrays", "NoModelError", "Prediction", "bundle_dir",
+__all__ = ["ACTIVE_FORMAT", "ACTIVE_NAME", "MEMBERS", "Classifier", "active_bundle", "active_map",
+           "set_active", "ForestArrays", "KnnArrays", "NoModelError", "Prediction", "bundle_dir",
            "calibrate", "card_waveform", "classifier_for", "find_bundle", "load_classifier", "match_preset",
            "models_dir", "nearest_bundle", "user_bundles", "waveform_differences"]
 
+#: The file in `models_dir()` naming each waveform's active site bundle (waveform key -> folder name).
+ACTIVE_NAME = "active.json"
+ACTIVE_FORMAT = "uav-radar-authn/active-bundles/1"
 #: The ensemble's members, in the order of the card's `ensemble.weights` (training and inference).
 MEMBERS = ("knn", "rf", "svm")
 _LOADED: dict[str, "Classifier"] = {}
@@ -167,6 +172,16 @@ class Classifier:
             self._cnn_mean = float(c["cnn"]["input_mean"])
             self._cnn_std = float(c["cnn"]["input_std"])
         self._uav = np.array([k not in NON_UAV_CLASSES for k in self.classes])
+        enrolment = c.get("enrolment")
+        #: a site bundle (`authn models enrol`): its radar-confusable pairs of enrolled models
+        self.site = isinstance(enrolment, dict)
+        self.confusable_pairs: tuple[tuple[str, str], ...] = tuple(
+            (str(a), str(b)) for a, b in (enrolment or {}).get("confusable_pairs", []))
+
+    def confusable_with(self, model: str) -> tuple[str, ...]:
+        """The enrolled models this site bundle cannot tell `model` apart from (its card's
+        cross-validated pairwise error above the threshold); () for any other bundle."""
+        return tuple(sorted({b if a == model else a for a, b in self.confusable_pairs if model in (a, b)}))
 
     def _model(self, name: str) -> Any:
         """kNN or forest arrays (`name.npz`) or an onnxruntime session (`name.onnx`), opened once."""
@@ -316,9 +331,83 @@ def user_bundles() -> list[tuple[Path, dict[str, Any] | None]]:
     return out
 
 
+def active_map() -> dict[str, str]:
+    """Waveform key -> the name of its active site bundle, from `models_dir()/active.json` ({}
+    without one). A file that is not what `set_active` writes stops the check (fail closed:
+    silently falling back to another bundle would change every decision)."""
+    path = models_dir() / ACTIVE_NAME
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        return {}
+    except (OSError, ValueError) as exc:
+        raise SignaturesError(f"{path}: unreadable ({exc}); `authn models use NAME|shipped` rewrites it") from None
+    active = doc.get("active") if isinstance(doc, dict) and doc.get("format") == ACTIVE_FORMAT else None
+    if not isinstance(active, dict) or not all(isinstance(k, str) and isinstance(v, str) and _plain(v)
+                                               for k, v in active.items()):
+        raise SignaturesError(f"{path}: not an {ACTIVE_FORMAT} file; `authn models use NAME|shipped` rewrites it")
+    return dict(active)
+
+
+def _plain(name: str) -> bool:
+    return bool(name) and "/" not in name and "\\" not in name and not name.startswith(".")
+
+
+def set_active(key: str, name: str | None) -> None:
+    """Make `name` the active site bundle of waveform `key` (None: back to the shipped or trained
+    bundle), or with key "*" and None, every waveform. Written to a temporary file and renamed:
+    a reader sees the old map or the new one."""
+    import tempfile
+
+    active = active_map()
+    if key == "*" and name is None:
+        active = {}
+    elif name is None:
+        active.pop(key, None)
+    else:
+        active[key] = name
+    root = models_dir()
+    root.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".active-", dir=root)
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump({"format": ACTIVE_FORMAT, "active": dict(sorted(active.items()))}, f, indent=1)
+            f.write("\n")
+        os.replace(tmp, root / ACTIVE_NAME)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _keys(wf: Preset) -> tuple[str, ...]:
+    """The waveform keys whose bundles serve `wf`: its own, and an IF bundle's for a range file."""
+    from signatures.radar import waveform_key
+
+    keys = [wf.key]
+    for domain, served in SERVES.items():
+        if domain != wf.domain and wf.domain in served:
+            keys.append(waveform_key(wf.config, wf.n_chirps, wf.n_samples, domain))
+    return tuple(keys)
+
+
+def active_bundle(wf: Preset) -> Path | None:
+    """The folder of the active site bundle serving `wf`, or None. An active name whose folder
+    is gone is an error, not a fallback."""
+    active = active_map()
+    for key in _keys(wf):
+        if key in active:
+            folder = models_dir() / active[key]
+            if not (folder / CARD_NAME).is_file():
+                raise NoModelError(f"the active site bundle {active[key]!r} is missing from {models_dir()}; "
+                                   "`authn models use shipped` or enrol again")
+            return folder
+    return None
+
+
 def _serves(card: dict[str, Any] | None, wf: Preset) -> bool:
     try:
-        return card is not None and card_waveform(card).matches(wf.config, wf.n_chirps, wf.n_samples, wf.domain)
+        return card is not None and "enrolment" not in card \
+            and card_waveform(card).matches(wf.config, wf.n_chirps, wf.n_samples, wf.domain)
     except (SignaturesError, KeyError, TypeError):
         return False  # a card of another layout serves nothing here; loading it names the problem
 
@@ -443,6 +532,9 @@ def classifier_for(recording: Any, model: str | Path | None = None, source: str 
             raise NoModelError(f"{model}: this bundle is for {clf.waveform.describe()}, the file's waveform is "
                                f"{wf.describe()}")
         return clf
+    site = active_bundle(wf)
+    if site is not None:
+        return load_classifier(path=site)
     if wf.shipped:
         return load_classifier(wf.name)
     key = f"{models_dir()}:{wf.key}"

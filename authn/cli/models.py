@@ -1,5 +1,6 @@
-"""`authn models train / list / evaluate`: build classifier bundles (for a shipped preset or any
-waveform), list them, and print the paper's metrics."""
+"""`authn models train / enrol / use / list / evaluate`: build classifier bundles (for a shipped
+preset or any waveform), adapt them to the site's radar from its recorded flights (site
+enrolment, docs/classifiers.md), pick the active one, list them, and print the paper's metrics."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from pathlib import Path
 import typer
 
 
-models_app = typer.Typer(help="Train, list and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
+models_app = typer.Typer(help="Train, enrol, list and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
                          no_args_is_help=True)
 
 
@@ -190,12 +191,16 @@ def list_models(
 
     rows = [(name, "shipped", bundle_dir(name), json.loads((bundle_dir(name) / CARD_NAME).read_text()))
             for name in PRESETS if (bundle_dir(name) / CARD_NAME).is_file()]
-    rows += [(folder.name, "user", folder, card) for folder, card in user_bundles()]
+    rows += [(folder.name, "site" if isinstance(card, dict) and "enrolment" in card else "user", folder, card)
+             for folder, card in user_bundles()]
     docs = [_bundle_json(name, kind, folder, card) for name, kind, folder, card in rows]
+    _mark_active(docs)
     if as_json:
         typer.echo(json.dumps(docs, indent=2))
         return
-    t = Table(title=f"model bundles (user bundles in {models_dir()})", title_justify="left", box=box.SIMPLE_HEAD)
+    t = Table(title=f"model bundles (user bundles in {models_dir()}; * = what `authn check` uses for its waveform)",
+              title_justify="left", box=box.SIMPLE_HEAD)
+    t.add_column("", no_wrap=True)
     for col in ("name", "kind"):
         t.add_column(col, no_wrap=True)  # identifiers: never split
     t.add_column("waveform", overflow="fold")
@@ -204,8 +209,27 @@ def list_models(
     for d in docs:
         wave = d["waveform"]["description"] if d["waveform"] else "unreadable card"
         acc = "" if d["validation_accuracy"] is None else f"{d['validation_accuracy']:.3f}"
-        t.add_row(d["name"], d["kind"], wave, ", ".join(d["airframes"]), acc)
+        t.add_row("*" if d["active"] else "", d["name"], d["kind"], wave, ", ".join(d["airframes"]), acc)
     print_table(t)
+
+
+def _mark_active(docs: list[dict]) -> None:
+    """`active`: the bundle `authn check` picks for its waveform. A site bundle when `active.json`
+    names it; a shipped or trained bundle when no site bundle is active for its waveform (of
+    trained ones, the first by name)."""
+    from signatures.inference import active_map
+
+    active = active_map()
+    taken: set[str] = set()
+    order = sorted(docs, key=lambda d: (d["kind"] != "shipped", d["name"]))
+    for d in order:
+        key = d["waveform"]["key"] if d["waveform"] else None
+        if d["kind"] == "site":
+            d["active"] = key is not None and active.get(key) == d["name"]
+        else:
+            d["active"] = key is not None and key not in active and key not in taken
+        if d["active"] and key is not None:
+            taken.add(key)
 
 
 def _bundle_json(name: str, kind: str, folder: Path, card) -> dict:
@@ -215,7 +239,7 @@ def _bundle_json(name: str, kind: str, folder: Path, card) -> dict:
     from signatures.profiles import NON_UAV_CLASSES
 
     doc: dict = {"name": name, "kind": kind, "folder": str(folder), "waveform": None, "airframes": [],
-                 "validation_accuracy": None, "error": None}
+                 "validation_accuracy": None, "error": None, "active": False}
     try:
         wf = card_waveform(card)
         doc["waveform"] = {**wf.as_json(), "description": wf.describe(), "key": wf.key}
@@ -319,3 +343,257 @@ def _print(report: dict) -> None:
         for r, row in zip(cm["rows"], cm["matrix"]):
             t.add_row(r, *(str(v) for v in row))
         console.print(t)
+
+
+# --- site enrolment ------------------------------------------------------------------------
+
+_RECORDING_SUFFIXES = (".h5", ".hdf5", ".npz")
+
+
+def _recording_files(paths: list[Path]) -> list[Path]:
+    """The recordings named: files as given, directories' .h5/.hdf5/.npz files (recursively, sorted)."""
+    from signatures.enrol import EnrolError
+
+    out: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            out += sorted(f for f in p.rglob("*") if f.is_file() and f.suffix.lower() in _RECORDING_SUFFIXES)
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise EnrolError(f"{p}: no such file or directory")
+    seen: dict[Path, Path] = {}
+    for f in out:
+        seen.setdefault(f.resolve(), f)
+    if not seen:
+        raise EnrolError(f"no recordings (.h5, .hdf5, .npz) in {', '.join(str(p) for p in paths)}")
+    return list(seen.values())
+
+
+def _labelled(files: list[Path], labels: Path | None, db) -> list[tuple[Path, str | None]]:
+    """(file, model) for each recording: from LABELS.csv (every recording needs a row, and every
+    row's file must be among the recordings), else None: from its Remote ID serial, later."""
+    from signatures.enrol import EnrolError, read_labels
+
+    if labels is None:
+        return [(f, None) for f in files]
+    rows = dict(read_labels(labels))
+    resolved = {f.resolve(): f for f in files}
+    missing = [f for r, f in resolved.items() if r not in rows and r != labels.resolve()]
+    if missing:
+        raise EnrolError(f"{missing[0]}: no label in {labels} (every recording needs a file,model row)")
+    extra = [r for r in rows if r not in resolved]
+    if extra:
+        raise EnrolError(f"{labels}: labels {extra[0]}, which is not among the recordings given")
+    return [(f, rows[r]) for r, f in resolved.items()]
+
+
+def _site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteSample, Preset)
+    """Read one recording, label it (its Remote ID serial's registered model when `model` is None),
+    and extract its features as `authn check` would: gated at the range its Remote ID declares."""
+    from dataclasses import asdict
+
+    from authn.evidence import read_claim
+    from authn.kinematics import expected_from_radar
+    from core.errors import AuthnException
+    from signatures.enrol import EnrolError, SiteSample, sha256_of
+    from signatures.features import extract
+    from signatures.radar import recording_waveform
+    from signatures.recording import read_recording
+
+    rec = recording if recording is not None else read_recording(path)
+    claim = None
+    try:
+        claim = read_claim(rec, None)
+    except AuthnException:
+        if model is None:
+            raise EnrolError(f"{path}: no Remote ID serial to label it by (give --labels LABELS.csv)") from None
+    if model is None:
+        ident = db.identity(claim.serial)
+        if ident is None:
+            raise EnrolError(f"{path}: Remote ID serial {claim.serial} is not registered "
+                             "(register it, or give --labels)")
+        if ident.status != "active":
+            raise EnrolError(f"{path}: Remote ID serial {claim.serial} is {ident.status}, not active")
+        model = ident.model
+    gate = None
+    if claim is not None and claim.state is not None and rec.domain != "cw":
+        exp = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m, rec.start_time)
+        lo, hi = rec.config.range_window_m
+        gate = exp.range_m if lo <= exp.range_m < hi else None
+    feats = extract(rec, expected_range_m=gate)
+    physics = {k: float(v) for k, v in feats.physics.items()}
+    physics.update({k: float(v) for k, v in asdict(feats.features).items() if k not in physics})
+    sample = SiteSample(name=str(path), sha256=sha256_of(path), model=model,
+                        features=feats.as_array().astype("float32"), physics=physics, detected=bool(feats.detected))
+    return sample, recording_waveform(rec)
+
+
+@models_app.command("enrol")
+def enrol_cmd(
+    ctx: typer.Context,
+    recordings: list[Path] = typer.Argument(..., help="Recorded genuine flights from this site's radar: files or "
+                                                       "directories (their .h5/.hdf5/.npz files)."),
+    labels: Path | None = typer.Option(None, "--labels", help="CSV with header file,model: file relative to the "
+                                                              "CSV's folder, model a registered profile slug (default: "
+                                                              "each recording's Remote ID serial, looked up in the "
+                                                              "registry)."),
+    name: str | None = typer.Option(None, "--name", help="Site bundle name (default: site-<waveform>-<UTC time>)."),
+    add: bool = typer.Option(False, "--add", help="Add these recordings to the waveform's active enrolment."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the simulated base set, the folds and the forest."),
+    workers: int = typer.Option(2, "--workers", min=1, max=64, help="Worker processes (simulation, forest)."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object at the end (progress on stderr)."),
+) -> None:
+    """Adapt the radar evidence to this site's radar from its recorded flights (site enrolment).
+
+    Builds a site bundle for the recordings' waveform (a simulated base set plus the site's
+    recordings, cross-validated), writes its enrolment card (counts, confusion matrix, pairwise
+    errors, radar-confusable pairs, threshold, source digests) and makes it the active bundle:
+    `authn check` then uses it for that waveform ahead of the shipped one. Bad input (a missing
+    or unknown label, another waveform, too few recordings) changes nothing.
+
+    Example: authn models enrol flights/ --labels flights/labels.csv
+    """
+    import sys
+
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from registry.dbapi import Database
+    from signatures.enrol import (EnrolError, bundle_name_ok, default_name, enrol, previous_samples)
+    from signatures.inference import active_bundle, load_classifier, models_dir, set_active
+    from signatures.profiles import shipped_profiles
+
+    t0 = time.perf_counter()
+    if name is not None and not bundle_name_ok(name):
+        raise EnrolError(f"--name {name!r}: lower-case letters, digits, '.', '_' or '-' (at most 64), "
+                         "not a preset name or 'shipped'")
+    db = Database(ctx.obj.db_url if ctx.obj else None)
+    files = _recording_files(recordings)
+    todo = _labelled(files, labels, db)
+    console = Console(stderr=True)
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                   TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True,
+                   disable=not sys.stderr.isatty())
+    samples, waveforms = [], {}
+    with bar:
+        task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
+        for f, model in todo:
+            s, wf = _site_sample(f, model, db)
+            samples.append(s)
+            waveforms.setdefault(wf.key, wf)
+            bar.advance(task)
+    if len(waveforms) > 1:
+        described = "; ".join(w.describe() for w in waveforms.values())
+        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}): enrol each waveform's "
+                         "recordings on their own")
+    wf = next(iter(waveforms.values()))
+    previous = None
+    if add:
+        folder = active_bundle(wf)
+        if folder is None:
+            raise EnrolError(f"--add: no active site bundle for {wf.describe()} to add to (enrol without --add)")
+        previous = folder.name
+        load_classifier(path=folder)  # verified before its samples are reused
+        known = {s.sha256 for s in previous_samples(folder)}
+        samples = previous_samples(folder) + [s for s in samples if s.sha256 not in known]
+    registered = {}
+    for slug in sorted({s.model for s in samples}):
+        p = db.profile(slug)
+        if p is None:
+            raise EnrolError(f"unknown model {slug!r}: not a registered model profile (authn registry models)")
+        registered[slug] = p
+    profiles = {**shipped_profiles(), **registered}
+    name = name or default_name(wf)
+    dest = models_dir() / name
+    if dest.exists():
+        raise EnrolError(f"{dest}: a bundle of that name exists (choose another --name)")
+    counts = {m: sum(s.model == m for s in samples) for m in sorted({s.model for s in samples})}
+    console.print(f"enrolling {len(samples)} recordings ({', '.join(f'{m} {n}' for m, n in counts.items())}) of "
+                  f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers):.0f} s "
+                  "(less with a cached base set)")
+    with bar:
+        task = bar.add_task("enrolling", total=1.0)
+
+        def progress(phase: str, frac: float) -> None:
+            bar.update(task, description=phase, completed=frac)
+
+        card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
+                     progress=progress)
+    set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
+    _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
+
+
+def _estimate(wf, n_site: int, workers: int) -> float:
+    """Seconds an enrolment takes on this machine: the base set's simulation (measured on three
+    returns; nothing when cached), the site features, the folds' forests."""
+    from signatures.dataset import DatasetSpec, seconds_per_return
+    from signatures.enrol import CV_FOLDS, N_SIM
+    from signatures.profiles import shipped_profiles
+
+    per = seconds_per_return(DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="train",
+                                         n=N_SIM, seed=0))
+    return N_SIM * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
+
+
+def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) -> None:
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    e = card["enrolment"]
+    if as_json:
+        typer.echo(json.dumps({"name": e["name"], "folder": str(folder), "seconds": round(seconds, 2),
+                               "counts": e["counts"], "confusion": e["confusion"], "pairwise": e["pairwise"],
+                               "confusable_pairs": e["confusable_pairs"], "threshold": e["threshold"],
+                               "sources": len(e["sources"])}, indent=2))
+        return
+    console = Console()
+    console.print(f"site bundle [bold]{e['name']}[/] written to {folder} in {seconds:.0f} s; active for "
+                  f"{card['preset']} recordings")
+    t = Table(title="cross-validated confusion (rows: enrolled model, columns: what the system said)",
+              box=box.SIMPLE_HEAD, title_justify="left")
+    t.add_column("model", no_wrap=True)
+    for c in e["confusion"]["cols"]:
+        t.add_column(c, justify="right", no_wrap=True)
+    for r, row in zip(e["confusion"]["rows"], e["confusion"]["matrix"]):
+        t.add_row(r, *(str(v) for v in row))
+    console.print(t)
+    for p in e["pairwise"]:
+        sd = p["single_dwell"]
+        fa = "n/a" if sd["false_accept_rate"] is None else f"{sd['false_accept_rate']:.1%}"
+        mark = "  radar-confusable: unsigned claims rejected" if p["models"] in e["confusable_pairs"] else ""
+        console.print(f"  {p['models'][0]} / {p['models'][1]}: type spoofs accepted {fa} "
+                      f"({sd['false_accepts']} of {sd['claims']} cross-validated claims){mark}")
+    th = e["threshold"]
+    console.print(f"  genuine accepted (cross-validated) at the applied threshold {th['applied']:g} nats: "
+                  f"{th['genuine_accept_at_applied']:.1%}; threshold at {th['false_accept_target']:.0%} false accepts: "
+                  f"{th['at_false_accept_target']}")
+    console.print(f"  card: {folder / 'card.json'} ({len(e['sources'])} source digests)")
+
+
+@models_app.command("use")
+def use_cmd(
+    name: str = typer.Argument(..., help="A site bundle's name (`authn models list`), or 'shipped'."),
+) -> None:
+    """Switch the active bundle: a site bundle for its waveform, or 'shipped' for every waveform.
+
+    Example: authn models use shipped
+    """
+    from signatures.enrol import EnrolError
+    from signatures.inference import card_waveform, load_classifier, models_dir, set_active
+
+    if name == "shipped":
+        set_active("*", None)
+        typer.echo("the shipped (or `models train`) bundles are active for every waveform")
+        return
+    folder = models_dir() / name
+    if "/" in name or name.startswith(".") or not (folder / "card.json").is_file():
+        raise EnrolError(f"no site bundle named {name!r} in {models_dir()} (`authn models list`)")
+    clf = load_classifier(path=folder)  # verified before it goes live
+    if not clf.site:
+        raise EnrolError(f"{name}: not a site bundle (made by `authn models enrol`); a trained bundle serves its "
+                         "waveform whenever no site bundle is active")
+    wf = card_waveform(clf.card)
+    set_active(wf.key, name)
+    typer.echo(f"{name} is active for {wf.describe()}")

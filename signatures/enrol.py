@@ -1,0 +1,466 @@
+"""Site enrolment: adapt a model bundle to the site's own radar from its recorded genuine flights.
+
+Why: every learned part of a bundle was fitted to simulated returns, and no simulator is the
+site's radar (docs/classifiers.md, "Site enrolment"). A site flies each registered airframe past
+its radar; these recordings, labelled with the registered model, build a *site bundle* that
+`authn check` then uses for that waveform ahead of the shipped one.
+
+Method (fixed a priori, measured in docs/benchmarks.md "Site enrolment"):
+
+1. a simulated base set for the waveform (`N_SIM` returns of the shipped profiles plus the
+   enrolled ones, bird and none: what keeps the classes the site cannot fly, cached);
+2. the Random Forest refitted on base + site returns, the site's returns weighted so that each
+   enrolled model's site returns weigh `SITE_SHARE` of that model's total (site data dominates
+   where it exists, the simulator fills the rest of the feature space);
+3. K-fold cross-validation over the site recordings (the base set always in training): the
+   out-of-fold probabilities calibrate the temperature (a bounded grid: the ill-posed
+   maximum-likelihood temperature of a perfectly separated set is avoided), give the confusion
+   matrix, and score every recording against its own model (genuine) and against every other
+   enrolled model (impostor) with the check's own 1:1 verification (`signatures.verify`);
+4. the verification threshold: the lowest LLR at which the cross-validated false-accept rate of
+   the impostor claims is <= `FALSE_ACCEPT_TARGET` (reported; the policy applies 0 nats, see the
+   card's `threshold.applied`);
+5. radar-confusable pairs: enrolled pairs whose cross-validated pairwise false-accept rate at
+   the applied threshold exceeds `CONFUSABLE_ERROR` (the policy then asks for a DRIP signature,
+   `radar-confusable-unsigned`).
+
+The bundle is written to a temporary folder beside its destination and renamed into place: an
+interrupted enrolment leaves nothing half-written, and the active bundle switches only after
+(`signatures.inference.set_active`). scikit-learn is imported here only: the check never runs this.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import math
+import os
+import re
+import shutil
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from signatures.errors import SignaturesError
+from signatures.profiles import UavProfile
+from signatures.radar import Preset
+
+__all__ = ["CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM", "SITE_SHARE",
+           "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "default_name", "enrol", "previous_samples",
+           "read_labels", "sha256_of"]
+
+#: Fewest recordings per enrolled model: below this a cross-validated error means nothing.
+MIN_RECORDINGS = 5
+#: A pair whose cross-validated pairwise false-accept rate exceeds this is radar-confusable.
+CONFUSABLE_ERROR = 0.01
+#: The false-accept target the reported verification threshold is chosen at.
+FALSE_ACCEPT_TARGET = 0.01
+#: Site returns' share of each enrolled model's training weight.
+SITE_SHARE = 0.8
+#: Simulated base returns (cached per waveform and profile set).
+N_SIM = 1500
+CV_FOLDS = 5
+#: Inverse temperatures tried on the out-of-fold probabilities (bounded: see the module docstring).
+BETAS = tuple(float(b) for b in np.geomspace(0.25, 8.0, 31))
+ENROL_FORMAT = "uav-radar-authn/site-enrolment/1"
+MAX_LABEL_ROWS = 100_000
+MAX_LABEL_BYTES = 8 << 20
+_NAME = re.compile(r"[a-z0-9][a-z0-9._-]{0,63}")
+
+
+class EnrolError(SignaturesError):
+    """Enrolment input that cannot be used (exit 2, one line)."""
+
+
+class LabelRow(BaseModel):
+    """One row of LABELS.csv: a recording (relative to the CSV's folder) and its registered model."""
+
+    model_config = ConfigDict(extra="forbid", str_strip_whitespace=True)
+
+    file: str = Field(min_length=1, max_length=4096)
+    model: str = Field(pattern=r"^[a-z0-9][a-z0-9_-]{0,31}$")
+
+
+def read_labels(path: Path) -> list[tuple[Path, str]]:
+    """(recording path, model slug) of each row of an untrusted `file,model` CSV. Paths are
+    relative to the CSV's folder and may not leave it; a duplicate, a bad header or a bad row
+    is an EnrolError naming its line."""
+    try:
+        if path.stat().st_size > MAX_LABEL_BYTES:
+            raise EnrolError(f"{path}: larger than {MAX_LABEL_BYTES >> 20} MiB")
+        text = path.read_bytes().decode("utf-8-sig")
+    except OSError as exc:
+        raise EnrolError(f"{path}: cannot read ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise EnrolError(f"{path}: not UTF-8 text") from None
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows or [c.strip().lower() for c in rows[0]] != ["file", "model"]:
+        raise EnrolError(f"{path}: the header must be exactly 'file,model'")
+    if len(rows) - 1 > MAX_LABEL_ROWS:
+        raise EnrolError(f"{path}: more than {MAX_LABEL_ROWS} rows")
+    root = path.parent.resolve()
+    out: list[tuple[Path, str]] = []
+    seen: set[Path] = set()
+    for line, cells in enumerate(rows[1:], start=2):
+        if not cells or all(not c.strip() for c in cells):
+            continue
+        if len(cells) != 2:
+            raise EnrolError(f"{path}:{line}: expected 2 columns (file,model), got {len(cells)}")
+        try:
+            row = LabelRow(file=cells[0], model=cells[1])
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            raise EnrolError(f"{path}:{line}: {err['loc'][0]}: {err['msg']}") from None
+        rel = Path(row.file)
+        if rel.is_absolute() or "\x00" in row.file:
+            raise EnrolError(f"{path}:{line}: file must be relative to the CSV's folder")
+        target = (root / rel).resolve()
+        if not target.is_relative_to(root):
+            raise EnrolError(f"{path}:{line}: file {row.file!r} is outside the CSV's folder")
+        if target in seen:
+            raise EnrolError(f"{path}:{line}: file {row.file!r} is labelled twice")
+        if not target.is_file():
+            raise EnrolError(f"{path}:{line}: file {row.file!r} does not exist")
+        seen.add(target)
+        out.append((target, row.model))
+    if not out:
+        raise EnrolError(f"{path}: no labelled recordings")
+    return out
+
+
+def bundle_name_ok(name: str) -> bool:
+    """A site bundle name: lower-case letters, digits, '.', '_', '-', at most 64, not a keyword."""
+    from signatures.radar import PRESETS
+
+    return bool(_NAME.fullmatch(name)) and name not in PRESETS and name != "shipped"
+
+
+@dataclass(frozen=True)
+class SiteSample:
+    """One enrolment recording as the bundle keeps it: its feature vector, what 1:1 verification
+    reads beside it (`physics`), its label and where it came from."""
+
+    name: str
+    sha256: str
+    model: str
+    features: np.ndarray  # the full feature vector (signatures.features.FEATURE_NAMES order)
+    physics: dict[str, float]
+    detected: bool
+
+
+def previous_samples(folder: Path) -> list[SiteSample]:
+    """The site samples an enrolment bundle keeps (`site.npz`), for `--add`."""
+    with np.load(folder / "site.npz", allow_pickle=False) as z:
+        names, digests, models = z["names"], z["sha256"], z["models"]
+        X, P, pnames, det = z["X"], z["physics"], [str(n) for n in z["physics_names"]], z["detected"]
+    return [SiteSample(str(n), str(d), str(m), X[i], {k: float(P[i, j]) for j, k in enumerate(pnames)
+                                                       if math.isfinite(P[i, j])}, bool(det[i]))
+            for i, (n, d, m) in enumerate(zip(names, digests, models))]
+
+
+def _site_arrays(samples: Sequence[SiteSample]) -> dict[str, np.ndarray]:
+    pnames = sorted({k for s in samples for k in s.physics})
+    P = np.full((len(samples), len(pnames)), np.nan)
+    for i, s in enumerate(samples):
+        for j, k in enumerate(pnames):
+            if k in s.physics:
+                P[i, j] = s.physics[k]
+    return {"names": np.array([s.name for s in samples]), "sha256": np.array([s.sha256 for s in samples]),
+            "models": np.array([s.model for s in samples]), "X": np.stack([s.features for s in samples]),
+            "physics": P, "physics_names": np.array(pnames, dtype=str),
+            "detected": np.array([s.detected for s in samples])}
+
+
+def _oof(fit: Callable[[np.ndarray], Any], predict: Callable[[Any, np.ndarray], np.ndarray],
+         y_site: np.ndarray, n_folds: int, seed: int) -> np.ndarray:
+    """Out-of-fold predictions over the site samples (stratified folds)."""
+    from sklearn.model_selection import StratifiedKFold
+
+    out: np.ndarray | None = None
+    folds = StratifiedKFold(n_splits=n_folds, shuffle=True, random_state=seed)
+    for train_idx, test_idx in folds.split(np.zeros(len(y_site)), y_site):
+        model = fit(train_idx)
+        p = predict(model, test_idx)
+        if out is None:
+            out = np.zeros((len(y_site), p.shape[1]))
+        out[test_idx] = p
+    assert out is not None
+    return out
+
+
+def _fit_rf(X: np.ndarray, y: np.ndarray, w: np.ndarray, seed: int, n_jobs: int) -> Any:
+    from signatures.classifiers import make_rf
+
+    model = make_rf(seed)
+    model.set_params(randomforestclassifier__n_jobs=n_jobs)
+    return model.fit(X, y, randomforestclassifier__sample_weight=w)
+
+
+def _weights(y_sim: np.ndarray, y_site: np.ndarray, n_cls: int) -> np.ndarray:
+    """Per-site-sample weights: each enrolled class's site returns weigh SITE_SHARE of its total."""
+    w = np.ones(len(y_site))
+    for c in range(n_cls):
+        m = y_site == c
+        if m.any():
+            n_sim = max(int(np.sum(y_sim == c)), 1)
+            w[m] = SITE_SHARE / (1.0 - SITE_SHARE) * n_sim / m.sum()
+    return w
+
+
+def _beta(p: np.ndarray, y: np.ndarray) -> float:
+    """Inverse temperature minimising the out-of-fold log-loss over the bounded grid `BETAS`."""
+    from signatures.inference import calibrate
+
+    losses = [-float(np.mean(np.log(calibrate(p, b)[np.arange(len(y)), y] + 1e-12))) for b in BETAS]
+    return BETAS[int(np.argmin(losses))]
+
+
+def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.ndarray, classes: tuple[str, ...],
+                  profiles: dict[str, UavProfile], enrolled: list[str], max_tip: float
+                  ) -> tuple[list[float], dict[tuple[str, str], list[float]]]:
+    """Cross-validated 1:1 verification LLRs: each detected recording against its own model
+    (genuine) and against every other enrolled model ((flown, claimed) -> LLRs)."""
+    from signatures.features import FEATURE_NAMES
+    from signatures.verify import verify
+
+    genuine: list[float] = []
+    impostor: dict[tuple[str, str], list[float]] = {}
+    for i, s in enumerate(samples):
+        if not s.detected:
+            continue
+        feats = {**dict(zip(FEATURE_NAMES, (float(v) for v in s.features))), **s.physics}
+        probs = dict(zip(classes, (float(v) for v in proba[i])))
+        for claimed in enrolled:
+            llr = verify(feats, profiles[claimed], probs, max_tip, known=bool(known[i])).llr
+            if claimed == s.model:
+                genuine.append(llr)
+            else:
+                impostor.setdefault((s.model, claimed), []).append(llr)
+    return genuine, impostor
+
+
+def _threshold(impostor: dict[tuple[str, str], list[float]], target: float) -> float | None:
+    """Lowest LLR threshold (accept at >= t) with an impostor false-accept rate <= target."""
+    scores = np.sort(np.concatenate([np.asarray(v) for v in impostor.values()])) if impostor else np.array([])
+    if not len(scores):
+        return None
+    allowed = int(math.floor(target * len(scores)))  # impostors that may still reach t
+    return float(np.nextafter(scores[len(scores) - 1 - allowed], np.inf))
+
+
+def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], waveform: Preset, dest: Path, *,
+          name: str, sources: Sequence[str] = (), previous: str | None = None, seed: int = 0, workers: int = 2,
+          n_sim: int = N_SIM, cache: Path | None | bool = None,
+          progress: Callable[[str, float], None] | None = None) -> dict[str, Any]:
+    """Build the site bundle `dest` (must not exist) from `samples` (the site's labelled
+    recordings, of `waveform`) on a simulated base set of `profiles` (every model the bundle
+    knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. Returns the card."""
+    from signatures import classifiers as clf
+    from signatures.dataset import Dataset, DatasetSpec, generate
+    from signatures.inference import MEMBERS, Classifier
+    from signatures.modelcard import library_versions, write_card
+    from signatures.openset import fit_openset, physics_check
+    from signatures.scene import Scene
+    from signatures.training import (GEOMETRY_FEATURES, LEVEL_FEATURES, OPENSET_MODE, OPENSET_QUANTILE,
+                                     PHYS_MAX_REL_TOL, PHYS_MIN_FLASH_SCORE, PHYS_Z, _physics_card, _waveform_card)
+    from signatures.radar import C
+
+    t0 = time.perf_counter()
+    say = progress or (lambda phase, frac: None)
+    enrolled = sorted({s.model for s in samples})
+    unknown = [m for m in enrolled if m not in profiles]
+    if unknown:
+        raise EnrolError(f"unknown model {unknown[0]!r}: register its profile first (authn register --model ...)")
+    counts = {m: sum(s.model == m for s in samples) for m in enrolled}
+    short = {m: n for m, n in counts.items() if n < MIN_RECORDINGS}
+    if short:
+        m, n = next(iter(short.items()))
+        raise EnrolError(f"model {m}: {n} recording{'s' if n != 1 else ''}, at least {MIN_RECORDINGS} per model needed")
+    if len(enrolled) < 2:
+        raise EnrolError(f"only one model ({enrolled[0]}) to enrol: a site bundle needs at least two registered "
+                         "models' recordings (the cross-validated pairwise errors compare them)")
+    site = [s for s in samples if s.detected]
+    missed = len(samples) - len(site)
+    det_counts = {m: sum(s.model == m for s in site) for m in enrolled}
+    if any(n < MIN_RECORDINGS for n in det_counts.values()):
+        m = next(m for m, n in det_counts.items() if n < MIN_RECORDINGS)
+        raise EnrolError(f"model {m}: the radar detected a target in only {det_counts[m]} of its {counts[m]} "
+                         f"recordings, at least {MIN_RECORDINGS} needed")
+    if dest.exists():
+        raise EnrolError(f"{dest}: a bundle of that name exists (choose another --name)")
+
+    plist = tuple(profiles[k] for k in sorted(profiles))
+    say("simulating the base set", 0.0)
+    sim: Dataset = generate(DatasetSpec(preset=waveform, profiles=plist, split="train", n=n_sim, seed=seed),
+                            workers=workers, cache=cache, progress=False)
+    classes = tuple(sim.classes)
+    n_cls = len(classes)
+    index = {c: i for i, c in enumerate(classes)}
+    names = list(sim.feature_names)
+    cols = [i for i, n in enumerate(names) if n not in GEOMETRY_FEATURES + LEVEL_FEATURES]
+    y_sim = np.array([index[str(v)] for v in sim.y], dtype=np.int64)
+    X_site = np.stack([s.features for s in site]).astype(np.float32)
+    y_site = np.array([index[s.model] for s in site], dtype=np.int64)
+    w_site = _weights(y_sim, y_site, n_cls)
+    Xs_all = np.nan_to_num(np.concatenate([sim.X, X_site]), nan=0.0, posinf=1e6, neginf=-1e6)
+    X_all = Xs_all[:, cols]
+    y_all = np.concatenate([y_sim, y_site])
+    w_all = np.concatenate([np.ones(len(y_sim)), w_site])
+    n_s = len(y_sim)
+    jitter = float(Scene.model_fields["rotor_rate_jitter"].default)
+    wf = waveform
+    tip_bin = C / wf.config.carrier_hz / 2 / (wf.config.pri_s * wf.n_chirps)
+    phys = physics_check(classes, {p.slug: p for p in plist}, tuple(names), jitter, tip_bin_mps=tip_bin, z=PHYS_Z,
+                         max_rel_tol=PHYS_MAX_REL_TOL, min_flash_score=PHYS_MIN_FLASH_SCORE)
+
+    # cross-validation over the site recordings, the base set always in training
+    n_folds = min(CV_FOLDS, min(det_counts.values()))
+    done = [0]
+
+    def fit_fold(train_idx: np.ndarray) -> Any:
+        rows = np.concatenate([np.arange(n_s), n_s + train_idx])
+        model = _fit_rf(X_all[rows], y_all[rows], w_all[rows], seed, workers)
+        done[0] += 1
+        say("cross-validating", done[0] / (n_folds + 2))
+        return model
+
+    def proba(model: Any, idx: np.ndarray) -> np.ndarray:
+        p = np.zeros((len(idx), n_cls))
+        p[:, model.classes_.astype(np.int64)] = model.predict_proba(X_site[idx][:, cols])
+        return p
+
+    say("cross-validating", 0.0)
+    p_oof = _oof(fit_fold, proba, y_site, n_folds, seed)
+    beta = _beta(p_oof, y_site)
+    from signatures.inference import calibrate
+
+    p_cal = calibrate(p_oof, beta)
+    pred = p_cal.argmax(axis=1)
+    unk = phys.verdict(np.nan_to_num(X_site.astype(np.float64)), pred)[0]
+    max_tip = wf.config.unambiguous_velocity_mps
+    genuine, impostor = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip)
+    t_fa = _threshold(impostor, FALSE_ACCEPT_TARGET)
+    applied = 0.0  # the default policy's threshold (radar-claim-inconsistent: LLR < 0 rejects)
+
+    labels = [*classes, "unknown"]
+    cm = np.zeros((len(enrolled), len(labels)), dtype=np.int64)
+    for yi, pi, ui in zip(y_site, pred, unk):
+        cm[enrolled.index(classes[yi]), len(classes) if ui else pi] += 1
+    used_cols = [j for j, lab in enumerate(labels) if cm[:, j].any() or lab in enrolled]
+    pairs: list[dict[str, Any]] = []
+    for i, a in enumerate(enrolled):
+        for b in enrolled[i + 1:]:
+            fa = impostor.get((a, b), []) + impostor.get((b, a), [])
+            n_fa = sum(v >= applied for v in fa)
+            conf = int(cm[i, index[b]] + cm[enrolled.index(b), index[a]])
+            pairs.append({"models": [a, b], "single_dwell": {
+                "false_accept_rate": round(n_fa / len(fa), 6) if fa else None, "false_accepts": n_fa, "claims": len(fa),
+                "classifier_confusion_rate": round(conf / (det_counts[a] + det_counts[b]), 6)},
+                "tracks": None})
+    confusable = [p["models"] for p in pairs
+                  if p["single_dwell"]["false_accept_rate"] is not None
+                  and p["single_dwell"]["false_accept_rate"] > CONFUSABLE_ERROR]
+    g = np.asarray(genuine)
+
+    # the bundle: every site sample in training
+    say("fitting the site bundle", (n_folds + 1) / (n_folds + 2))
+    rf = _fit_rf(X_all, y_all, w_all, seed, workers)
+    knn = clf.make_knn().fit(X_all, y_all)
+    uav = np.isin(sim.y, [p.slug for p in plist])
+    state_head = clf.fit_state_head(sim.X[uav], sim.moving[uav], seed)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".enrol-{name}-", dir=dest.parent))
+    try:
+        np.savez(tmp / "knn.npz", **clf.knn_arrays(knn, X_all, y_all, n_cls))
+        np.savez(tmp / "rf.npz", **clf.forest_arrays(rf, n_cls))
+        np.savez(tmp / "rf_state.npz", **clf.forest_arrays(state_head, 2))
+        openset = fit_openset(sim.X, y_sim, n_cls, X_site, y_site, pred, OPENSET_QUANTILE,
+                              class_cols=np.array(cols, dtype=np.int64), physics=phys, mode=OPENSET_MODE)
+        np.savez(tmp / "openset.npz", **openset.arrays())
+        np.savez(tmp / "site.npz", **_site_arrays(samples))
+        files = ["knn.npz", "rf.npz", "rf_state.npz", "openset.npz", "site.npz"]
+        created = datetime.now(timezone.utc).replace(microsecond=0)
+        card: dict[str, Any] = {
+            "preset": wf.name,
+            "radar": {**wf.config.model_dump(exclude={"range_offset_m"}), "n_chirps": wf.n_chirps,
+                      "n_samples": wf.n_samples},
+            "classes": list(classes), "feature_names": names, "class_features": [names[i] for i in cols],
+            "profiles": [p.model_dump(mode="json") for p in plist],
+            "training": {"seed": seed, "n_train": n_s + len(site), "n_val": 0, "base_simulated": n_s,
+                         "command": "authn models enrol RECORDINGS (the card's enrolment.sources)"},
+            "models": {"knn": "StandardScaler + KNeighborsClassifier(k=5) on base + site returns (unweighted)",
+                       "rf": f"RandomForestClassifier(100 trees, min_samples_leaf=2) on {n_s} simulated + "
+                             f"{len(site)} site returns, site weight share {SITE_SHARE}",
+                       "state_head": "RandomForestClassifier(50 trees) on the simulated UAV returns"},
+            "ensemble": {"members": list(MEMBERS), "voting": "the forest alone (site enrolment)",
+                         "weights": [0.0, 1.0, 0.0], "temperature_beta": round(beta, 9)},
+            "open_set": {"mode": OPENSET_MODE, "physics": {"z": PHYS_Z, "max_rel_tol": PHYS_MAX_REL_TOL,
+                                                           "min_flash_score": PHYS_MIN_FLASH_SCORE,
+                                                           "rotor_rate_jitter": jitter,
+                                                           "tip_bin_mps": round(tip_bin, 6), **_physics_card(phys)}},
+            "cnn": None, "cascade": {"threshold": 0.0},
+            "libraries": library_versions(), "files": files,
+            "metrics": {"validation": {"ensemble": {
+                "accuracy": round(float(np.mean(pred == y_site)), 6),
+                "note": "cross-validated on the site recordings"}}},
+            "enrolment": {
+                "format": ENROL_FORMAT, "name": name, "created": created.isoformat(), "previous": previous,
+                "method": {"base": f"{n_s} simulated returns of the waveform (seed {seed})",
+                           "classifier": f"random forest on base + site returns, site weight share {SITE_SHARE}",
+                           "temperature": "out-of-fold log-loss over a bounded grid (0.25..8)",
+                           "open_set": "physical consistency with the predicted profile (as trained)",
+                           "cv_folds": n_folds},
+                "counts": counts, "detected": det_counts, "not_detected": missed,
+                "confusion": {"rows": enrolled, "cols": [labels[j] for j in used_cols],
+                              "matrix": cm[:, used_cols].tolist(), "cross_validated": True},
+                "open_set_false_rejection": round(float(unk.mean()), 6),
+                "threshold": {"applied": applied, "at_false_accept_target": t_fa,
+                              "false_accept_target": FALSE_ACCEPT_TARGET,
+                              "genuine_accept_at_applied": round(float(np.mean(g >= applied)), 6) if len(g) else None,
+                              "genuine_accept_at_target": (round(float(np.mean(g >= t_fa)), 6)
+                                                           if len(g) and t_fa is not None else None),
+                              "note": "LLR in nats; the default policy rejects below 0 (radar-claim-inconsistent)"},
+                "pairwise": pairs, "confusable_error": CONFUSABLE_ERROR, "confusable_pairs": confusable,
+                "tracks": "pairwise errors of tracks are added when `authn check --track` lands; the policy "
+                          "uses the single-dwell pairs until then",
+                "sources": [{"file": s.name, "sha256": s.sha256, "model": s.model} for s in samples],
+                "source_names": list(sources),
+                "seconds": None},
+        }
+        if not wf.shipped:
+            card["waveform"] = _waveform_card(wf, plist)
+        card["enrolment"]["seconds"] = round(time.perf_counter() - t0, 2)
+        write_card(tmp, card)
+        Classifier(tmp)  # reads back and verifies what was written before it goes live
+        try:
+            os.rename(tmp, dest)  # atomic on one file system; refuses a destination that appeared meanwhile
+        except OSError as exc:
+            raise EnrolError(f"{dest}: could not move the bundle into place ({exc.strerror})") from None
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    say("done", 1.0)
+    return card
+
+
+def sha256_of(path: Path) -> str:
+    """SHA-256 of a file (the card's source digests)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def default_name(wf: Preset, now: datetime | None = None) -> str:
+    """`site-<waveform name>-<UTC time>`."""
+    now = now or datetime.now(timezone.utc)
+    return f"site-{wf.name.lower()}-{now.strftime('%Y%m%dt%H%M%S')}"
