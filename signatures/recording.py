@@ -666,6 +666,135 @@ def read_recording(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
     raise RecordingError(f"{path}: neither HDF5 nor .npz")
 
 
+@dataclass(frozen=True, eq=False)
+class Header:
+    """What a recorded return says about itself without its IQ: waveform, site, time, shape
+    and the Remote ID messages (small). `authn check --track` validates a whole track with
+    these (one waveform, one claim, time order) before it reads any dwell's IQ."""
+
+    config: RadarConfig
+    site: RadarSite
+    start_time: datetime
+    shape: tuple[int, int]
+    domain: str = "if"
+    remote_id: np.ndarray | None = None
+    remote_id_time_s: np.ndarray | None = None
+
+    @property
+    def n_chirps(self) -> int:
+        return int(self.shape[0])
+
+    @property
+    def mid_time(self) -> datetime:
+        return self.start_time + timedelta(seconds=self.n_chirps * self.config.pri_s / 2)
+
+
+def _header_h5(path: Path, max_cells: int, max_bytes: int) -> Header:
+    import h5py
+
+    try:
+        f = h5py.File(path, "r")
+    except _READ_ERRORS:
+        raise RecordingError(f"{path}: not a readable HDF5 file (truncated or corrupt)") from None
+    with f:
+        ds = _h5_dataset(f, "iq", required=True)
+        r = _h5_dataset(f, "remote_id")
+        t = _h5_dataset(f, "remote_id_time_s")
+        _check_global_heaps(path, ds)
+        attrs = _h5_attrs(f)
+        domain = _domain(attrs)
+        config, site, when = _metadata(attrs)
+        source = _rid_source_attr(attrs)
+        name = "iq"
+        try:
+            _check_iq_header(ds.shape, ds.dtype, max_cells, max_bytes)
+            _check_domain_shape(domain, ds.shape)
+            rid = times = None
+            if r is not None:
+                name = "remote_id"
+                _check_rid_header(name, r.shape, r.dtype)
+                rid = np.asarray(r[()], dtype=np.uint8)
+            if t is not None:
+                name = "remote_id_time_s"
+                _check_rid_header(name, t.shape, t.dtype)
+                times = np.asarray(t[()]).astype(np.float64)
+        except RecordingError:
+            raise
+        except _READ_ERRORS as exc:
+            raise RecordingError(f"{path}: dataset '/{name}' cannot be read (truncated or corrupt; "
+                                 f"{_reason(exc)})") from None
+        shape = (int(ds.shape[0]), int(ds.shape[1]))
+    _check_rid(rid, times)
+    _check_rid_source(source, times)
+    return Header(config, site, when, shape, domain, rid, times)
+
+
+def _npz_header_only(zf: zipfile.ZipFile, member: str, check: Any) -> tuple[int, ...]:
+    """The shape of one .npy member from its header (its data are not read)."""
+    with zf.open(member) as fh:
+        version = np.lib.format.read_magic(fh)
+        if version not in _NPY_VERSIONS:
+            raise ValueError(f"unsupported .npy version {version}")
+        reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                  else np.lib.format.read_array_header_2_0)
+        shape, _, dtype = reader(fh)
+        check(tuple(shape), dtype)
+        return tuple(shape)
+
+
+def _header_npz(path: Path, max_cells: int, max_bytes: int) -> Header:
+    name = "iq"
+    try:
+        with zipfile.ZipFile(path) as zf:
+            members = {n.removesuffix(".npy"): n for n in zf.namelist()}
+            if "iq" not in members:
+                raise RecordingError("missing dataset '/iq'")
+            shape = _npz_header_only(zf, members["iq"], lambda s, d: _check_iq_header(s, d, max_cells, max_bytes))
+            attrs = {}
+            for name in _ATTR_NAMES:
+                if name in members:
+                    attrs[name] = _npz_member(zf, members[name], _attr_member_check(name))
+            domain = _domain(attrs)
+            _check_domain_shape(domain, shape)
+            config, site, when = _metadata(attrs)
+            source = _rid_source_attr(attrs)
+            data: dict[str, np.ndarray | None] = {"remote_id": None, "remote_id_time_s": None}
+            for name in data:
+                if name in members:
+                    data[name] = _npz_member(zf, members[name], lambda s, d, n=name: _check_rid_header(n, s, d))
+    except RecordingError:
+        raise
+    except _READ_ERRORS as exc:
+        raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt; "
+                             f"member '{name}': {_reason(exc)})") from None
+    rid = None if data["remote_id"] is None else np.asarray(data["remote_id"], dtype=np.uint8)
+    times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
+    _check_rid(rid, times)
+    _check_rid_source(source, times)
+    return Header(config, site, when, (int(shape[0]), int(shape[1])), domain, rid, times)
+
+
+def read_header(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
+                max_bytes: int = MAX_IQ_BYTES, max_file_bytes: int = MAX_FILE_BYTES) -> Header:
+    """Read and validate a recorded return's metadata and Remote ID, not its IQ: the same
+    refusals as `read_recording` except the IQ values (NaN/Inf), which only a full read sees."""
+    path = Path(path)
+    try:
+        head = _sniff(path, max_file_bytes)
+        if head.startswith(b"PK"):
+            return _header_npz(path, max_cells, max_bytes)
+        if head == _HDF5_MAGIC or path.suffix.lower() in (".h5", ".hdf5"):
+            return _header_h5(path, max_cells, max_bytes)
+    except RecordingError as exc:
+        text = str(exc)
+        if "\n" in text or "\r" in text:
+            raise RecordingError(" ".join(text.split())) from None
+        raise
+    except _READ_ERRORS as exc:
+        raise RecordingError(f"{path}: unreadable ({_reason(exc)})") from None
+    raise RecordingError(f"{path}: neither HDF5 nor .npz")
+
+
 def write_recording(rec: Recording, path: str | Path) -> Path:
     """Write a recorded return; the suffix (.npz or anything else = HDF5) picks the container."""
     path = Path(path)

@@ -1,0 +1,390 @@
+"""Decisions over a track: one claim, many dwells of one target, one decision (docs/tracks.md).
+
+`authn check --track` and `POST /v1/checks:track` feed a target's dwells, in time order, through
+the single-dwell stages (`Checker.decide`, one dwell at a time) and combine their verification
+log-likelihood ratios by Wald's sequential probability ratio test: after each dwell the
+accumulated evidence is put to the Cedar policy, which accepts once it reaches the accept bound
+and rejects once it falls to the reject bound (or on any other forbid: a kinematic mismatch, an
+implausible Remote ID, a registry fact). The dwells after the deciding one are not read beyond
+their headers (the track is validated whole first: one waveform, one claim, time order).
+
+Bounds (Wald): with target error rates alpha (false accept: an impostor's track accepted) and
+beta (false reject), accept at LLR >= log((1 - beta) / alpha) and reject at LLR <= log(beta /
+(1 - alpha)). Wald's rates hold for independent, calibrated increments; ours are neither, so:
+
+* dependence: one airframe's bias (its rotor rate, blades, aspect) repeats in every dwell of it.
+  With intra-track correlation rho between dwell LLRs, n dwells carry the information of
+  n_eff = n / (1 + (n - 1) rho) independent ones (the effective sample size of an equicorrelated
+  mean), so the track LLR is n_eff times the mean increment: sum / (1 + (n - 1) rho). rho is
+  measured on the simulator (`authn bench --track`, `lab.bench.track.dependence`): dwells of one
+  scene with different simulator seeds against dwells of different scenes;
+* a cap: no single dwell counts for more than `DWELL_CAP_NATS` either way, so one freak dwell
+  (a clipped rate estimate, a classifier at its clip) cannot cross a bound alone.
+
+The per-dwell decisions are reported but decide nothing: the track decision is one complete
+`is_authorized` over the track's evidence (the latest dwell's, the worst kinematic residual of
+any dwell used, every Remote ID issue seen) with a `track` context record; a policy or engine
+error never accepts. One audit entry per track names every dwell used (file, SHA-256, terms)
+and the skipped ones.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from core.errors import AuthnError, EXIT_BAD_INPUT, describe, exit_code_for
+
+__all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION", "Dwell", "Sprt",
+           "TrackOutcome", "check_track", "decide_track", "track_files"]
+
+#: Target rate of accepting an impostor's track (alpha): Wald's accept bound log((1-b)/a) = 6.9 nats.
+DEFAULT_FALSE_ACCEPT = 1e-3
+#: Target rate of rejecting a genuine track (beta): Wald's reject bound log(b/(1-a)) = -4.6 nats.
+DEFAULT_FALSE_REJECT = 1e-2
+#: Correlation of the verification LLRs of dwells of one airframe (intra-class correlation).
+#: Measured on the simulator at most 0.07 (paper preset, SNR 0 and 10 dB, genuine and type-spoof
+#: tracks; docs/tracks.md, "Dependence"; `authn bench --track`); 0.2 leaves a margin for a world
+#: less kind than the one the classifiers were fitted to. Not fitted to any decision rate.
+DWELL_CORRELATION = 0.2
+#: Most a single dwell adds to (or takes from) the track's LLR, nats: below the accept bound, so
+#: no track is accepted on one dwell alone.
+DWELL_CAP_NATS = 4.0
+#: The one reason that lets a track go on to its next dwell (no bound crossed yet).
+INCONCLUSIVE = "track-inconclusive"
+_CN = 100.0  # centinats: Cedar compares integers
+
+
+@dataclass(frozen=True)
+class Sprt:
+    """Wald's test with the dependence discount: bounds from the target error rates."""
+
+    false_accept: float = DEFAULT_FALSE_ACCEPT
+    false_reject: float = DEFAULT_FALSE_REJECT
+    correlation: float = DWELL_CORRELATION
+    cap_nats: float = DWELL_CAP_NATS
+
+    def __post_init__(self) -> None:
+        for name, v in (("false accept rate", self.false_accept), ("false reject rate", self.false_reject)):
+            if not 0.0 < v < 0.5:  # NaN too
+                raise AuthnError(f"{name}: {v!r} is not in (0, 0.5)")
+        if not 0.0 <= self.correlation < 1.0:
+            raise AuthnError(f"dwell correlation: {self.correlation!r} is not in [0, 1)")
+        if not 0.0 < self.cap_nats <= 100.0:
+            raise AuthnError(f"dwell cap: {self.cap_nats!r} nats is not in (0, 100]")
+
+    @property
+    def accept_nats(self) -> float:
+        return math.log((1.0 - self.false_reject) / self.false_accept)
+
+    @property
+    def reject_nats(self) -> float:
+        return math.log(self.false_reject / (1.0 - self.false_accept))
+
+    def increment(self, llr: float) -> float:
+        """One dwell's contribution: its LLR capped at +-`cap_nats`."""
+        return max(-self.cap_nats, min(self.cap_nats, llr))
+
+    def track_llr(self, increments: Sequence[float]) -> float:
+        """n_eff times the mean increment: sum / (1 + (n - 1) rho) (module docstring)."""
+        n = len(increments)
+        return 0.0 if n == 0 else sum(increments) / (1.0 + (n - 1) * self.correlation)
+
+    def to_json(self) -> dict[str, float]:
+        return {"false_accept": self.false_accept, "false_reject": self.false_reject,
+                "accept_nats": round(self.accept_nats, 4), "reject_nats": round(self.reject_nats, 4),
+                "dwell_correlation": self.correlation, "dwell_cap_nats": self.cap_nats}
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """One dwell of a track: its name, its header (`signatures.recording.Header`: waveform, time,
+    Remote ID; cheap) and how to load it whole (the Recording and the SHA-256 of its bytes)."""
+
+    name: str
+    header: Callable[[], Any]
+    load: Callable[[], tuple[Any, str]]
+
+    @classmethod
+    def file(cls, path: str | Path) -> "Dwell":
+        from authn.check import CheckInput
+        from signatures.recording import read_header
+
+        p = Path(path)
+        return cls(str(p), lambda: read_header(p), CheckInput.file(p).load)
+
+    @classmethod
+    def recording(cls, rec: Any, name: str = "", digest: str = "") -> "Dwell":
+        """An in-memory recording (benchmarks, tests)."""
+        from signatures.recording import Header
+
+        head = Header(rec.config, rec.site, rec.start_time, (rec.n_chirps, rec.n_samples), rec.domain,
+                      rec.remote_id, rec.remote_id_time_s)
+        return cls(name, lambda: head, lambda: (rec, digest))
+
+
+def track_files(paths: Sequence[Path]) -> list[Path]:
+    """The dwells of `--track`: one directory (its .h5/.hdf5/.npz files by name, as `authn import`
+    numbers them) or the files in the order given. No dwell at all is bad input."""
+    if len(paths) == 1 and paths[0].is_dir():
+        found = sorted(f for f in paths[0].iterdir() if f.suffix.lower() in (".h5", ".hdf5", ".npz"))
+        if not found:
+            raise AuthnError(f"{paths[0]}: no .h5/.npz files in this directory: a track needs at least one dwell")
+        return found
+    for p in paths:
+        if p.is_dir():
+            raise AuthnError(f"{p}: a track is one directory or a list of files, not both")
+    if not paths:
+        raise AuthnError("a track needs at least one dwell")
+    return list(paths)
+
+
+def _basic_serial(head: Any) -> str | None:
+    from remoteid import BasicId
+    from remoteid.codec import decode_rows_raw
+
+    if head.remote_id is None:
+        return None
+    basic = next((m for m, _ in decode_rows_raw(head.remote_id) if isinstance(m, BasicId) and m.uas_id), None)
+    return basic.uas_id.strip() if basic else None
+
+
+def _validate(dwells: Sequence[Dwell], serial: str | None) -> str:
+    """Read every dwell's header and refuse a track that is not one target's: mixed waveforms,
+    mixed claims (the serials its Remote ID declares, or none to claim), dwells out of time order.
+    Returns the claimed serial."""
+    if not dwells:
+        raise AuthnError("a track needs at least one dwell")
+    first = None
+    claimed: tuple[str, str] | None = None  # (serial, the dwell that declared it)
+    prev: tuple[datetime, str] | None = None
+    for d in dwells:
+        head = d.header()
+        wave = (head.config.model_dump(exclude={"range_offset_m"}), head.domain, head.shape)  # the window may move
+        if first is None:
+            first = (wave, d.name)
+        elif wave != first[0]:
+            raise AuthnError(f"{d.name}: its waveform differs from {first[1]}'s: a track is one radar waveform")
+        declared = _basic_serial(head)
+        if declared is not None:
+            if claimed is not None and declared != claimed[0]:
+                raise AuthnError(f"{d.name}: its Remote ID declares {declared!r}, {claimed[1]} declares "
+                                 f"{claimed[0]!r}: a track is one claim")
+            claimed = claimed or (declared, d.name)
+        elif serial is None:
+            raise AuthnError(f"{d.name}: no claim: give --serial, or dwells whose Remote ID carries a Basic ID serial")
+        if prev is not None and head.start_time <= prev[0]:
+            raise AuthnError(f"{d.name}: starts at {head.start_time.isoformat()}, not after {prev[1]} "
+                             f"({prev[0].isoformat()}): a track's dwells must be in time order")
+        prev = (head.start_time, d.name)
+    return serial if serial is not None else claimed[0]  # type: ignore[index]
+
+
+@dataclass
+class DwellTerm:
+    """What one dwell of a track added: its verification LLR (None: nothing verified), the capped
+    increment, its kinematics, and what the single-dwell policy said of it alone (reported only)."""
+
+    file: str
+    file_sha256: str
+    dwell_start: str
+    radar_model: str | None
+    llr: float | None
+    increment: float | None
+    terms: dict[str, float]
+    kinematics: dict[str, Any] | None
+    decision: str
+    reasons: list[str]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"file": self.file, "file_sha256": self.file_sha256, "dwell_start": self.dwell_start,
+                "radar_model": self.radar_model, "llr": None if self.llr is None else round(self.llr, 4),
+                "increment": None if self.increment is None else round(self.increment, 4),
+                "terms": {k: round(v, 4) for k, v in self.terms.items()}, "kinematics": self.kinematics,
+                "dwell_decision": self.decision, "dwell_reasons": list(self.reasons)}
+
+
+@dataclass
+class TrackOutcome:
+    """The track's decision, the evidence and request it was made on, and each dwell's terms."""
+
+    decision: str
+    reasons: list[str]
+    evidence: Any  # authn.evidence.Evidence of the final request
+    policy_input: dict[str, Any]
+    sprt: Sprt
+    llr: float
+    dwells: list[DwellTerm]
+    dwells_used: int
+    skipped: list[str]
+    policy_sha256: str
+    policy_errors: list[str] = field(default_factory=list)
+    timings_ms: dict[str, float] = field(default_factory=dict)
+    audit_id: int | None = None
+
+    @property
+    def serial(self) -> str:
+        return self.evidence.claim.serial
+
+    def to_json(self) -> dict[str, Any]:
+        """What `authn check --track --json` prints (docs/tracks.md)."""
+        report = self.evidence.report()
+        return {"track": True, "decision": self.decision, "reasons": list(self.reasons),
+                "claim": report["claim"], "registry": report["registry"],
+                "llr": round(self.llr, 4), "sprt": self.sprt.to_json(),
+                "dwells_used": self.dwells_used, "dwells_read": len(self.dwells),
+                "dwells_skipped": len(self.skipped), "skipped_files": list(self.skipped),
+                "dwells": [d.to_json() for d in self.dwells], "radar": report["radar"],
+                "kinematics": report["kinematics"], "remote_id": report["remote_id"],
+                "remote_id_auth": report["remote_id_auth"], "policy_sha256": self.policy_sha256,
+                "policy_errors": list(self.policy_errors), "timings_ms": dict(self.timings_ms),
+                "audit_id": self.audit_id}
+
+    def audit_payload(self) -> dict[str, Any]:
+        doc = self.to_json()
+        doc.pop("audit_id")
+        doc.pop("timings_ms")
+        doc["policy_input"] = self.policy_input
+        return doc
+
+
+def _term(o: Any, sprt: Sprt) -> DwellTerm:
+    radar = o.evidence.radar
+    v = radar.verification if radar is not None else None
+    llr = v.llr if v is not None and v.terms else None
+    kin = o.evidence.kinematics
+    return DwellTerm(o.file, o.file_sha256, o.evidence.report()["dwell_start"],
+                     None if radar is None else radar.model, llr, None if llr is None else sprt.increment(llr),
+                     dict(v.terms) if v is not None else {}, None if kin is None else kin.to_json(),
+                     o.decision, list(o.reasons))
+
+
+def _worst(kinematics: list[Any]) -> Any:
+    """The kinematic evidence furthest outside (or nearest the edge of) its tolerance."""
+    def ratio(k: Any) -> float:
+        r = k.residuals
+        parts = [r.range_residual_m / max(r.range_tolerance_m, 1e-9)] if k.range_measured else []
+        if r.radial_velocity_residual_mps is not None:
+            parts.append(r.radial_velocity_residual_mps / max(r.radial_velocity_tolerance_mps, 1e-9))
+        return max(parts, default=0.0)
+
+    return max(kinematics, key=ratio) if kinematics else None
+
+
+def _track_evidence(outcomes: list[Any]) -> Any:
+    """The evidence the track request is built on: the latest dwell's claim, registry and Remote
+    ID authentication; the radar of the latest dwell that saw a target; the worst kinematics of
+    any dwell; every Remote ID issue any dwell raised."""
+    ev = copy.copy(outcomes[-1].evidence)
+    seen = [o.evidence.radar for o in outcomes if o.evidence.radar is not None and o.evidence.radar.detected]
+    ev.radar = seen[-1] if seen else outcomes[-1].evidence.radar
+    ev.kinematics = _worst([o.evidence.kinematics for o in outcomes if o.evidence.kinematics is not None])
+    ev.remote_id_issues = list(dict.fromkeys(i for o in outcomes for i in o.evidence.remote_id_issues))
+    return ev
+
+
+def _request(ev: Any, sprt: Sprt, llr: float, used: int) -> dict[str, Any]:
+    """The Cedar request of the track: the evidence's, with the track LLR in place of a single
+    dwell's verification LLR (absent while no dwell verified anything) and the `track` record."""
+    ctx = ev.context()
+    ctx.pop("verification_llr_cn", None)
+    llr_cn = int(round(max(-1e6, min(1e6, llr * _CN))))
+    if used:
+        ctx["verification_llr_cn"] = llr_cn
+    ctx["track"] = {"llr_cn": llr_cn, "accept_cn": int(math.ceil(sprt.accept_nats * _CN)),
+                    "reject_cn": int(math.floor(sprt.reject_nats * _CN)), "dwells": used}
+    return {"serial": ev.claim.serial, "principal": ev.principal(), "resource": ev.resource(), "context": ctx}
+
+
+def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = None,
+                 sprt: Sprt | None = None) -> TrackOutcome:
+    """Decide a track (not recorded): validate it whole from the headers, then one dwell at a time
+    until the policy decides (module docstring). Bad input anywhere in the track raises (exit 2),
+    naming the dwell; a database or engine fault raises SystemFault."""
+    from authn.check import CheckInput, Failure
+
+    sprt = sprt or Sprt()
+    t0 = time.perf_counter()
+    claim = _validate(dwells, serial)
+    timings = {"validate": round((time.perf_counter() - t0) * 1e3, 3)}
+    outcomes: list[Any] = []
+    terms: list[DwellTerm] = []
+    increments: list[float] = []
+    result = request = None
+    for i, d in enumerate(dwells):
+        batch = checker.decide([CheckInput(d.name, claim if serial is not None else None, d.load)])
+        if batch.fault is not None:
+            raise batch.fault
+        o = batch.items[0]
+        if isinstance(o, Failure):
+            o.raise_()
+        for k, v in o.timings_ms.items():
+            timings[k] = round(timings.get(k, 0.0) + v, 3)
+        if o.serial != claim:  # validated from the header; the full read must agree
+            raise AuthnError(f"{d.name}: claims {o.serial!r}, the track claims {claim!r}")
+        outcomes.append(o)
+        terms.append(_term(o, sprt))
+        if o.evidence.radar is None:  # the registry decided before any radar: final, whatever follows
+            ev = o.evidence
+            request = {"serial": ev.claim.serial, "principal": ev.principal(), "resource": ev.resource(),
+                       "context": ev.context()}
+            from authn.policy import PolicyResult
+
+            result = PolicyResult(o.decision, list(o.reasons), list(o.policy_errors))
+            if i == 0:
+                terms[-1].reasons = list(o.reasons)
+            break
+        if terms[-1].increment is not None:
+            increments.append(terms[-1].increment)
+        ev = _track_evidence(outcomes)
+        request = _request(ev, sprt, sprt.track_llr(increments), len(increments))
+        t1 = time.perf_counter()
+        result = checker.policy.decide(claim, request["principal"], request["resource"], request["context"])
+        timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
+        if not (result.decision == "reject" and set(result.reasons) <= {INCONCLUSIVE}):
+            break  # accepted, or a forbid more dwells cannot lift
+    assert result is not None and request is not None
+    radar_used = sum(1 for o in outcomes if o.evidence.radar is not None)
+    return TrackOutcome(decision=result.decision, reasons=list(result.reasons),
+                        evidence=_track_evidence(outcomes) if radar_used else outcomes[-1].evidence,
+                        policy_input=request, sprt=sprt, llr=sprt.track_llr(increments), dwells=terms,
+                        dwells_used=radar_used, skipped=[d.name for d in dwells[len(outcomes):]],
+                        policy_sha256=checker.policy.sha256, policy_errors=list(result.errors), timings_ms=timings)
+
+
+def _error_entry(names: Sequence[str], serial: str | None, exc: BaseException, policy_sha256: str) -> Any:
+    from authn.audit import NewEntry
+
+    kind = "bad-input" if exit_code_for(exc) == EXIT_BAD_INPUT else "system"
+    return NewEntry("error", serial, None, {"file": names[0] if names else "", "track_files": list(names),
+                                            "error": describe(exc), "error_kind": kind,
+                                            "policy_sha256": policy_sha256})
+
+
+def check_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = None,
+                sprt: Sprt | None = None) -> TrackOutcome:
+    """Decide a track and record it: one audit entry (the decision, or the error that stopped it)
+    committed before this returns or raises; a commit that fails raises (nothing to print)."""
+    from authn.audit import NewEntry, append
+
+    try:
+        out = decide_track(checker, dwells, serial, sprt)
+    except Exception as exc:
+        try:
+            append(checker.db, [_error_entry([d.name for d in dwells], serial, exc, checker.policy.sha256)],
+                   policy_text=checker.policy.text)
+        except Exception:  # noqa: BLE001 - the error that stopped the track is the one reported
+            pass
+        raise
+    t0 = time.perf_counter()
+    written = append(checker.db, [NewEntry("decision", out.serial, out.decision, out.audit_payload())],
+                     policy_text=checker.policy.text)
+    out.audit_id = written[0].seq
+    out.timings_ms["audit"] = round((time.perf_counter() - t0) * 1e3, 3)
+    return out
