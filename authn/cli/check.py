@@ -157,6 +157,14 @@ def check(
                                    help="Clock-skew tolerance (s) between the capture and the radar."),
     plot: Path | None = typer.Option(None, "--plot", help="Write one evidence figure (PNG) per decision into this "
                                                           "folder (the plot extra; docs/policies.md)."),
+    track: bool = typer.Option(False, "--track", help="The files (or the one directory) are dwells of one target "
+                                                      "with one claim, in time order: one decision by a sequential "
+                                                      "test, stopping at the first dwell that decides "
+                                                      "(docs/tracks.md)."),
+    false_accept: float = typer.Option(1e-3, "--false-accept",
+                                       help="--track: target rate of accepting an impostor's track (Wald's alpha)."),
+    false_reject: float = typer.Option(1e-2, "--false-reject",
+                                       help="--track: target rate of rejecting a genuine track (Wald's beta)."),
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
@@ -170,15 +178,24 @@ def check(
     exit code is the worst one (3 > 2 > 1 > 0).
 
     Example: authn check flight.h5 --serial 1581BDEM00000002 --json
+
+    Example: authn check --track dwells/ --json
     """
     from authn.check import Checker, Failure
 
     state = ctx.obj
+    track_started = False
     try:
         from authn.uakeys import load_trusted_registries
 
         trusted = load_trusted_registries(trust_registry) if trust_registry else None
         checker = Checker(state.db_url, policy, trusted, model=model)
+        if track:  # one target's dwells, one decision (authn.track)
+            paths, sprt = _track_setup(files, claims, cluster, rid_capture, plot, false_accept, false_reject)
+            from authn.cli.track import run_track
+
+            track_started = True  # from here the track records its own failure (authn.track.check_track)
+            raise typer.Exit(run_track(checker, paths, serial, sprt, as_json))
         paths = _files(files)
         mapping = _claims(claims) if claims else {}
         captures = _captures(claims) if claims else {}
@@ -186,8 +203,11 @@ def check(
             from core.errors import AuthnError
 
             raise AuthnError("--rid-capture (or a rid_capture column) is not supported with --cluster yet")
+    except typer.Exit:
+        raise
     except Exception as exc:
-        _record_failure(state.db_url, [Failure.of(str(f), serial, exc) for f in files])
+        if not track_started:
+            _record_failure(state.db_url, [Failure.of(str(f), serial, exc) for f in files])
         raise
     if rid_capture is not None or captures:
         from authn.check import RidCapture
@@ -209,6 +229,18 @@ def check(
                 capture_of(paths[0]), figures)
         return
     _batch(checker, paths, mapping, serial, as_json, capture_of, figures)
+
+
+def _track_setup(files: list[Path], claims, cluster, rid_capture, plot, false_accept: float, false_reject: float):
+    """The dwells of `--track` and its test; the options a track does not take are bad input."""
+    from authn.track import Sprt, track_files
+    from core.errors import AuthnError
+
+    extra = [n for n, v in (("--claims", claims), ("--cluster", cluster), ("--rid-capture", rid_capture),
+                            ("--plot", plot)) if v is not None]
+    if extra:
+        raise AuthnError(f"--track takes one claim over its dwells: {', '.join(extra)} cannot be used with it")
+    return track_files(files), Sprt(false_accept, false_reject)
 
 
 class _Figures:
