@@ -170,6 +170,7 @@ class _Pending:
     file: str
     digest: str
     timer: _Timer
+    association: Any = None  # how the claim's target was chosen (`authn.association.Association`)
 
 
 @dataclass(frozen=True)
@@ -359,15 +360,18 @@ class Checker:
         if claim.state is not None:
             expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
                                            rec.start_time)
-        lo, hi = rec.config.range_window_m
-        cw = rec.domain == "cw"  # CW: no range measured, so no gate and no range residual (docs/format.md)
-        gate = expected.range_m if expected is not None and lo <= expected.range_m < hi and not cw else None
-        return _Pending(rec, claim, auth, mid, evidence, classifier, claimed, expected, gate, file, digest, timer)
+        from authn.association import associate
+
+        with timer.stage("associate"):  # the claim's own target: position, then velocity (CW: none, docs/format.md)
+            assoc = associate(rec, expected, claim.state)
+        return _Pending(rec, claim, auth, mid, evidence, classifier, claimed, expected, assoc.gate, file, digest,
+                        timer, assoc)
 
     def _finish(self, p: _Pending, feats: Any, pred: Any) -> Outcome:
         """The radar evidence from the features and the class, kinematics, the full policy decision."""
         rec, claim, cw = p.rec, p.claim, p.rec.domain == "cw"
-        radar = RadarEvidence(gated=p.gate is not None, model_card_sha256=p.classifier.card_digest)
+        radar = RadarEvidence(gated=p.gate is not None, model_card_sha256=p.classifier.card_digest,
+                              association=p.association)
         if feats.detected:
             radar = replace(radar, model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
                             range_m=None if cw else round(float(feats.range_m), 3),

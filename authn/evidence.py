@@ -206,6 +206,8 @@ class RadarEvidence:
     model_card_sha256: str | None = None
     #: 1:1 verification against the claimed profile (`signatures.verify`); None when not run
     verification: Any = None
+    #: how the claim's own target was chosen among the window's (`authn.association`); None: not run
+    association: Any = None
 
     @property
     def detected(self) -> bool:
@@ -223,6 +225,8 @@ class RadarEvidence:
             doc.update(operational_state=self.operational_state, nearest=self.nearest)
         if self.verification is not None:
             doc["verification"] = self.verification.to_json()
+        if self.association is not None:
+            doc["target"] = self.association.to_json()
         return doc
 
 
@@ -281,6 +285,9 @@ class Evidence:
     kinematics: KinematicsEvidence | None = None
     #: False when the recording cannot measure range (a CW radar): no range evidence at all
     range_measured: bool = True
+    #: a site bundle decided: whether the registered model is radar-confusable with another model
+    #: registered at the site (its enrolment card's pairs); None for any other bundle
+    radar_confusable: bool | None = None
 
     # --- the Cedar request -----------------------------------------------------------
     def principal(self) -> dict[str, Any]:
@@ -303,8 +310,15 @@ class Evidence:
             "remote_id_auth": self.auth.status, "range_measured": self.range_measured}
         if self.claim.capture:  # only with --rid-capture: the request of any other check is unchanged
             ctx["remote_id_expected"] = True
-        if radar is not None and radar.verification is not None and radar.verification.terms:
-            ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, radar.verification.llr * 100.0))))
+        if self.radar_confusable is not None:  # only with a site bundle (authn models enrol)
+            ctx["radar_confusable"] = self.radar_confusable
+        if radar is not None and radar.verification is not None:
+            if radar.verification.terms:
+                ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, radar.verification.llr * 100.0))))
+            # no rotor evidence: the classifier alone may count against the claim, never carry it
+            ctx["physics_abstained"] = radar.verification.physics_abstained
+        if radar is not None and radar.association is not None and radar.association.in_view is not None:
+            ctx["targets_in_view"] = radar.association.in_view  # no-radar-target against no-target
         if self.kinematics is not None:
             ctx.update(self.kinematics.context())
         return ctx

@@ -85,6 +85,13 @@ class Verification:
     #: what the physics term compared: measured against claimed, for the operator
     compared: dict[str, dict[str, float]] = field(default_factory=dict)
 
+    @property
+    def physics_abstained(self) -> bool:
+        """No physics term: the rotors gave no usable rate estimate. The classifier's term alone
+        is then all the score holds, and the policy does not let it carry a claim
+        (`radar-unverifiable`, docs/policies.md)."""
+        return "physics" not in self.terms
+
     def to_json(self) -> dict[str, object]:
         doc: dict[str, object] = {"llr": round(self.llr, 4), "terms": {k: round(v, 4) for k, v in self.terms.items()}}
         if self.compared:

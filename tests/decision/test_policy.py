@@ -45,6 +45,24 @@ CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
                                                       "accept", ["registered-active"]),
     "open-set unknown, claim verified": ({}, {}, dict(radar_known=False, radar_model="unknown"), "accept",
                                          ["registered-active"]),
+    # the claim's own target (authn/association.py): none in the window, or none where the claim is
+    "no target in view": ({}, {}, dict(target_detected=False, targets_in_view=0), "reject", ["no-target"]),
+    "targets in view, none at the claim": ({}, {}, dict(target_detected=False, targets_in_view=2), "reject",
+                                           ["no-radar-target"]),
+    "claim's target found among others": ({}, {}, dict(targets_in_view=3), "accept", ["registered-active"]),
+    # no acceptance on the classifier alone: physics abstained, the classifier cannot carry the claim
+    "physics verified": ({}, {}, dict(physics_abstained=False), "accept", ["registered-active"]),
+    "physics abstained, classifier favours": ({}, {}, dict(physics_abstained=True, verification_llr_cn=300),
+                                              "reject", ["radar-unverifiable"]),
+    "physics abstained, classifier at 0": ({}, {}, dict(physics_abstained=True, verification_llr_cn=0),
+                                           "reject", ["radar-unverifiable"]),
+    "physics abstained, classifier against": ({}, {}, dict(physics_abstained=True, verification_llr_cn=-1),
+                                              "reject", ["radar-claim-inconsistent"]),
+    "physics abstained, nothing verified": ({}, {}, dict(physics_abstained=True, verification_llr_cn=None),
+                                            "reject", ["radar-claim-unverifiable"]),
+    "bird label, physics abstained, classifier favours": ({}, {}, dict(radar_model="bird", physics_abstained=True,
+                                                                      verification_llr_cn=150),
+                                                          "reject", ["radar-unverifiable"]),
     "range mismatch": ({}, {}, dict(range_residual_cm=851), "reject", ["range-mismatch"]),
     "range at tolerance": ({}, {}, dict(range_residual_cm=850), "accept", ["registered-active"]),
     "velocity mismatch": ({}, {}, dict(velocity_residual_cmps=171), "reject", ["velocity-mismatch"]),
@@ -146,3 +164,21 @@ def test_invalid_policy_refused_with_cedar_message(tmp_path: Path, text: str, fr
         PolicyEngine.load(bad)
     msg = str(info.value)
     assert "\n" not in msg and str(bad) in msg and fragment in msg
+
+
+def test_a_site_may_let_the_classifier_alone_carry_a_claim(tmp_path: Path) -> None:
+    """docs/policies.md: dropping the `radar-unverifiable` forbid from a copy of the default policy
+    accepts a claim the classifier alone favours; a contradicting classifier still rejects."""
+    import re
+
+    text = (Path(__file__).resolve().parents[2] / "authn" / "policies" / "default.cedar").read_text()
+    relaxed, n = re.subn(r'@id\("radar-unverifiable"\)\nforbid[^;]*;', "", text)
+    assert n == 1
+    f = tmp_path / "site.cedar"
+    f.write_text(relaxed)
+    site, default = PolicyEngine.load(f), PolicyEngine.load()
+    favours = {**GOOD, "physics_abstained": True, "verification_llr_cn": 300}
+    assert default.decide("S1", ACTIVE, SITE, favours).reasons == ["radar-unverifiable"]
+    assert site.decide("S1", ACTIVE, SITE, favours).decision == "accept"
+    against = {**favours, "verification_llr_cn": -50}
+    assert site.decide("S1", ACTIVE, SITE, against).reasons == ["radar-claim-inconsistent"]

@@ -1,0 +1,101 @@
+"""No acceptance on the classifier alone (`radar-unverifiable`, docs/policies.md).
+
+Where the physics term abstains (no usable blade-flash rate: signatures/verify.py), the classifier
+may count against a claim but never carries it. In the simulated worlds the shipped classifier
+never favours a claim whose rotors went unseen (it calls such returns birds), so the dwell where
+it would is built from real parts: the features of a real dwell whose rotors are not resolvable
+(blades 30 dB under the body at 5 dB SNR: no flash scores 1) and the shipped classifier's own
+probabilities for a real genuine M300 dwell. Real verification, real evidence, real Cedar.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from datetime import datetime, timezone
+
+import pytest
+
+from authn.check import Checker
+from authn.demo import register_examples
+from authn.evidence import Evidence, RadarEvidence, RegistryFacts, read_claim
+from authn.policy import PolicyEngine
+from authn.scenario import Broadcast, simulate_flight
+from signatures.features import extract
+from signatures.inference import classifier_for
+from signatures.profiles import shipped_profiles
+from signatures.radar import get_preset
+from signatures.scene import Scene
+from signatures.verify import MIN_FLASH_SCORE, verify
+
+M300 = "1581BDEM00000002"
+START = datetime.now(timezone.utc).replace(microsecond=0)
+
+
+def _m300(seed: int, **scene):
+    sc = Scene(kind="uav", profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0,
+               elevation_deg=10.0, **{"snr_db": 20.0, **scene})
+    rec, _ = simulate_flight(sc, get_preset("paper"), seed, Broadcast(serial=M300), azimuth_deg=60.0,
+                             start_time=START)
+    return rec
+
+
+def _radar(rec, probabilities_of=None):
+    """(features, the classifier's prediction) of `rec`; the prediction of `probabilities_of` if given."""
+    feats = extract(rec, expected_range_m=400.0)
+    src = extract(probabilities_of, expected_range_m=400.0) if probabilities_of is not None else feats
+    clf = classifier_for(rec, None, "test")
+    pred = clf.predict_many(src.as_array()[None], lambda: src.rd_patch[None])[0]
+    return feats, pred
+
+
+def _unresolved_rotors():
+    """The first of a few seeds whose M300 dwell is detected but shows no usable flash rate."""
+    for seed in range(10):
+        rec = _m300(seed, snr_db=5.0, blade_to_body_db=-30.0)
+        feats = extract(rec, expected_range_m=400.0)
+        if feats.detected and feats.features.flash_score < MIN_FLASH_SCORE:
+            return rec
+    pytest.fail("no seed gave a detected M300 return with unresolved rotors")
+
+
+@pytest.fixture(scope="module")
+def dwells():
+    return _unresolved_rotors(), _m300(1)
+
+
+def _decide(rec, feats, pred) -> tuple[object, object]:
+    profile = shipped_profiles()["m300"]
+    v = verify({**asdict(feats.features), **feats.physics}, profile, pred.probabilities,
+               rec.config.unambiguous_velocity_mps, known=pred.known)
+    facts = RegistryFacts(True, "active", "m300", "serial", datetime(2025, 1, 1, tzinfo=timezone.utc))
+    radar = RadarEvidence(gated=True, model=pred.label, confidence=pred.confidence, known=pred.known,
+                          range_m=float(feats.range_m), radial_velocity_mps=float(feats.radial_velocity_mps),
+                          verification=v)
+    ev = Evidence(read_claim(rec, None), facts, int(rec.start_time.timestamp()), [], preset="paper", radar=radar)
+    return v, PolicyEngine.load().decide(M300, ev.principal(), ev.resource(), ev.context())
+
+
+def test_the_classifier_alone_does_not_carry_a_claim(dwells) -> None:
+    weak, genuine = dwells
+    feats, pred = _radar(weak, probabilities_of=genuine)  # unresolved rotors, a classifier sure of the claim
+    v, result = _decide(weak, feats, pred)
+    assert v.physics_abstained and v.terms == {"classifier": pytest.approx(3.0)} and v.llr > 0
+    assert (result.decision, result.reasons) == ("reject", ["radar-unverifiable"])
+    # the same classifier with the rotors seen: physics verifies, the claim is accepted
+    v, result = _decide(genuine, *_radar(genuine))
+    assert not v.physics_abstained and v.terms["physics"] > 0
+    assert (result.decision, result.reasons) == ("accept", ["registered-active"])
+
+
+def test_a_check_reports_the_abstention_to_the_policy(dwells, tmp_path) -> None:
+    """The check itself: the unresolved dwell's request says physics abstained, and it is rejected
+    (here the classifier counts against the claim as well); the genuine one's says it did not."""
+    weak, genuine = dwells
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    register_examples(db)
+    checker = Checker(db)
+    out = checker.evaluate_recording(weak)
+    assert out.evidence.context()["physics_abstained"] is True and out.decision == "reject"
+    assert "physics" not in out.to_json()["radar"]["verification"]["terms"]
+    ok = checker.evaluate_recording(genuine)
+    assert ok.evidence.context()["physics_abstained"] is False and ok.decision == "accept"
