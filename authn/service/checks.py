@@ -36,17 +36,18 @@ def _name(upload: UploadFile) -> str:
     return " ".join(name.split())[:200] or "upload"
 
 
-def _read(data: bytes, name: str) -> Any:
-    """The recording in `data`, read through a private temporary file (errors name the upload)."""
+def _read(data: bytes, name: str, header: bool = False) -> Any:
+    """The recording in `data` (with `header`, only its `signatures.recording.Header`), read
+    through a private temporary file (errors name the upload)."""
     from core.errors import AuthnException
-    from signatures.recording import read_recording
+    from signatures.recording import read_header, read_recording
 
     fd, tmp = tempfile.mkstemp(suffix=".upload", dir=_TMP)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         try:
-            return read_recording(tmp)
+            return read_header(tmp) if header else read_recording(tmp)
         except AuthnException as exc:  # the message names the file: the client's name, not ours
             exc.args = (str(exc).replace(tmp, name),)
             raise
@@ -161,3 +162,37 @@ async def check_batch(request: Request,
         else:
             rt.metrics.error(400 if o.exit_code == EXIT_BAD_INPUT else 503, "batch-item")
     return JSONResponse({"results": [o.to_json() for o in items]})
+
+
+def _decide_track(checker: Any, files: list[tuple[str, bytes]], serial: str | None, false_accept: float,
+                  false_reject: float) -> Any:
+    """The uploads as one track (`authn.track.check_track`): validated from their headers, then
+    decided dwell by dwell and recorded as one audit entry before it is answered."""
+    from authn.track import Dwell, Sprt, check_track
+
+    dwells = [Dwell(name, lambda d=data, n=name: _read(d, n, header=True), _input(data, name, None).load)
+              for name, data in files]
+    return check_track(checker, dwells, serial, Sprt(false_accept, false_reject))
+
+
+@router.post("/checks:track", responses=_ERRORS, summary="Decide one target's track of dwells")
+async def check_track(request: Request,
+                      files: Annotated[list[UploadFile], File(description="the dwells (HDF5 or .npz), in time order")],
+                      serial: Annotated[str | None, Form(max_length=64, description="claimed serial")] = None,
+                      false_accept: Annotated[float, Form(gt=0.0, lt=0.5, description="target false-accept rate "
+                                                                                       "(Wald's alpha)")] = 1e-3,
+                      false_reject: Annotated[float, Form(gt=0.0, lt=0.5, description="target false-reject rate "
+                                                                                       "(Wald's beta)")] = 1e-2,
+                      _caller: Caller = Depends(require("check"))) -> JSONResponse:
+    """One decision over the dwells of one target with one claim (docs/tracks.md): the
+    `authn check --track --json` object, status 200 for accept and reject alike; 400 for an empty,
+    mixed (waveforms, claims) or out-of-order track."""
+    rt = runtime(request)
+    if len(files) > rt.settings.max_batch_files:
+        from core.errors import AuthnError
+
+        raise AuthnError(f"at most {rt.settings.max_batch_files} dwells per track, got {len(files)}")
+    loaded = [(_name(f), await f.read()) for f in files]
+    out = await rt.run(lambda: _decide_track(rt.checker, loaded, _serial(serial), false_accept, false_reject))
+    rt.metrics.outcome(out.decision, out.reasons, out.timings_ms)
+    return JSONResponse(out.to_json())

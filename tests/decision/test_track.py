@@ -1,0 +1,219 @@
+"""`authn check --track`: one decision over a target's dwells by Wald's sequential test, the Cedar
+policy deciding each step; the dwells after the deciding one are never read whole; one audit
+entry per track; a track that is not one target's is bad input (exit 2, one line)."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from authn.cli import main
+from authn.demo import register_examples
+from authn.track import DWELL_CAP_NATS, Sprt
+from lab.bench.track import icc, track_recordings
+from signatures.profiles import shipped_profiles
+from signatures.recording import read_header, read_recording, write_recording
+from signatures.scene import Scene
+
+M600, M300 = "1581BDEM00000001", "1581BDEM00000002"
+DWELLS = 6
+
+
+def _track(folder: Path, flies: str, serial: str | None, seed: int = 100, **scene) -> Path:
+    folder.mkdir()
+    sc = Scene(kind="uav", profile=shipped_profiles()[flies], snr_db=20.0,
+               **{"range_m": 400.0, "radial_speed_mps": 3.0, "elevation_deg": 10.0, **scene})
+    for i, rec in enumerate(track_recordings(sc, "paper", list(range(seed, seed + DWELLS)), serial)):
+        write_recording(rec, folder / f"dwell_{i:06d}.h5")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    root = tmp_path_factory.mktemp("track")
+    db = f"sqlite:///{root / 'r.sqlite3'}"
+    register_examples(db)
+    tracks = {"genuine": _track(root / "genuine", "m300", M300),
+              "type": _track(root / "type", "phantom4", M600, seed=200)}
+    return root, db, tracks
+
+
+def _run(db: str, capsys, *args: str) -> tuple[int, dict, str]:
+    capsys.readouterr()
+    code = main(["--db", db, "check", "--track", *args, "--json"])
+    out = capsys.readouterr()
+    return code, json.loads(out.out) if out.out.strip() else {}, out.err
+
+
+def _entry(db: str, seq: int) -> dict:
+    from authn.audit import get_entry
+    from registry.dbapi import Database
+
+    return get_entry(Database(db), seq).payload
+
+
+def test_a_genuine_track_is_accepted_at_the_bound_and_the_rest_skipped(setup, capsys) -> None:
+    _, db, tracks = setup
+    code, out, err = _run(db, capsys, str(tracks["genuine"]))
+    assert code == 0 and out["decision"] == "accept" and out["reasons"] == ["registered-active"], err
+    s = Sprt()
+    used = out["dwells_used"]
+    increments = [d["increment"] for d in out["dwells"]]
+    # the test stopped at the first dwell where the discounted sum reached the accept bound
+    assert 1 < used < DWELLS and out["dwells_skipped"] == DWELLS - used == len(out["skipped_files"])
+    assert s.track_llr(increments) >= s.accept_nats > s.track_llr(increments[:-1])
+    assert math.isclose(out["llr"], s.track_llr(increments), abs_tol=1e-3)
+    assert all(abs(x) <= DWELL_CAP_NATS for x in increments)
+    assert [Path(f).name for f in out["skipped_files"]] == [f"dwell_{i:06d}.h5" for i in range(used, DWELLS)]
+    assert out["sprt"]["accept_nats"] == round(math.log(0.99 / 0.001), 4)
+    payload = _entry(db, out["audit_id"])
+    assert [d["file_sha256"] for d in payload["dwells"]] == [d["file_sha256"] for d in out["dwells"]]
+    assert all(len(d["file_sha256"]) == 64 for d in payload["dwells"])
+    assert payload["skipped_files"] == out["skipped_files"]
+    ctx = payload["policy_input"]["context"]["track"]
+    assert ctx["dwells"] == used and ctx["llr_cn"] >= ctx["accept_cn"]
+    assert main(["--db", db, "audit", "replay", str(out["audit_id"])]) == 0
+    assert main(["--db", db, "audit", "verify"]) == 0
+
+
+def test_a_type_spoof_track_crosses_the_reject_bound(setup, capsys) -> None:
+    _, db, tracks = setup
+    code, out, _ = _run(db, capsys, str(tracks["type"]))
+    assert code == 1 and out["reasons"] == ["track-claim-inconsistent"]
+    assert out["llr"] <= out["sprt"]["reject_nats"] and out["dwells_used"] < DWELLS
+    # the single-dwell verdicts are reported, the track's is the policy's over the combined LLR
+    assert all(d["llr"] < 0 for d in out["dwells"])
+
+
+def test_a_position_spoof_stops_the_track_on_its_first_dwell(setup, capsys) -> None:
+    root, db, _ = setup
+    sc = Scene(kind="uav", profile=shipped_profiles()["m300"], snr_db=20.0, range_m=400.0, radial_speed_mps=3.0)
+    folder = root / "position"
+    folder.mkdir()
+    from authn.scenario import Broadcast, simulate_flight
+    from signatures.radar import get_preset
+    from datetime import datetime, timedelta, timezone
+
+    t0 = datetime.now(timezone.utc)
+    for i in range(3):
+        rec, _ = simulate_flight(sc, get_preset("paper"), 300 + i, Broadcast(serial=M300, offset_along_los_m=150.0),
+                                 azimuth_deg=60.0, start_time=t0 + timedelta(seconds=i))
+        write_recording(rec, folder / f"dwell_{i:06d}.h5")
+    code, out, _ = _run(db, capsys, str(folder))
+    assert code == 1 and "range-mismatch" in out["reasons"] and out["dwells_used"] == 1
+    assert out["dwells_skipped"] == 2
+
+
+def test_a_registry_decision_needs_no_dwell(setup, capsys) -> None:
+    _, db, tracks = setup
+    code, out, _ = _run(db, capsys, str(tracks["genuine"]), "--serial", "1581BUNKNOWN0001")
+    assert code == 1 and "unregistered" in out["reasons"]  # and serial-mismatch: --serial is not the Basic ID
+    assert out["dwells_used"] == 0 and out["radar"] is None and out["dwells_skipped"] == DWELLS - 1
+
+
+def test_the_bounds_are_options(setup, capsys) -> None:
+    """A looser false-accept target lowers the accept bound below one dwell's cap: one dwell decides."""
+    _, db, tracks = setup
+    code, out, _ = _run(db, capsys, str(tracks["genuine"]), "--false-accept", "0.1")
+    assert code == 0 and out["dwells_used"] == 1 and out["sprt"]["accept_nats"] == round(math.log(0.99 / 0.1), 4)
+    code, _, err = _run(db, capsys, str(tracks["genuine"]), "--false-reject", "0.7")
+    assert code == 2 and "false reject rate" in err
+
+
+def test_the_policy_decides_each_step(setup, capsys, tmp_path) -> None:
+    """A site policy that allows one dwell's evidence only: the track stops at its second dwell."""
+    from importlib import resources
+
+    _, db, tracks = setup
+    policy = tmp_path / "site.cedar"
+    policy.write_text(resources.files("authn.policies").joinpath("default.cedar").read_text() + """
+@id("one-dwell-only")
+forbid (principal, action == Action::"authenticate", resource)
+when { context has track && context.track.dwells >= 2 };
+""")
+    code, out, _ = _run(db, capsys, str(tracks["genuine"]), "--policy", str(policy))
+    assert code == 1 and "one-dwell-only" in out["reasons"] and out["dwells_used"] == 2
+
+
+def test_skipped_dwells_are_not_read_beyond_their_headers(setup, capsys, tmp_path) -> None:
+    """A dwell whose IQ holds NaN passes the header validation; after the deciding dwell it is never
+    read whole (accepted), before it the track is bad input naming it."""
+    _, db, tracks = setup
+    files = sorted(tracks["genuine"].iterdir())
+    bad = _with_nan(files[-1], tmp_path / "nan.h5")
+    read_header(bad)  # the header is valid
+    code, out, _ = _run(db, capsys, *map(str, files[:-1]), str(bad))
+    assert code == 0 and str(bad) in out["skipped_files"]
+    code, out, err = _run(db, capsys, str(_with_nan(files[0], tmp_path / "first.h5")), *map(str, files[1:]))
+    assert code == 2 and "non-finite" in out["error"]
+
+
+def _with_nan(src: Path, dst: Path) -> Path:
+    """A copy of a dwell with one NaN in its IQ (the writer refuses one: patched in place)."""
+    import shutil
+
+    import h5py
+
+    shutil.copy(src, dst)
+    with h5py.File(dst, "r+") as f:
+        f["iq"][0, 0] = np.nan
+    return dst
+
+
+def _cli(db: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "authn", "--db", db, "check", "--track", *args],
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("case", ["empty", "mixed-claims", "mixed-waveforms", "out-of-order"])
+def test_a_track_that_is_not_one_targets_is_bad_input(setup, tmp_path, case: str) -> None:
+    _, db, tracks = setup
+    gen, spoof = sorted(tracks["genuine"].iterdir()), sorted(tracks["type"].iterdir())
+    if case == "empty":
+        (tmp_path / "empty").mkdir()
+        args, words = [str(tmp_path / "empty")], "no .h5/.npz files"
+    elif case == "mixed-claims":
+        args, words = [str(gen[0]), str(spoof[1])], "a track is one claim"
+    elif case == "mixed-waveforms":
+        rec = read_recording(gen[1])
+        other = tmp_path / "other.h5"
+        write_recording(replace(rec, config=rec.config.model_copy(update={"pri_s": rec.config.pri_s * 1.5})), other)
+        args, words = [str(gen[0]), str(other)], "a track is one radar waveform"
+    else:
+        args, words = [str(gen[2]), str(gen[1])], "must be in time order"
+    from authn.audit import list_entries
+    from registry.dbapi import Database
+
+    proc = _cli(db, *args)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert len(proc.stderr.strip().splitlines()) == 1 and words in proc.stderr and "Traceback" not in proc.stderr
+    last = list_entries(Database(db), kind="error")[-1].payload  # the failed attempt is audited
+    assert last["error_kind"] == "bad-input" and words in last["error"]
+
+
+def test_sprt_bounds_discount_and_cap() -> None:
+    s = Sprt(false_accept=0.001, false_reject=0.01, correlation=0.2, cap_nats=4.0)
+    assert math.isclose(s.accept_nats, math.log(0.99 / 0.001)) and math.isclose(s.reject_nats, math.log(0.01 / 0.999))
+    assert s.increment(9.0) == 4.0 and s.increment(-9.0) == -4.0 and s.increment(1.5) == 1.5
+    # n equicorrelated dwells count as n / (1 + (n - 1) rho)
+    assert math.isclose(s.track_llr([4.0, 4.0, 4.0]), 12.0 / 1.4)
+    assert s.track_llr([]) == 0.0 and Sprt(correlation=0.0).track_llr([1.0, 2.0]) == 3.0
+    for bad in ({"false_accept": 0.0}, {"false_reject": 0.5}, {"correlation": 1.0}, {"false_accept": float("nan")}):
+        with pytest.raises(ValueError):
+            Sprt(**bad)
+
+
+def test_icc_of_known_groups() -> None:
+    """The intra-class correlation the discount is measured with: 0 for groups with one mean,
+    near 1 for groups that differ far more than within."""
+    rng = np.random.default_rng(3)
+    same = [list(rng.normal(0, 1, 6)) for _ in range(200)]
+    apart = [list(m + rng.normal(0, 0.1, 6)) for m in rng.normal(0, 3, 200)]
+    assert abs(icc(same)) < 0.05 and icc(apart) > 0.95
