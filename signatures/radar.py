@@ -242,7 +242,7 @@ def _cw_sband() -> Preset:
     # An S-band CW radar (3.3 GHz) sampled at 5 kHz (PRI 200 us); a 10 s recording is cut into
     # 0.82 s dwells of 4096 pulses (`with_pulses(50000)` for the whole 10 s). CW: one sample
     # per pulse, the FMCW-equivalent waveform of docs/format.md (ramp = PRI, B = fs = 1/PRI),
-    # so the one range bin holds every range. v_unamb = lambda*PRF/4 = 11.4 m/s; blade tips of
+    # so the one range bin holds every range. v_unamb = lambda*PRF/4 = 113.6 m/s; blade tips of
     # a small quadcopter (~120 m/s, 2.6 kHz) alias.
     pri = 200e-6
     cfg = RadarConfig(carrier_hz=3.3e9, bandwidth_hz=1.0 / pri, ramp_s=pri, pri_s=pri, sample_rate_hz=1.0 / pri)

@@ -484,7 +484,7 @@ def simulate_many(multi: MultiScene, preset: Preset, seed: int | None = None, *,
         cube += _clutter_cube(config, preset.n_chirps, preset.n_samples, clutter_power, rng)
     cube += _noise_cube(preset.n_chirps, preset.n_samples, 1.0, rng)
     doc = {"preset": preset.name, "seed": seed, "scene": multi.model_dump(mode="json"),
-           "truths": [{**t.__dict__, "rotor_rates_hz": list(t.rotor_rates_hz)} for t in truths]}
+           "truths": [truth_doc(t) for t in truths]}
     rec = Recording(config=config, site=site, start_time=start_time, iq=cube,
                     simulation=json.dumps(doc, sort_keys=True, separators=(",", ":")))
     return as_recorded(rec, preset.domain), truths
@@ -492,6 +492,12 @@ def simulate_many(multi: MultiScene, preset: Preset, seed: int | None = None, *,
 
 def truth_json(scene: Scene, truth: Truth, preset: str, seed: int | None) -> str:
     """Canonical JSON of what was simulated, stored as the file attribute `simulation`."""
-    doc = {"preset": preset, "seed": seed, "scene": scene.model_dump(mode="json"),
-           "truth": {**truth.__dict__, "rotor_rates_hz": list(truth.rotor_rates_hz)}}
+    doc = {"preset": preset, "seed": seed, "scene": scene.model_dump(mode="json"), "truth": truth_doc(truth)}
     return json.dumps(doc, sort_keys=True, separators=(",", ":"))
+
+
+def truth_doc(truth: Truth) -> dict:
+    """The truth as JSON-ready data: its fields plus the rates derived from them (mean mechanical
+    rotor rate, blade-flash rate, and the per-rotor rate at which the blade pattern repeats)."""
+    return {**truth.__dict__, "rotor_rates_hz": list(truth.rotor_rates_hz), "rotor_rate_hz": truth.rotor_rate_hz,
+            "blade_flash_rate_hz": truth.blade_flash_rate_hz, "pattern_rates_hz": list(truth.pattern_rates_hz)}

@@ -62,6 +62,9 @@ def accuracy(
     world: list[str] = typer.Option(["training"], "--world",
                                     help="training, randomised (domain randomisation) or heldout (the "
                                          "independent signal model); repeatable."),
+    condition: list[str] = typer.Option([], "--condition",
+                                        help="Score a real-radar condition instead (repeatable; `--condition list` "
+                                             "names them): --preset and --snr are then unused."),
     as_json: bool = typer.Option(False, "--json", help="One JSON array of rows."),
 ) -> None:
     """Estimator accuracy on simulated UAV returns, per preset, SNR and world.
@@ -73,9 +76,39 @@ def accuracy(
     Example: authn features accuracy --preset paper --n 100 --snr=-10,0,10,20
 
     Example: authn features accuracy --snr=0,10 --world training --world randomised --world heldout
+
+    With --condition (lab/accuracy.py CONDITIONS, e.g. an S-band CW radar on a hovering quadcopter with
+    tagged blades): share with |v| < 1 m/s, the mechanical rotor rate within 3 %, rotors seen within
+    +-1, and how often the rate read is twice or half the truth.
+
+    Example: authn features accuracy --condition cw-hover-tagged --condition cw-idle-tagged --n 40
     """
-    from lab.accuracy import WORLDS, evaluate
+    from lab.accuracy import CONDITIONS, WORLDS, evaluate, evaluate_condition
     from signatures.errors import SignaturesError
+
+    if condition:
+        if "list" in condition:
+            for c in CONDITIONS.values():
+                typer.echo(f"{c.name}\t{c.description}")
+            return
+        for c in condition:
+            if c not in CONDITIONS:
+                raise SignaturesError(f"--condition: {c!r} is not one of {', '.join(CONDITIONS)}")
+        for w in world:
+            if w not in WORLDS:
+                raise SignaturesError(f"--world: {w!r} is not one of {', '.join(WORLDS)}")
+        crows = [evaluate_condition(c, n, seed, w) for c in condition for w in world]
+        if as_json:
+            typer.echo(json.dumps([r.as_dict() for r in crows]))
+            return
+        typer.echo("| condition | world | n | detected | abs(v) < 1 m/s | rotor rate +-3 % | rotors seen +-1 "
+                   "| median rotor-rate error | rate at 2x truth | rate at 0.5x truth | seconds |")
+        typer.echo("|---|---|---|---|---|---|---|---|---|---|---|")
+        for r in crows:
+            typer.echo(f"| {r.condition} | {r.world} | {r.n} | {r.detected:.0%} | {r.velocity_ok:.0%} "
+                       f"| {r.rotor_ok:.0%} | {r.rotors_ok:.0%} | {r.rotor_median_err:.1%} | {r.at_double:.0%} "
+                       f"| {r.at_half:.0%} | {r.seconds:.1f} |")
+        return
 
     try:
         snrs = [float(s) for s in snr.split(",") if s.strip()]

@@ -123,6 +123,14 @@ def render(scene: Scene, config: RadarConfig, n_chirps: int, n_samples: int, see
     return Parts(target, clut, noise, iq, truth)
 
 
+def _truth_doc(truth: HeldoutTruth) -> dict:
+    """The truth as JSON-ready data, with the mean rotor rate and each rotor's pattern rate."""
+    doc = asdict(truth)
+    if truth.airframe is not None:
+        doc.update(rotor_rate_hz=truth.rotor_rate_hz, pattern_rates_hz=list(truth.airframe.pattern_rates_hz))
+    return doc
+
+
 def _in_domain(rec: Recording, domain: str) -> Recording:
     """The IF recording as a radar of `domain` delivers it (docs/format.md): a CW waveform has one
     sample per pulse at t = 0 of the sweep, which is the CW sample itself; a range radar delivers
@@ -150,7 +158,7 @@ def simulate(scene: Scene, preset: Preset, seed: int | None = None, *, range_off
     config = preset.with_offset(0.0 if preset.domain == "cw" else offset)
     parts = render(scene, config, preset.n_chirps, preset.n_samples, seed)
     doc = {"model": f"heldout/{HELDOUT_VERSION}", "preset": preset.name, "seed": seed,
-           "scene": scene.model_dump(mode="json"), "truth": asdict(parts.truth)}
+           "scene": scene.model_dump(mode="json"), "truth": _truth_doc(parts.truth)}
     rec = Recording(config=config, site=site, start_time=start_time, iq=parts.iq,
                     simulation=json.dumps(doc, sort_keys=True, separators=(",", ":")))
     return _in_domain(rec, preset.domain), parts.truth
@@ -198,7 +206,7 @@ def simulate_many(multi: MultiScene, preset: Preset, seed: int | None = None, *,
                            airframe=f if isinstance(f, AirframeTruth) else None, receiver=rx,
                            bird=f if isinstance(f, BirdTruth) else None) for t, f in zip(multi.targets, frames)]
     doc = {"model": f"heldout/{HELDOUT_VERSION}", "preset": preset.name, "seed": seed,
-           "scene": multi.model_dump(mode="json"), "truths": [asdict(t) for t in truths]}
+           "scene": multi.model_dump(mode="json"), "truths": [_truth_doc(t) for t in truths]}
     rec = Recording(config=config, site=site, start_time=start_time, iq=iq,
                     simulation=json.dumps(doc, sort_keys=True, separators=(",", ":")))
     return _in_domain(rec, preset.domain), truths
