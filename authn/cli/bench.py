@@ -32,6 +32,9 @@ def bench(
     batch: bool = typer.Option(False, "--batch", help="Run only the batch-mode figures: per-return time against "
                                "batch size beside the FFT floor, accuracy against one return at a time, "
                                "registry-only rejections against the I/O floor."),
+    track: bool = typer.Option(False, "--track", help="Run only the track rows: the correlation of dwell LLRs "
+                               "within and between simulated scenes, and dwells per track decision against --snr "
+                               "(docs/tracks.md)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Benchmark decisions and speed: accuracy, latency, stages, error vs time, throughput.
@@ -72,6 +75,12 @@ def bench(
     Example: authn bench --worlds-only --world both --n 100 --seeds 10 --preset paper
 
     Example: authn bench --batch --plot docs/figures
+
+    Tracks (--track): --n genuine and type-spoof tracks of 10 dwells per --snr, each decided by the
+    sequential test of `authn check --track`: right decisions and median dwells per decision; and
+    the intra-track correlation of the dwell LLRs the test discounts (5 dwells of --n scenes).
+
+    Example: authn bench --track --preset paper --n 40 --snr 0 --snr 5 --snr 10 --snr 20
     """
     import registry.urls
     from rich.console import Console
@@ -95,6 +104,9 @@ def bench(
         return
     if batch:
         _batch(tuple(preset), quick, seed, plot_dir, as_json)
+        return
+    if track:
+        _track(tuple(preset), tuple(snr), n, seed, as_json)
         return
     n_claims = len(preset) * len(snr) * len(WORLD_CATEGORIES) * n * len(worlds)
     if worlds_only:
@@ -182,6 +194,42 @@ def bench(
         console.print("  FFT floor of just the first part of the dwell (what those configurations transform): "
                       + ", ".join(f"{k} {v:.2f} ms" for k, v in dwell_floors[p].items()))
     console.print(imports_table(imports))
+
+
+def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int, as_json: bool) -> None:
+    """Only the track rows (`--track`): dependence of dwell LLRs, dwells per decision."""
+    from rich.console import Console
+    from rich.progress import Progress
+    from rich.table import Table
+
+    from lab.bench.track import dependence, run_tracks, summarise_tracks
+
+    with Progress(transient=True, disable=as_json) as progress:
+        task = progress.add_task("simulated tracks", total=len(presets) * len(snrs) * 2 * (n + 5 * n))
+        dep = [r for p in presets for s in snrs
+               for r in dependence(p, n, 5, s, seed, progress=lambda k: progress.advance(task, k))]
+        rows = summarise_tracks([t for p in presets for t in run_tracks(p, snrs, n, 10, seed,
+                                                                        progress=lambda k: progress.advance(task, k))])
+    if as_json:
+        typer.echo(json.dumps({"dependence": [d.to_json() for d in dep], "tracks": rows, "n": n, "seed": seed},
+                              indent=2))
+        return
+    console = Console()
+    t = Table(title="dwell LLR correlation (ICC within one scene of a flown/claimed pair; Pearson of consecutive "
+                    "dwells and of dwells of neighbouring scenes)")
+    for col in ("preset", "SNR dB", "claims", "ICC", "ICC pooled", "within", "between", "mean LLR"):
+        t.add_column(col, justify="right")
+    for d in dep:
+        t.add_row(d.preset, f"{d.snr_db:g}", d.category, f"{d.icc:.3f}", f"{d.icc_pooled:.3f}", f"{d.within:.3f}",
+                  f"{d.between:.3f}", f"{d.mean_llr:+.2f}")
+    console.print(t)
+    t = Table(title="track decisions (sequential test, at most 10 dwells)")
+    for col in ("preset", "SNR dB", "claims", "tracks", "right", "inconclusive", "median dwells", "mean dwells"):
+        t.add_column(col, justify="right")
+    for r in rows:
+        t.add_row(r["preset"], f"{r['snr_db']:g}", r["category"], str(r["tracks"]), f"{r['right']:.1%}",
+                  f"{r['inconclusive']:.1%}", f"{r['median_dwells']:g}", f"{r['mean_dwells']:.2f}")
+    console.print(t)
 
 
 def _batch(presets: tuple[str, ...], quick: bool, seed: int, plot_dir: Path | None, as_json: bool) -> None:

@@ -11,6 +11,7 @@ and its geometry and that more dwells cannot average out (`authn.track`'s discou
 
 from __future__ import annotations
 
+import math
 import statistics
 import tempfile
 from collections.abc import Callable
@@ -102,7 +103,9 @@ class Dependence:
     sd_llr: float
 
     def to_json(self) -> dict[str, Any]:
-        return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
+        """The row as JSON (NaN, where too few scenes or dwells gave a number, as null)."""
+        return {k: ((None if math.isnan(v) else round(v, 4)) if isinstance(v, float) else v)
+                for k, v in self.__dict__.items()}
 
 
 def _checker(tmp: str) -> Any:
@@ -156,7 +159,8 @@ def dependence(preset: str = "paper", n_tracks: int = 30, dwells: int = 6, snr_d
             flat = [x for g in groups for x in g]
             per_pair = [(sum(len(g) for g in gs), icc(gs)) for gs in pairs.values()
                         if sum(len(g) >= 2 for g in gs) >= 2]
-            pooled_pairs = sum(w * v for w, v in per_pair) / sum(w for w, _ in per_pair)
+            pooled_pairs = (sum(w * v for w, v in per_pair) / sum(w for w, _ in per_pair) if per_pair
+                            else float("nan"))  # fewer than two scenes of any one pair
             rows.append(Dependence(preset, snr_db, cat, n_tracks, len(flat), pooled_pairs, icc(groups),
                                    _pearson(within), _pearson(between),
                                    statistics.fmean(flat) if flat else float("nan"),
