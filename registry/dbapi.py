@@ -218,6 +218,12 @@ class Database:
         return IdentityFacts(s, id_type, model, status, self.from_db_time(vf), self.from_db_time(vu),
                              bytes(key) if key is not None else None)
 
+    def registered_models(self) -> set[str]:
+        """The model slugs of the active identities: the airframes registered at this site (what
+        a radar-confusable pair is checked against, `authn.check`)."""
+        return {str(r[0]) for r in self.fetch("SELECT DISTINCT model_slug FROM identities WHERE status = :s",
+                                              {"s": "active"})}
+
     def profile(self, slug: str) -> UavProfile | None:
         """The registered model's physical parameters (what 1:1 verification checks against);
         read only when the radar runs, so a registry-only rejection costs one query."""

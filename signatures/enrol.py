@@ -54,8 +54,8 @@ from signatures.profiles import UavProfile
 from signatures.radar import Preset
 
 __all__ = ["CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM", "SITE_SHARE",
-           "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "default_name", "enrol", "previous_samples",
-           "read_labels", "sha256_of"]
+           "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts", "default_name", "enrol",
+           "previous_samples", "read_labels", "sha256_of"]
 
 #: Fewest recordings per enrolled model: below this a cross-validated error means nothing.
 MIN_RECORDINGS = 5
@@ -91,7 +91,7 @@ class LabelRow(BaseModel):
 
 def read_labels(path: Path) -> list[tuple[Path, str]]:
     """(recording path, model slug) of each row of an untrusted `file,model` CSV. Paths are
-    relative to the CSV's folder and may not leave it; a duplicate, a bad header or a bad row
+    relative to the CSV's folder and may not climb out of it ('..'); a duplicate, a bad header or a bad row
     is an EnrolError naming its line."""
     try:
         if path.stat().st_size > MAX_LABEL_BYTES:
@@ -106,7 +106,7 @@ def read_labels(path: Path) -> list[tuple[Path, str]]:
         raise EnrolError(f"{path}: the header must be exactly 'file,model'")
     if len(rows) - 1 > MAX_LABEL_ROWS:
         raise EnrolError(f"{path}: more than {MAX_LABEL_ROWS} rows")
-    root = path.parent.resolve()
+    root = Path(os.path.normpath(path.parent.absolute()))
     out: list[tuple[Path, str]] = []
     seen: set[Path] = set()
     for line, cells in enumerate(rows[1:], start=2):
@@ -122,8 +122,9 @@ def read_labels(path: Path) -> list[tuple[Path, str]]:
         rel = Path(row.file)
         if rel.is_absolute() or "\x00" in row.file:
             raise EnrolError(f"{path}:{line}: file must be relative to the CSV's folder")
-        target = (root / rel).resolve()
-        if not target.is_relative_to(root):
+        lexical = Path(os.path.normpath(root / rel))  # '..' may not climb out; a symlink inside may point out
+        target = lexical.resolve()
+        if not lexical.is_relative_to(root):
             raise EnrolError(f"{path}:{line}: file {row.file!r} is outside the CSV's folder")
         if target in seen:
             raise EnrolError(f"{path}:{line}: file {row.file!r} is labelled twice")
@@ -256,6 +257,28 @@ def _threshold(impostor: dict[tuple[str, str], list[float]], target: float) -> f
     return float(np.nextafter(scores[len(scores) - 1 - allowed], np.inf))
 
 
+def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -> None:
+    """Refuse (EnrolError) what cannot be enrolled: an unknown model, fewer than MIN_RECORDINGS
+    recordings (or detections) of a model, a single model."""
+    enrolled = sorted({s.model for s in samples})
+    unknown = [m for m in enrolled if m not in profiles]
+    if unknown:
+        raise EnrolError(f"unknown model {unknown[0]!r}: register its profile first (authn register --model ...)")
+    counts = {m: sum(s.model == m for s in samples) for m in enrolled}
+    short = {m: n for m, n in counts.items() if n < MIN_RECORDINGS}
+    if short:
+        m, n = next(iter(short.items()))
+        raise EnrolError(f"model {m}: {n} recording{'s' if n != 1 else ''}, at least {MIN_RECORDINGS} per model needed")
+    if len(enrolled) < 2:
+        raise EnrolError(f"only one model ({enrolled[0]}) to enrol: a site bundle needs at least two registered "
+                         "models' recordings (the cross-validated pairwise errors compare them)")
+    det_counts = {m: sum(s.model == m and s.detected for s in samples) for m in enrolled}
+    if any(n < MIN_RECORDINGS for n in det_counts.values()):
+        m = next(m for m, n in det_counts.items() if n < MIN_RECORDINGS)
+        raise EnrolError(f"model {m}: the radar detected a target in only {det_counts[m]} of its {counts[m]} "
+                         f"recordings, at least {MIN_RECORDINGS} needed")
+
+
 def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], waveform: Preset, dest: Path, *,
           name: str, sources: Sequence[str] = (), previous: str | None = None, seed: int = 0, workers: int = 2,
           n_sim: int = N_SIM, cache: Path | None | bool = None,
@@ -275,28 +298,14 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
 
     t0 = time.perf_counter()
     say = progress or (lambda phase, frac: None)
+    check_counts(samples, profiles)
     enrolled = sorted({s.model for s in samples})
-    unknown = [m for m in enrolled if m not in profiles]
-    if unknown:
-        raise EnrolError(f"unknown model {unknown[0]!r}: register its profile first (authn register --model ...)")
     counts = {m: sum(s.model == m for s in samples) for m in enrolled}
-    short = {m: n for m, n in counts.items() if n < MIN_RECORDINGS}
-    if short:
-        m, n = next(iter(short.items()))
-        raise EnrolError(f"model {m}: {n} recording{'s' if n != 1 else ''}, at least {MIN_RECORDINGS} per model needed")
-    if len(enrolled) < 2:
-        raise EnrolError(f"only one model ({enrolled[0]}) to enrol: a site bundle needs at least two registered "
-                         "models' recordings (the cross-validated pairwise errors compare them)")
     site = [s for s in samples if s.detected]
     missed = len(samples) - len(site)
     det_counts = {m: sum(s.model == m for s in site) for m in enrolled}
-    if any(n < MIN_RECORDINGS for n in det_counts.values()):
-        m = next(m for m, n in det_counts.items() if n < MIN_RECORDINGS)
-        raise EnrolError(f"model {m}: the radar detected a target in only {det_counts[m]} of its {counts[m]} "
-                         f"recordings, at least {MIN_RECORDINGS} needed")
     if dest.exists():
         raise EnrolError(f"{dest}: a bundle of that name exists (choose another --name)")
-
     plist = tuple(profiles[k] for k in sorted(profiles))
     say("simulating the base set", 0.0)
     sim: Dataset = generate(DatasetSpec(preset=waveform, profiles=plist, split="train", n=n_sim, seed=seed),

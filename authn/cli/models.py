@@ -442,6 +442,7 @@ def enrol_cmd(
     add: bool = typer.Option(False, "--add", help="Add these recordings to the waveform's active enrolment."),
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated base set, the folds and the forest."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Worker processes (simulation, forest)."),
+    base_samples: int = typer.Option(1500, "--base-samples", min=50, help="Simulated base returns (cached)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object at the end (progress on stderr)."),
 ) -> None:
     """Adapt the radar evidence to this site's radar from its recorded flights (site enrolment).
@@ -460,7 +461,7 @@ def enrol_cmd(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from registry.dbapi import Database
-    from signatures.enrol import (EnrolError, bundle_name_ok, default_name, enrol, previous_samples)
+    from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
     from signatures.inference import active_bundle, load_classifier, models_dir, set_active
     from signatures.profiles import shipped_profiles
 
@@ -504,13 +505,14 @@ def enrol_cmd(
             raise EnrolError(f"unknown model {slug!r}: not a registered model profile (authn registry models)")
         registered[slug] = p
     profiles = {**shipped_profiles(), **registered}
+    check_counts(samples, profiles)  # before any estimate or work
     name = name or default_name(wf)
     dest = models_dir() / name
     if dest.exists():
         raise EnrolError(f"{dest}: a bundle of that name exists (choose another --name)")
     counts = {m: sum(s.model == m for s in samples) for m in sorted({s.model for s in samples})}
     console.print(f"enrolling {len(samples)} recordings ({', '.join(f'{m} {n}' for m, n in counts.items())}) of "
-                  f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers):.0f} s "
+                  f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers, base_samples):.0f} s "
                   "(less with a cached base set)")
     with bar:
         task = bar.add_task("enrolling", total=1.0)
@@ -519,21 +521,21 @@ def enrol_cmd(
             bar.update(task, description=phase, completed=frac)
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
-                     progress=progress)
+                     n_sim=base_samples, progress=progress)
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
 
 
-def _estimate(wf, n_site: int, workers: int) -> float:
+def _estimate(wf, n_site: int, workers: int, n_sim: int) -> float:
     """Seconds an enrolment takes on this machine: the base set's simulation (measured on three
     returns; nothing when cached), the site features, the folds' forests."""
     from signatures.dataset import DatasetSpec, seconds_per_return
-    from signatures.enrol import CV_FOLDS, N_SIM
+    from signatures.enrol import CV_FOLDS
     from signatures.profiles import shipped_profiles
 
     per = seconds_per_return(DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="train",
-                                         n=N_SIM, seed=0))
-    return N_SIM * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
+                                         n=n_sim, seed=0))
+    return n_sim * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
 
 
 def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) -> None:

@@ -1,0 +1,223 @@
+"""Site enrolment (issue 32): `authn models enrol DIR --labels DIR/labels.csv`, then `authn register`,
+then `authn check FILE` decides with the site bundle; the card; radar-confusable pairs and their
+policy; `models use` / `list`; bad input is exit 2 and one line and changes nothing; an interrupted
+enrolment leaves the previous bundle active.
+
+Small on purpose: 5 held-out recordings per shipped airframe and a 120-return simulated base set.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import replace
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from authn.cli import main
+from authn.policy import PolicyEngine
+from tests.decision.test_policy import ACTIVE, GOOD, SITE
+
+N_PER_MODEL = 5
+BASE = ["--base-samples", "120"]
+SERIALS = {"m600": "1581BBENCH00600A", "m300": "1581BBENCH00300A", "phantom4": "1581BBENCH00004A"}
+
+
+def _make_site(folder: Path, n: int, seed: int = 11) -> None:
+    """n held-out recordings per shipped airframe (mixed SNR, Remote ID of its bench serial), labels.csv."""
+    from authn.scenario import Broadcast
+    from lab.bench.decisions import CLAIM_SCENES
+    from lab.bench.worlds import render_claim
+    from signatures.profiles import shipped_profiles
+    from signatures.radar import get_preset
+    from signatures.recording import write_recording
+    from signatures.sampling import sample_scene
+
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    rows = ["file,model"]
+    now = datetime.now(timezone.utc)
+    for slug, prof in shipped_profiles().items():
+        for i in range(n):
+            scene = sample_scene(rng, prof, replace(CLAIM_SCENES, snr_db=(10.0, 20.0)))
+            rec = render_claim("heldout", scene, get_preset("paper"), int(rng.integers(2**31)),
+                               Broadcast(serial=SERIALS[slug]), float(rng.uniform(0, 360)), now)
+            write_recording(rec, folder / f"{slug}-{i:02d}.h5")
+            rows.append(f"{slug}-{i:02d}.h5,{slug}")
+    (folder / "labels.csv").write_text("\n".join(rows) + "\n")
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
+    """A clean data folder (registry, models) and a site's recordings; the first enrolment."""
+    root = tmp_path_factory.mktemp("enrol")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("AUTHN_MODELS_DIR", str(root / "models"))
+        mp.setenv("AUTHN_CACHE_DIR", str(root / "cache"))
+        mp.setenv("AUTHN_DATABASE_URL", f"sqlite:///{root / 'r.sqlite3'}")
+        _make_site(root / "flights", N_PER_MODEL)
+        yield {"root": root, "flights": root / "flights", "models": root / "models"}
+
+
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err and len(err.splitlines()) == 1, err
+    return err
+
+
+def _active() -> dict:
+    from signatures.inference import active_map
+
+    return active_map()
+
+
+def test_enrol_register_check_uses_the_site_bundle(site: dict, capsys) -> None:
+    flights = site["flights"]
+    assert main(["models", "enrol", str(flights), "--labels", str(flights / "labels.csv"), "--name", "site-a",
+                 "--json", *BASE]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["counts"] == {"m300": 5, "m600": 5, "phantom4": 5} and doc["sources"] == 15
+    folder = site["models"] / "site-a"
+    card = json.loads((folder / "card.json").read_text())
+    e = card["enrolment"]
+    assert e["confusion"]["rows"] == ["m300", "m600", "phantom4"]
+    assert sum(map(sum, e["confusion"]["matrix"])) == sum(e["detected"].values())
+    assert [p["models"] for p in e["pairwise"]] == [["m300", "m600"], ["m300", "phantom4"], ["m600", "phantom4"]]
+    assert all(p["tracks"] is None for p in e["pairwise"])  # track figures: once authn check --track lands
+    assert e["threshold"]["applied"] == 0.0 and e["threshold"]["false_accept_target"] == 0.01
+    assert {s["file"] for s in e["sources"]} == {str(p) for p in flights.glob("*.h5")}
+    assert all(len(s["sha256"]) == 64 for s in e["sources"])
+    assert set(card["files"]) >= {"rf.npz", "openset.npz", "site.npz"}
+    assert list(_active().values()) == ["site-a"]
+
+    assert main(["register", "--serial", SERIALS["phantom4"], "--model", "phantom4",
+                 "--valid-from", "2025-01-01T00:00:00Z"]) == 0
+    capsys.readouterr()
+    main(["check", str(flights / "phantom4-00.h5"), "--json"])
+    out = json.loads(capsys.readouterr().out)
+    from signatures.modelcard import read_card
+
+    assert out["model_card_sha256"] == read_card(folder)[1]  # decided with the site bundle
+    assert out["reasons"] != ["unregistered"]
+
+
+def test_models_list_and_use_switch_the_active_bundle(site: dict, capsys) -> None:
+    assert main(["models", "list", "--json"]) == 0
+    docs = {d["name"]: d for d in json.loads(capsys.readouterr().out)}
+    assert docs["site-a"]["kind"] == "site" and docs["site-a"]["active"]
+    assert not docs["paper"]["active"] and docs["wide"]["active"]
+    assert main(["models", "use", "shipped"]) == 0 and _active() == {}
+    assert main(["models", "list", "--json"]) == 0
+    docs = {d["name"]: d for d in json.loads(capsys.readouterr().out.split("\n", 1)[1])}
+    assert docs["paper"]["active"] and not docs["site-a"]["active"]
+    assert main(["models", "use", "site-a"]) == 0 and list(_active().values()) == ["site-a"]
+    capsys.readouterr()
+    assert main(["models", "use", "nonesuch"]) == 2
+    assert "no site bundle named 'nonesuch'" in _one_line_error(capsys)
+
+
+def test_confusable_pair_needs_a_signature(site: dict, capsys, monkeypatch) -> None:
+    """A pair the card calls confusable, both registered: an unsigned claim is rejected with
+    radar-confusable-unsigned; with only one of the pair registered, the rule stays silent."""
+    from authn.check import Checker
+    from signatures.inference import load_classifier
+
+    clf = load_classifier(path=site["models"] / "site-a")  # the instance the check will use
+    monkeypatch.setattr(clf, "confusable_pairs", (("m300", "m600"),))
+    for slug in ("m300", "m600"):
+        main(["register", "--serial", SERIALS[slug], "--model", slug, "--valid-from", "2025-01-01T00:00:00Z"])
+    checker = Checker()
+    assert checker._confusable(clf, "m300") is True
+    assert checker._confusable(clf, "phantom4") is False
+    out = checker.evaluate(site["flights"] / "m300-00.h5")
+    assert "radar-confusable-unsigned" in out.reasons
+    assert out.evidence.policy_input()["context"]["radar_confusable"] is True
+    main(["registry", "revoke", SERIALS["m600"], "--reason", "test"])
+    assert checker._confusable(clf, "m300") is False
+
+
+@pytest.mark.parametrize("context,decision,reasons", [
+    (dict(radar_confusable=True), "reject", ["radar-confusable-unsigned"]),
+    (dict(radar_confusable=True, remote_id_auth="valid"), "accept", ["registered-active"]),
+    (dict(radar_confusable=False), "accept", ["registered-active"]),
+    ({}, "accept", ["registered-active"]),  # not a site bundle: the request is unchanged
+])
+def test_policy_rows(context: dict, decision: str, reasons: list[str]) -> None:
+    result = PolicyEngine.load().decide("S1", ACTIVE, SITE, {**GOOD, **context})
+    assert (result.decision, result.reasons, result.errors) == (decision, reasons, [])
+
+
+@pytest.mark.parametrize("labels,expected", [
+    ("file,model\nm300-00.h5,m300\n", "no label in"),  # the other recordings are unlabelled
+    ("file,model\nm300-00.h5,x9\n", "unknown model 'x9'"),
+    ("name,kind\n", "header must be exactly 'file,model'"),
+    ("file,model\n../escape.h5,m300\n", "outside the CSV's folder"),
+    ("file,model\nmissing.h5,m300\n", "does not exist"),
+    ("file,model\nm300-00.h5,M 300\n", "labels.csv:2: model"),
+])
+def test_bad_labels_are_one_line_and_change_nothing(site: dict, tmp_path: Path, capsys, labels: str,
+                                                    expected: str) -> None:
+    before = _active()
+    folder = tmp_path / "flights"
+    folder.mkdir()
+    for f in site["flights"].glob("*.h5"):
+        (folder / f.name).symlink_to(f)
+    if "x9" in labels:  # every recording labelled, one with a model nobody registered
+        rows = [f"{f.name},{f.name.split('-')[0]}" for f in sorted(folder.glob("*.h5")) if f.name != "m300-00.h5"]
+        labels = labels + "\n".join(rows) + "\n"
+    (folder / "labels.csv").write_text(labels)
+    capsys.readouterr()
+    assert main(["models", "enrol", str(folder), "--labels", str(folder / "labels.csv"), *BASE]) == 2
+    assert expected in _one_line_error(capsys)
+    assert _active() == before
+
+
+def test_too_few_recordings_and_another_waveform(site: dict, tmp_path: Path, capsys) -> None:
+    capsys.readouterr()
+    few = sorted(site["flights"].glob("m300-*.h5"))[:3] + sorted(site["flights"].glob("m600-*.h5"))
+    (tmp_path / "labels.csv").write_text("file,model\n" + "".join(f"{f.name},{f.name.split('-')[0]}\n" for f in few))
+    for f in few:
+        (tmp_path / f.name).symlink_to(f)
+    assert main(["models", "enrol", str(tmp_path), "--labels", str(tmp_path / "labels.csv"), *BASE]) == 2
+    assert "model m300: 3 recordings, at least 5 per model needed" in _one_line_error(capsys)
+    wide = tmp_path / "wide.h5"
+    assert main(["simulate", "--preset", "wide", "--model", "m300", "--range", "300", "--out", str(wide)]) == 0
+    (tmp_path / "labels.csv").write_text("file,model\n" + "".join(f"{f.name},{f.name.split('-')[0]}\n" for f in few)
+                                         + "wide.h5,m300\n")
+    capsys.readouterr()
+    assert main(["models", "enrol", str(tmp_path), "--labels", str(tmp_path / "labels.csv"), *BASE]) == 2
+    assert "recordings are of 2 waveforms" in _one_line_error(capsys)
+
+
+def test_interrupted_enrolment_leaves_the_previous_bundle_active(site: dict, capsys, monkeypatch) -> None:
+    before = _active()
+    assert before
+
+    def crash(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("signatures.modelcard.write_card", crash)
+    flights = site["flights"]
+    try:  # SIGINT half way: typer turns KeyboardInterrupt into exit 130
+        rc = main(["models", "enrol", str(flights), "--labels", str(flights / "labels.csv"), "--name", "site-b", *BASE])
+    except (KeyboardInterrupt, SystemExit) as exc:
+        rc = getattr(exc, "code", 130)
+    assert rc != 0
+    assert _active() == before
+    assert not (site["models"] / "site-b").exists()
+    assert not [p for p in site["models"].iterdir() if p.name.startswith(".enrol-")]
+
+
+def test_add_extends_the_active_enrolment(site: dict, tmp_path: Path, capsys) -> None:
+    more = tmp_path / "more"
+    _make_site(more, 2, seed=99)
+    capsys.readouterr()
+    assert main(["models", "enrol", str(more), "--labels", str(more / "labels.csv"), "--add", "--name", "site-c",
+                 "--json", *BASE]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["counts"] == {"m300": 7, "m600": 7, "phantom4": 7}
+    card = json.loads((site["models"] / "site-c" / "card.json").read_text())
+    assert card["enrolment"]["previous"] == "site-a" and list(_active().values()) == ["site-c"]
