@@ -51,7 +51,8 @@ def _signing(key_file: Path | None, sam: str, det: str | None, age_s: float, tam
 
 
 _OPTION_OF = {"range_m": "range", "radial_speed_mps": "speed", "snr_db": "snr",
-              "elevation_deg": "elevation", "clutter_db": "clutter"}
+              "elevation_deg": "elevation", "clutter_db": "clutter", "rotor_rate_hz": "rotor-rate",
+              "tagged_blades": "tagged-blades", "tag_gain_db": "tag-gain", "clutter_to_signal_db": "clutter-to-signal"}
 
 
 def _in_domain(pre, domain: str):  # (Preset, str) -> Preset
@@ -76,7 +77,7 @@ def simulate(
     speed: float = typer.Option(0.0, "--speed", help="Radial velocity, m/s (+ receding, 0 hovering)."),
     snr: float = typer.Option(20.0, "--snr", help="Target power / noise power per IF sample, dB."),
     out: Path = typer.Option(..., "--out", help="Output .h5 (or .npz) file; a directory with --count."),
-    preset: str = typer.Option("paper", "--preset", help="Radar preset: paper or wide."),
+    preset: str = typer.Option("paper", "--preset", help="Radar preset: paper, wide or cw-sband (3.3 GHz CW, 5 kHz)."),
     chirps: int | None = typer.Option(None, "--chirps", min=16, max=1_000_000,
                                       help="Chirps per dwell instead of the preset's (another waveform: "
                                            "`authn models train --like` builds its classifier)."),
@@ -122,6 +123,15 @@ def simulate(
     rid_fec: bool = typer.Option(False, "--rid-fec",
                                  help="End the authentication pages with an error-correction (FEC) page "
                                       "(XOR parity, as RFC 9575's examples; a receiver rebuilds one lost page)."),
+    rotor_rate: float | None = typer.Option(None, "--rotor-rate",
+                                            help="Mechanical rotor rate flown, rev/s (default: the profile's; "
+                                                 "idle e.g. 67)."),
+    tagged_blades: int = typer.Option(0, "--tagged-blades", min=0, max=128,
+                                      help="Blades carrying a reflective tag (chosen by the seed)."),
+    tag_gain: float = typer.Option(10.0, "--tag-gain", help="Power gain of a tagged blade, dB."),
+    clutter_to_signal: float | None = typer.Option(None, "--clutter-to-signal",
+                                                   help="Static clutter over the target's power, dB (instead "
+                                                        "of --clutter)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object naming the files written."),
 ) -> None:
     """Simulate the radar return of one scene and write it as a recorded-return file.
@@ -133,6 +143,9 @@ def simulate(
 
     Example (signed): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000099 \\
       --sign-key ua.pem --out signed.h5
+
+    Example (S-band CW, 10 s, hovering, tagged): authn simulate --model phantom4 --range 300 --preset cw-sband \\
+      --chirps 50000 --rotor-rate 160 --tagged-blades 2 --clutter-to-signal 30 --out cw.h5
     """
     from pydantic import ValidationError
 
@@ -150,13 +163,16 @@ def simulate(
                               "no spaces)")
     pre = get_preset(preset)
     if chirps is not None:
-        pre = waveform_of(pre.config, chirps, pre.n_samples, max_range_m=pre.max_range_m)
-    pre = _in_domain(pre, domain)
+        pre = waveform_of(pre.config, chirps, pre.n_samples, pre.domain, max_range_m=pre.max_range_m)
+    if pre.domain != "if" and domain not in ("if", pre.domain):
+        raise SignaturesError(f"--domain: preset {preset!r} records {pre.domain}, not {domain}")
+    pre = pre if pre.domain != "if" else _in_domain(pre, domain)
     if not 0 < range_m <= pre.max_range_m:
         raise SignaturesError(f"--range: {range_m:g} m is outside (0, {pre.max_range_m:g}] m of preset {preset!r}")
     try:
         scene = _scene_for(model, profiles, range_m=range_m, radial_speed_mps=speed, snr_db=snr,
-                           elevation_deg=elevation, clutter_db=clutter)
+                           elevation_deg=elevation, clutter_db=clutter, rotor_rate_hz=rotor_rate,
+                           tagged_blades=tagged_blades, tag_gain_db=tag_gain, clutter_to_signal_db=clutter_to_signal)
     except ValidationError as exc:
         loc, msg, _ = first_error(exc)
         field = loc.split(".")[0] or "model"
