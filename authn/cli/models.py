@@ -388,47 +388,6 @@ def _labelled(files: list[Path], labels: Path | None, db) -> list[tuple[Path, st
     return [(f, rows[r]) for r, f in resolved.items()]
 
 
-def _site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteSample, Preset)
-    """Read one recording, label it (its Remote ID serial's registered model when `model` is None),
-    and extract its features as `authn check` would: gated at the range its Remote ID declares."""
-    from dataclasses import asdict
-
-    from authn.evidence import read_claim
-    from authn.kinematics import expected_from_radar
-    from core.errors import AuthnException
-    from signatures.enrol import EnrolError, SiteSample, sha256_of
-    from signatures.features import extract
-    from signatures.radar import recording_waveform
-    from signatures.recording import read_recording
-
-    rec = recording if recording is not None else read_recording(path)
-    claim = None
-    try:
-        claim = read_claim(rec, None)
-    except AuthnException:
-        if model is None:
-            raise EnrolError(f"{path}: no Remote ID serial to label it by (give --labels LABELS.csv)") from None
-    if model is None:
-        ident = db.identity(claim.serial)
-        if ident is None:
-            raise EnrolError(f"{path}: Remote ID serial {claim.serial} is not registered "
-                             "(register it, or give --labels)")
-        if ident.status != "active":
-            raise EnrolError(f"{path}: Remote ID serial {claim.serial} is {ident.status}, not active")
-        model = ident.model
-    gate = None
-    if claim is not None and claim.state is not None and rec.domain != "cw":
-        exp = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m, rec.start_time)
-        lo, hi = rec.config.range_window_m
-        gate = exp.range_m if lo <= exp.range_m < hi else None
-    feats = extract(rec, expected_range_m=gate)
-    physics = {k: float(v) for k, v in feats.physics.items()}
-    physics.update({k: float(v) for k, v in asdict(feats.features).items() if k not in physics})
-    sample = SiteSample(name=str(path), sha256=sha256_of(path), model=model,
-                        features=feats.as_array().astype("float32"), physics=physics, detected=bool(feats.detected))
-    return sample, recording_waveform(rec)
-
-
 @models_app.command("enrol")
 def enrol_cmd(
     ctx: typer.Context,
@@ -460,6 +419,7 @@ def enrol_cmd(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+    from authn.enrolment import site_sample
     from registry.dbapi import Database
     from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
     from signatures.inference import active_bundle, load_classifier, models_dir, set_active
@@ -480,7 +440,7 @@ def enrol_cmd(
     with bar:
         task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
         for f, model in todo:
-            s, wf = _site_sample(f, model, db)
+            s, wf = site_sample(f, model, db)
             samples.append(s)
             waveforms.setdefault(wf.key, wf)
             bar.advance(task)
