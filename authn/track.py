@@ -19,7 +19,9 @@ beta (false reject), accept at LLR >= log((1 - beta) / alpha) and reject at LLR 
   measured on the simulator (`authn bench --track`, `lab.bench.track.dependence`): dwells of one
   scene with different simulator seeds against dwells of different scenes;
 * a cap: no single dwell counts for more than `DWELL_CAP_NATS` either way, so one freak dwell
-  (a clipped rate estimate, a classifier at its clip) cannot cross a bound alone.
+  (a clipped rate estimate, a classifier at its clip) cannot cross a bound alone;
+* a dwell whose physics term abstained (the classifier alone) counts only against the claim,
+  as the single-dwell policy lets the classifier reject but never accept (`radar-unverifiable`).
 
 The per-dwell decisions are reported but decide nothing: the track decision is one complete
 `is_authorized` over the track's evidence (the latest dwell's, the worst kinematic residual of
@@ -87,9 +89,12 @@ class Sprt:
     def reject_nats(self) -> float:
         return math.log(self.false_reject / (1.0 - self.false_accept))
 
-    def increment(self, llr: float) -> float:
-        """One dwell's contribution: its LLR capped at +-`cap_nats`."""
-        return max(-self.cap_nats, min(self.cap_nats, llr))
+    def increment(self, llr: float, physics: bool = True) -> float:
+        """One dwell's contribution: its LLR capped at +-`cap_nats`; without a physics term (the
+        classifier alone) only what counts against the claim (the default policy's
+        `radar-unverifiable`: the classifier never carries a claim)."""
+        capped = max(-self.cap_nats, min(self.cap_nats, llr))
+        return capped if physics else min(0.0, capped)
 
     def track_llr(self, increments: Sequence[float]) -> float:
         """n_eff times the mean increment: sum / (1 + (n - 1) rho) (module docstring)."""
@@ -260,7 +265,8 @@ def _term(o: Any, sprt: Sprt) -> DwellTerm:
     llr = v.llr if v is not None and v.terms else None
     kin = o.evidence.kinematics
     return DwellTerm(o.file, o.file_sha256, o.evidence.report()["dwell_start"],
-                     None if radar is None else radar.model, llr, None if llr is None else sprt.increment(llr),
+                     None if radar is None else radar.model, llr,
+                     None if llr is None else sprt.increment(llr, "physics" in v.terms),
                      dict(v.terms) if v is not None else {}, None if kin is None else kin.to_json(),
                      o.decision, list(o.reasons))
 
@@ -294,6 +300,7 @@ def _request(ev: Any, sprt: Sprt, llr: float, used: int) -> dict[str, Any]:
     dwell's verification LLR (absent while no dwell verified anything) and the `track` record."""
     ctx = ev.context()
     ctx.pop("verification_llr_cn", None)
+    ctx.pop("physics_abstained", None)  # a dwell without physics only ever counts against (Sprt.increment)
     llr_cn = int(round(max(-1e6, min(1e6, llr * _CN))))
     if used:
         ctx["verification_llr_cn"] = llr_cn

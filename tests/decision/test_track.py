@@ -202,6 +202,8 @@ def test_sprt_bounds_discount_and_cap() -> None:
     s = Sprt(false_accept=0.001, false_reject=0.01, correlation=0.2, cap_nats=4.0)
     assert math.isclose(s.accept_nats, math.log(0.99 / 0.001)) and math.isclose(s.reject_nats, math.log(0.01 / 0.999))
     assert s.increment(9.0) == 4.0 and s.increment(-9.0) == -4.0 and s.increment(1.5) == 1.5
+    # the classifier alone (no physics term) only ever counts against the claim
+    assert s.increment(2.0, physics=False) == 0.0 and s.increment(-9.0, physics=False) == -4.0
     # n equicorrelated dwells count as n / (1 + (n - 1) rho)
     assert math.isclose(s.track_llr([4.0, 4.0, 4.0]), 12.0 / 1.4)
     assert s.track_llr([]) == 0.0 and Sprt(correlation=0.0).track_llr([1.0, 2.0]) == 3.0
