@@ -129,7 +129,7 @@ class _Timer:
 
 
 def _batch_size(rec: Any) -> int:
-    from signatures.batch_features import batch_size
+    from signatures.features import batch_size
 
     return batch_size(rec.n_chirps, rec.n_samples)
 
@@ -426,9 +426,9 @@ class Checker:
 
     def decide(self, items: Sequence[CheckInput], stop: Callable[[], bool] = lambda: False) -> Batch:
         """Decide many returns (no audit write), the radar stages batched: the returns that
-        need the radar share one batched feature extraction (`signatures.batch_features`,
-        grouped by waveform, as many cubes at once as `batch_size` allows in memory; a few
-        returns go through the single-return features) and one classifier call per bundle.
+        need the radar share one batched feature extraction (`signatures.features.extract_many`,
+        grouped by waveform, as many cubes at once as `batch_size` allows in memory) and one
+        classifier call per bundle.
         Bad input or a crash in one return is that return's Failure; a SystemFault (database,
         policy engine) stops the batch (`Batch.fault`). Radar timings are each return's share.
         `stop()` is asked before each return is read: once true, the returns read so far are
@@ -552,12 +552,12 @@ class Checker:
         keys = list(pending)
         t0 = time.perf_counter()
         try:
-            if len(keys) == 1:  # one return: the batch front end would send it here too, without its imports
+            if len(keys) == 1:  # one return: a batch of one on numpy's FFT (no scipy import)
                 from signatures.features import extract
 
                 feats = [extract(pending[keys[0]].rec, expected_range_m=pending[keys[0]].gate)]
             else:
-                from signatures.batch_features import extract_many
+                from signatures.features import extract_many
 
                 feats = extract_many([pending[k].rec for k in keys], [pending[k].gate for k in keys])
         except Exception:  # noqa: BLE001 - find the file at fault: each return on its own

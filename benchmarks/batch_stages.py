@@ -30,8 +30,8 @@ import numpy as np
 
 from lab.bench import perf
 from lab.bench.batch import _median_ms, returns
-from signatures import batch_estimators as be
-from signatures import batch_features as bf
+from signatures import flash as be
+from signatures import extraction as bf
 from signatures import estimators as est
 from signatures import features as F
 from signatures import rd
@@ -137,8 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rounds", type=int, default=10, help="timed rounds, medians (default 10)")
     ap.add_argument("--json", action="store_true", help="print JSON instead of tables")
     args = ap.parse_args(argv)
-    if args.batch < bf.MIN_BATCH or args.rounds < 1:
-        ap.error(f"--batch must be >= {bf.MIN_BATCH} (smaller groups take the single path) and --rounds >= 1")
+    if args.batch < 1 or args.rounds < 1:
+        ap.error("--batch and --rounds must be >= 1")
     floor = perf.fft_floor(args.preset, repeats=20)["fft_ms"]
     result = {"preset": args.preset, "batch": args.batch, "fft_floor_ms": floor,
               "stages_ms": stages(args.preset, args.batch, args.rounds),

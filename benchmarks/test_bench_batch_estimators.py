@@ -1,5 +1,5 @@
-"""Blade-flash estimators (flash series + periodicity + rotor count) per batch of gates: the
-batched module against the single-return loop, per batch size and preset.
+"""Blade-flash estimators (flash series + periodicity + rotor count) per batch of gates
+(`signatures.flash`), per batch size and preset.
 
     python -m pytest benchmarks/test_bench_batch_estimators.py --benchmark-enable
 
@@ -15,8 +15,7 @@ import functools
 import numpy as np
 import pytest
 
-from signatures import batch_estimators as be
-from signatures import estimators as est
+from signatures import flash as be
 from lab.flash_gates import simulated_gates
 
 pytestmark = pytest.mark.slow  # ~18 s to simulate the gates of both presets
@@ -42,8 +41,7 @@ def _batch(gates, size: int):
 
 
 @pytest.mark.parametrize(("gates", "size"), CASES, indirect=["gates"])
-@pytest.mark.parametrize("path", ["batched", "loop"])
-def test_flash_estimators(benchmark, gates, size: int, path: str) -> None:
+def test_flash_estimators(benchmark, gates, size: int) -> None:
     preset, found = gates
     slow, body, g = _batch(found, size)
     benchmark.group = f"flash estimators {preset} B={size}"
@@ -52,9 +50,5 @@ def test_flash_estimators(benchmark, gates, size: int, path: str) -> None:
     def batched():
         return be.periodicity_batch(be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
 
-    def loop():
-        return [est.rotor_count(est.periodicity(est.flash_series(slow[b], g.config, float(body[b]), g.range_bin_m,
-                                                                 g.n_fft))) for b in range(size)]
-
-    result = benchmark(batched if path == "batched" else loop)
-    assert len(result.n_events if path == "batched" else result) == size
+    result = benchmark(batched)
+    assert len(result.n_events) == size

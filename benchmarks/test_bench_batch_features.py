@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from lab.bench.perf import fft_floor
-from signatures import batch_features as bf
+from signatures import extraction as bf
 from signatures.dataset import DatasetSpec, draw_scene
 from signatures.profiles import shipped_profiles
 from signatures.simulate import simulate

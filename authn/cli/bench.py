@@ -322,16 +322,16 @@ def _stress(presets: tuple[str, ...], quick: bool, as_json: bool) -> None:
         table.add_column("count", justify="right")
         table.add_column("must be", justify="right")
         for key, must in (("crashes", "0"), ("nonfinite_features", "0"), ("scale_dependent_decisions", "0"),
-                          ("nan_inf_not_refused", "0"), ("specific_errors", "-"), ("float64_compared", "-"),
-                          ("float64_cases_above_rtol", "-"), ("float64_label_changes", "-")):
+                          ("nan_inf_not_refused", "0"), ("specific_errors", "-"), ("fft64_compared", "-"),
+                          ("fft64_cases_above_rtol", "-"), ("fft64_label_changes", "-")):
             table.add_row(key.replace("_", " "), str(doc[key]), must)
         console = Console()
         console.print(table)
-        console.print(f"float32 features against the float64 pipeline: largest relative deviation "
-                      f"{doc['float64_max_rel_deviation']:.2e} (median over cases "
-                      f"{doc['float64_median_max_rel_deviation']:.2e}; relative to max(|float64|, 1))")
-        for group in ("crashes", "nonfinite", "scale_decision_changes", "specific_errors", "float64_deviations",
-                      "float64_label_changes"):
+        console.print(f"features from float32 transforms against float64 ones: largest relative deviation "
+                      f"{doc['fft64_max_rel_deviation']:.2e} (median over cases "
+                      f"{doc['fft64_median_max_rel_deviation']:.2e}; relative to max(|float64|, 1))")
+        for group in ("crashes", "nonfinite", "scale_decision_changes", "specific_errors", "fft64_deviations",
+                      "fft64_label_changes"):
             for line in doc["details"][group]:
                 console.print(f"  {group}: {line}", markup=False)
     raise typer.Exit(0 if is_clean(report) else 1)

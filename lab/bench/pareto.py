@@ -29,8 +29,7 @@ from signatures.radar import get_preset
 from signatures.sampling import SceneDistribution, sample_scene
 from signatures.simulate import simulate
 
-#: (name, feature mode, classifier) ; feature modes: gated at the known range, CFAR-detected, full cube,
-#: gated with every stage in float64
+#: (name, feature mode, classifier) ; feature modes: gated at the known range, CFAR-detected, full cube
 CONFIGS = (
     ("gated + ensemble (default)", "gated", "ensemble"),
     ("gated + RF", "gated", "rf"),
@@ -40,7 +39,6 @@ CONFIGS = (
     ("gated + cascade (CNN always)", "gated", "cascade-always"),
     ("CFAR-detected + ensemble", "detect", "ensemble"),
     ("full cube + ensemble", "full", "ensemble"),
-    ("gated, float64 features + ensemble", "gated64", "ensemble"),
 )
 
 
@@ -101,9 +99,16 @@ def _classify(clf, mode: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
 
 
 def _extract_full(rec, expected_range_m: float | None = None):
-    from signatures.features import extract_iq
+    """The ungated baseline: the range-Doppler map and the spectrogram of every range bin (what
+    an implementation computes before looking at the target), then the features."""
+    from signatures import rd
+    from signatures import timefreq as tf
+    from signatures.features import extract
 
-    return extract_iq(rec.iq, rec.config, full_cube=True)
+    spectrum = rd.range_fft(rd.prepare(rec.iq).iq)
+    rd.rd_map(spectrum, rec.config)
+    tf.spectrogram(spectrum, rec.config, *tf.stft_params(rec.config, rec.n_chirps))
+    return extract(rec)
 
 
 #: Feature modes of the shipped-bundle configurations: (featurizer, uses the known range)
@@ -111,7 +116,6 @@ _MODES = {
     "gated": (extract, True),
     "detect": (extract, False),
     "full": (_extract_full, False),
-    "gated64": (lambda rec, gate: extract(rec, gate, float64=True), True),
 }
 
 

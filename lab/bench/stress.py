@@ -5,7 +5,7 @@ decision as the unscaled return) or a specific bad-input error; anything else is
 crash. NaN/Inf-bearing cubes must be refused. Every case with features is also run
 through the float64 reference pipeline (`extract(..., float64=True)`): the report
 gives the largest relative deviation of the float32 features from it, the cases above
-FLOAT64_RTOL, and the cases where the classifier's label differs.
+FFT64_RTOL, and the cases where the classifier's label differs.
 """
 
 from __future__ import annotations
@@ -26,8 +26,9 @@ from signatures.recording import Recording, write_recording
 from signatures.scene import Scene
 
 SERIAL = bench_serial("m300")
-#: float32 features within this relative deviation (of max(|float64 value|, 1)) of float64 count as equal.
-FLOAT64_RTOL = 2e-3
+#: features from float32 transforms within this relative deviation (of max(|float64 value|, 1)) of
+#: those from float64 transforms count as equal.
+FFT64_RTOL = 2e-3
 
 
 @dataclass
@@ -38,26 +39,26 @@ class StressReport:
     specific_errors: list[str] = field(default_factory=list)
     scale_decision_changes: list[str] = field(default_factory=list)
     nan_inf_not_refused: list[str] = field(default_factory=list)
-    float64_max_rel: list[float] = field(default_factory=list)  # per case with features
-    float64_deviations: list[str] = field(default_factory=list)  # cases above FLOAT64_RTOL
-    float64_label_changes: list[str] = field(default_factory=list)
+    fft64_max_rel: list[float] = field(default_factory=list)  # per case with features
+    fft64_deviations: list[str] = field(default_factory=list)  # cases above FFT64_RTOL
+    fft64_label_changes: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
-        dev = np.array(self.float64_max_rel or [0.0])
+        dev = np.array(self.fft64_max_rel or [0.0])
         return {"cases": self.cases, "crashes": len(self.crashes), "nonfinite_features": len(self.nonfinite),
                 "scale_dependent_decisions": len(self.scale_decision_changes),
                 "nan_inf_not_refused": len(self.nan_inf_not_refused),
                 "specific_errors": len(self.specific_errors),
-                "float64_compared": len(self.float64_max_rel),
-                "float64_median_max_rel_deviation": float(np.median(dev)),
-                "float64_max_rel_deviation": float(dev.max()),
-                "float64_cases_above_rtol": len(self.float64_deviations),
-                "float64_label_changes": len(self.float64_label_changes),
+                "fft64_compared": len(self.fft64_max_rel),
+                "fft64_median_max_rel_deviation": float(np.median(dev)),
+                "fft64_max_rel_deviation": float(dev.max()),
+                "fft64_cases_above_rtol": len(self.fft64_deviations),
+                "fft64_label_changes": len(self.fft64_label_changes),
                 "details": {"crashes": self.crashes, "nonfinite": self.nonfinite,
                             "scale_decision_changes": self.scale_decision_changes,
                             "specific_errors": self.specific_errors,
-                            "float64_deviations": self.float64_deviations,
-                            "float64_label_changes": self.float64_label_changes}}
+                            "fft64_deviations": self.fft64_deviations,
+                            "fft64_label_changes": self.fft64_label_changes}}
 
 
 def _base(preset: str, seed: int, snr: float = 15.0, **scene_kw) -> Recording:
@@ -169,18 +170,18 @@ def _against_float64(report: StressReport, label: str, rec: Recording, single) -
     a = np.array(astuple(single.features), dtype=np.float64)
     b = np.array(astuple(double.features), dtype=np.float64)
     rel = np.abs(a - b) / np.maximum(np.abs(b), 1.0)
-    report.float64_max_rel.append(float(rel.max()))
-    if rel.max() > FLOAT64_RTOL:
+    report.fft64_max_rel.append(float(rel.max()))
+    if rel.max() > FFT64_RTOL:
         worst = [f"{FEATURE_NAMES[i]} {a[i]:.6g} vs {b[i]:.6g}" for i in np.argsort(rel)[::-1][:3]
-                 if rel[i] > FLOAT64_RTOL]
-        report.float64_deviations.append(f"{label}: " + "; ".join(worst))
+                 if rel[i] > FFT64_RTOL]
+        report.fft64_deviations.append(f"{label}: " + "; ".join(worst))
     try:
         clf = classifier_for(rec)
     except NoModelError:
         return
     one, two = clf.predict(single.as_array()).label, clf.predict(double.as_array()).label
     if one != two:
-        report.float64_label_changes.append(f"{label}: {one} (float32) vs {two} (float64)")
+        report.fft64_label_changes.append(f"{label}: {one} (float32) vs {two} (float64)")
 
 
 def _nan_inf_refused(report: StressReport, preset: str, checker, tmp: Path) -> None:

@@ -32,9 +32,9 @@ def test_only_specific_errors_are_unsupported_waveforms(report) -> None:
     assert all("no classifier for this waveform" in e for e in report.specific_errors)
 
 
-def test_float32_matches_the_float64_pipeline(report) -> None:
+def test_float32_transforms_match_float64_transforms(report) -> None:
     """Every case with features is compared; only ill-posed degenerate cubes (a single spike has
     a flat Doppler spectrum: its argmax is a tie) may leave the tolerance, and no label changes."""
-    assert len(report.float64_max_rel) == report.cases - 3  # all but the NaN/Inf files (refused on read)
-    assert all("/degenerate/" in d for d in report.float64_deviations)
-    assert report.float64_label_changes == []
+    assert len(report.fft64_max_rel) == report.cases - 3  # all but the NaN/Inf files (refused on read)
+    assert all("/degenerate/" in d for d in report.fft64_deviations)
+    assert report.fft64_label_changes == []

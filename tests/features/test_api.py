@@ -33,14 +33,6 @@ def test_vector_patch_and_accessors(returns):
     assert x[FEATURE_NAMES.index("detected")] == 1.0
 
 
-def test_gated_equals_full_cube(returns):
-    for rec in returns.values():
-        gated = extract_iq(rec.iq, rec.config)
-        full = extract_iq(rec.iq, rec.config, full_cube=True)
-        np.testing.assert_array_equal(gated.as_array(), full.as_array())
-        np.testing.assert_array_equal(gated.rd_patch, full.rd_patch)
-
-
 def test_expected_range_gates_the_detection(returns):
     rec = returns["m300_moving"]
     lo, hi = rec.config.range_window_m

@@ -1,22 +1,23 @@
-"""The batched blade-flash estimators equal the single-return ones row by row, on simulated
+"""The array-first blade-flash estimators (`signatures.flash`) equal the single-return reference
+(tests/features/reference_flash.py) row by row, on simulated
 gates of both shipped presets (airframes, birds, noise only; hovering and moving; -5..30 dB)
 and on edge cases (all zero, no events, one row, chirps shorter than the high-pass, 2 columns)."""
 
 from __future__ import annotations
 
 import math
-from unittest import mock
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures import batch_estimators as be
 from signatures import estimators as est
+from signatures import flash as be
 from signatures.errors import SignaturesError
 from signatures.radar import get_preset
 from lab.flash_gates import Gate, simulated_gates
+from tests.features import reference_flash as ref
 
 CONTINUOUS = ("flash_rate_hz", "flash_rate_std_hz", "score", "flash_par_db", "rotor_count_std", "rotors_seen",
               "rotors_seen_std")
@@ -37,8 +38,8 @@ def reference(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float, n_fft
     """The single-return path, row by row."""
     rows = []
     for b in range(slow.shape[0]):
-        per = est.periodicity(est.flash_series(slow[b], config, float(body_hz[b]), bin_m, n_fft))
-        rot = est.rotor_count(per)
+        per = ref.periodicity(ref.flash_series(slow[b], config, float(body_hz[b]), bin_m, n_fft))
+        rot = ref.rotor_count(per)
         rows.append((per.flash_rate.value, per.flash_rate.std, per.score, per.n_events, per.flash_par_db,
                      rot.value, rot.std, per.rotors_seen.value, per.rotors_seen.std))
     names = ("flash_rate_hz", "flash_rate_std_hz", "score", "n_events", "flash_par_db", "rotor_count",
@@ -48,12 +49,10 @@ def reference(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float, n_fft
 
 def assert_batch_matches(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float,
                          n_fft: int) -> be.PeriodicityBatch:
-    """Both ways `periodicity_batch` can run (batched stages; row by row below SMALL_BATCH rows)."""
+    """`periodicity_batch` against the single-return reference, row by row."""
     want = reference(slow, config, body_hz, bin_m, n_fft)
     series = be.flash_series_batch(slow, config, body_hz, bin_m, n_fft)
-    for small_batch in (1, be.SMALL_BATCH):
-        with mock.patch.object(be, "SMALL_BATCH", small_batch):
-            got = be.periodicity_batch(series)
+    for got in (be.periodicity_batch(series),):
         for name in EXACT:
             np.testing.assert_array_equal(getattr(got, name), want[name], err_msg=name)
         for name in CONTINUOUS:
@@ -98,7 +97,7 @@ def test_flash_series_rows_are_the_single_series_to_the_bit(paper_gates):
     g = gates[0]
     series = be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft)
     for b in range(len(gates)):
-        one = est.flash_series(slow[b], g.config, float(body[b]), g.range_bin_m, g.n_fft)
+        one = ref.flash_series(slow[b], g.config, float(body[b]), g.range_bin_m, g.n_fft)
         row = series.row(b)
         np.testing.assert_array_equal(row.energy, one.energy)
         np.testing.assert_array_equal(row.per_bin, one.per_bin)
@@ -117,10 +116,9 @@ def test_row_order_and_batch_size_do_not_change_a_row(paper_gates):
                                                           g.n_fft))
     np.testing.assert_array_equal(shuffled.flash_rate_hz, whole.flash_rate_hz[order])
     np.testing.assert_array_equal(shuffled.rotor_count, whole.rotor_count[order])
-    for b in (0, len(gates) // 2):  # B = 1 through the batched stages
-        with mock.patch.object(be, "SMALL_BATCH", 1):
-            one = be.periodicity_batch(be.flash_series_batch(slow[b:b + 1], g.config, body[b:b + 1],
-                                                             g.range_bin_m, g.n_fft))
+    for b in (0, len(gates) // 2):  # B = 1: what a single check runs
+        one = be.periodicity_batch(be.flash_series_batch(slow[b:b + 1], g.config, body[b:b + 1],
+                                                         g.range_bin_m, g.n_fft))
         assert one.flash_rate_hz[0] == whole.flash_rate_hz[b]
         assert one.n_events[0] == whole.n_events[b]
 
@@ -223,7 +221,7 @@ def test_synthetic_flash_trains(seed, n_rows, flashes, period, amp, body):
 
 
 def test_complex128_gates(paper_gates):
-    """The float64 reference path (`features.extract_iq(float64=True)`) hands complex128 gates."""
+    """complex128 gates (a caller's choice of precision) give the reference's rows too."""
     gates = three_columns(paper_gates)[:10]
     slow, body = stack(gates)
     g = gates[0]

@@ -1,10 +1,11 @@
-"""The batched feature front end (`signatures.batch_features`) gives the single-return path's
+"""The batched feature front end (`signatures.extraction`) gives the single-return path's
 results row by row, on either FFT backend (the single path run with the same `fft_backend`):
 the cube stage's outputs bit for bit; same detection, gate and counts, every feature within
 REL of max(|value|, 1) (the slow-time stage sums in another order), the same CNN patch."""
 
 from __future__ import annotations
 
+import math
 import tracemalloc
 
 import numpy as np
@@ -13,7 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lab.bench.stress import cases
-from signatures import batch_features as bf
+from signatures import extraction as bf
+from signatures import feature_vector as FV
 from signatures import features as F
 from signatures import rd
 from signatures.dataset import DatasetSpec, draw_scene
@@ -112,11 +114,18 @@ def test_cube_stage_is_the_single_paths_bit_for_bit(paper, backend, options):
                                               list(range(len(iq))), backend), iq, suppress, domain, backend)
 
 
+def _range_spectrum(iq: np.ndarray, suppress: bool, domain: str, backend: str) -> np.ndarray:
+    """The plain per-return range spectrum: the range FFT of IF; a range or CW cube less its mean."""
+    if domain == "if":
+        return rd.range_fft(iq, suppress, backend)
+    return iq - iq.mean(axis=0, keepdims=True) if suppress else iq
+
+
 def _assert_cube_is_single(cube, iq: np.ndarray, suppress: bool, domain: str, backend: str) -> None:
     for b in range(len(iq)):
         prep = rd.prepare(iq[b])
-        spectrum = F._range_spectrum(prep.iq, suppress, domain, backend)
-        mu = F._range_spectrum(prep.iq.mean(axis=0, keepdims=True), False, domain, backend)[0]
+        spectrum = _range_spectrum(prep.iq, suppress, domain, backend)
+        mu = _range_spectrum(prep.iq.mean(axis=0, keepdims=True), False, domain, backend)[0]
         g, p = cube.gate_lo[b], cube.patch_lo[b]
         assert cube.log2_scale[b] == prep.log2_scale and not cube.zero[b]
         assert np.array_equal(cube.profile[b], rd.range_profile(spectrum)), f"row {b} profile"
@@ -134,7 +143,7 @@ def test_backends_differ_only_by_float32_rounding(paper):
     for b, res in enumerate(bf.extract_batch(iq, config, fft_backend="numpy")):
         assert (res.detected, res.gate) == (ours[b].detected, ours[b].gate)
     prep = rd.prepare(iq[0])
-    s32, s64 = (F._range_spectrum(prep.iq, True, "if", be) for be in ("scipy", "numpy"))
+    s32, s64 = (_range_spectrum(prep.iq, True, "if", be) for be in ("scipy", "numpy"))
     assert not np.array_equal(s32, s64)  # really two backends
     assert np.abs(s32 - s64).max() <= 1e-5 * np.abs(s64).max()
 
@@ -198,7 +207,7 @@ def test_extract_many_batches_recordings_whose_range_offsets_differ(paper, monke
     expected = [s.range_m if i % 2 else None for i, (s, _) in enumerate(paper)]
     calls = []
     inner = bf._extract
-    monkeypatch.setattr(bf, "_extract", lambda iq, *a: calls.append(len(iq)) or inner(iq, *a))
+    monkeypatch.setattr(bf, "_extract", lambda iq, *a, **k: calls.append(len(iq)) or inner(iq, *a, **k))
     results = bf.extract_many(recs, expected)
     assert calls == [len(recs)]
     for i, (rec, res) in enumerate(zip(recs, results)):
@@ -291,12 +300,48 @@ def test_scaling_one_row_by_a_power_of_ten(four, row, exponent):
                                   min_size=3, max_size=300), min_size=1, max_size=4),
        noise=st.sampled_from([1e-3, 0.05, 1.0]))
 def test_peak_count_equals_the_single_path_with_ties_and_plateaus(profiles, noise):
-    """Prominence by range tables counts the same peaks as `features._count_peaks` (equal
+    """Prominence by range tables counts the same peaks as a plain per-profile count (equal
     levels, plateaus and profiles long enough to be pooled included)."""
     size = min(len(p) for p in profiles)
     d = np.array([p[:size] for p in profiles], dtype=np.float32)
     counts = bf._count_peaks(d, np.full(len(d), noise))
-    assert counts.tolist() == [F._count_peaks(row, noise) for row in d]
+    assert counts.tolist() == [_count_peaks_reference(row, noise) for row in d]
+
+
+def _count_peaks_reference(d: np.ndarray, noise: float) -> int:
+    """The plain per-profile peak count (candidate x band matrices): local maxima of the profile
+    pooled to <= FV.PEAK_PROFILE_BANDS bands, >= FV.PEAK_PROMINENCE_DB above the higher of the
+    lowest points between them and the next higher peak (or the ends) on each side, and
+    >= FV.PEAK_ABOVE_NOISE_DB above the noise per band."""
+    group = max(1, d.size // FV.PEAK_PROFILE_BANDS)
+    m = (d.size // group) * group
+    pooled = d[:m].reshape(-1, group).sum(axis=1)
+    with np.errstate(divide="ignore"):
+        y = np.log(np.maximum(pooled, np.float32(FV.TINY))) * FV.DB_PER_LN
+    floor = 10.0 * math.log10(max(noise * group, 1e-30)) + FV.PEAK_ABOVE_NOISE_DB
+    n = y.size
+    rise = np.ones(n, dtype=bool)
+    rise[1:] = y[1:] > y[:-1]
+    fall = np.ones(n, dtype=bool)
+    fall[:-1] = y[:-1] >= y[1:]
+    cand = np.flatnonzero((y >= floor) & rise & fall)
+    if cand.size == 0:
+        return 0
+    # prominence, vectorised over candidates (n <= FV.PEAK_PROFILE_BANDS): the base on each side is
+    # the lowest point between the candidate and the nearest higher point (or the end)
+    idx = np.arange(n)
+    yc = y[cand][:, None]
+    higher = y[None, :] > yc
+    left, right = idx[None, :] < cand[:, None], idx[None, :] > cand[:, None]
+    last_left = np.where(higher & left, idx[None, :], -1).max(axis=1)
+    first_right = np.where(higher & right, idx[None, :], n).min(axis=1)
+    span_l = left & (idx[None, :] > last_left[:, None])
+    span_r = right & (idx[None, :] < first_right[:, None])
+    base_l = np.where(span_l, y[None, :], np.inf).min(axis=1)
+    base_r = np.where(span_r, y[None, :], np.inf).min(axis=1)
+    base_l = np.where(span_l.any(axis=1), base_l, y[cand])
+    base_r = np.where(span_r.any(axis=1), base_r, y[cand])
+    return int(np.count_nonzero(y[cand] - np.maximum(base_l, base_r) >= FV.PEAK_PROMINENCE_DB))
 
 
 def test_torch_stays_optional(paper, monkeypatch):
@@ -309,14 +354,14 @@ def test_torch_stays_optional(paper, monkeypatch):
 
     config = paper[0][1].config
     iq = np.stack([r.iq for _, r in paper[:4]])
-    monkeypatch.setitem(sys.modules, "signatures.batch_torch", None)  # its import now fails
-    monkeypatch.delattr(signatures, "batch_torch", raising=False)
+    monkeypatch.setitem(sys.modules, "signatures.torch_cube", None)  # its import now fails
+    monkeypatch.delattr(signatures, "torch_cube", raising=False)
     auto = bf.extract_batch(iq, config, device="auto")
     for b, res in enumerate(bf.extract_batch(iq, config)):
         assert np.array_equal(res.as_array(), auto[b].as_array())
     with pytest.raises(SignaturesError, match="device 'cpu' needs torch"):
         bf.extract_batch(iq, config, device="cpu")
-    code = ("import sys, numpy as np; from signatures import batch_features as bf; "
+    code = ("import sys, numpy as np; from signatures import extraction as bf; "
             "from signatures.radar import get_preset; "
             "bf.extract_batch(np.ones((4, 64, 16), np.complex64), get_preset('paper').config); "
             "assert 'torch' not in sys.modules, 'torch imported'")

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from signatures import batch_estimators as be
-from signatures import batch_features as bf
+from signatures import flash as be
+from signatures import extraction as bf
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +37,7 @@ def test_transforms_alone_are_the_presets(bs, preset, sub):
     assert all(v > 0.0 for v in ms.values())
 
 
-@pytest.mark.parametrize("argv", [["--batch", "2"], ["--rounds", "0"], ["--preset", "cw"]])
+@pytest.mark.parametrize("argv", [["--batch", "0"], ["--rounds", "0"], ["--preset", "cw"]])
 def test_bad_arguments_exit_2(bs, argv, capsys):
     with pytest.raises(SystemExit) as exc:
         bs.main(argv)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures import batch_features as bf
+from signatures import extraction as bf
 from signatures import estimators as est
 from signatures import threads
 

@@ -1,4 +1,4 @@
-"""The torch cube stage (`signatures.batch_torch`, `extract_batch(..., device=...)`) gives the
+"""The torch cube stage (`signatures.torch_cube`, `extract_batch(..., device=...)`) gives the
 numpy path's results to float32 rounding: same detection, gate and counts, every feature within
 REL of max(|value|, 1) (measured: <= 2.4e-6 on these returns), the CNN patch within PATCH_ATOL;
 its cube-stage arrays within CUBE_REL of their row's largest value."""
@@ -10,8 +10,8 @@ import pytest
 
 torch = pytest.importorskip("torch", reason="torch is not installed (the cnn extra: pip install -e '.[cnn]')")
 
-from signatures import batch_features as bf  # noqa: E402
-from signatures import batch_torch  # noqa: E402
+from signatures import extraction as bf  # noqa: E402
+from signatures import torch_cube  # noqa: E402
 from signatures.domain import as_recorded  # noqa: E402
 from signatures.errors import SignaturesError  # noqa: E402
 
@@ -60,8 +60,8 @@ def _features_match(drawn, device: str) -> None:
 @pytest.mark.parametrize("preset", ["paper", "wide"])
 def test_cpu_device_features_equal_the_numpy_path(request, preset, monkeypatch):
     calls = []
-    inner = batch_torch.range_spectra
-    monkeypatch.setattr(batch_torch, "range_spectra", lambda iq, *a: calls.append(len(iq)) or inner(iq, *a))
+    inner = torch_cube.range_spectra
+    monkeypatch.setattr(torch_cube, "range_spectra", lambda iq, *a: calls.append(len(iq)) or inner(iq, *a))
     _features_match(request.getfixturevalue(preset), "cpu")
     assert sum(calls) == len(request.getfixturevalue(preset))  # every row's cube went through torch
 
@@ -85,7 +85,7 @@ def test_cube_stage_equals_the_numpy_cube_stage(paper, options):
     for cube_iq in (iq, far):
         args = (cube_iq, [None] * len(cube_iq), 5, suppress, domain, list(range(len(cube_iq))), "scipy")
         ref = bf._cube_stage(*args)
-        got = bf._cube_stage(*args, batch_torch.resolve("cpu"))
+        got = bf._cube_stage(*args, torch_cube.resolve("cpu"))
         for name in ("log2_scale", "zero", "detected", "peak_bin", "gate_lo", "patch_lo"):
             assert np.array_equal(getattr(got, name), getattr(ref, name)), name
         for name in ("profile", "mu", "slow", "patch_cols"):
@@ -98,16 +98,16 @@ def test_cube_stage_equals_the_numpy_cube_stage(paper, options):
 def test_device_names(paper, monkeypatch):
     config = paper[0][1].config
     iq = np.stack([r.iq for _, r in paper[:4]])
-    assert batch_torch.resolve("cpu") == torch.device("cpu")
+    assert torch_cube.resolve("cpu") == torch.device("cpu")
     for bad in ("tpu", "cuda:x", "meta"):
         with pytest.raises(SignaturesError, match="unknown device"):
             bf.extract_batch(iq, config, device=bad)
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
-    assert batch_torch.resolve("auto") is None  # numpy, not torch's CPU
+    assert torch_cube.resolve("auto") is None  # numpy, not torch's CPU
     with pytest.raises(SignaturesError, match="no CUDA GPU"):
         bf.extract_many([r for _, r in paper[:4]], device="cuda")
     calls = []
-    monkeypatch.setattr(batch_torch, "range_spectra", lambda *a: calls.append(1))
+    monkeypatch.setattr(torch_cube, "range_spectra", lambda *a: calls.append(1))
     auto = bf.extract_batch(iq, config, device="auto")
     assert not calls  # 'auto' without CUDA never touched torch
     for b, res in enumerate(bf.extract_batch(iq, config)):

@@ -9,11 +9,12 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures import batch_estimators as est_batch
+from signatures import flash as est_batch
 from signatures import estimators as est
 from signatures import rd
 from signatures.radar import get_preset
 from signatures.threads import one_blas_thread
+from tests.features import reference_flash as ref
 
 N_FFT = 80  # fast-time samples per chirp (the paper preset's)
 HUB_BIN = 40.3  # the flashing hub's range, in bins
@@ -53,12 +54,12 @@ def test_matched_filters_give_unit_noise_and_the_scatterer_energy():
 
 def test_coherent_checks_only_where_a_flash_fits_in_one_pri():
     paper, wide = get_preset("paper"), get_preset("wide")
-    s = est.flash_series(_slow(paper.n_chirps, [(100, 30.0, 0.3)]), paper.config, 0.0, 1.0, N_FFT)
-    times, _ = est.flash_events(s, s.radius)
-    assert times.size >= 1 and est._coherent(s, times) is not None
-    s = est.flash_series(_slow(wide.n_chirps, [(1000, 30.0, 0.3)]), wide.config, 0.0, 1.0, N_FFT)
-    times, _ = est.flash_events(s, s.radius)
-    assert times.size >= 1 and est._coherent(s, times) is None  # 6.25 us PRI: flashes span chirps
+    s = ref.flash_series(_slow(paper.n_chirps, [(100, 30.0, 0.3)]), paper.config, 0.0, 1.0, N_FFT)
+    times, _ = ref.flash_events(s, s.radius)
+    assert times.size >= 1 and ref._coherent(s, times) is not None
+    s = ref.flash_series(_slow(wide.n_chirps, [(1000, 30.0, 0.3)]), wide.config, 0.0, 1.0, N_FFT)
+    times, _ = ref.flash_events(s, s.radius)
+    assert times.size >= 1 and ref._coherent(s, times) is None  # 6.25 us PRI: flashes span chirps
 
 
 def test_coherent_hit_needs_the_same_profile_and_phase_up_to_sign():
@@ -66,14 +67,14 @@ def test_coherent_hit_needs_the_same_profile_and_phase_up_to_sign():
     # strong flash at 100; a weak same-hub flash one "period" later (sign flipped: sinc sidelobe);
     # an equally weak flash in quadrature at 400 (another rotor's random phase)
     flashes = [(100, 30.0, 0.3), (295, 4.0, 0.3 + np.pi), (400, 4.0, 0.3 + np.pi / 2)]
-    s = est.flash_series(_slow(paper.n_chirps, flashes, seed=1), paper.config, 0.0, 1.0, N_FFT)
+    s = ref.flash_series(_slow(paper.n_chirps, flashes, seed=1), paper.config, 0.0, 1.0, N_FFT)
     times = np.array([100.0])
-    coh = est._coherent(s, times)
+    coh = ref._coherent(s, times)
     assert coh is not None and coh.share < 0.05
     hits = np.diff(coh.counts[0])
     assert hits[295] and not hits[400]
     weight = np.ones(1)
-    found, made, chance = est._coherent_checks(coh, times, weight, np.array([195.0, 300.0]), s.energy.size)
+    found, made, chance = ref._coherent_checks(coh, times, weight, np.array([195.0, 300.0]), s.energy.size)
     assert found[0] == 1.0 and found[1] == 0.0 and np.all(made == 1.0) and np.all(chance < 0.5)
 
 
@@ -82,7 +83,7 @@ def test_periodicity_of_noise_and_of_nothing_is_quiet():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         for slow in (_slow(paper.n_chirps, [], seed=2), np.zeros((paper.n_chirps, 3), np.complex64)):
-            per = est.periodicity(est.flash_series(slow, paper.config, 0.0, 1.0, N_FFT))
+            per = ref.periodicity(ref.flash_series(slow, paper.config, 0.0, 1.0, N_FFT))
             assert np.isfinite(per.flash_rate.value) and np.isfinite(per.flash_rate.std)
 
 
@@ -97,8 +98,8 @@ def test_alternate_flashes_missed_still_give_the_period():
             t = t0 + 195 * m
             if t < paper.n_chirps:
                 flashes.append((t, 25.0 if m % 2 == 0 else 2.2, phase + np.pi * (m % 2)))
-    s = est.flash_series(_slow(paper.n_chirps, flashes, seed=4), paper.config, 0.0, 1.0, N_FFT)
-    per = est.periodicity(s)
+    s = ref.flash_series(_slow(paper.n_chirps, flashes, seed=4), paper.config, 0.0, 1.0, N_FFT)
+    per = ref.periodicity(s)
     period = s.rate_hz / per.flash_rate.value
     assert abs(period - 195.0) <= 2.0
 
@@ -149,17 +150,17 @@ def test_event_search_tolerates_coned_blades_and_refines_the_period(monkeypatch)
     the period, and the refined, closely matched intervals put it within 0.5 % (their mean)."""
     for offsets in ((5.0, 71.0, 190.0, 251.0), (3.0, 50.0, 140.0, 300.0)):
         s = _coned_series(offsets)
-        per = est.periodicity(s)
+        per = ref.periodicity(s)
         assert abs(s.rate_hz / per.flash_rate.value - 340.0) <= 0.005 * 340.0
         assert 3.5 <= per.rotors_seen.value <= 4.5
         batch = est_batch.periodicity_batch(est_batch.FlashSeriesBatch(
-            np.stack([s.energy] * est_batch.SMALL_BATCH), np.stack([s.per_bin] * est_batch.SMALL_BATCH),
-            np.full(est_batch.SMALL_BATCH, s.threshold), np.zeros(est_batch.SMALL_BATCH), None, None,
+            np.stack([s.energy] * 8), np.stack([s.per_bin] * 8),
+            np.full(8, s.threshold), np.zeros(8), None, None,
             s.rate_hz, s.radius, 1))
         assert np.all(batch.flash_rate_hz == per.flash_rate.value)
         with monkeypatch.context() as m:
-            m.setattr(est, "EVENT_TOL_FRACTION", est.TOL_FRACTION)
-            narrow = est.periodicity(s)
+            m.setattr(ref, "EVENT_TOL_FRACTION", est.TOL_FRACTION)
+            narrow = ref.periodicity(s)
         assert abs(s.rate_hz / narrow.flash_rate.value - 680.0) <= 2.0
 
 

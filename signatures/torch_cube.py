@@ -1,4 +1,4 @@
-"""The cube stage of `signatures.batch_features` in torch, on a CPU or CUDA device.
+"""The cube stage of `signatures.extraction` in torch, on a CPU or CUDA device.
 
 Why: the cube stage (scaling, clutter suppression, range FFT, range profile) is the only part
 of a batch that touches every sample; on a GPU it runs at memory speed while the slow-time
@@ -6,7 +6,7 @@ stage, which only sees each row's few gate columns, stays in numpy. Only the pro
 mu and the kept gate and patch columns come back to the host; detection and gating run on the
 profile in numpy, exactly as on the numpy path.
 
-Same arithmetic as the scipy cube stage (`batch_features._spectra32`: complex64 data minus its
+Same arithmetic as the scipy cube stage (`extraction._spectra32`: complex64 data minus its
 slow-time mean, times the float32 window with the exact power-of-two scale riding on it,
 complex64 FFT), but torch's reductions and FFT round differently: the outputs equal the numpy
 path's to float32 rounding, not bit for bit (tests/features/test_batch_torch.py).
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from signatures import batch_features as bf
+from signatures import extraction as bf
 from signatures import rd
 from signatures.errors import SignaturesError
 
@@ -46,7 +46,7 @@ def resolve(device: str) -> torch.device | None:
 
 def range_spectra(iq: np.ndarray, suppress: bool, domain: str, labels: list[int], device: torch.device
                   ) -> tuple[torch.Tensor, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """`features._range_spectrum` of every row of `iq` (B, chirps, samples) on `device`:
+    """The range spectra (`extraction._range_spectra`) of every row of `iq` (B, chirps, samples) on `device`:
     (complex64 spectra (B, chirps, bins) on the device, mu (B, bins) complex64, log2 scale,
     all-zero flag, range profile (B, bins) float32). A NaN or Inf raises naming its row."""
     x, scale, exponent, zero = bf.prepared(iq, labels)  # one host pass: checks and exponents

@@ -53,9 +53,6 @@ CHUNK_BYTES = 8 * 2**20
 #: large group spends a third of the vote's time faulting in fresh pages; a few tens of MiB
 #: reuse the allocator's memory.
 GROUP_BYTES = 32 * 2**20
-#: Batches smaller than this run `periodicity_batch` row by row through the single path (the
-#: same values; its per-call overhead is lower than the grouped stages' over a few rows).
-SMALL_BATCH = 8
 _SIGNS = np.array([1.0, -1.0])
 
 
@@ -293,16 +290,6 @@ def periodicity_batch(series: FlashSeriesBatch, max_events: int = 64) -> Periodi
     re-rank candidates, halving rule) run over the whole batch at once."""
     e = series.energy
     b_rows, n = e.shape
-    if b_rows < SMALL_BATCH:
-        pers = [est.periodicity(series.row(b)) for b in range(b_rows)]
-        rot = [est.rotor_count(p) for p in pers]
-        f = np.array
-        return PeriodicityBatch(f([p.flash_rate.value for p in pers], float),
-                                f([p.flash_rate.std for p in pers], float),
-                                f([p.score for p in pers], float), f([p.n_events for p in pers], int),
-                                f([p.flash_par_db for p in pers], float), f([r.value for r in rot], float),
-                                f([r.std for r in rot], float), f([p.rotors_seen.value for p in pers], float),
-                                f([p.rotors_seen.std for p in pers], float))
     out = {name: np.zeros(b_rows) for name in ("rate", "std", "score", "par", "rotors", "rotors_std", "seen",
                                                "seen_std")}
     n_events = np.zeros(b_rows, dtype=int)

@@ -1,27 +1,30 @@
-"""Features of many returns at once: `extract_iq` with a batch axis (B x chirps x samples).
+"""Features of returns, array-first: every stage runs on (B, ...) arrays, and one return is a
+batch of one (`extract`). The one implementation of the feature maths (docs/features.md).
 
-Why: one return costs ~1,500 Python-level numpy calls in `features.extract_iq`, so the
-interpreter, not the arithmetic, sets its cost. Here every stage runs once per batch on
-(B, ...) arrays and yields the same `FeatureResult`s as the single-return path, row by
-row (same `detected`, `gate` and counts; features to float32 rounding;
-tests/features/test_batch_features.py).
+Why arrays: one return costs ~1,500 Python-level numpy calls, so the interpreter, not the
+arithmetic, sets its cost; a batch pays those calls once for all its rows.
 
 Layout: the cube stage (scaling, clutter suppression, range FFT, range profile) runs in
 blocks of rows through reused workspaces (`_CUBE_BLOCK_BYTES`: the passes over the cube
 are the cost floor, and fresh large arrays cost page faults), CFAR and gating once per
 `_SPECTRA_BYTES` of spectra; everything after it works on the (B, chirps, gate bins)
-slow-time gates of the whole batch. The CNN patch is built lazily by `features._patch`, from
-the row's range spectrum computed again when it is asked for (`_PatchColumns`; a torch device
-keeps the patch columns instead). `extract_many` stacks no batch-sized input: each block of
-rows is stacked into a reused workspace (`_Stack`). BLAS runs on one thread
-(`signatures.threads`). `cw` cubes (no range axis) go through the single-return path row by row.
+slow-time gates of the whole batch. Only the range FFT and the range profile touch the whole
+cube. The CNN patch is built lazily from the row's range spectrum computed again when asked
+for (`_PatchColumns`; a torch device keeps the patch columns instead). `extract_many` stacks no
+batch-sized input: each block of rows is stacked into a reused workspace (`_Stack`).
 
-FFT backends (`fft_backend`): 'scipy' by default, scipy's single-precision transforms with the
-cube stage in complex64 in place (subtract the slow-time mean, multiply by the float32 window,
-transform: three passes); 'numpy', the single path's default complex128 transforms. Either way
-the cube stage's arrays are the single path's (same `fft_backend`) bit for bit
-(tests/features/test_batch_features.py). `device` moves the cube stage to torch
-(`signatures.batch_torch`, e.g. a GPU).
+Numerics: each cube is scaled by an exact power of two, so every feature but
+`peak_amplitude_db` is independent of the IQ scale and no power is squared out of float32
+range; divisions use `max(x, tiny)`; logs are floored. Arrays are float32/complex64; scalar
+bookkeeping (absolute ranges, the peak amplitude's exponent) is float64.
+
+`cw` cubes (one channel, no range axis) run the same stages: no range FFT, the Doppler bins are
+the detector's reference cells (`_cw_detection`), range features are 0.
+
+FFT backends (`fft_backend`): 'numpy' (complex128 transforms, no scipy import: the default of a
+single cold check) or 'scipy' (single-precision pocketfft in place: ~2-4x faster on big
+batches; a batch job pays scipy's 0.2-0.4 s import once). `device` moves the cube stage to
+torch (`signatures.torch_cube`, e.g. a GPU).
 """
 
 from __future__ import annotations
@@ -37,24 +40,23 @@ from functools import cached_property
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from signatures import batch_estimators as best
-from signatures.batch_estimators import median_last
 from signatures import estimators as est
-from signatures import features as F
+from signatures import feature_vector as F
+from signatures import flash as best
 from signatures import fft as _fft
 from signatures import rd
 from signatures import timefreq as tf
 from signatures.errors import SignaturesError
+from signatures.flash import median_last
 from signatures.radar import RadarConfig
 from signatures.recording import DOMAINS
+from signatures.stats import median
 from signatures.threads import blas_on_one_thread, one_blas_thread
 
-__all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "MIN_BATCH", "batch_size", "extract_batch", "extract_many"]
+__all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "batch_size", "detections", "extract", "extract_batch", "extract_iq",
+           "extract_many"]
 
 MAX_BATCH = 1024
-#: `extract_many` runs smaller groups through the single path: below ~4 rows the batch's fixed
-#: cost (vectorised estimators, range tables) exceeds the per-row calls it saves (paper preset)
-MIN_BATCH = 4
 #: rows of the cube stage run together while their complex128 FFT workspace fits in this (4 MiB:
 #: fastest of 0.5-32 MiB on the paper cube)
 _CUBE_BLOCK_BYTES = 4 << 20
@@ -68,10 +70,10 @@ _CHUNK_BYTES = 4 << 20
 _SPECTRA_BYTES = 32 << 20
 #: cubes whose peak lies within 2**+-this of 1 are scaled on the window (`_range_spectra`)
 _SAFE_EXPONENT = 20
-#: the batched path's FFT backend: scipy's single-precision transforms (~2-4x numpy's complex128
+#: a batch job's FFT backend: scipy's single-precision transforms (~2-4x numpy's complex128
 #: on these cubes; its 0.2-0.4 s import is paid once per batch job)
 DEFAULT_FFT_BACKEND = "scipy"
-_TINY = F._TINY
+_TINY = F.TINY
 _local = threading.local()
 
 
@@ -135,14 +137,45 @@ def _default_budget() -> int:
     return int(min(_BUDGET_CAP, avail * _BUDGET_SHARE))
 
 
+def extract(recording, expected_range_m: float | None = None, *, quick: bool = False,
+            clutter_suppression: bool = True, fft_backend: str | None = None) -> F.FeatureResult:
+    """Features of one `Recording` (see `extract_iq`)."""
+    return extract_iq(recording.iq, recording.config, expected_range_m, quick=quick,
+                      clutter_suppression=clutter_suppression, domain=recording.domain, fft_backend=fft_backend)
+
+
+def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | None = None, *,
+               gate_bins: int = F.GATE_BINS, clutter_suppression: bool = True, quick: bool = False,
+               domain: str = "if", fft_backend: str | None = None) -> F.FeatureResult:
+    """Features of a bare cube (chirps x samples, any numeric dtype): a batch of one.
+
+    `expected_range_m` (range at the dwell, e.g. from Remote ID) centres the gate there and
+    counts only a detection within it; it must lie inside the recorded window. `quick=True`
+    computes only `QUICK_FEATURES` (no flash estimator, cadence or CNN patch: the fast tier of
+    the run-time-versus-error benchmark); the others are 0 and the patch is empty.
+
+    `domain` (docs/format.md) says what the cube already is: `range` and `cw` cubes are range
+    spectra, so no range FFT runs (clutter suppression still removes the slow-time mean of
+    every bin); a `cw` cube's one bin is the gate, takes no `expected_range_m` and gives range
+    features of 0 (docs/features.md). `fft_backend` ('numpy', 'scipy'; None: the process
+    default, `signatures.fft.backend()`) runs every transform, the lazy patch's included.
+    """
+    a = np.asarray(iq)
+    if a.ndim != 2 or a.shape[0] < 1 or a.shape[1] < 1:
+        raise SignaturesError(f"IQ cube must be 2-D (n_chirps, n_samples), got shape {a.shape}")
+    backend = _backend(_fft.resolve(fft_backend))
+    return _extract(a[None], [config], [expected_range_m], gate_bins, clutter_suppression, domain, [0],
+                    backend, quick=quick, labelled=False)[0]
+
+
 def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] | None = None, *,
-                 memory_bytes: int | None = None, fft_backend: str = DEFAULT_FFT_BACKEND,
+                 quick: bool = False, memory_bytes: int | None = None, fft_backend: str = DEFAULT_FFT_BACKEND,
                  device: str | None = None) -> list[F.FeatureResult]:
     """Features of any mix of recordings, in input order: rows that share (waveform, cube shape,
     dtype, domain) run batched in chunks of `batch_size`, whatever their range offsets (only
-    absolute ranges depend on it: a simulated recording's window is centred on its target);
-    `cw` rows and groups under MIN_BATCH through `features.extract`. A bad row raises
-    `SignaturesError` naming its input index. `fft_backend` and `device` as `extract_batch`."""
+    absolute ranges depend on it: a simulated recording's window is centred on its target).
+    A bad row raises `SignaturesError` naming its input index. `fft_backend` and `device` as
+    `extract_batch`."""
     n = len(recordings)
     expected = _expected(expected_range_m, n)
     fft_backend = _backend(fft_backend)
@@ -151,24 +184,17 @@ def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] 
     groups: dict[tuple, list[int]] = {}
     for i, rec in enumerate(recordings):
         iq = np.asarray(rec.iq)
+        if iq.ndim != 2 or iq.shape[0] < 1 or iq.shape[1] < 1:
+            raise SignaturesError(f"row {i}: IQ cube must be 2-D (n_chirps, n_samples), got shape {iq.shape}")
         waveform = rec.config.model_copy(update={"range_offset_m": 0.0})
         groups.setdefault((waveform, iq.shape, iq.dtype.str, rec.domain), []).append(i)
     for (_, shape, _, domain), rows in groups.items():
-        if domain == "cw" or len(shape) != 2:
-            for i in rows:
-                out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i], fft_backend=fft_backend))
-            continue
         step = batch_size(shape[0], shape[1], memory_bytes)
         for s in range(0, len(rows), step):
             part = rows[s:s + step]
-            if len(part) < MIN_BATCH:
-                for i in part:
-                    out[i] = _labelled(i, lambda i=i: F.extract(recordings[i], expected[i],
-                                                                fft_backend=fft_backend))
-                continue
             iq = _Stack([np.asarray(recordings[i].iq) for i in part])
             res = _extract(iq, [recordings[i].config for i in part], [expected[i] for i in part],
-                           F.GATE_BINS, True, domain, part, fft_backend, torch_device)
+                           F.GATE_BINS, True, domain, part, fft_backend, torch_device, quick=quick)
             for i, r in zip(part, res):
                 out[i] = r
     return out  # type: ignore[return-value]
@@ -206,19 +232,17 @@ def extract_batch(iq: np.ndarray, config: RadarConfig, expected_range_m: Sequenc
                   *, gate_bins: int = F.GATE_BINS, clutter_suppression: bool = True,
                   domain: str = "if", fft_backend: str = DEFAULT_FFT_BACKEND,
                   device: str | None = None) -> list[F.FeatureResult]:
-    """`features.extract_iq(iq[b], config, expected_range_m[b], gate_bins, clutter_suppression,
-    domain=domain, fft_backend=fft_backend)` for every row b of `iq` (B, chirps, samples; any
-    numeric dtype).
+    """`extract_iq(iq[b], config, expected_range_m[b], ...)` for every row b of `iq` (B, chirps,
+    samples; any numeric dtype), in one batch.
 
     `fft_backend`: 'scipy' (default: single-precision pocketfft, the faster; a batch job pays
-    scipy's import once) or 'numpy' (complex128 transforms, the single path's default). `device`
-    runs the cube stage in torch (`signatures.batch_torch`; the optional `cnn` extra): None
-    (numpy), 'cpu', 'cuda' or 'auto' (cuda when available, else numpy); features then match
-    the numpy path's to float32 rounding, not bit for bit.
-    Bad input in any row raises the single path's `SignaturesError`, prefixed with "row b: ".
+    scipy's import once) or 'numpy' (complex128 transforms). `device` runs the cube stage in
+    torch (`signatures.torch_cube`; the optional `cnn` extra): None (numpy), 'cpu', 'cuda' or
+    'auto' (cuda when available, else numpy); features then match the numpy path's to float32
+    rounding, not bit for bit. Bad input in any row raises `SignaturesError` prefixed "row b: ".
     """
     a = np.asarray(iq)
-    if a.ndim != 3:
+    if a.ndim != 3 or a.shape[1] < 1 or a.shape[2] < 1:
         raise SignaturesError(f"IQ batch must be 3-D (batch, n_chirps, n_samples), got shape {a.shape}")
     expected = _expected(expected_range_m, a.shape[0])
     return _extract(a, [config] * a.shape[0], expected, gate_bins, clutter_suppression, domain,
@@ -236,12 +260,12 @@ def _device(device: str | None):
     if device is None:
         return None
     try:
-        from signatures import batch_torch
+        from signatures import torch_cube
     except ImportError:
         if device == "auto":
             return None
         raise SignaturesError(f"device {device!r} needs torch (the optional 'cnn' extra)") from None
-    return batch_torch.resolve(device)
+    return torch_cube.resolve(device)
 
 
 def _expected(expected_range_m: Sequence[float | None] | None, n: int) -> list[float | None]:
@@ -253,65 +277,67 @@ def _expected(expected_range_m: Sequence[float | None] | None, n: int) -> list[f
     return expected
 
 
-def _labelled(row: int, fn):
-    """Run fn, prefixing a SignaturesError's message with the row it concerns."""
-    try:
-        return fn()
-    except SignaturesError as exc:
-        raise SignaturesError(f"row {row}: {exc}") from None
-
-
 def _extract(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list[float | None], gate_bins: int,
              suppress: bool, domain: str, labels: list[int], fft_backend: str = DEFAULT_FFT_BACKEND,
-             device=None) -> list[F.FeatureResult]:
+             device=None, *, quick: bool = False, labelled: bool = True) -> list[F.FeatureResult]:
     """The rows' features; `configs[b]` differ at most in their range offset. BLAS runs on one
-    thread (`signatures.threads`: same values; a batch job is one process per core)."""
-    with one_blas_thread():
-        return _extract_rows(iq, configs, expected, gate_bins, suppress, domain, labels, fft_backend, device)
+    thread (`signatures.threads`: a batch job is one process per core). A bad row's error names
+    it ("row b: ...") when `labelled`."""
+    try:
+        with one_blas_thread():
+            return _extract_rows(iq, configs, expected, gate_bins, suppress, domain, labels, fft_backend,
+                                 device, quick)
+    except _RowError as exc:
+        raise SignaturesError(f"row {exc.row}: {exc.message}" if labelled else exc.message) from None
+
+
+class _RowError(Exception):
+    """Bad input in one row: `_extract` words it for a batch or for a single return."""
+
+    def __init__(self, row: int, message: str) -> None:
+        super().__init__(message)
+        self.row, self.message = row, message
 
 
 def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list[float | None],
                   gate_bins: int, suppress: bool, domain: str, labels: list[int], fft_backend: str,
-                  device) -> list[F.FeatureResult]:
+                  device, quick: bool) -> list[F.FeatureResult]:
     if gate_bins < 1:
         raise SignaturesError(f"gate_bins must be >= 1, got {gate_bins}")
     if domain not in DOMAINS:
         raise SignaturesError(f"unknown domain {domain!r} (known: {', '.join(DOMAINS)})")
     if iq.shape[0] == 0:
         return []
-    if domain == "cw" or iq.shape[1] < 1 or iq.shape[2] < 1:  # cw: the single path, row by row
-        return [_labelled(labels[b], lambda b=b: F.extract_iq(iq[b], configs[b], expected[b], gate_bins,
-                                                              suppress, domain=domain, fft_backend=fft_backend))
-                for b in range(iq.shape[0])]
     if not (np.issubdtype(iq.dtype, np.number) and not np.issubdtype(iq.dtype, np.timedelta64)):
         raise SignaturesError(f"IQ cube must be numeric, got dtype {iq.dtype}")
     n_chirps, n_bins = iq.shape[1:]
     config = configs[0]
-    within = [_within(configs[b], e, gate_bins, n_bins, labels[b]) for b, e in enumerate(expected)]
+    within = [_within(configs[b], e, gate_bins, n_bins, labels[b], domain) for b, e in enumerate(expected)]
     cube = _cube_stage(iq, within, gate_bins, suppress, domain, labels, fft_backend, device)
     live = np.flatnonzero(~cube.zero)
     results: list[F.FeatureResult | None] = [None] * iq.shape[0]
     for b in np.flatnonzero(cube.zero):
-        results[b] = F._empty(config, n_chirps, n_bins, within[b])
+        results[b] = F.empty(config, n_chirps, n_bins, within[b])
     if live.size:
         offsets = np.array([configs[b].range_offset_m for b in live])
-        window = est.subchirp_window(config, n_bins, domain)
+        window = 0 if quick else est.subchirp_window(config, n_bins, domain)
         sub = _subchirp_bins(iq, live, cube.peak_bin[live], cube.log2_scale[live], labels, window) if window else None
         for b, r in zip(live, _slow_stage(cube, live, config, offsets, n_chirps, n_bins, suppress,
-                                          fft_backend, sub, window)):
+                                          fft_backend, domain, quick, sub, window)):
             results[b] = r
     return results  # type: ignore[return-value]
 
 
 def _within(config: RadarConfig, expected: float | None, gate_bins: int, n_bins: int,
-            label: int) -> tuple[int, int] | None:
-    """The gate an expected range asks for (as `extract_iq`), or None."""
+            label: int, domain: str) -> tuple[int, int] | None:
+    """The gate an expected range asks for (see `extract_iq`), or None."""
     if expected is None:
         return None
+    if domain == "cw":
+        raise _RowError(label, "a CW recording measures no range: an expected range cannot gate it")
     lo, hi = config.range_window_m
     if not (math.isfinite(expected) and lo <= expected < hi):
-        raise SignaturesError(f"row {label}: expected range {expected:g} m is outside the recorded window "
-                              f"[{lo:g}, {hi:g}) m")
+        raise _RowError(label, f"expected range {expected:g} m is outside the recorded window [{lo:g}, {hi:g}) m")
     k = int((expected - lo) / config.range_bin_m(n_bins))
     return max(0, k - gate_bins // 2), min(n_bins, k + gate_bins // 2 + 1)
 
@@ -348,11 +374,11 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
                                                          fft_backend)
             columns = _row_columns
         else:
-            from signatures import batch_torch
+            from signatures import torch_cube
 
             spectra, out["mu"][s:e], out["log2_scale"][s:e], out["zero"][s:e], out["profile"][s:e] = (
-                batch_torch.range_spectra(iq[s:e], suppress, domain, labels[s:e], device))
-            columns = batch_torch.columns
+                torch_cube.range_spectra(iq[s:e], suppress, domain, labels[s:e], device))
+            columns = torch_cube.columns
         det, frac, snr, peak = _detect(out["profile"][s:e], looks, lo_w[s:e], hi_w[s:e])
         g_lo = _window(peak, size, n_bins)
         p_lo = _window(peak, p_size, n_bins)
@@ -420,7 +446,7 @@ def prepared(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, 
     peak = np.maximum(flat.max(axis=1), -flat.min(axis=1)).astype(np.float64)  # NaN/Inf propagate
     bad = ~np.isfinite(peak)
     if bad.any():
-        raise SignaturesError(f"row {labels[int(np.argmax(bad))]}: IQ cube holds NaN or Inf")
+        raise _RowError(labels[int(np.argmax(bad))], "IQ cube holds NaN or Inf")
     zero = peak == 0.0
     exponent = np.where(zero, 0, np.frexp(np.where(zero, 1.0, peak))[1])
     scale = np.ldexp(1.0, -exponent)[:, None, None]
@@ -652,10 +678,10 @@ def _stacked_subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, at: np.nda
 
 
 def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_chirps: int,
-                n_bins: int, suppress: bool, fft_backend: str, sub: np.ndarray | None = None,
-                window: int = 0) -> list[F.FeatureResult]:
-    """`features._features` of the rows `live` (not all-zero; range offsets `offsets`), vectorised
-    over rows; `sub`: their sub-chirp bins of `window` samples, where the waveform has them."""
+                n_bins: int, suppress: bool, fft_backend: str, domain: str, quick: bool,
+                sub: np.ndarray | None = None, window: int = 0) -> list[F.FeatureResult]:
+    """The features of the rows `live` (not all-zero; range offsets `offsets`) from their
+    slow-time gates; `sub`: their sub-chirp bins of `window` samples, where the waveform has them."""
     n = n_chirps
     slow = cube.slow[live]
     size = slow.shape[2]
@@ -667,8 +693,13 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         raw_power, stationary = _unsuppressed(cube.mu[live], dop, power, g_lo, size)
     else:
         raw_power, stationary = power, np.zeros(live.size)
-    noise_bin = median_last(cube.profile[live]).astype(np.float64)
-    noise_doppler = np.maximum(noise_bin * n * float(np.mean(rd.hann(n) ** 2)), _TINY)
+    noise_bin = median_last(cube.profile[live]).astype(np.float64)  # mean noise power per chirp in a bin
+    if domain == "cw":  # one channel: the Doppler bins are the reference cells
+        noise_doppler = np.maximum(median_last(power[:, :, 0]).astype(np.float64), _TINY)
+        detected, snr_db = _cw_detection(power[:, :, 0], cube.profile[live, 0], noise_doppler)
+    else:
+        noise_doppler = np.maximum(noise_bin * n * float(np.mean(rd.hann(n) ** 2)), _TINY)
+        detected, snr_db = cube.detected[live], cube.snr_db[live]
 
     bin_m = config.range_bin_m(n_bins)
     dop_bin_hz = config.prf_hz / n
@@ -685,7 +716,6 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     velocity = body_hz * lam / 2.0
     vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
     dwell = n * config.pri_s
-    snr_db = cube.snr_db[live]
     snr = np.maximum(10.0 ** (snr_db / 10.0), 1e-3)
     range_mid = offsets + cube.peak_bin_frac[live] * bin_m
     hover_bin = F.hover_range_bin(cube.profile[live], peak_bin, noise_bin)
@@ -727,21 +757,6 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     occupancy = occupied.mean(axis=1)
     tip, tip_std, aliased = _tip_speed(occupied, rel_bins, body_hz, config, dop_bin_hz)
 
-    if sub is not None:
-        per = best.periodicity_batch(best.flash_series_batch(sub, config, body_hz, bin_m * n_bins / window, window))
-    else:
-        per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
-    flash, flash_std = per.flash_rate_hz, per.flash_rate_std_hz
-    rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
-    has_length = (rotor > 0) & (tip > 0) & ~aliased
-    with np.errstate(divide="ignore", invalid="ignore"):
-        length = np.where(has_length, tip / (2 * math.pi * rotor), 0.0)
-        length_std = np.where(has_length, length * np.hypot(tip_std / tip, rotor_std / rotor), 0.0)
-
-    win, hop = tf.stft_params(config, n)
-    cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend), fft_backend),
-                                            flash)
-
     cols = dict(
         mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
         std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
@@ -750,29 +765,72 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         range_m=range_est - velocity * dwell / 2.0, range_std_m=range_std,
         radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
         tip_speed_mps=tip, tip_speed_std_mps=tip_std, tip_aliased=aliased, doppler_occupancy=occupancy,
-        snr_db=np.maximum(snr_db, -100.0), detected=cube.detected[live],
-        flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,
-        rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,
-        blade_length_std_m=length_std, flash_score=per.score, flash_count=per.n_events,
-        flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
-    table = np.stack([np.asarray(cols[name], dtype=np.float64) for name in F.FEATURE_NAMES], axis=1).tolist()
-    detected = cube.detected[live].tolist()
-    seen, seen_std = per.rotors_seen.tolist(), per.rotors_seen_std.tolist()
+        snr_db=np.maximum(snr_db, -100.0), detected=detected)
+    if domain == "cw":  # no range measured: range features are 0 by definition (docs/features.md)
+        for name in ("mean_range_m", "std_range_m", "range_m", "range_std_m"):
+            cols[name] = np.zeros(live.size)
+    if quick:
+        seen = seen_std = np.zeros(live.size)
+        body_idx = np.full(live.size, np.nan)
+    else:
+        if sub is not None:
+            per = best.periodicity_batch(best.flash_series_batch(sub, config, body_hz, bin_m * n_bins / window,
+                                                                 window))
+        else:
+            per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
+        flash, flash_std = per.flash_rate_hz, per.flash_rate_std_hz
+        rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
+        has_length = (rotor > 0) & (tip > 0) & ~aliased  # a lower-bound tip gives no length
+        with np.errstate(divide="ignore", invalid="ignore"):
+            length = np.where(has_length, tip / (2 * math.pi * rotor), 0.0)
+            length_std = np.where(has_length, length * np.hypot(tip_std / tip, rotor_std / rotor), 0.0)
+        win, hop = tf.stft_params(config, n)
+        cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend),
+                                                         fft_backend), flash)
+        cols.update(
+            flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,
+            rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,
+            blade_length_std_m=length_std, flash_score=per.score, flash_count=per.n_events,
+            flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
+        seen, seen_std = per.rotors_seen, per.rotors_seen_std
+    zeros = np.zeros(live.size)
+    table = np.stack([np.asarray(cols.get(name, zeros), dtype=np.float64) for name in F.FEATURE_NAMES],
+                     axis=1).tolist()
+    detected_rows = np.asarray(detected, dtype=bool).tolist()
+    seen_rows, seen_std_rows = np.asarray(seen).tolist(), np.asarray(seen_std).tolist()
     gates = (g_lo + 0).tolist()
     out = []
     for j, b in enumerate(live.tolist()):
+        feats = F.Features(*table[j])
+        if quick:
+            out.append(F.FeatureResult(detected_rows[j], feats, F.no_patch, (gates[j], gates[j] + size)))
+            continue
         make = _patch_maker(cube.patch_row, b, config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]),
                             fft_backend)
-        out.append(F.FeatureResult(detected[j], F.Features(*table[j]), make, (gates[j], gates[j] + size),
-                                   physics=F.physics_estimates(seen[j], seen_std[j])))
+        out.append(F.FeatureResult(detected_rows[j], feats, make, (gates[j], gates[j] + size),
+                                   physics=F.physics_estimates(seen_rows[j], seen_std_rows[j])))
     return out
+
+
+def _cw_detection(line: np.ndarray, mean_power: np.ndarray,
+                  noise_doppler: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(detected, SNR dB) of CW rows: one channel, so no range cells to run CFAR over. The
+    Doppler bins are the reference cells instead: detected when the strongest Doppler line
+    exceeds their median by the median-CFAR factor of one look at `rd.CFAR_PFA`. SNR: mean power
+    per pulse over the median Doppler bin's noise per pulse (an overestimate of the noise, hence
+    an underestimate of the SNR, when micro-Doppler fills most of the band)."""
+    n = line.shape[1]
+    factor = rd._cfar_factor(1, n, rd.CFAR_PFA)
+    detected = line.max(axis=1).astype(np.float64) > noise_doppler * factor
+    noise_pulse = noise_doppler / (n * float(np.mean(rd.hann(n) ** 2)))
+    return detected, _db(mean_power.astype(np.float64) / noise_pulse)
 
 
 def _patch_maker(patch_row: Callable[[int], np.ndarray], b: int, config: RadarConfig, peak: int, body_idx: float,
                  fft_backend: str):
     """The lazy CNN patch of row b: `features._patch` of its patch columns (the same window)."""
     def make() -> np.ndarray:
-        return F._patch(patch_row(b), config, peak, body_idx, fft_backend)
+        return F.patch(patch_row(b), config, peak, body_idx, fft_backend)
     return make
 
 
@@ -834,7 +892,7 @@ def _count_peaks(d: np.ndarray, noise: np.ndarray) -> np.ndarray:
     m = (size // group) * group
     pooled = d[:, :m].reshape(rows, -1, group).sum(axis=2)
     with np.errstate(divide="ignore"):
-        y = np.log(np.maximum(pooled, np.float32(_TINY))) * F._DB
+        y = np.log(np.maximum(pooled, np.float32(_TINY))) * F.DB_PER_LN
     floor = (_db(noise * group) + F.PEAK_ABOVE_NOISE_DB).astype(np.float32)
     n = y.shape[1]
     rise = np.ones_like(y, dtype=bool)
@@ -968,3 +1026,52 @@ def _cadence_features(cad: tuple[np.ndarray, np.ndarray], flash_hz: np.ndarray) 
     harm = np.abs(f / fl - np.round(f / fl)) * fl <= step
     on = np.where(use & harm, spec, np.float32(0.0)).sum(axis=1).astype(np.float64)
     return peak, np.where(flash_hz > 0, on / total, 0.0)
+
+
+#: What `detections` calls a target: its CFAR cluster's peak this far above the profile's median
+DETECTION_MIN_SNR_DB = 10.0
+
+
+def detections(recording, clutter_suppression: bool = True,
+               min_snr_db: float = DETECTION_MIN_SNR_DB) -> list[tuple[float, float]]:
+    """The targets of the range profile: (range m, SNR dB over the profile's median) of the peak
+    of each CFAR cluster (contiguous bins over threshold) at least `min_snr_db` strong, strongest
+    first; a cluster within F.GATE_BINS of a stronger one is that one's (range sidelobes, blade
+    flashes). [] for a CW return (no range) or an all-zero one. What `authn check --rid-capture`
+    compares with the claims (non-cooperative targets); the features look at one target only."""
+    if recording.domain == "cw":
+        return []
+    a = np.asarray(recording.iq)
+    if a.ndim != 2 or a.shape[0] < 1 or a.shape[1] < 1:
+        raise SignaturesError(f"IQ cube must be 2-D (n_chirps, n_samples), got shape {a.shape}")
+    try:
+        _, _, zero, profile = _range_spectra(a[None], clutter_suppression, recording.domain, [0],
+                                             np.empty(a.shape, np.complex64)[None], "numpy")
+    except _RowError as exc:
+        raise SignaturesError(exc.message) from None
+    if zero[0]:
+        return []
+    profile = profile[0]
+    config = recording.config
+    n_chirps, n_bins = a.shape
+    looks = max(1, n_chirps - 1) if clutter_suppression else n_chirps
+    hits, _ = rd.cfar(profile, looks)
+    noise = max(float(median(profile)), 1e-30)
+    peaks: list[tuple[int, float]] = []
+    k = 0
+    while k < n_bins:
+        end = k
+        while end < n_bins and hits[end]:
+            end += 1
+        if end > k:
+            peak = k + int(np.argmax(profile[k:end]))
+            snr = 10.0 * math.log10(max(float(profile[peak]) / noise, 1e-30))
+            if snr >= min_snr_db:
+                peaks.append((peak, snr))
+        k = max(end, k + 1)
+    kept: list[tuple[int, float]] = []
+    for peak, snr in sorted(peaks, key=lambda p: -p[1]):
+        if all(abs(peak - other) > F.GATE_BINS for other, _ in kept):
+            kept.append((peak, snr))
+    bin_m = config.range_bin_m(n_bins)
+    return [(config.range_offset_m + rd._interp_peak(profile, peak) * bin_m, snr) for peak, snr in kept]
