@@ -219,3 +219,27 @@ def test_icc_of_known_groups() -> None:
     same = [list(rng.normal(0, 1, 6)) for _ in range(200)]
     apart = [list(m + rng.normal(0, 0.1, 6)) for m in rng.normal(0, 3, 200)]
     assert abs(icc(same)) < 0.05 and icc(apart) > 0.95
+
+
+@pytest.mark.parametrize("suffix", [".h5", ".npz"])
+def test_the_header_is_the_recordings_metadata(setup, tmp_path, suffix: str) -> None:
+    """What the track is validated with equals what the full read gives, in both containers."""
+    _, _, tracks = setup
+    rec = read_recording(sorted(tracks["genuine"].iterdir())[0])
+    path = write_recording(rec, tmp_path / f"dwell{suffix}")
+    head = read_header(path)
+    assert head.config == rec.config and head.site == rec.site and head.start_time == rec.start_time
+    assert head.shape == rec.iq.shape and head.domain == rec.domain and head.mid_time == rec.mid_time
+    assert np.array_equal(head.remote_id, rec.remote_id) and np.array_equal(head.remote_id_time_s, rec.remote_id_time_s)
+
+
+def test_bench_track_rows(capsys) -> None:
+    """`authn bench --track`: the correlation rows and dwells per decision, as JSON."""
+    capsys.readouterr()
+    assert main(["bench", "--track", "--preset", "paper", "--n", "2", "--snr", "20", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [r["category"] for r in doc["dependence"]] == ["genuine", "type_spoof"]
+    assert all(r["dwells"] == 10 for r in doc["dependence"])  # 2 scenes x 5 dwells, every one verified
+    rows = {r["category"]: r for r in doc["tracks"]}
+    assert rows["genuine"]["right"] == 1.0 and rows["genuine"]["median_dwells"] == 3
+    assert rows["type_spoof"]["right"] == 1.0 and 1 <= rows["type_spoof"]["median_dwells"] <= 10
