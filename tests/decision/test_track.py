@@ -243,3 +243,36 @@ def test_bench_track_rows(capsys) -> None:
     rows = {r["category"]: r for r in doc["tracks"]}
     assert rows["genuine"]["right"] == 1.0 and rows["genuine"]["median_dwells"] == 3
     assert rows["type_spoof"]["right"] == 1.0 and 1 <= rows["type_spoof"]["median_dwells"] <= 10
+
+
+TRACK = {"accept_cn": 691, "reject_cn": -461}
+T_NOW = 1_767_268_800
+ACTIVE = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=T_NOW - 86400,
+              has_key=False)
+SITE = dict(time_s=T_NOW, preset="paper")
+GOOD = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300", radar_known=True,
+            radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120, range_tolerance_cm=850,
+            velocity_residual_cmps=40, velocity_tolerance_cmps=170, remote_id_present=True, remote_id_issues=[],
+            remote_id_auth="absent", verification_llr_cn=250)
+
+
+@pytest.mark.parametrize("llr_cn,ctx,reasons", [
+    (691, {}, ["registered-active"]),  # at the accept bound
+    (690, {}, ["track-inconclusive"]),
+    (0, {}, ["track-inconclusive"]),  # a single dwell's 0-nat threshold does not apply over a track
+    (-460, {}, ["track-inconclusive"]),
+    (-461, {}, ["track-claim-inconsistent"]),  # at the reject bound
+    (-461, {"radar_model": "bird"}, ["track-claim-inconsistent"]),  # radar-not-a-drone stands aside
+    (None, {}, ["track-inconclusive"]),  # nothing verified yet: radar-claim-unverifiable stands aside
+    (900, {"range_residual_cm": 900}, ["range-mismatch"]),  # the worst dwell's kinematics still forbid
+])
+def test_the_default_policy_over_a_track(llr_cn, ctx, reasons) -> None:
+    """Golden rows of the track forbids (tests/decision/test_policy.py has the single-dwell ones)."""
+    from authn.policy import PolicyEngine
+
+    context = {**GOOD, **ctx, "track": {**TRACK, "llr_cn": 0 if llr_cn is None else llr_cn, "dwells": 3}}
+    context.pop("verification_llr_cn")
+    if llr_cn is not None:
+        context["verification_llr_cn"] = llr_cn
+    result = PolicyEngine.load().decide(M300, ACTIVE, SITE, context)
+    assert result.reasons == reasons and result.decision == ("accept" if reasons == ["registered-active"] else "reject")
