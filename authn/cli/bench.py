@@ -106,7 +106,7 @@ def bench(
         _batch(tuple(preset), quick, seed, plot_dir, as_json)
         return
     if track:
-        _track(tuple(preset), tuple(snr), n, seed, as_json)
+        _track(tuple(preset), tuple(snr), n, seed, as_json, world_choice(world or "training"))
         return
     n_claims = len(preset) * len(snr) * len(WORLD_CATEGORIES) * n * len(worlds)
     if worlds_only:
@@ -196,8 +196,10 @@ def bench(
     console.print(imports_table(imports))
 
 
-def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int, as_json: bool) -> None:
-    """Only the track rows (`--track`): dependence of dwell LLRs, dwells per decision."""
+def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int, as_json: bool,
+           worlds: tuple[str, ...] = ("training",)) -> None:
+    """Only the track rows (`--track`, in each of `--world`, default training): dependence of
+    dwell LLRs, dwells per decision."""
     from rich.console import Console
     from rich.progress import Progress
     from rich.table import Table
@@ -205,11 +207,12 @@ def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,
     from lab.bench.track import dependence, run_tracks, summarise_tracks
 
     with Progress(transient=True, disable=as_json) as progress:
-        task = progress.add_task("simulated tracks", total=len(presets) * len(snrs) * 2 * (n + 5 * n))
-        dep = [r for p in presets for s in snrs
-               for r in dependence(p, n, 5, s, seed, progress=lambda k: progress.advance(task, k))]
-        rows = summarise_tracks([t for p in presets for t in run_tracks(p, snrs, n, 10, seed,
-                                                                        progress=lambda k: progress.advance(task, k))])
+        task = progress.add_task("simulated tracks", total=len(worlds) * len(presets) * len(snrs) * 2 * (n + 5 * n))
+        step = lambda k: progress.advance(task, k)  # noqa: E731
+        dep = [r for w in worlds for p in presets for s in snrs
+               for r in dependence(p, n, 5, s, seed, progress=step, world=w)]
+        rows = summarise_tracks([t for w in worlds for p in presets
+                                 for t in run_tracks(p, snrs, n, 10, seed, progress=step, world=w)])
     if as_json:
         typer.echo(json.dumps({"dependence": [d.to_json() for d in dep], "tracks": rows, "n": n, "seed": seed},
                               indent=2))
@@ -217,17 +220,18 @@ def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,
     console = Console()
     t = Table(title="dwell LLR correlation (ICC within one scene of a flown/claimed pair; Pearson of consecutive "
                     "dwells and of dwells of neighbouring scenes)")
-    for col in ("preset", "SNR dB", "claims", "ICC", "ICC pooled", "within", "between", "mean LLR"):
+    for col in ("preset", "world", "SNR dB", "claims", "ICC", "ICC pooled", "within", "between", "mean LLR"):
         t.add_column(col, justify="right")
     for d in dep:
-        t.add_row(d.preset, f"{d.snr_db:g}", d.category, f"{d.icc:.3f}", f"{d.icc_pooled:.3f}", f"{d.within:.3f}",
-                  f"{d.between:.3f}", f"{d.mean_llr:+.2f}")
+        t.add_row(d.preset, d.world, f"{d.snr_db:g}", d.category, f"{d.icc:.3f}", f"{d.icc_pooled:.3f}",
+                  f"{d.within:.3f}", f"{d.between:.3f}", f"{d.mean_llr:+.2f}")
     console.print(t)
     t = Table(title="track decisions (sequential test, at most 10 dwells)")
-    for col in ("preset", "SNR dB", "claims", "tracks", "right", "inconclusive", "median dwells", "mean dwells"):
+    for col in ("preset", "world", "SNR dB", "claims", "tracks", "right", "inconclusive", "median dwells",
+                "mean dwells"):
         t.add_column(col, justify="right")
     for r in rows:
-        t.add_row(r["preset"], f"{r['snr_db']:g}", r["category"], str(r["tracks"]), f"{r['right']:.1%}",
+        t.add_row(r["preset"], r["world"], f"{r['snr_db']:g}", r["category"], str(r["tracks"]), f"{r['right']:.1%}",
                   f"{r['inconclusive']:.1%}", f"{r['median_dwells']:g}", f"{r['mean_dwells']:.2f}")
     console.print(t)
 

@@ -37,18 +37,26 @@ DEFAULT_TRACK_SNRS = (0.0, 5.0, 10.0, 20.0)
 
 
 def track_recordings(scene: Scene, preset: str, seeds: list[int], serial: str | None, azimuth_deg: float = 60.0,
-                     start: datetime | None = None, spacing_s: float = DWELL_SPACING_S) -> list[Recording]:
+                     start: datetime | None = None, spacing_s: float = DWELL_SPACING_S,
+                     world: str = "training") -> list[Recording]:
     """The dwells of one target: `scene` rendered once per seed, `spacing_s` apart, its range
-    moving with its radial speed, each carrying the Remote ID of `serial` (None: none)."""
+    moving with its radial speed, each carrying the Remote ID of `serial` (None: none). `world`:
+    the training simulator, or `heldout` (lab.heldout, the signal model nothing was fitted to)."""
     pre = get_preset(preset)
     start = start or datetime.now(timezone.utc)
     out = []
     for i, seed in enumerate(seeds):
         sc = scene.model_copy(update={"range_m": max(1.0, scene.range_m + scene.radial_speed_mps * i * spacing_s)})
+        when = start + timedelta(seconds=i * spacing_s)
+        if world != "training" and serial:
+            from lab.bench.worlds import render_claim
+
+            out.append(render_claim(world, sc, pre, seed, Broadcast(serial=serial), azimuth_deg, when))
+            continue
+        if world != "training":
+            raise ValueError("a held-out track needs a serial to broadcast")
         bc = Broadcast(serial=serial) if serial else None
-        rec, _ = simulate_flight(sc, pre, seed, bc, azimuth_deg=azimuth_deg,
-                                 start_time=start + timedelta(seconds=i * spacing_s))
-        out.append(rec)
+        out.append(simulate_flight(sc, pre, seed, bc, azimuth_deg=azimuth_deg, start_time=when)[0])
     return out
 
 
@@ -91,6 +99,7 @@ class Dependence:
     """The correlation of dwell LLRs within and between tracks, per claim category."""
 
     preset: str
+    world: str
     snr_db: float
     category: str
     tracks: int
@@ -130,7 +139,7 @@ def dwell_llrs(checker: Any, recs: list[Recording], serial: str, cap: float) -> 
 
 
 def dependence(preset: str = "paper", n_tracks: int = 30, dwells: int = 6, snr_db: float = 10.0, seed: int = 7,
-               progress: Callable[[int], None] | None = None) -> list[Dependence]:
+               progress: Callable[[int], None] | None = None, world: str = "training") -> list[Dependence]:
     """Per category: `n_tracks` random scenes (`CLAIM_SCENES` at `snr_db`), `dwells` dwells each.
     `icc` is the correlation the track's discount needs: dwells of one scene against dwells of
     other scenes of the same airframe making the same claim (a pair's mean is the claim's signal,
@@ -149,7 +158,8 @@ def dependence(preset: str = "paper", n_tracks: int = 30, dwells: int = 6, snr_d
                 flies, claims = _pair(cat, i, slugs)
                 scene = _scene(rng, flies, snr_db)
                 az, base = float(rng.uniform(0.0, 360.0)), int(rng.integers(2**31 - dwells))
-                recs = track_recordings(scene, preset, list(range(base, base + dwells)), bench_serial(claims), az)
+                recs = track_recordings(scene, preset, list(range(base, base + dwells)), bench_serial(claims), az,
+                                        world=world)
                 groups.append(dwell_llrs(checker, recs, bench_serial(claims), DWELL_CAP_NATS))
                 pairs.setdefault((flies, claims), []).append(groups[-1])
                 if progress:
@@ -161,7 +171,7 @@ def dependence(preset: str = "paper", n_tracks: int = 30, dwells: int = 6, snr_d
                         if sum(len(g) >= 2 for g in gs) >= 2]
             pooled_pairs = (sum(w * v for w, v in per_pair) / sum(w for w, _ in per_pair) if per_pair
                             else float("nan"))  # fewer than two scenes of any one pair
-            rows.append(Dependence(preset, snr_db, cat, n_tracks, len(flat), pooled_pairs, icc(groups),
+            rows.append(Dependence(preset, world, snr_db, cat, n_tracks, len(flat), pooled_pairs, icc(groups),
                                    _pearson(within), _pearson(between),
                                    statistics.fmean(flat) if flat else float("nan"),
                                    statistics.pstdev(flat) if flat else float("nan")))
@@ -173,6 +183,7 @@ class TrackTrial:
     """One track decided by the sequential test."""
 
     preset: str
+    world: str
     snr_db: float
     category: str
     decision: str
@@ -184,7 +195,7 @@ class TrackTrial:
 
 def run_tracks(preset: str = "paper", snrs: tuple[float, ...] = DEFAULT_TRACK_SNRS, n: int = 20,
                max_dwells: int = 10, seed: int = 7, sprt: Any = None,
-               progress: Callable[[int], None] | None = None) -> list[TrackTrial]:
+               progress: Callable[[int], None] | None = None, world: str = "training") -> list[TrackTrial]:
     """n genuine and n type-spoof tracks of up to `max_dwells` dwells per SNR, each decided by
     `authn.track.decide_track` (the real Checker and policy; in memory, no audit)."""
     from authn.track import Sprt, decide_track
@@ -202,17 +213,18 @@ def run_tracks(preset: str = "paper", snrs: tuple[float, ...] = DEFAULT_TRACK_SN
                     scene = _scene(rng, flies, snr)
                     az, base = float(rng.uniform(0.0, 360.0)), int(rng.integers(2**31 - max_dwells))
                     start = datetime.now(timezone.utc)
-                    dwells = [_lazy_dwell(scene, preset, base + j, bench_serial(claims), az, start, j)
+                    dwells = [_lazy_dwell(scene, preset, base + j, bench_serial(claims), az, start, j, world)
                               for j in range(max_dwells)]
                     out = decide_track(checker, dwells, None, sprt)
-                    trials.append(TrackTrial(preset, float(snr), cat, out.decision, tuple(out.reasons),
+                    trials.append(TrackTrial(preset, world, float(snr), cat, out.decision, tuple(out.reasons),
                                              out.dwells_used, max_dwells, out.llr))
                     if progress:
                         progress(1)
     return trials
 
 
-def _lazy_dwell(scene: Scene, preset: str, seed: int, serial: str, az: float, start: datetime, j: int) -> Any:
+def _lazy_dwell(scene: Scene, preset: str, seed: int, serial: str, az: float, start: datetime, j: int,
+                world: str = "training") -> Any:
     """Dwell j of a track, simulated on first use (its header needs the Remote ID, which the
     simulator writes beside the IQ) and kept for the full read."""
     from authn.track import Dwell
@@ -223,8 +235,8 @@ def _lazy_dwell(scene: Scene, preset: str, seed: int, serial: str, az: float, st
         if "rec" not in cache:
             sc = scene.model_copy(update={"range_m": max(1.0, scene.range_m + scene.radial_speed_mps * j *
                                                          DWELL_SPACING_S)})
-            cache["rec"] = simulate_flight(sc, get_preset(preset), seed, Broadcast(serial=serial), azimuth_deg=az,
-                                           start_time=start + timedelta(seconds=j * DWELL_SPACING_S))[0]
+            when = start + timedelta(seconds=j * DWELL_SPACING_S)
+            cache["rec"] = track_recordings(sc, preset, [seed], serial, az, when, world=world)[0]
         return cache["rec"]
 
     def header() -> Any:
@@ -234,15 +246,15 @@ def _lazy_dwell(scene: Scene, preset: str, seed: int, serial: str, az: float, st
 
 
 def summarise_tracks(trials: list[TrackTrial]) -> list[dict[str, Any]]:
-    """Per (preset, SNR, category): right decisions, inconclusive share and dwells per decision."""
-    groups: dict[tuple[str, float, str], list[TrackTrial]] = {}
+    """Per (preset, world, SNR, category): right decisions, inconclusive share and dwells per decision."""
+    groups: dict[tuple[str, str, float, str], list[TrackTrial]] = {}
     for t in trials:
-        groups.setdefault((t.preset, t.snr_db, t.category), []).append(t)
+        groups.setdefault((t.preset, t.world, t.snr_db, t.category), []).append(t)
     rows = []
-    for (preset, snr, cat), ts in sorted(groups.items()):
+    for (preset, world, snr, cat), ts in sorted(groups.items()):
         want = "accept" if cat == "genuine" else "reject"
         used = [t.dwells_used for t in ts]
-        rows.append({"preset": preset, "snr_db": snr, "category": cat, "tracks": len(ts),
+        rows.append({"preset": preset, "world": world, "snr_db": snr, "category": cat, "tracks": len(ts),
                      "right": round(sum(t.decision == want for t in ts) / len(ts), 4),
                      "inconclusive": round(sum("track-inconclusive" in t.reasons for t in ts) / len(ts), 4),
                      "median_dwells": statistics.median(used), "mean_dwells": round(statistics.fmean(used), 3),
