@@ -324,7 +324,7 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
     terms: list[DwellTerm] = []
     increments: list[float] = []
     result = request = None
-    for i, d in enumerate(dwells):
+    for d in dwells:
         batch = checker.decide([CheckInput(d.name, claim if serial is not None else None, d.load)])
         if batch.fault is not None:
             raise batch.fault
@@ -344,8 +344,6 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
             from authn.policy import PolicyResult
 
             result = PolicyResult(o.decision, list(o.reasons), list(o.policy_errors))
-            if i == 0:
-                terms[-1].reasons = list(o.reasons)
             break
         if terms[-1].increment is not None:
             increments.append(terms[-1].increment)
@@ -356,7 +354,8 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
         timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
         if not (result.decision == "reject" and set(result.reasons) <= {INCONCLUSIVE}):
             break  # accepted, or a forbid more dwells cannot lift
-    assert result is not None and request is not None
+    if result is None or request is None:  # unreachable: _validate refuses an empty track
+        raise AuthnError("a track needs at least one dwell")
     radar_used = sum(1 for o in outcomes if o.evidence.radar is not None)
     return TrackOutcome(decision=result.decision, reasons=list(result.reasons),
                         evidence=_track_evidence(outcomes) if radar_used else outcomes[-1].evidence,
