@@ -51,9 +51,9 @@ DEFAULT_FALSE_ACCEPT = 1e-3
 #: Target rate of rejecting a genuine track (beta): Wald's reject bound log(b/(1-a)) = -4.6 nats.
 DEFAULT_FALSE_REJECT = 1e-2
 #: Correlation of the verification LLRs of dwells of one airframe (intra-class correlation).
-#: Measured on the simulator at most 0.07 (paper preset, SNR 0 and 10 dB, genuine and type-spoof
-#: tracks; docs/tracks.md, "Dependence"; `authn bench --track`); 0.2 leaves a margin for a world
-#: less kind than the one the classifiers were fitted to. Not fitted to any decision rate.
+#: Measured at most 0.07 on the training simulator (paper preset, SNR 0-20 dB, genuine and
+#: type-spoof tracks) and 0.09 on the held-out signal model (docs/tracks.md, "Dependence";
+#: `authn bench --track [--world heldout]`); 0.2 is a margin over both. Not fitted to any decision rate.
 DWELL_CORRELATION = 0.2
 #: Most a single dwell adds to (or takes from) the track's LLR, nats: below the accept bound, so
 #: no track is accepted on one dwell alone.
