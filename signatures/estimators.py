@@ -69,7 +69,8 @@ FLASH_RATE_MIN_HZ = 30.0
 FLASH_RATE_MAX_HZ = 500.0
 #: Flash-energy series sample rate target (Hz): decimate the `wide` PRF to ~20 kHz.
 SERIES_RATE_HZ = 25_000.0
-#: High-pass length (s): longer than a flash, shorter than hub / body Doppler cycles.
+#: High-pass length (s): longer than a flash, shorter than hub / body Doppler cycles (the
+#: floor of `highpass_s`, which grows with the flash lobe at longer wavelengths).
 HIGHPASS_S = 0.4e-3
 #: Flash energy must exceed the series median by this many (normal-scaled) MADs:
 #: ~1e-4 false flashes per sample for the chi-square noise of a few range bins.
@@ -138,10 +139,18 @@ HALF_LLR = 2.0
 HALF_SHARE_CAP = 0.98
 #: The coherent hit must also hold this share of the best position's energy (phase agrees).
 COHERENT_SHARE = 0.5
-#: Main lobe of a two-blade flash (s): lambda / (2 v_tip) ~ 18 us at 77 GHz and 100-115 m/s
-#: tips. The coherent checks run only where the PRI is longer: a flash is then seen in at
-#: most one chirp, or missed between two, and the energy events miss many partners.
-FLASH_LOBE_S = 18e-6
+#: Main lobe of a two-blade flash (s): lambda / (2 v_tip), with v_tip this typical tip speed:
+#: ~18 us at 77 GHz, ~0.4 ms at 3.3 GHz (`flash_lobe_s`). The coherent checks run only where
+#: the PRI is longer: a flash is then seen in at most one chirp, or missed between two, and
+#: the energy events miss many partners.
+FLASH_TIP_MPS = 108.0
+#: Flash events kept per series (the strongest): MAX_EVENTS, and this many per second of
+#: dwell beyond it (64 in the `paper` and `wide` dwells of 26 and 51 ms; ~1,000 in 0.82 s).
+MAX_EVENTS = 64
+MAX_EVENTS_PER_S = 1200.0
+#: The high-pass spans at least this many flash lobes (`highpass_s`): at long wavelengths a
+#: flash outlasts HIGHPASS_S and the high-pass would remove it with the body.
+HIGHPASS_LOBES = 3.0
 #: Rotors seen: events closer than this share of the flash period (at least GROUP_GAP_SAMPLES)
 #: are one flash. A blade made of several scatterers flashes as a cluster of peaks, while one
 #: rotor flashes once per period and per-rotor rates differ by a few per cent.
@@ -180,7 +189,7 @@ class FlashSeries:
 def subchirp_window(config: RadarConfig, n_samples: int, domain: str = "if") -> int:
     """Samples per sub-chirp window for IF cubes of this waveform; 0 where the whole chirp is
     the window (a ramp shorter than SUBCHIRP_MIN_LOBES flash lobes, or no fast time)."""
-    if domain != "if" or config.ramp_s < SUBCHIRP_MIN_LOBES * FLASH_LOBE_S:
+    if domain != "if" or config.ramp_s < SUBCHIRP_MIN_LOBES * flash_lobe_s(config.wavelength_m):
         return 0
     w = int(round(SUBCHIRP_SHARE * n_samples))
     return w if SUBCHIRP_BINS <= w < n_samples else 0
@@ -290,11 +299,27 @@ def _peak_positions(profiles: np.ndarray) -> np.ndarray:
     return out
 
 
-def flashes_within_one_sample(rate_hz: float, decimation: int) -> bool:
-    """Does a flash (FLASH_LOBE_S) fit within one PRI of a series at `rate_hz` decimated by
-    `decimation`? Only then do the coherent checks run (the batch path asks too); where flashes
-    span several chirps the energy events already find them."""
-    return rate_hz * max(1, decimation) * FLASH_LOBE_S <= 1.0
+def max_events(dwell_s: float) -> int:
+    """Flash events kept per series: MAX_EVENTS, or MAX_EVENTS_PER_S of the dwell where longer
+    (a long dwell holds proportionally more flashes; a fixed cap would keep a few of them)."""
+    return max(MAX_EVENTS, math.ceil(MAX_EVENTS_PER_S * dwell_s))
+
+
+def flash_lobe_s(wavelength_m: float) -> float:
+    """A flash's main lobe (s) at this wavelength: lambda / (2 FLASH_TIP_MPS)."""
+    return wavelength_m / (2.0 * FLASH_TIP_MPS)
+
+
+def highpass_s(wavelength_m: float) -> float:
+    """The flash series' high-pass length (s): HIGHPASS_S, or HIGHPASS_LOBES flash lobes where
+    flashes last longer, never beyond the fastest flash period (1 / FLASH_RATE_MAX_HZ)."""
+    return min(max(HIGHPASS_S, HIGHPASS_LOBES * flash_lobe_s(wavelength_m)), 1.0 / FLASH_RATE_MAX_HZ)
+
+
+def flashes_within_one_sample(rate_hz: float, decimation: int, wavelength_m: float) -> bool:
+    """Does a flash (`flash_lobe_s`) fit within one PRI of a series at `rate_hz` decimated by
+    `decimation` (the coherent checks' premise)?"""
+    return rate_hz * max(1, decimation) * flash_lobe_s(wavelength_m) <= 1.0
 
 
 def _binomial_llr(found: np.ndarray, made: np.ndarray, share: np.ndarray,

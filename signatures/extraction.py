@@ -710,7 +710,10 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     d_max = d.max(axis=1).astype(np.float64)
     d_med = median_last(d).astype(np.float64)
     contrast = d_max / np.maximum(d_med, _TINY)
-    hovering = suppress & (stationary > d_max) & (contrast < n / F.MOVING_LINE_BINS)
+    # a CW channel has no other range bins to tell clutter from a body at zero Doppler: without a
+    # narrow moving line, the body is the one clutter suppression removed there
+    still = np.full(live.size, True) if domain == "cw" else stationary > d_max
+    hovering = suppress & still & (contrast < n / F.MOVING_LINE_BINS)
     body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering)
     body_hz = (body_idx - centre) * dop_bin_hz
     velocity = body_hz * lam / 2.0
@@ -778,7 +781,16 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
                                                                  window))
         else:
             per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
-        flash, flash_std = per.flash_rate_hz, per.flash_rate_std_hz
+        flash, flash_std, score = per.flash_rate_hz, per.flash_rate_std_hz, per.score
+        if dwell >= best.SPECTRAL_DWELL_S:  # hundreds of flashes: the envelope spectrum resolves the rate
+            cols_lo = np.maximum(0, peak_bin - g_lo - 1)
+            width = int(min(3, size))
+            centre_cols = np.stack([slow[j, :, int(min(cols_lo[j], size - width)):][:, :width]
+                                    for j in range(live.size)])
+            flash, flash_std, score = best.spectral_flash_rate(centre_cols, config, body_hz)
+            if domain == "cw":  # a periodic flash train is a target even where no Doppler line stands out
+                detected = np.asarray(detected, dtype=bool) | (score >= best.SPECTRAL_DETECT_SCORE)
+                cols["detected"] = detected
         rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
         has_length = (rotor > 0) & (tip > 0) & ~aliased  # a lower-bound tip gives no length
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -790,7 +802,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         cols.update(
             flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,
             rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,
-            blade_length_std_m=length_std, flash_score=per.score, flash_count=per.n_events,
+            blade_length_std_m=length_std, flash_score=score, flash_count=per.n_events,
             flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
         seen, seen_std = per.rotors_seen, per.rotors_seen_std
     zeros = np.zeros(live.size)

@@ -15,11 +15,12 @@ import numpy as np
 
 from signatures.estimators import (
     COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, EVENT_TOL_FRACTION, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
-    FULL_VOTE_DB, HALF_LLR, HALF_SHARE_CAP, HIGHPASS_S, MIN_OVERLAP, MIN_VOTE_WEIGHT, NOISE_MADS,
+    FULL_VOTE_DB, HALF_LLR, HALF_SHARE_CAP, MIN_OVERLAP, MIN_VOTE_WEIGHT, NOISE_MADS,
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.estimators import (Estimate, FlashSeries, _binomial_llr, _matched_intervals, _peak_positions,
-                                   flash_groups, flashes_within_one_sample, matched_filters, rotors_seen)
+                                   flash_groups, flashes_within_one_sample, highpass_s, matched_filters,
+                                   rotors_seen)
 from signatures.radar import RadarConfig
 from signatures.stats import median
 
@@ -40,7 +41,7 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     t = np.arange(n)
     demod = np.exp(-2j * math.pi * body_hz * config.pri_s * t).astype(np.complex64)
     z0 = slow.reshape(n, windows * n_bins) * demod[:, None]
-    length = max(3, int(round(HIGHPASS_S / config.pri_s)) | 1)
+    length = max(3, int(round(highpass_s(config.wavelength_m) / config.pri_s)) | 1)
     if n > length:
         # two passes: the second moving average leaves out the flashes the first one
         # found (+-1 chirp), so a strong flash leaves no -19 dB echo around itself
@@ -71,7 +72,8 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     level = _noise_level(e)
     above = np.maximum(e - level, 0.0)
     drift = body_hz * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
-    return FlashSeries(above, eb, config.prf_hz / dec, EVENT_RADIUS, drift, level, y, dec)
+    keep = flashes_within_one_sample(config.prf_hz / dec, dec, config.wavelength_m)  # the coherent checks' premise
+    return FlashSeries(above, eb, config.prf_hz / dec, EVENT_RADIUS, drift, level, y if keep else None, dec)
 
 
 def _noise_level(e: np.ndarray) -> float:
@@ -194,7 +196,7 @@ def _coherent(series: FlashSeries, times: np.ndarray) -> _Coherent | None:
     real part relative to the event's phase only (in phase), squared, above COHERENT_LEVEL x
     its median-based noise level and holding at least COHERENT_SHARE of the best position's
     energy at that chirp (best chirp of a decimation block). None where the field is missing
-    or the PRI is shorter than FLASH_LOBE_S."""
+    or the PRI is shorter than a flash lobe."""
     n = series.energy.size
     dec = max(1, series.decimation)
     if times.size == 0 or not _coherent_applies(series):
@@ -235,8 +237,7 @@ def _coherent_applies(series: FlashSeries) -> bool:
     """Does the series carry the complex field the coherent checks need, with flashes within
     one PRI?"""
     dec = max(1, series.decimation)
-    return (series.field is not None and series.field.shape[0] >= series.energy.size * dec
-            and flashes_within_one_sample(series.rate_hz, dec))
+    return series.field is not None and series.field.shape[0] >= series.energy.size * dec
 
 
 def _coherent_checks(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndarray,

@@ -176,7 +176,7 @@ def test_decimated_coherent_path(paper_gates):
     base = get_preset("paper").config
     config = type(base)(**{**base.__dict__, "pri_s": 1.0 / 52_000.0, "ramp_s": 1.0 / 52_000.0})
     dec = max(1, int(config.prf_hz // est.SERIES_RATE_HZ))
-    assert dec == 2 and config.prf_hz * est.FLASH_LOBE_S <= 1.0
+    assert dec == 2 and config.prf_hz * est.flash_lobe_s(config.wavelength_m) <= 1.0
     gates = three_columns(paper_gates)[:10]
     slow, body = stack(gates)
     series = be.flash_series_batch(slow, config, body, gates[0].range_bin_m, gates[0].n_fft)
