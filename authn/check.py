@@ -578,7 +578,9 @@ class Checker:
             clf = pending[ks[0]].classifier
             try:
                 rows = clf.predict_many(np.stack([fmap[k].as_array() for k in ks]),
-                                        lambda ks=ks: np.stack([fmap[k].rd_patch for k in ks]))
+                                        lambda ks=ks: np.stack([fmap[k].rd_patch for k in ks]),
+                                        # a bundle serves a band of carriers: its Hz features are rescaled
+                                        np.array([pending[k].rec.config.carrier_hz for k in ks]))
             except Exception as exc:  # noqa: BLE001 - a broken bundle fails its returns, not the batch
                 out.update({k: Failure.of(pending[k].file, pending[k].claim.serial, exc) for k in ks})
                 continue

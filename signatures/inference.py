@@ -4,8 +4,10 @@
 result for the process (batch mode reuses it). `classifier_for(recording)` picks the bundle of
 the recording's waveform: the shipped preset's, else a user bundle (`authn models train --like`,
 under `models_dir()`) whose card describes the same waveform; a site bundle (`authn models enrol`)
-that `active.json` in `models_dir()` names for the waveform goes ahead of both. The kNN (`knn.npz`) and the Random
-Forests (`rf.npz`, `rf_state.npz`) are plain arrays evaluated in numpy, so the usual
+that `active.json` in `models_dir()` names for the waveform goes ahead of both. Where no bundle has
+the recording's exact carrier, the bundle of the nearest carrier within `signatures.carrier`'s band
+serves it, its Doppler-frequency features rescaled to the bundle's carrier (`predict(carrier_hz=)`).
+The kNN (`knn.npz`) and the Random Forests (`rf.npz`, `rf_state.npz`) are plain arrays evaluated in numpy, so the usual
 check never imports onnxruntime; the SVM and the CNN are ONNX files, opened on first use. `Classifier.predict` turns one
 feature vector (and optionally the RD patch) into a `Prediction`: calibrated soft-vote of
 kNN + RF + SVM, the CNN only when the ensemble is unsure (cascade), then open-set
@@ -154,6 +156,7 @@ class Classifier:
         self.classes: tuple[str, ...] = tuple(c["classes"])
         self.n_features = len(c["feature_names"])
         names = list(c["feature_names"])
+        self.feature_names: tuple[str, ...] = tuple(names)
         self._cols = np.array([names.index(n) for n in c["class_features"]])
         self._files = set(c["files"])
         self._loaded: dict[str, Any] = {}  # model files open on first use (a CLI check needs few)
@@ -253,18 +256,37 @@ class Classifier:
         return self.openset.unknown(self._x(X), pred, mode)
 
     # --- returns -------------------------------------------------------------------
+    def on_carrier(self, features: np.ndarray, carrier_hz: float | np.ndarray | None) -> np.ndarray:
+        """Feature rows recorded at `carrier_hz` (one per row, or one for all; None: the bundle's)
+        as this bundle's carrier would have measured them (`signatures.carrier.normalise`: the
+        Doppler-frequency features x lambda_rec / lambda_bundle). Lookup only hands a bundle
+        recordings within its carrier band; this does not check that."""
+        X = self._x(features)
+        if carrier_hz is None:
+            return X
+        from signatures.carrier import normalise
+
+        wf = self.waveform
+        return normalise(X, self.feature_names, wf.config, wf.n_samples, carrier_hz)
+
     def predict(self, features: np.ndarray,
-                rd_patch: np.ndarray | Callable[[], np.ndarray] | None = None) -> Prediction:
+                rd_patch: np.ndarray | Callable[[], np.ndarray] | None = None,
+                carrier_hz: float | None = None) -> Prediction:
         """Classify one return from its feature vector (and RD patch for the cascade; a callable
-        is only called when the cascade runs the CNN)."""
-        return self.predict_many(self._x(features), rd_patch)[0]
+        is only called when the cascade runs the CNN), recorded at `carrier_hz` (None: the bundle's)."""
+        return self.predict_many(self._x(features), rd_patch, carrier_hz)[0]
 
     def predict_many(self, features: np.ndarray,
-                     rd_patches: np.ndarray | Callable[[], np.ndarray] | None = None) -> list[Prediction]:
+                     rd_patches: np.ndarray | Callable[[], np.ndarray] | None = None,
+                     carrier_hz: float | np.ndarray | None = None) -> list[Prediction]:
         """Classify B returns at once (B x features; the patches B x PATCH_SHAPE, or a callable
         giving them, called only when the cascade runs the CNN for some row): every member and
-        the open set run once over the batch, so a batch costs little more than one return."""
-        X = self._x(features)
+        the open set run once over the batch, so a batch costs little more than one return.
+        `carrier_hz` (one per row or one for all; None: the bundle's): the carriers the returns
+        were recorded at, within the bundle's band; their features are put on the bundle's
+        carrier first (`on_carrier`). The RD patch is not rescaled (docs/classifiers.md
+        "Carrier band": within the band it moves by under half of one of its 32 Doppler bands)."""
+        X = self.on_carrier(features, carrier_hz)
         if len(X) > 1:  # a batch: BLAS on one thread (signatures.threads: same values, no waiting threads)
             from signatures.threads import one_blas_thread
 
@@ -391,17 +413,45 @@ def _keys(wf: Preset) -> tuple[str, ...]:
 
 
 def active_bundle(wf: Preset) -> Path | None:
-    """The folder of the active site bundle serving `wf`, or None. An active name whose folder
-    is gone is an error, not a fallback."""
+    """The folder of the active site bundle serving `wf`, or None: the one active for the
+    waveform itself, else the active one of the nearest carrier within the band
+    (`signatures.carrier`). An active name whose folder is gone is an error, not a fallback."""
     active = active_map()
     for key in _keys(wf):
         if key in active:
-            folder = models_dir() / active[key]
-            if not (folder / CARD_NAME).is_file():
-                raise NoModelError(f"the active site bundle {active[key]!r} is missing from {models_dir()}; "
-                                   "`authn models use shipped` or enrol again")
-            return folder
-    return None
+            return _active_folder(active[key])
+    band: list[tuple[float, str]] = []
+    for name in sorted(set(active.values())):
+        folder = _active_folder(name)
+        try:
+            card = json.loads((folder / CARD_NAME).read_text())
+        except (OSError, ValueError):
+            continue  # loading it, had it been picked, names the problem
+        ratio = _ratio(card, wf, site=True)
+        if ratio is not None:
+            band.append((abs(math.log(ratio)), name))
+    return models_dir() / min(band)[1] if band else None
+
+
+def _active_folder(name: str) -> Path:
+    folder = models_dir() / name
+    if not (folder / CARD_NAME).is_file():
+        raise NoModelError(f"the active site bundle {name!r} is missing from {models_dir()}; "
+                           "`authn models use shipped` or enrol again")
+    return folder
+
+
+def _ratio(card: dict[str, Any] | None, wf: Preset, site: bool = False) -> float | None:
+    """f_file / f_bundle when the card's bundle serves `wf` within the carrier band (None: it
+    does not, or the card is a site bundle's and `site` is False, or of another layout)."""
+    from signatures.carrier import carrier_ratio
+
+    try:
+        if card is None or ("enrolment" in card) != site:
+            return None
+        return carrier_ratio(card_waveform(card), wf)
+    except (SignaturesError, KeyError, TypeError):
+        return None  # a card of another layout serves nothing here; loading it names the problem
 
 
 def _serves(card: dict[str, Any] | None, wf: Preset) -> bool:
@@ -414,12 +464,28 @@ def _serves(card: dict[str, Any] | None, wf: Preset) -> bool:
 
 def find_bundle(wf: Preset, source: str = "FILE") -> Path:
     """The bundle folder for a waveform: the shipped preset's, else the user bundle whose card
-    describes it (the one named after the waveform first), else NoModelError naming the fix."""
+    describes it (the one named after the waveform first); else, where no bundle has the exact
+    carrier, the shipped or user bundle of the nearest carrier within the carrier band
+    (`signatures.carrier.CARRIER_BAND_REL`; ties by name); else NoModelError naming the fix."""
+    from signatures.carrier import carrier_ratio
+
     if wf.shipped:
         return bundle_dir(wf.name)
-    for folder, card in sorted(user_bundles(), key=lambda fc: (fc[0].name != wf.name, fc[0].name)):
+    users = user_bundles()
+    for folder, card in sorted(users, key=lambda fc: (fc[0].name != wf.name, fc[0].name)):
         if _serves(card, wf):
             return folder
+    band: list[tuple[float, str, Path]] = []
+    for name, pre in PRESETS.items():
+        ratio = carrier_ratio(pre, wf)
+        if ratio is not None:
+            band.append((abs(math.log(ratio)), name, bundle_dir(name)))
+    for folder, card in users:
+        ratio = _ratio(card, wf)
+        if ratio is not None:
+            band.append((abs(math.log(ratio)), folder.name, folder))
+    if band:
+        return min(band)[2]
     if wf.domain not in TRAINABLE_DOMAINS:
         raise NoModelError(f"no classifier for this waveform ({wf.describe()}): training for domain "
                            f"{wf.domain} is not supported yet{nearest_hint(wf)}")
@@ -428,9 +494,12 @@ def find_bundle(wf: Preset, source: str = "FILE") -> Path:
 
 
 def waveform_differences(bundle: Preset, wf: Preset) -> list[tuple[str, Any, Any]]:
-    """The parameters in which a bundle's waveform differs from a file's, as (name, bundle value,
-    file value): cube size, domain, and each of WAVEFORM_FIELDS beyond `Preset.matches`'s 1e-6
-    relative tolerance."""
+    """The parameters in which a bundle's waveform differs from a file's beyond what serving
+    tolerates, as (name, bundle value, file value): cube size, domain, the carrier outside the
+    carrier band (`signatures.carrier`) and each other of WAVEFORM_FIELDS beyond `Preset.matches`'s
+    1e-6 relative tolerance. Empty exactly when the bundle serves the file."""
+    from signatures.carrier import CARRIER_BAND_REL
+
     out: list[tuple[str, Any, Any]] = []
     for name in ("n_chirps", "n_samples"):
         if getattr(bundle, name) != getattr(wf, name):
@@ -439,7 +508,8 @@ def waveform_differences(bundle: Preset, wf: Preset) -> list[tuple[str, Any, Any
         out.append(("domain", bundle.domain, wf.domain))
     for f in WAVEFORM_FIELDS:
         a, b = getattr(bundle.config, f), getattr(wf.config, f)
-        if not math.isclose(a, b, rel_tol=WAVEFORM_REL_TOL):
+        tol = CARRIER_BAND_REL * (1.0 + 1e-9) if f == "carrier_hz" else WAVEFORM_REL_TOL
+        if (abs(b / a - 1.0) > tol) if f == "carrier_hz" else not math.isclose(a, b, rel_tol=tol):
             out.append((f, a, b))
     return out
 
@@ -478,10 +548,14 @@ def nearest_hint(wf: Preset) -> str:
     found = nearest_bundle(wf)
     if found is None or not found[1]:
         return ""
+    from signatures.carrier import CARRIER_BAND_REL
+
     name, diffs = found
     parts = []
     for field, theirs, ours in diffs:
         tol = f", tolerance {WAVEFORM_REL_TOL:g} relative" if field in WAVEFORM_FIELDS else ""
+        if field == "carrier_hz":
+            tol = f", carrier band +-{CARRIER_BAND_REL:.1%}"
         parts.append(f"{field} {_value(field, theirs)} there, {_value(field, ours)} here{tol}")
     return (f"; nearest bundle {name} differs in {'; '.join(parts)} (exact values: `authn models list --json`)")
 
@@ -523,14 +597,17 @@ def match_preset(config: RadarConfig, n_chirps: int, n_samples: int) -> str:
 
 def classifier_for(recording: Any, model: str | Path | None = None, source: str = "FILE") -> Classifier:
     """The classifier for a Recording's waveform (`find_bundle`; kept per waveform for the
-    process), or the bundle at `model`, which must serve that waveform. `source` names the file
-    in the hint of NoModelError."""
+    process), or the bundle at `model`, which must serve that waveform (its carrier within the
+    band). `source` names the file in the hint of NoModelError. The bundle's carrier may differ
+    from the recording's: pass the recording's `carrier_hz` to `Classifier.predict`."""
+    from signatures.carrier import CARRIER_BAND_REL, carrier_ratio
+
     wf = recording_waveform(recording)
     if model is not None:
         clf = load_classifier(path=model)
-        if not clf.waveform.matches(wf.config, wf.n_chirps, wf.n_samples, wf.domain):
-            raise NoModelError(f"{model}: this bundle is for {clf.waveform.describe()}, the file's waveform is "
-                               f"{wf.describe()}")
+        if carrier_ratio(clf.waveform, wf) is None:
+            raise NoModelError(f"{model}: this bundle is for {clf.waveform.describe()} (carrier band "
+                               f"+-{CARRIER_BAND_REL:.1%}), the file's waveform is {wf.describe()}")
         return clf
     site = active_bundle(wf)
     if site is not None:

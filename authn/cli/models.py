@@ -177,7 +177,9 @@ def list_models(
     """Shipped and user model bundles: name, waveform, airframes, validation accuracy.
 
     With --json, each bundle's waveform carries the exact parameter values a file must match
-    (within 1e-6 relative): the radar-configuration document `--radar-config` reads.
+    (within 1e-6 relative): the radar-configuration document `--radar-config` reads; but for the
+    carrier, which may lie anywhere in `carrier_band_hz` (+-2.5 %: one bundle serves a radar
+    that hops its carrier, docs/classifiers.md "Carrier band").
 
     Example: authn models list --json
     """
@@ -207,7 +209,10 @@ def list_models(
     t.add_column("airframes", overflow="fold")  # a comma-separated list: wraps between names
     t.add_column("val acc", justify="right", no_wrap=True)
     for d in docs:
-        wave = d["waveform"]["description"] if d["waveform"] else "unreadable card"
+        wave = "unreadable card"
+        if d["waveform"]:
+            lo, hi = d["carrier_band_hz"]
+            wave = f"{d['waveform']['description']}; carrier {lo / 1e9:.4g}-{hi / 1e9:.4g} GHz"
         acc = "" if d["validation_accuracy"] is None else f"{d['validation_accuracy']:.3f}"
         t.add_row("*" if d["active"] else "", d["name"], d["kind"], wave, ", ".join(d["airframes"]), acc)
     print_table(t)
@@ -235,14 +240,17 @@ def _mark_active(docs: list[dict]) -> None:
 def _bundle_json(name: str, kind: str, folder: Path, card) -> dict:
     """One bundle of `models list --json`: a broken card is listed with its error, not a stop."""
     from signatures.errors import SignaturesError
+    from signatures.carrier import carrier_band_hz
     from signatures.inference import card_waveform
     from signatures.profiles import NON_UAV_CLASSES
 
-    doc: dict = {"name": name, "kind": kind, "folder": str(folder), "waveform": None, "airframes": [],
+    doc: dict = {"name": name, "kind": kind, "folder": str(folder), "waveform": None, "carrier_band_hz": None,
+                 "airframes": [],
                  "validation_accuracy": None, "error": None, "active": False}
     try:
         wf = card_waveform(card)
         doc["waveform"] = {**wf.as_json(), "description": wf.describe(), "key": wf.key}
+        doc["carrier_band_hz"] = list(carrier_band_hz(wf))
         doc["airframes"] = [c for c in card["classes"] if c not in NON_UAV_CLASSES]
         doc["validation_accuracy"] = float(card["metrics"]["validation"]["ensemble"]["accuracy"])
     except (SignaturesError, KeyError, TypeError, ValueError) as exc:

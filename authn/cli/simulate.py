@@ -78,6 +78,9 @@ def simulate(
     snr: float = typer.Option(20.0, "--snr", help="Target power / noise power per IF sample, dB."),
     out: Path = typer.Option(..., "--out", help="Output .h5 (or .npz) file; a directory with --count."),
     preset: str = typer.Option("paper", "--preset", help="Radar preset: paper, wide or cw-sband (3.3 GHz CW, 5 kHz)."),
+    carrier: float | None = typer.Option(None, "--carrier", min=1e6, max=1e12,
+                                         help="Carrier frequency, Hz, instead of the preset's (a radar that hops "
+                                              "its carrier; a bundle serves +-2.5 % of its own)."),
     chirps: int | None = typer.Option(None, "--chirps", min=16, max=1_000_000,
                                       help="Chirps per dwell instead of the preset's (another waveform: "
                                            "`authn models train --like` builds its classifier)."),
@@ -162,8 +165,9 @@ def simulate(
         raise SignaturesError(f"--rid-serial: {rid_serial!r} is not a UAS ID (1-64 printable ASCII characters, "
                               "no spaces)")
     pre = get_preset(preset)
-    if chirps is not None:
-        pre = waveform_of(pre.config, chirps, pre.n_samples, pre.domain, max_range_m=pre.max_range_m)
+    if chirps is not None or carrier is not None:
+        cfg = pre.config if carrier is None else pre.config.model_copy(update={"carrier_hz": float(carrier)})
+        pre = waveform_of(cfg, chirps or pre.n_chirps, pre.n_samples, pre.domain, max_range_m=pre.max_range_m)
     if pre.domain != "if" and domain not in ("if", pre.domain):
         raise SignaturesError(f"--domain: preset {preset!r} records {pre.domain}, not {domain}")
     pre = pre if pre.domain != "if" else _in_domain(pre, domain)
