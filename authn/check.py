@@ -329,14 +329,14 @@ class Checker:
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
                       rec.config.unambiguous_velocity_mps, known=pred.known)
 
-    def _confusable(self, classifier: Any, model: str) -> bool | None:
-        """Whether the registered `model` is radar-confusable, by a site bundle's enrolment card,
-        with another model registered (active) at this site; None for a bundle that is not a
-        site bundle (the policy input is then unchanged). One query, only when the card lists
-        a pair with `model`."""
+    def _confusable(self, classifier: Any, model: str, tracks: bool = False) -> bool | None:
+        """Whether the registered `model` is radar-confusable, by a site bundle's enrolment card
+        (its single-dwell pairs, or its track pairs when `tracks`), with another model registered
+        (active) at this site; None for a bundle that is not a site bundle (the policy input is
+        then unchanged). One query, only when the card lists a pair with `model`."""
         if not getattr(classifier, "site", False):
             return None
-        others = classifier.confusable_with(model) if model else ()
+        others = classifier.confusable_with(model, tracks) if model else ()
         return bool(others) and bool(set(others) & self.db.registered_models())
 
     def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer,
@@ -367,6 +367,7 @@ class Checker:
         with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
             claimed = self.db.profile(facts.model) if facts.model else None
             evidence.radar_confusable = self._confusable(classifier, facts.model)
+            evidence.radar_confusable_track = self._confusable(classifier, facts.model, tracks=True)
         expected = None  # at the first chirp, the time the radar's range estimate refers to
         if claim.state is not None:
             expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,

@@ -288,6 +288,9 @@ class Evidence:
     #: a site bundle decided: whether the registered model is radar-confusable with another model
     #: registered at the site (its enrolment card's pairs); None for any other bundle
     radar_confusable: bool | None = None
+    #: the same by the card's track-level pairwise errors: what a track decision puts in its place
+    #: (`authn.track`, docs/enrolment.md); None for any other bundle
+    radar_confusable_track: bool | None = None
 
     # --- the Cedar request -----------------------------------------------------------
     def principal(self) -> dict[str, Any]:

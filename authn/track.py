@@ -101,6 +101,23 @@ class Sprt:
         n = len(increments)
         return 0.0 if n == 0 else sum(increments) / (1.0 + (n - 1) * self.correlation)
 
+    def walk(self, dwells: Sequence[tuple[float, bool]]) -> tuple[str, int]:
+        """The sequential test alone over dwells given as (LLR, physics term present), in order:
+        ("accept" | "reject" | "inconclusive", dwells used). What the default policy's track rules
+        decide on the request `decide_track` builds (the track LLR in centinats against the same
+        rounded bounds), with no other forbid: the site enrolment's track-level pairwise errors
+        (`signatures.enrol`, cross-validated dwell LLRs) are computed with it."""
+        accept_cn, reject_cn = math.ceil(self.accept_nats * _CN), math.floor(self.reject_nats * _CN)
+        increments: list[float] = []
+        for llr, physics in dwells:
+            increments.append(self.increment(llr, physics))
+            llr_cn = round(max(-1e6, min(1e6, self.track_llr(increments) * _CN)))
+            if llr_cn >= accept_cn:
+                return "accept", len(increments)
+            if llr_cn <= reject_cn:
+                return "reject", len(increments)
+        return "inconclusive", len(increments)
+
     def to_json(self) -> dict[str, float]:
         return {"false_accept": self.false_accept, "false_reject": self.false_reject,
                 "accept_nats": round(self.accept_nats, 4), "reject_nats": round(self.reject_nats, 4),
@@ -301,6 +318,8 @@ def _request(ev: Any, sprt: Sprt, llr: float, used: int) -> dict[str, Any]:
     ctx = ev.context()
     ctx.pop("verification_llr_cn", None)
     ctx.pop("physics_abstained", None)  # a dwell without physics only ever counts against (Sprt.increment)
+    if ev.radar_confusable_track is not None:  # a site bundle: confusable by its card's track-level errors
+        ctx["radar_confusable"] = ev.radar_confusable_track
     llr_cn = int(round(max(-1e6, min(1e6, llr * _CN))))
     if used:
         ctx["verification_llr_cn"] = llr_cn

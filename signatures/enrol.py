@@ -54,8 +54,8 @@ from signatures.profiles import UavProfile
 from signatures.radar import Preset
 
 __all__ = ["CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM", "SITE_SHARE",
-           "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts", "default_name", "enrol",
-           "previous_samples", "read_labels", "sha256_of"]
+           "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts", "default_name",
+           "enrol", "previous_samples", "read_labels", "sha256_of", "track_rates"]
 
 #: Fewest recordings per enrolled model: below this a cross-validated error means nothing.
 MIN_RECORDINGS = 5
@@ -67,6 +67,10 @@ FALSE_ACCEPT_TARGET = 0.01
 SITE_SHARE = 0.8
 #: Simulated base returns (cached per waveform and profile set).
 N_SIM = 1500
+#: The longest track a site decides on (`authn check --track` in the must-show: up to 8 dwells),
+#: and how many tracks are drawn per (flown, claimed) pair for its track-level errors.
+TRACK_DWELLS = 8
+TRACK_DRAWS = 400
 CV_FOLDS = 5
 #: Inverse temperatures tried on the out-of-fold probabilities (bounded: see the module docstring).
 BETAS = tuple(float(b) for b in np.geomspace(0.25, 8.0, 31))
@@ -224,28 +228,84 @@ def _beta(p: np.ndarray, y: np.ndarray) -> float:
     return BETAS[int(np.argmin(losses))]
 
 
+#: A dwell's cross-validated verification as a track uses it: (LLR, physics term present), or
+#: None when nothing was verified (no term: the track adds nothing for it, `authn.track`).
+DwellScore = tuple[float, bool] | None
+
+
 def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.ndarray, classes: tuple[str, ...],
                   profiles: dict[str, UavProfile], enrolled: list[str], max_tip: float
-                  ) -> tuple[list[float], dict[tuple[str, str], list[float]]]:
+                  ) -> tuple[list[float], dict[tuple[str, str], list[float]], dict[tuple[str, str], list[DwellScore]]]:
     """Cross-validated 1:1 verification LLRs: each detected recording against its own model
-    (genuine) and against every other enrolled model ((flown, claimed) -> LLRs)."""
+    (genuine) and against every other enrolled model ((flown, claimed) -> LLRs); and the same
+    claims per (flown, claimed), own model included, as a track's dwells (`DwellScore`)."""
     from signatures.features import FEATURE_NAMES
     from signatures.verify import verify
 
     genuine: list[float] = []
     impostor: dict[tuple[str, str], list[float]] = {}
+    dwells: dict[tuple[str, str], list[DwellScore]] = {}
     for i, s in enumerate(samples):
         if not s.detected:
             continue
         feats = {**dict(zip(FEATURE_NAMES, (float(v) for v in s.features))), **s.physics}
         probs = dict(zip(classes, (float(v) for v in proba[i])))
         for claimed in enrolled:
-            llr = verify(feats, profiles[claimed], probs, max_tip, known=bool(known[i])).llr
+            v = verify(feats, profiles[claimed], probs, max_tip, known=bool(known[i]))
             if claimed == s.model:
-                genuine.append(llr)
+                genuine.append(v.llr)
             else:
-                impostor.setdefault((s.model, claimed), []).append(llr)
-    return genuine, impostor
+                impostor.setdefault((s.model, claimed), []).append(v.llr)
+            dwells.setdefault((s.model, claimed), []).append((v.llr, not v.physics_abstained) if v.terms else None)
+    return genuine, impostor, dwells
+
+
+def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[float, bool]]], tuple[str, int]],
+                length: int = TRACK_DWELLS, draws: int = TRACK_DRAWS, seed: int = 0) -> tuple[float, int, int]:
+    """(accepted share, tracks, dwells per track) of `draws` tracks of `length` dwells, each
+    drawn without replacement from one (flown, claimed) pair's cross-validated dwell scores and
+    decided by `walk` (`authn.track.Sprt.walk`: the check's own combination and bounds). An
+    inconclusive track is not accepted, as at the end of a real track. Fewer scores than
+    `length`: tracks of all of them (the card says how long)."""
+    if not dwells:
+        return float("nan"), 0, 0
+    rng = np.random.default_rng([seed, len(dwells), 91])
+    n = min(length, len(dwells))
+    accepted = 0
+    for _ in range(draws):
+        pick = rng.choice(len(dwells), size=n, replace=False)
+        track = [d for d in (dwells[j] for j in pick) if d is not None]
+        accepted += walk(track)[0] == "accept"
+    return accepted / draws, draws, n
+
+
+def _rate(x: float) -> float | None:
+    return None if math.isnan(x) else round(x, 6)
+
+
+def _pair_tracks(dwell_scores: dict[tuple[str, str], list[DwellScore]], a: str, b: str, sprt: Any,
+                 seed: int) -> dict[str, Any] | None:
+    """The pair's track-level false accepts: tracks of a claimed as b and of b claimed as a."""
+    if sprt is None:
+        return None
+    ab = track_rates(dwell_scores.get((a, b), []), sprt.walk, seed=seed)
+    ba = track_rates(dwell_scores.get((b, a), []), sprt.walk, seed=seed)
+    claims = ab[1] + ba[1]
+    fa = ab[0] * ab[1] + ba[0] * ba[1] if claims else float("nan")
+    return {"false_accept_rate": _rate(fa / claims) if claims else None,
+            "false_accepts": int(round(fa)) if claims else 0, "claims": claims,
+            "dwells": min(ab[2], ba[2]), "recordings": len(dwell_scores.get((a, b), [])) +
+            len(dwell_scores.get((b, a), []))}
+
+
+def _track_confusable(pair: dict[str, Any]) -> bool:
+    """Radar-confusable for track checks: the track-level false-accept rate above the line, or,
+    where tracks could not reach `TRACK_DWELLS` dwells (too few recordings), the single-dwell verdict."""
+    t, sd = pair.get("tracks"), pair["single_dwell"]
+    single = sd["false_accept_rate"] is not None and sd["false_accept_rate"] > CONFUSABLE_ERROR
+    if not t or t["false_accept_rate"] is None or t["dwells"] < TRACK_DWELLS:
+        return single
+    return t["false_accept_rate"] > CONFUSABLE_ERROR
 
 
 def _threshold(impostor: dict[tuple[str, str], list[float]], target: float) -> float | None:
@@ -282,10 +342,13 @@ def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile])
 def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], waveform: Preset, dest: Path, *,
           name: str, sources: Sequence[str] = (), previous: str | None = None, seed: int = 0, workers: int = 2,
           n_sim: int = N_SIM, cache: Path | None | bool = None,
-          progress: Callable[[str, float], None] | None = None) -> dict[str, Any]:
+          progress: Callable[[str, float], None] | None = None, sprt: Any = None) -> dict[str, Any]:
     """Build the site bundle `dest` (must not exist) from `samples` (the site's labelled
     recordings, of `waveform`) on a simulated base set of `profiles` (every model the bundle
-    knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. Returns the card."""
+    knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. `sprt`: the
+    track check's sequential test (`authn.track.Sprt`: its `walk` and `to_json`), which gives the
+    card its track-level pairwise errors (None: single dwells only; `authn models enrol` passes
+    the check's default). Returns the card."""
     from signatures import classifiers as clf
     from signatures.dataset import Dataset, DatasetSpec, generate
     from signatures.inference import MEMBERS, Classifier
@@ -355,7 +418,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     pred = p_cal.argmax(axis=1)
     unk = phys.verdict(np.nan_to_num(X_site.astype(np.float64)), pred)[0]
     max_tip = wf.config.unambiguous_velocity_mps
-    genuine, impostor = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip)
+    genuine, impostor, dwell_scores = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip)
     t_fa = _threshold(impostor, FALSE_ACCEPT_TARGET)
     applied = 0.0  # the default policy's threshold (radar-claim-inconsistent: LLR < 0 rejects)
 
@@ -373,11 +436,21 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
             pairs.append({"models": [a, b], "single_dwell": {
                 "false_accept_rate": round(n_fa / len(fa), 6) if fa else None, "false_accepts": n_fa, "claims": len(fa),
                 "classifier_confusion_rate": round(conf / (det_counts[a] + det_counts[b]), 6)},
-                "tracks": None})
+                "tracks": _pair_tracks(dwell_scores, a, b, sprt, seed)})
     confusable = [p["models"] for p in pairs
                   if p["single_dwell"]["false_accept_rate"] is not None
                   and p["single_dwell"]["false_accept_rate"] > CONFUSABLE_ERROR]
+    confusable_tracks = [p["models"] for p in pairs if _track_confusable(p)]
     g = np.asarray(genuine)
+    tracks_card = None if sprt is None else {
+        "dwells": TRACK_DWELLS, "draws_per_direction": TRACK_DRAWS, "sprt": sprt.to_json(),
+        "genuine_accept": {m: _rate(track_rates(dwell_scores.get((m, m), []), sprt.walk, seed=seed)[0])
+                           for m in enrolled},
+        "method": "tracks drawn without replacement from one model's cross-validated dwell scores (the "
+                  "enrolment recordings are single dwells of different flights: a track of independent "
+                  "dwells, pooled over the folds so that it reaches its full length), decided by the "
+                  "check's own sequential test (authn.track.Sprt.walk); inconclusive counts as not accepted",
+        "note": "a pair with tracks shorter than `dwells` keeps its single-dwell verdict for track checks"}
 
     # the bundle: every site sample in training
     say("fitting the site bundle", (n_folds + 1) / (n_folds + 2))
@@ -438,8 +511,8 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                                                            if len(g) and t_fa is not None else None),
                               "note": "LLR in nats; the default policy rejects below 0 (radar-claim-inconsistent)"},
                 "pairwise": pairs, "confusable_error": CONFUSABLE_ERROR, "confusable_pairs": confusable,
-                "tracks": "pairwise errors of tracks are added when `authn check --track` lands; the policy "
-                          "uses the single-dwell pairs until then",
+                "confusable_pairs_tracks": confusable_tracks if sprt is not None else None,
+                "tracks": tracks_card,
                 "sources": [{"file": s.name, "sha256": s.sha256, "model": s.model} for s in samples],
                 "source_names": list(sources),
                 "seconds": None},

@@ -180,11 +180,17 @@ class Classifier:
         self.site = isinstance(enrolment, dict)
         self.confusable_pairs: tuple[tuple[str, str], ...] = tuple(
             (str(a), str(b)) for a, b in (enrolment or {}).get("confusable_pairs", []))
+        #: the same over tracks (the card's track-level pairwise errors); a card without them: the single-dwell pairs
+        track_pairs = (enrolment or {}).get("confusable_pairs_tracks")
+        self.confusable_track_pairs: tuple[tuple[str, str], ...] = self.confusable_pairs if track_pairs is None \
+            else tuple((str(a), str(b)) for a, b in track_pairs)
 
-    def confusable_with(self, model: str) -> tuple[str, ...]:
+    def confusable_with(self, model: str, tracks: bool = False) -> tuple[str, ...]:
         """The enrolled models this site bundle cannot tell `model` apart from (its card's
-        cross-validated pairwise error above the threshold); () for any other bundle."""
-        return tuple(sorted({b if a == model else a for a, b in self.confusable_pairs if model in (a, b)}))
+        cross-validated pairwise error above the threshold: of single dwells, or of tracks when
+        `tracks`); () for any other bundle."""
+        pairs = self.confusable_track_pairs if tracks else self.confusable_pairs
+        return tuple(sorted({b if a == model else a for a, b in pairs if model in (a, b)}))
 
     def _model(self, name: str) -> Any:
         """kNN or forest arrays (`name.npz`) or an onnxruntime session (`name.onnx`), opened once."""

@@ -428,6 +428,7 @@ def enrol_cmd(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from authn.enrolment import site_sample
+    from authn.track import Sprt
     from registry.dbapi import Database
     from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
     from signatures.inference import active_bundle, load_classifier, models_dir, set_active
@@ -489,7 +490,7 @@ def enrol_cmd(
             bar.update(task, description=phase, completed=frac)
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
-                     n_sim=base_samples, progress=progress)
+                     n_sim=base_samples, progress=progress, sprt=Sprt())  # track errors by the check's own test
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
 
@@ -515,7 +516,9 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
     if as_json:
         typer.echo(json.dumps({"name": e["name"], "folder": str(folder), "seconds": round(seconds, 2),
                                "counts": e["counts"], "confusion": e["confusion"], "pairwise": e["pairwise"],
-                               "confusable_pairs": e["confusable_pairs"], "threshold": e["threshold"],
+                               "confusable_pairs": e["confusable_pairs"],
+                               "confusable_pairs_tracks": e.get("confusable_pairs_tracks"), "tracks": e.get("tracks"),
+                               "threshold": e["threshold"],
                                "sources": len(e["sources"])}, indent=2))
         return
     console = Console()
@@ -535,6 +538,12 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
         mark = "  radar-confusable: unsigned claims rejected" if p["models"] in e["confusable_pairs"] else ""
         console.print(f"  {p['models'][0]} / {p['models'][1]}: type spoofs accepted {fa} "
                       f"({sd['false_accepts']} of {sd['claims']} cross-validated claims){mark}")
+        tr = p.get("tracks")
+        if tr and tr["false_accept_rate"] is not None:
+            mark = ("  radar-confusable over tracks" if p["models"] in (e.get("confusable_pairs_tracks") or [])
+                    else "  separable over tracks")
+            console.print(f"    over tracks of {tr['dwells']} dwells: type spoofs accepted "
+                          f"{tr['false_accept_rate']:.1%} of {tr['claims']} drawn tracks{mark}")
     th = e["threshold"]
     console.print(f"  genuine accepted (cross-validated) at the applied threshold {th['applied']:g} nats: "
                   f"{th['genuine_accept_at_applied']:.1%}; threshold at {th['false_accept_target']:.0%} false accepts: "

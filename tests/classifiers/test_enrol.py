@@ -86,7 +86,13 @@ def test_enrol_register_check_uses_the_site_bundle(site: dict, capsys) -> None:
     assert e["confusion"]["rows"] == ["m300", "m600", "phantom4"]
     assert sum(map(sum, e["confusion"]["matrix"])) == sum(e["detected"].values())
     assert [p["models"] for p in e["pairwise"]] == [["m300", "m600"], ["m300", "phantom4"], ["m600", "phantom4"]]
-    assert all(p["tracks"] is None for p in e["pairwise"])  # track figures: once authn check --track lands
+    for p in e["pairwise"]:  # the track-level errors beside the single-dwell ones
+        t = p["tracks"]
+        assert t["claims"] > 0 and 0.0 <= t["false_accept_rate"] <= 1.0 and t["dwells"] == N_PER_MODEL
+    assert e["tracks"]["dwells"] == 8 and e["tracks"]["sprt"]["accept_nats"] > 0
+    assert set(e["tracks"]["genuine_accept"]) == {"m300", "m600", "phantom4"}
+    # 5 recordings make tracks of 5 dwells, short of the 8 a site decides on: the single-dwell verdict stands
+    assert e["confusable_pairs_tracks"] == e["confusable_pairs"]
     assert e["threshold"]["applied"] == 0.0 and e["threshold"]["false_accept_target"] == 0.01
     assert {s["file"] for s in e["sources"]} == {str(p) for p in flights.glob("*.h5")}
     assert all(len(s["sha256"]) == 64 for s in e["sources"])
@@ -137,6 +143,71 @@ def test_confusable_pair_needs_a_signature(site: dict, capsys, monkeypatch) -> N
     assert out.evidence.policy_input()["context"]["radar_confusable"] is True
     main(["registry", "revoke", SERIALS["m600"], "--reason", "test"])
     assert checker._confusable(clf, "m300") is False
+
+
+@pytest.mark.parametrize("track_pairs", [(), (("m300", "m600"),)])
+def test_a_track_check_uses_the_track_figure(site: dict, capsys, monkeypatch, track_pairs: tuple) -> None:
+    """A pair confusable over single dwells: a single-dwell check rejects the unsigned claim; a
+    track check asks the card's track-level pairs, so a pair separable over tracks is not
+    radar-confusable there (and one confusable over tracks still is)."""
+    from authn.check import Checker
+    from authn.track import Dwell, decide_track
+    from lab.bench.decisions import CLAIM_SCENES
+    from lab.bench.track import track_recordings
+    from signatures.inference import load_classifier
+    from signatures.profiles import shipped_profiles
+    from signatures.sampling import sample_scene
+
+    main(["models", "use", "site-a"])
+    clf = load_classifier(path=site["models"] / "site-a")
+    monkeypatch.setattr(clf, "confusable_pairs", (("m300", "m600"),))
+    monkeypatch.setattr(clf, "confusable_track_pairs", track_pairs)
+    for serial, slug in ((SERIALS["m300"], "m300"), ("1581BBENCH00600T", "m600")):  # both registered and active
+        main(["register", "--serial", serial, "--model", slug, "--valid-from", "2025-01-01T00:00:00Z"])
+    checker = Checker()
+    assert checker._confusable(clf, "m300") is True
+    assert checker._confusable(clf, "m300", tracks=True) is bool(track_pairs)
+    scene = sample_scene(np.random.default_rng(5), shipped_profiles()["m300"], replace(CLAIM_SCENES, snr_db=20.0))
+    recs = track_recordings(scene, "paper", [1, 2, 3], SERIALS["m300"], world="heldout")
+    out = decide_track(checker, [Dwell.recording(r, f"d{i}") for i, r in enumerate(recs)])
+    assert out.policy_input["context"]["radar_confusable"] is bool(track_pairs)
+    assert ("radar-confusable-unsigned" in out.reasons) is bool(track_pairs)
+    single = checker.evaluate(site["flights"] / "m300-00.h5")
+    assert "radar-confusable-unsigned" in single.reasons  # the single-dwell check keeps the single-dwell figure
+
+
+def test_track_errors_separate_a_pair_single_dwells_cannot() -> None:
+    """Cross-validated dwell scores of a pair with 25 % single-dwell false accepts (weakly
+    positive LLRs among negative ones) are accepted on no drawn 8-dwell track; the pair is then
+    confusable for single-dwell checks and not for track checks. Too few dwells for a full track
+    keep the single-dwell verdict; scores that keep accepting stay confusable over tracks."""
+    from authn.track import Sprt
+    from signatures.enrol import TRACK_DWELLS, _pair_tracks, _track_confusable, track_rates
+
+    impostor = [(0.5, True)] * 5 + [(-1.5, True)] * 15
+    sd = {"false_accept_rate": 0.25, "false_accepts": 5, "claims": 20}
+    t = _pair_tracks({("a", "b"): impostor, ("b", "a"): impostor}, "a", "b", Sprt(), seed=0)
+    assert t["false_accept_rate"] == 0.0 and t["dwells"] == TRACK_DWELLS and t["claims"] > 0
+    assert _track_confusable({"single_dwell": sd, "tracks": t}) is False
+    short = _pair_tracks({("a", "b"): impostor[:6], ("b", "a"): impostor[:6]}, "a", "b", Sprt(), seed=0)
+    assert short["dwells"] == 6 and _track_confusable({"single_dwell": sd, "tracks": short}) is True
+    strong = [(3.0, True)] * 18 + [(-1.0, True)] * 2
+    assert track_rates(strong, Sprt().walk)[0] > 0.9
+    t = _pair_tracks({("a", "b"): strong, ("b", "a"): strong}, "a", "b", Sprt(), seed=0)
+    assert _track_confusable({"single_dwell": sd, "tracks": t}) is True
+    # no physics term: a dwell only counts against the claim, as in authn check --track
+    assert track_rates([(3.0, False)] * 20, Sprt().walk)[0] == 0.0
+
+
+def test_sprt_walk_matches_the_track_policy() -> None:
+    """Sprt.walk decides as the default policy's track rules do on decide_track's request."""
+    from authn.track import Sprt
+
+    sprt = Sprt()
+    assert sprt.walk([(4.0, True), (4.0, True)])[0] == "inconclusive"  # 8 / 1.2 = 6.67 < 6.9
+    assert sprt.walk([(4.0, True)] * 3) == ("accept", 3)  # 12 / 1.4 = 8.6
+    assert sprt.walk([(-4.0, True), (-4.0, True)]) == ("reject", 2)
+    assert sprt.walk([]) == ("inconclusive", 0)
 
 
 @pytest.mark.parametrize("context,decision,reasons", [
