@@ -782,12 +782,15 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         else:
             per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
         flash, flash_std, score = per.flash_rate_hz, per.flash_rate_std_hz, per.score
+        seen, seen_std = per.rotors_seen, per.rotors_seen_std
         if dwell >= best.SPECTRAL_DWELL_S:  # hundreds of flashes: the envelope spectrum resolves the rate
             cols_lo = np.maximum(0, peak_bin - g_lo - 1)
             width = int(min(3, size))
             centre_cols = np.stack([slow[j, :, int(min(cols_lo[j], size - width)):][:, :width]
                                     for j in range(live.size)])
-            flash, flash_std, score = best.spectral_flash_rate(centre_cols, config, body_hz)
+            train = best.spectral_flash_rate(centre_cols, config, body_hz)
+            flash, flash_std, score = train.rate_hz, train.rate_std_hz, train.score
+            seen, seen_std = train.rotors_seen, train.rotors_seen_std
             if domain == "cw":  # a periodic flash train is a target even where no Doppler line stands out
                 detected = np.asarray(detected, dtype=bool) | (score >= best.SPECTRAL_DETECT_SCORE)
                 cols["detected"] = detected
@@ -804,7 +807,6 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
             rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,
             blade_length_std_m=length_std, flash_score=score, flash_count=per.n_events,
             flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
-        seen, seen_std = per.rotors_seen, per.rotors_seen_std
     zeros = np.zeros(live.size)
     table = np.stack([np.asarray(cols.get(name, zeros), dtype=np.float64) for name in F.FEATURE_NAMES],
                      axis=1).tolist()

@@ -66,6 +66,12 @@ SPECTRAL_TAG_LINE = 10.0
 #: largest of 300 noise-only and clutter-only `cw-sband` dwells (0-20 dB, 0-40 dB clutter), against
 #: 2.1-2.8 the lowest of 30 tagged-blade quads per world (tests/features/test_long_dwell.py).
 SPECTRAL_NOISE_LOG = 1.2
+#: Rotors seen on a long dwell (`_rotors_seen`): windows of this many flash periods, peaks of at
+#: least this share of the highest, this percentile of the windows' counts, std floor.
+FOLD_PERIODS = 6
+FOLD_PEAK_SHARE = 0.3
+FOLD_PERCENTILE = 90.0
+FOLD_MIN_STD = 0.5
 #: Bins per block of the whitening floor (`_whitened`).
 SPECTRAL_FLOOR_BINS = 32
 #: A CW dwell whose flash train scores this much is a detection (0 of the 300 noise dwells).
@@ -755,9 +761,20 @@ def _rotor_count(phases: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.nd
 
 # --- long dwells: the flash rate from the envelope's spectrum --------------------------------
 
-def spectral_flash_rate(slow: np.ndarray, config: RadarConfig,
-                        body_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(flash rate Hz, its std, score) of each row of long-dwell gates `slow` (B, pulses, bins).
+@dataclass(frozen=True)
+class FlashTrain:
+    """What the envelope of a long dwell gives per row (B,): see `spectral_flash_rate`."""
+
+    rate_hz: np.ndarray
+    rate_std_hz: np.ndarray
+    score: np.ndarray
+    rotors_seen: np.ndarray
+    rotors_seen_std: np.ndarray
+
+
+def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> FlashTrain:
+    """The flash train of each row of long-dwell gates `slow` (B, pulses, bins): its rate (Hz),
+    std and score, and the rotors seen (`_rotors_seen`).
 
     Why: a dwell of SPECTRAL_DWELL_S or more holds hundreds of flashes, and the period search
     keeps only its strongest events; the flash train's envelope spectrum instead resolves the
@@ -795,7 +812,7 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig,
     hi = min(power.shape[1] - 1, int(FLASH_RATE_MAX_HZ / df))
     if hi <= lo + 2:
         zero = np.zeros(b_rows)
-        return zero, zero, zero
+        return FlashTrain(zero, zero, zero, zero, zero)
     cand = np.arange(lo, hi + 1)
     harm = np.zeros((b_rows, cand.size))
     width = power.shape[1]
@@ -824,8 +841,44 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig,
     score = np.maximum(np.log(np.maximum(harm[rows, best], 1e-300) / np.maximum(med, 1e-300))
                        - SPECTRAL_NOISE_LOG, 0.0)
     live = harm[rows, best] > 0.0
-    std = np.where(turn, 2.0, 1.0) * 0.5 * df / math.sqrt(SPECTRAL_HARMONICS)
-    return np.where(live, rate, 0.0), np.where(live, std, 0.0), np.where(live, score, 0.0)
+    rate = np.where(live, rate, 0.0)
+    std = np.where(live, np.where(turn, 2.0, 1.0) * 0.5 * df / math.sqrt(SPECTRAL_HARMONICS), 0.0)
+    seen = np.array([_rotors_seen(total[b], rate[b] * config.pri_s) for b in range(b_rows)]).reshape(b_rows, 2)
+    return FlashTrain(rate, std, np.where(live, score, 0.0), seen[:, 0], seen[:, 1])
+
+
+def _rotors_seen(envelope: np.ndarray, cycles_per_pulse: float) -> tuple[float, float]:
+    """(rotors seen, std) from one row's approaching+receding envelope at its flash rate.
+
+    Each rotor flashes once per flash period at its own phase, so the envelope folded over a
+    few periods shows one peak per rotor; rotor rates differ by a fraction of a per cent, so the
+    phases drift over the dwell and flashes that coincide in one window part in another. Count
+    the peaks of the folded profile (local maxima of at least FOLD_PEAK_SHARE of the highest,
+    over the profile's median) in windows of FOLD_PERIODS periods and keep the FOLD_PERCENTILE
+    of the counts; std: half the spread between the counts' quartiles, at least FOLD_MIN_STD."""
+    if cycles_per_pulse <= 0.0:
+        return 0.0, 0.0
+    period = 1.0 / cycles_per_pulse
+    bins = max(8, int(period))
+    win = int(FOLD_PERIODS * period)
+    n = envelope.size
+    counts = []
+    for s in range(0, n - win + 1, max(win, 1)):
+        t = np.arange(s, s + win)
+        phase = np.minimum(((t * cycles_per_pulse) % 1.0 * bins).astype(int), bins - 1)
+        profile = (np.bincount(phase, weights=envelope[s:s + win], minlength=bins)
+                   / np.maximum(np.bincount(phase, minlength=bins), 1))
+        profile = profile - float(np.median(profile))
+        top = float(profile.max())
+        if top <= 0.0:
+            counts.append(0)
+            continue
+        peaks = (profile > np.roll(profile, 1)) & (profile >= np.roll(profile, -1)) & (profile >= FOLD_PEAK_SHARE * top)
+        counts.append(int(np.count_nonzero(peaks)))
+    if not counts:
+        return 0.0, 0.0
+    q1, q3 = np.percentile(counts, (25, 75))
+    return float(np.percentile(counts, FOLD_PERCENTILE)), max(FOLD_MIN_STD, 0.5 * float(q3 - q1))
 
 
 def _line(power: np.ndarray, at: np.ndarray) -> np.ndarray:
