@@ -8,7 +8,8 @@ a bundle trained at the middle carrier classifying all of them.
 waveform, with each carrier in turn, renders the test-block scenes (`signatures.dataset`, seed
 1000: never a training scene) with the same simulator seed, so a scene differs between carriers
 only by the carrier. Reported per feature: the median |change| between the outer carriers and
-the middle one, raw and normalised, over the feature's spread (std) across scenes; per carrier
+the middle one, raw and normalised, over the feature's spread (std) across scenes (detected
+returns: what a check classifies); per carrier
 and SNR: the bundle's ensemble and system accuracy (cascade + open set) with and without
 normalisation. Nothing here is tuned.
 """
@@ -50,11 +51,15 @@ def render(model_dir: str, carriers: tuple[float, ...], n: int, snr: float, seed
 
 
 def drift(clf, X: np.ndarray, carriers: tuple[float, ...], mid: int) -> dict[str, dict[str, float]]:
-    """Per feature: spread across scenes, and the median |change| from the middle carrier of the
-    other carriers' rows, raw and normalised, each over that spread."""
+    """Per feature, over the returns detected at the middle carrier (a check classifies only
+    those): spread across scenes, and the largest over the other carriers of the median |change|
+    from the middle carrier, raw and normalised, each over that spread."""
     out = {}
+    names = list(clf.feature_names)
+    if "detected" in names:
+        X = X[:, X[mid][:, names.index("detected")] > 0.5]
     norm = [clf.on_carrier(X[j], carriers[j]) for j in range(len(carriers))]
-    for k, name in enumerate(clf.feature_names):
+    for k, name in enumerate(names):
         spread = float(np.std(X[mid][:, k]))
         if spread == 0:
             continue
