@@ -224,18 +224,17 @@ def run_tracks(preset: str = "paper", snrs: tuple[float, ...] = DEFAULT_TRACK_SN
 
 
 def _lazy_dwell(scene: Scene, preset: str, seed: int, serial: str, az: float, start: datetime, j: int,
-                world: str = "training") -> Any:
-    """Dwell j of a track, simulated on first use (its header needs the Remote ID, which the
-    simulator writes beside the IQ) and kept for the full read."""
+                world: str = "training", spacing_s: float = DWELL_SPACING_S) -> Any:
+    """Dwell j of a track (starts `spacing_s` apart), simulated on first use (its header needs the
+    Remote ID, which the simulator writes beside the IQ) and kept for the full read."""
     from authn.track import Dwell
 
     cache: dict[str, Any] = {}
 
     def rec() -> Recording:
         if "rec" not in cache:
-            sc = scene.model_copy(update={"range_m": max(1.0, scene.range_m + scene.radial_speed_mps * j *
-                                                         DWELL_SPACING_S)})
-            when = start + timedelta(seconds=j * DWELL_SPACING_S)
+            sc = scene.model_copy(update={"range_m": max(1.0, scene.range_m + scene.radial_speed_mps * j * spacing_s)})
+            when = start + timedelta(seconds=j * spacing_s)
             cache["rec"] = track_recordings(sc, preset, [seed], serial, az, when, world=world)[0]
         return cache["rec"]
 

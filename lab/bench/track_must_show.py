@@ -1,0 +1,397 @@
+"""Issue 31's track must-show, measured: 2 s tracks of back-to-back `paper` dwells, no enrolment,
+decided by `authn.track.decide_track` (the real Checker, policy and sequential test, stopping
+early), per (airframe flown, model claimed) pair, in the held-out world and the training
+simulator; and the per-dwell diagnosis of genuine claims (docs/tracks.md, "Must show").
+
+    python -m lab.bench.track_must_show --world heldout --world training --snr 10 --snr 0 --n 16
+    python -m lab.bench.track_must_show --diagnose --world heldout --snr 10 --snr 0 --n 12 --dwells 8
+
+Which pairs the physics can separate (`separable`): the claimed and the flown airframe's nominal
+blade-flash rates lie outside each other's `signatures.verify.RATE_BAND`, or their rotor counts
+differ by 2 or more. Claimed models are the shipped profiles (the bench registry's); flown ones
+the shipped and `lab.heldout.unseen_profiles()`. Nothing here trains or tunes anything.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Iterable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+from datetime import datetime, timezone
+from typing import Any
+
+import numpy as np
+
+from lab.bench.decisions import CLAIM_SCENES, bench_serial
+from signatures.profiles import UavProfile, shipped_profiles
+from signatures.radar import get_preset
+from signatures.sampling import sample_scene
+
+#: The issue's track: 2 s of a target, its dwells back to back.
+TRACK_SECONDS = 2.0
+CATEGORIES = ("genuine", "type_spoof", "unseen")
+TARGETS = {("genuine", 10.0): 0.97, ("genuine", 0.0): 0.95, ("type_spoof", 10.0): 0.97, ("type_spoof", 0.0): 0.95,
+           ("unseen", 10.0): 0.97, ("unseen", 0.0): 0.95}
+
+
+def all_profiles() -> dict[str, UavProfile]:
+    from lab.heldout import unseen_profiles
+
+    return {**shipped_profiles(), **unseen_profiles()}
+
+
+def separable(flown: UavProfile, claimed: UavProfile) -> list[str]:
+    """Why the physics can tell `flown` from `claimed` ([] : it cannot, by this rule): "rate" when
+    each nominal blade-flash rate lies outside the other's RATE_BAND (flown rotors turn at 0.8-1.2x
+    nominal, so the bands of the two do not hold each other's nominal), "rotors" when the rotor
+    counts differ by 2 or more (rotors seen is counted within `ROTOR_BAND` of the claim)."""
+    from signatures.verify import RATE_BAND
+
+    fa, fb = flown.blade_flash_rate_hz, claimed.blade_flash_rate_hz
+    why = []
+    if not (RATE_BAND[0] <= fa / fb <= RATE_BAND[1]) and not (RATE_BAND[0] <= fb / fa <= RATE_BAND[1]):
+        why.append("rate")
+    if abs(flown.rotors - claimed.rotors) >= 2:
+        why.append("rotors")
+    return why
+
+
+def pairs() -> list[tuple[str, str, str, list[str]]]:
+    """(category, flown, claimed, why separable) of every claim the bench makes: each shipped model
+    claiming itself, every ordered pair of shipped models, every unseen airframe claiming each."""
+    from lab.heldout import unseen_profiles
+
+    shipped, unseen, prof = list(shipped_profiles()), list(unseen_profiles()), all_profiles()
+    out: list[tuple[str, str, str, list[str]]] = [("genuine", s, s, []) for s in shipped]
+    out += [("type_spoof", a, b, separable(prof[a], prof[b])) for a in shipped for b in shipped if a != b]
+    out += [("unseen", a, b, separable(prof[a], prof[b])) for a in unseen for b in shipped]
+    return out
+
+
+# --- one worker's state ------------------------------------------------------------------------
+
+_STATE: dict[str, Any] = {}
+
+
+def _recording_checker() -> Any:
+    """A Checker on a temporary bench registry that keeps what each verification was given."""
+    from authn.check import Checker
+    from lab.bench.decisions import register_identities
+
+    class Recorder(Checker):
+        def _verify(self, feats: Any, pred: Any, claimed: Any, rec: Any) -> Any:  # type: ignore[override]
+            v = Checker._verify(feats, pred, claimed, rec)
+            self.seen.append({"features": {**asdict(feats.features), **feats.physics}, "label": pred.label,
+                              "known": bool(pred.known), "simulation": rec.simulation,
+                              "verification": None if v is None else v.to_json()})
+            return v
+
+    tmp = tempfile.mkdtemp(prefix="must-show-")
+    db = f"sqlite:///{os.path.join(tmp, 'bench.sqlite3')}"
+    register_identities(db)
+    checker = Recorder(db)
+    checker.seen = []  # type: ignore[attr-defined]
+    return checker
+
+
+def _checker() -> Any:
+    if "checker" not in _STATE:
+        _STATE["checker"] = _recording_checker()
+    return _STATE["checker"]
+
+
+def _scene_and_draws(seed: int, world_idx: int, snr: float, pair_idx: int, i: int,
+                     flies: str) -> tuple[Any, float, int]:
+    """The scene of track i of a pair (the same in every world: `world_idx` is not drawn on)."""
+    del world_idx
+    rng = np.random.default_rng([seed, int(round(snr * 10)) + 1000, pair_idx, i, 31])
+    scene = sample_scene(rng, all_profiles()[flies], replace(CLAIM_SCENES, snr_db=float(snr)))
+    return scene, float(rng.uniform(0.0, 360.0)), int(rng.integers(2**31 - 1000))
+
+
+def _split_terms(features: dict[str, float], claimed: UavProfile, verification: dict | None,
+                 max_tip: float) -> dict[str, float | None]:
+    """The physics term taken apart: rate alone, what the rotors-seen ratio adds, what the blade
+    ratio adds (`signatures.verify._physics` on the estimates with the others masked)."""
+    from signatures.verify import _physics
+
+    def phys(f: dict[str, float]) -> float | None:
+        r = _physics(f, claimed, max_tip)
+        return None if r is None else r[0]
+
+    rate = phys({**features, "rotors_seen": 0.0, "tip_speed_mps": 0.0})
+    with_rotors = phys({**features, "tip_speed_mps": 0.0})
+    full = phys(features)
+    terms = (verification or {}).get("terms", {})
+    return {"rate": rate, "rotors": None if with_rotors is None or rate is None or with_rotors == rate else
+            with_rotors - rate,
+            "blade": None if full is None or with_rotors is None or full == with_rotors else full - with_rotors,
+            "physics": terms.get("physics"), "classifier": terms.get("classifier")}
+
+
+def _dwell_record(seen: dict, claimed: UavProfile, flown: UavProfile, max_tip: float) -> dict[str, Any]:
+    f = seen["features"]
+    truth = json.loads(seen["simulation"]).get("truth", {}) if seen["simulation"] else {}
+    pattern = truth.get("pattern_rates_hz") or []
+    v = seen["verification"]
+    return {"label": seen["label"], "known": seen["known"], "llr": None if v is None else v["llr"],
+            "terms": _split_terms(f, claimed, v, max_tip),
+            "flash_rate_hz": float(f.get("flash_rate_hz", 0.0)),
+            "flash_rate_std_hz": float(f.get("flash_rate_std_hz", 0.0)),
+            "flash_score": float(f.get("flash_score", 0.0)), "rotors_seen": float(f.get("rotors_seen", 0.0)),
+            "rotors_seen_std": float(f.get("rotors_seen_std", 0.0)), "tip_aliased": float(f.get("tip_aliased", 0.0)),
+            "true_flash_rate_hz": float(np.mean(pattern)) if pattern else None,
+            "true_rotor_rate_hz": truth.get("rotor_rate_hz"), "nominal_flash_rate_hz": claimed.blade_flash_rate_hz,
+            "flown_nominal_flash_rate_hz": flown.blade_flash_rate_hz, "claimed_rotors": claimed.rotors,
+            "flown_rotors": flown.rotors}
+
+
+@dataclass
+class TrackResult:
+    world: str
+    snr_db: float
+    category: str
+    flies: str
+    claims: str
+    separable: list[str]
+    decision: str
+    reasons: list[str]
+    dwells_used: int
+    dwells: int
+    llr: float
+    seconds: float
+    per_dwell: list[dict[str, Any]] = field(default_factory=list)
+
+
+def _one_track(job: tuple) -> TrackResult:
+    """Track i of a pair in a world at an SNR, decided by `decide_track` (early stop as `authn check --track`)."""
+    from authn.track import decide_track
+    from lab.bench.track import _lazy_dwell
+
+    preset, world, w_idx, snr, seed, p_idx, (cat, flies, claims, why), i, max_dwells = job
+    t0 = time.perf_counter()
+    checker = _checker()
+    checker.seen.clear()
+    pre = get_preset(preset)
+    scene, az, base = _scene_and_draws(seed, w_idx, snr, p_idx, i, flies)
+    start = datetime(2026, 3, 1, 9, 30, tzinfo=timezone.utc)
+    dwells = [_lazy_dwell(scene, preset, base + j, bench_serial(claims), az, start, j, world, pre.dwell_s)
+              for j in range(max_dwells)]
+    out = decide_track(checker, dwells, None)
+    prof = all_profiles()
+    recs = [_dwell_record(s, prof[claims], prof[flies], pre.config.unambiguous_velocity_mps) for s in checker.seen]
+    return TrackResult(world, float(snr), cat, flies, claims, why, out.decision, list(out.reasons), out.dwells_used,
+                       max_dwells, round(out.llr, 4), round(time.perf_counter() - t0, 2), recs)
+
+
+def _one_diag(job: tuple) -> list[dict[str, Any]]:
+    """k single dwells of one genuine (or any) scene, each checked alone: the per-dwell diagnosis."""
+    from authn.check import CheckInput
+    from lab.bench.track import track_recordings
+
+    preset, world, w_idx, snr, seed, p_idx, (cat, flies, claims, why), i, k = job
+    checker = _checker()
+    checker.seen.clear()
+    pre = get_preset(preset)
+    scene, az, base = _scene_and_draws(seed, w_idx, snr, p_idx, i, flies)
+    recs = track_recordings(scene, preset, list(range(base, base + k)), bench_serial(claims), az,
+                            spacing_s=pre.dwell_s, world=world)
+    out = []
+    prof = all_profiles()
+    for rec in recs:
+        checker.seen.clear()
+        o = checker.decide_one(CheckInput.recording(rec, bench_serial(claims)))
+        row = {"world": world, "snr_db": float(snr), "category": cat, "flies": flies, "claims": claims, "track": i,
+               "decision": o.decision, "reasons": list(o.reasons)}
+        if checker.seen:
+            row.update(_dwell_record(checker.seen[-1], prof[claims], prof[flies], pre.config.unambiguous_velocity_mps))
+        out.append(row)
+    return out
+
+
+def _jobs(preset: str, worlds: Iterable[str], snrs: Iterable[float], n: int, seed: int, extra: int,
+          categories: Iterable[str]) -> list[tuple]:
+    cats = set(categories)
+    return [(preset, w, w_idx, float(snr), seed, p_idx, pr, i, extra)
+            for w_idx, w in enumerate(worlds) for snr in snrs for p_idx, pr in enumerate(pairs()) if pr[0] in cats
+            for i in range(n)]
+
+
+def _run(fn: Any, jobs: list[tuple], workers: int) -> list[Any]:
+    if workers <= 1:
+        return [fn(j) for j in jobs]
+    with ProcessPoolExecutor(workers) as ex:
+        return list(ex.map(fn, jobs, chunksize=1))
+
+
+def run_must_show(preset: str = "paper", worlds: tuple[str, ...] = ("heldout",), snrs: tuple[float, ...] = (10.0, 0.0),
+                  n: int = 16, seed: int = 7, workers: int = 1,
+                  categories: tuple[str, ...] = CATEGORIES) -> list[TrackResult]:
+    """n tracks per (flown, claimed) pair, world and SNR; each `TRACK_SECONDS` of back-to-back dwells."""
+    max_dwells = int(TRACK_SECONDS / get_preset(preset).dwell_s)
+    return _run(_one_track, _jobs(preset, worlds, snrs, n, seed, max_dwells, categories), workers)
+
+
+def run_diagnosis(preset: str = "paper", worlds: tuple[str, ...] = ("heldout",), snrs: tuple[float, ...] = (10.0, 0.0),
+                  n: int = 12, dwells: int = 8, seed: int = 7, workers: int = 1,
+                  categories: tuple[str, ...] = ("genuine",)) -> list[dict[str, Any]]:
+    """n scenes per pair x `dwells` single dwells each, every one checked alone (no early stop)."""
+    rows = _run(_one_diag, _jobs(preset, worlds, snrs, n, seed, dwells, categories), workers)
+    return [r for rs in rows for r in rs]
+
+
+# --- tables ---------------------------------------------------------------------------------------
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f} %"
+
+
+def must_show_table(results: list[TrackResult]) -> list[str]:
+    """Per world, SNR and category (separable pairs only): right decisions against the target, median
+    and mean dwells used; then one row per pair."""
+    lines = ["| world | SNR dB | claims | pairs | tracks | right | target | inconclusive | median dwells "
+             "| mean dwells |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    groups: dict[tuple, list[TrackResult]] = {}
+    for r in results:
+        if r.category == "genuine" or r.separable:
+            groups.setdefault((r.world, -r.snr_db, CATEGORIES.index(r.category)), []).append(r)
+    for (world, nsnr, c_idx), rs in sorted(groups.items()):
+        cat = CATEGORIES[c_idx]
+        want = "accept" if cat == "genuine" else "reject"
+        right = sum(r.decision == want for r in rs) / len(rs)
+        target = TARGETS.get((cat, -nsnr))
+        met = "" if target is None else (" **met**" if right >= target else " not met")
+        used = [r.dwells_used for r in rs]
+        lines.append(f"| {world} | {-nsnr:g} | {cat.replace('_', ' ')} | {len({(r.flies, r.claims) for r in rs})} | "
+                     f"{len(rs)} | {_pct(right)} | {'' if target is None else _pct(target)}{met} | "
+                     f"{_pct(sum('track-inconclusive' in r.reasons for r in rs) / len(rs))} | "
+                     f"{statistics.median(used):g} | {statistics.fmean(used):.1f} |")
+    return lines
+
+
+def pair_table(results: list[TrackResult]) -> list[str]:
+    lines = ["| world | SNR dB | flown -> claimed | separable by | tracks | right | median dwells | wrong: reasons |",
+             "|---|---|---|---|---|---|---|---|"]
+    groups: dict[tuple, list[TrackResult]] = {}
+    for r in results:
+        groups.setdefault((r.world, -r.snr_db, CATEGORIES.index(r.category), r.flies, r.claims), []).append(r)
+    for (world, nsnr, c_idx, flies, claims), rs in sorted(groups.items()):
+        want = "accept" if CATEGORIES[c_idx] == "genuine" else "reject"
+        wrong: dict[str, int] = {}
+        for r in rs:
+            if r.decision != want:
+                key = ",".join(r.reasons) or r.decision
+                wrong[key] = wrong.get(key, 0) + 1
+        why = "(genuine)" if c_idx == 0 else (" + ".join(rs[0].separable) or "**not separable**")
+        lines.append(f"| {world} | {-nsnr:g} | {flies} -> {claims} | {why} | {len(rs)} | "
+                     f"{_pct(sum(r.decision == want for r in rs) / len(rs))} | "
+                     f"{statistics.median(r.dwells_used for r in rs):g} | "
+                     f"{'; '.join(f'{k} {v}' for k, v in sorted(wrong.items()))} |")
+    return lines
+
+
+def _mean(xs: list[float]) -> str:
+    return "n/a" if not xs else f"{statistics.fmean(xs):+.2f}"
+
+
+def diagnosis_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Per world, SNR (and flown airframe): what the estimates and terms of genuine dwells were."""
+    from signatures.verify import RATE_BAND, ROTOR_BAND
+
+    lines = ["| world | SNR dB | flown | dwells | accepted alone | physics ran | f in band of nominal "
+             "| f half / double | f within 5 % of true | true f / nominal "
+             "| rotors seen in band (median seen / R) | rate term mean "
+             "(< 0) | rotors term mean (< 0) | classifier mean (< 0) | physics mean | LLR mean (< 0) | "
+             "classifier said |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        for key in ((r["world"], -r["snr_db"], "all"), (r["world"], -r["snr_db"], r["flies"])):
+            groups.setdefault(key, []).append(r)
+    for (world, nsnr, flies), rs in sorted(groups.items(), key=lambda kv: (kv[0][0], kv[0][1], kv[0][2] != "all",
+                                                                          kv[0][2])):
+        det = [r for r in rs if "terms" in r]
+        phys = [r for r in det if r["terms"]["rate"] is not None]
+        ratio = [r["flash_rate_hz"] / r["nominal_flash_rate_hz"] for r in phys]
+        inband = sum(RATE_BAND[0] <= x <= RATE_BAND[1] for x in ratio)
+        slip = sum(0.4 <= x <= 0.6 for x in ratio), sum(1.6 <= x <= 2.4 for x in ratio)
+        true_ok = [r for r in phys
+                   if r["true_flash_rate_hz"] and abs(r["flash_rate_hz"] / r["true_flash_rate_hz"] - 1) <= 0.05]
+        true_nom = [r["true_flash_rate_hz"] / r["flown_nominal_flash_rate_hz"] for r in det if r["true_flash_rate_hz"]]
+        seen = [r["rotors_seen"] / r["claimed_rotors"] for r in det if r["rotors_seen"] > 0]
+        rot_ok = sum(ROTOR_BAND[0] <= x <= ROTOR_BAND[1] for x in seen)
+
+        def term(name: str, det: list[dict] = det) -> str:
+            xs = [r["terms"][name] for r in det if r["terms"].get(name) is not None]
+            return "n/a" if not xs else f"{_mean(xs)} ({100 * sum(x < 0 for x in xs) / len(xs):.0f} %)"
+
+        llrs = [r["llr"] for r in det if r["llr"] is not None]
+        labels: dict[str, int] = {}
+        for r in det:
+            lab = r["label"] if r["known"] else "unknown"
+            labels[lab] = labels.get(lab, 0) + 1
+        n = max(len(phys), 1)
+        lines.append(
+            f"| {world} | {-nsnr:g} | {flies} | {len(rs)} | "
+            f"{_pct(sum(r['decision'] == 'accept' for r in rs) / len(rs))} | "
+            f"{_pct(len(phys) / max(len(rs), 1))} | {_pct(inband / n)} | {_pct(slip[0] / n)} / {_pct(slip[1] / n)} | "
+            f"{_pct(len(true_ok) / n)} | {statistics.median(true_nom) if true_nom else float('nan'):.2f} "
+            f"({min(true_nom, default=float('nan')):.2f}-{max(true_nom, default=float('nan')):.2f}) | "
+            f"{_pct(rot_ok / max(len(seen), 1))} ({statistics.median(seen) if seen else float('nan'):.2f}) | "
+            f"{term('rate')} | {term('rotors')} | {term('classifier')} | "
+            f"{_mean([r['terms']['physics'] for r in phys if r['terms']['physics'] is not None])} | "
+            f"{_mean(llrs)} ({100 * sum(x < 0 for x in llrs) / max(len(llrs), 1):.0f} %) | "
+            f"{', '.join(f'{k} {v}' for k, v in sorted(labels.items(), key=lambda kv: -kv[1])[:4])} |")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m lab.bench.track_must_show", description=__doc__.splitlines()[0])
+    ap.add_argument("--preset", default="paper")
+    ap.add_argument("--world", action="append", choices=("heldout", "training"))
+    ap.add_argument("--snr", action="append", type=float)
+    ap.add_argument("--n", type=int, default=16, help="tracks (or diagnosis scenes) per pair, world and SNR")
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--category", action="append", choices=CATEGORIES)
+    ap.add_argument("--diagnose", action="store_true", help="per-dwell diagnosis of single dwells instead of tracks")
+    ap.add_argument("--dwells", type=int, default=8, help="dwells per diagnosis scene")
+    ap.add_argument("--json", help="write every track / dwell to this file")
+    a = ap.parse_args(argv)
+    worlds, snrs = tuple(a.world or ("heldout",)), tuple(a.snr or (10.0, 0.0))
+    t0 = time.perf_counter()
+    print(f"# {' '.join(['python -m lab.bench.track_must_show', *(argv if argv is not None else sys.argv[1:])])}")
+    print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
+    if a.diagnose:
+        rows = run_diagnosis(a.preset, worlds, snrs, a.n, a.dwells, a.seed, a.workers,
+                             tuple(a.category or ("genuine",)))
+        print("\n".join(diagnosis_table(rows)))
+        if a.json:
+            with open(a.json, "w") as fh:
+                json.dump(rows, fh)
+    else:
+        print("separable pairs (rule: nominal flash rates outside each other's RATE_BAND, or rotors differ by >= 2):")
+        for cat, flies, claims, why in pairs():
+            if cat != "genuine":
+                print(f"#   {flies} -> {claims}: {' + '.join(why) or 'NOT separable'}")
+        res = run_must_show(a.preset, worlds, snrs, a.n, a.seed, a.workers, tuple(a.category or CATEGORIES))
+        print("\n".join(must_show_table(res)))
+        print()
+        print("\n".join(pair_table(res)))
+        if a.json:
+            with open(a.json, "w") as fh:
+                json.dump([asdict(r) for r in res], fh)
+    print(f"# {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
