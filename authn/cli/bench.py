@@ -35,6 +35,10 @@ def bench(
     track: bool = typer.Option(False, "--track", help="Run only the track rows: the correlation of dwell LLRs "
                                "within and between simulated scenes, and dwells per track decision against --snr "
                                "(docs/tracks.md)."),
+    enrolment: int | None = typer.Option(None, "--enrolment", min=5, help="Run only the site-enrolment rows: enrol "
+                                         "this many recordings per airframe (mixed SNR 0-20 dB), then --n tracks per "
+                                         "category and --snr, with their first dwells alone beside, and per-pair rows "
+                                         "(in each of --world, default heldout; docs/enrolment.md)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Benchmark decisions and speed: accuracy, latency, stages, error vs time, throughput.
@@ -81,6 +85,13 @@ def bench(
     the intra-track correlation of the dwell LLRs the test discounts (5 dwells of --n scenes).
 
     Example: authn bench --track --preset paper --n 40 --snr 0 --snr 5 --snr 10 --snr 20
+
+    Site enrolment (--enrolment N, paper preset): a site bundle enrolled from N recordings per
+    airframe, then tracks of up to 8 dwells (genuine, type spoof, unseen airframe), decided with the
+    shipped and the site bundle: rows per category and per (flown, claimed) pair, and the card's
+    pairwise errors of single dwells and of tracks (python -m lab.bench.enrolment --track).
+
+    Example: authn bench --enrolment 30 --n 50 --snr 0 --snr 10 --world heldout
     """
     import registry.urls
     from rich.console import Console
@@ -107,6 +118,9 @@ def bench(
         return
     if track:
         _track(tuple(preset), tuple(snr), n, seed, as_json, world_choice(world or "training"))
+        return
+    if enrolment is not None:
+        _enrolment(enrolment, tuple(snr), n, seed, as_json, world_choice(world or "heldout"))
         return
     n_claims = len(preset) * len(snr) * len(WORLD_CATEGORIES) * n * len(worlds)
     if worlds_only:
@@ -234,6 +248,36 @@ def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,
         t.add_row(r["preset"], r["world"], f"{r['snr_db']:g}", r["category"], str(r["tracks"]), f"{r['right']:.1%}",
                   f"{r['inconclusive']:.1%}", f"{r['median_dwells']:g}", f"{r['mean_dwells']:.2f}")
     console.print(t)
+
+
+def _enrolment(size: int, snrs: tuple[float, ...], n: int, seed: int, as_json: bool, worlds: tuple[str, ...]) -> None:
+    """Only the site-enrolment rows (`--enrolment N`): tracks and single dwells per category,
+    per (flown, claimed) pair, and the card's pairwise errors, in each world."""
+    import sys
+
+    from rich.console import Console
+
+    from lab.bench.enrolment import pair_table, run_tracks, track_table
+
+    err = Console(stderr=True)
+    docs = [run_tracks((size,), n, snrs, w, seed, 1500, log=lambda m: err.print(m) if not as_json else None)
+            for w in worlds]
+    if as_json:
+        typer.echo(json.dumps(docs, indent=2))
+        return
+    for doc in docs:
+        e = doc["enrolments"][size]
+        print(f"\n{doc['world']} world, {size} enrolment recordings per airframe; tracks (first dwells alone):")
+        print(track_table(doc))
+        print("\ncard's cross-validated pairwise false accepts: single dwell / tracks of "
+              f"{e['tracks']['dwells']} dwells")
+        for pair, sd in e["pairwise"].items():
+            tr = e["pairwise_tracks"][pair]
+            print(f"  {pair}: {sd['false_accept_rate']:.1%} / "
+                  f"{'n/a' if not tr or tr['false_accept_rate'] is None else format(tr['false_accept_rate'], '.1%')}")
+        print("\nper pair:")
+        print(pair_table(doc))
+    sys.stdout.flush()
 
 
 def _batch(presets: tuple[str, ...], quick: bool, seed: int, plot_dir: Path | None, as_json: bool) -> None:

@@ -12,6 +12,17 @@ unseen airframes (`lab.bench.worlds`), single dwells at each `--snr`, each check
 site bundle calls radar-confusable with another registered one need a DRIP signature
 (`radar-confusable-unsigned`): the table gives the genuine rate unsigned and "signed where
 required" (counted accepted when that forbid is the only reason). Nothing is tuned on the test claims.
+
+    python -m lab.bench.enrolment --track --sizes 30 --n 50 --snr 0,10 --world heldout --json out.json
+
+`--track`: the issue's must-show over tracks. Each test claim is a track of up to `--dwells` (8)
+dwells of one scene (`lab.bench.track`'s dwells: a new simulator seed per dwell, 1 s apart),
+decided by `authn.track.decide_track` (the real Checker, policy and sequential test, stopping
+early) with the shipped bundle and each site bundle (whose card now carries track-level pairwise
+errors, and whose track checks use them); its first dwell is also checked alone (the single-dwell
+figures beside). A site bundle is run twice: under the default policy (unsigned claims), and
+under the default policy without `radar-confusable-unsigned` ("radar alone": what a claim with
+a valid DRIP signature meets; for a type spoof, what radar does without the signature rule).
 """
 
 from __future__ import annotations
@@ -40,11 +51,8 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
         base_samples: int, log=print) -> dict:
     """Enrol at each size, check the test claims with the shipped and each site bundle."""
     from authn.check import Checker
-    from authn.enrolment import site_sample
     from authn.scenario import Broadcast
     from lab.heldout import unseen_profiles
-    from registry.dbapi import Database
-    from signatures.enrol import enrol
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
@@ -59,31 +67,7 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
                  "rates": {}, "eer": {}}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
-        db_url = f"sqlite:///{root / 'bench.sqlite3'}"
-        register_identities(db_url)
-        db = Database(db_url)
-        rng = np.random.default_rng([seed, 1])  # the enrolment stream
-        pool = []
-        for slug in slugs:
-            for i in range(max(sizes)):
-                scene = sample_scene(rng, shipped[slug], replace(CLAIM_SCENES, snr_db=(0.0, 20.0)))
-                rec = render_claim(world, scene, pre, int(rng.integers(2**31)), Broadcast(serial=bench_serial(slug)),
-                                   float(rng.uniform(0.0, 360.0)), now)
-                path = write_recording(rec, root / "enrol" / f"{slug}-{i:03d}.h5")
-                pool.append((i, site_sample(path, slug, db, rec)[0]))
-        bundles: dict[str, Path | None] = {"shipped": None}
-        for k in sizes:
-            t0 = time.perf_counter()
-            folder = root / "models" / f"site-{k}"
-            card = enrol([s for i, s in pool if i < k], shipped, pre, folder, name=f"site-{k}", seed=seed,
-                         n_sim=base_samples)
-            e = card["enrolment"]
-            out["enrolments"][k] = {"seconds": round(time.perf_counter() - t0, 1), "confusable_pairs":
-                                    e["confusable_pairs"], "pairwise": {"/".join(p["models"]): p["single_dwell"]
-                                                                        for p in e["pairwise"]},
-                                    "threshold": e["threshold"], "cv_accuracy": card["metrics"]["validation"]}
-            log(f"enrolled {k} per model in {out['enrolments'][k]['seconds']} s; confusable {e['confusable_pairs']}")
-            bundles[f"site-{k}"] = folder
+        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log)
         checkers = {name: Checker(db_url, model=folder) for name, folder in bundles.items()}
         trials: dict[tuple[str, float, str], list[tuple[str, tuple[str, ...], float]]] = defaultdict(list)
         for s_idx, snr in enumerate(snrs):
@@ -116,6 +100,158 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
     return out
 
 
+def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base_samples: int, out: dict,
+                 log) -> tuple[str, dict[str, Path | None]]:
+    """The bench registry and the site bundles: `max(sizes)` enrolment recordings per shipped
+    airframe at 0-20 dB from the enrolment stream, the first k of each enrolled at each size k
+    (with the check's sequential test: the card's track-level errors). (database URL, bundles)."""
+    from authn.enrolment import site_sample
+    from authn.scenario import Broadcast
+    from authn.track import Sprt
+    from registry.dbapi import Database
+    from signatures.enrol import enrol
+    from signatures.profiles import shipped_profiles
+    from signatures.radar import get_preset
+    from signatures.recording import write_recording
+    from signatures.sampling import sample_scene
+
+    pre = get_preset("paper")
+    shipped = shipped_profiles()
+    now = datetime.now(timezone.utc)
+    db_url = f"sqlite:///{root / 'bench.sqlite3'}"
+    register_identities(db_url)
+    db = Database(db_url)
+    rng = np.random.default_rng([seed, 1])  # the enrolment stream
+    pool = []
+    for slug in shipped:
+        for i in range(max(sizes)):
+            scene = sample_scene(rng, shipped[slug], replace(CLAIM_SCENES, snr_db=(0.0, 20.0)))
+            rec = render_claim(world, scene, pre, int(rng.integers(2**31)), Broadcast(serial=bench_serial(slug)),
+                               float(rng.uniform(0.0, 360.0)), now)
+            path = write_recording(rec, root / "enrol" / f"{slug}-{i:03d}.h5")
+            pool.append((i, site_sample(path, slug, db, rec)[0]))
+    bundles: dict[str, Path | None] = {"shipped": None}
+    for k in sizes:
+        t0 = time.perf_counter()
+        folder = root / "models" / f"site-{k}"
+        card = enrol([s for i, s in pool if i < k], shipped, pre, folder, name=f"site-{k}", seed=seed,
+                     n_sim=base_samples, sprt=Sprt())
+        e = card["enrolment"]
+        out["enrolments"][k] = {"seconds": round(time.perf_counter() - t0, 1), "confusable_pairs":
+                                e["confusable_pairs"], "confusable_pairs_tracks": e["confusable_pairs_tracks"],
+                                "pairwise": {"/".join(p["models"]): p["single_dwell"] for p in e["pairwise"]},
+                                "pairwise_tracks": {"/".join(p["models"]): p["tracks"] for p in e["pairwise"]},
+                                "tracks": e["tracks"], "threshold": e["threshold"],
+                                "cv_accuracy": card["metrics"]["validation"]}
+        log(f"enrolled {k} per model in {out['enrolments'][k]['seconds']} s; confusable {e['confusable_pairs']}, "
+            f"over tracks {e['confusable_pairs_tracks']}")
+        bundles[f"site-{k}"] = folder
+    return db_url, bundles
+
+
+def _radar_alone_policy(root: Path) -> Path:
+    """The default policy without `radar-confusable-unsigned`: what a validly signed claim meets."""
+    import re
+
+    text = (Path(__file__).resolve().parents[2] / "authn" / "policies" / "default.cedar").read_text()
+    cut = re.sub(r'@id\("radar-confusable-unsigned"\)\s*forbid[^;]*;', "", text)
+    if cut == text:
+        raise RuntimeError("default.cedar: no radar-confusable-unsigned forbid to leave out")
+    path = root / "radar-alone.cedar"
+    path.write_text(cut)
+    return path
+
+
+def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, seed: int,
+               base_samples: int, dwells: int = 8, log=print) -> dict:
+    """Enrol at each size; n tracks per category and SNR, decided with the shipped bundle and each
+    site bundle (default policy and radar alone); their first dwells checked alone beside them."""
+    from authn.check import CheckInput, Checker
+    from authn.track import decide_track
+    from lab.bench.track import _lazy_dwell
+    from lab.heldout import unseen_profiles
+    from signatures.profiles import shipped_profiles
+    from signatures.sampling import sample_scene
+
+    shipped = shipped_profiles()
+    profiles = {**shipped, **unseen_profiles()}
+    slugs, unseen = list(shipped), list(unseen_profiles())
+    out: dict = {"world": world, "sizes": list(sizes), "n": n, "snrs": list(snrs), "seed": seed, "dwells": dwells,
+                 "enrolments": {}, "tracks": {}, "single": {}, "pairs": {}}
+    rows: dict[tuple[str, str, float, str], list[tuple[str, tuple[str, ...], int]]] = defaultdict(list)
+    single: dict[tuple[str, str, float, str], list[tuple[str, tuple[str, ...]]]] = defaultdict(list)
+    pairs: dict[tuple[str, str, float, str, str], list[str]] = defaultdict(list)
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log)
+        alone = _radar_alone_policy(root)
+        checkers = {"shipped": Checker(db_url)}
+        for name, folder in bundles.items():
+            if folder is not None:
+                checkers[name] = Checker(db_url, model=folder)
+                checkers[f"{name} radar alone"] = Checker(db_url, policy_path=alone, model=folder)
+        for s_idx, snr in enumerate(snrs):
+            for c_idx, cat in enumerate(WORLD_CATEGORIES):
+                rng = np.random.default_rng([seed, 3, s_idx, c_idx])  # the test stream: disjoint from enrolment
+                for i in range(n):
+                    flies, claims = _pair(cat, i, slugs, unseen)
+                    scene = sample_scene(rng, profiles[flies], replace(CLAIM_SCENES, snr_db=float(snr)))
+                    az, base = float(rng.uniform(0.0, 360.0)), int(rng.integers(2**31 - dwells))
+                    start = datetime.now(timezone.utc)
+                    track = [_lazy_dwell(scene, "paper", base + j, bench_serial(claims), az, start, j, world)
+                             for j in range(dwells)]
+                    for name, checker in checkers.items():
+                        o = decide_track(checker, track)
+                        rows[(name, world, float(snr), cat)].append((o.decision, tuple(o.reasons), o.dwells_used))
+                        pairs[(name, float(snr), cat, flies, claims)].append(o.decision)
+                        one = checker.decide_one(CheckInput.recording(track[0].load()[0], None))
+                        single[(name, world, float(snr), cat)].append((one.decision, tuple(one.reasons)))
+                log(f"{world} {snr:g} dB {cat}: {n} tracks")
+    for key, ts in rows.items():
+        name, _, snr, cat = key
+        want = "accept" if cat == "genuine" else "reject"
+        k = f"{name}/{snr:g}/{cat}"
+        used = sorted(t[2] for t in ts)
+        out["tracks"][k] = {"right": _share([(d, r, 0) for d, r, _ in ts], lambda d, r, want=want: d == want),
+                            "median_dwells": float(np.median(used)), "n": len(ts),
+                            "confusable_unsigned": _share([(d, r, 0) for d, r, _ in ts],
+                                                          lambda d, r: CONFUSABLE in r)}
+        out["single"][k] = {"right": _share([(d, r, 0) for d, r in single[key]], lambda d, r, want=want: d == want),
+                            "n": len(single[key])}
+    for (name, snr, cat, flies, claims), ds in pairs.items():
+        want = "accept" if cat == "genuine" else "reject"
+        out["pairs"][f"{name}/{snr:g}/{flies}->{claims}"] = {"right": round(sum(d == want for d in ds) / len(ds), 4),
+                                                              "n": len(ds), "category": cat}
+    return out
+
+
+def track_table(doc: dict) -> str:
+    """Markdown: per bundle and SNR, tracks right (single dwells right) per category."""
+    lines = ["| world | bundle | SNR | genuine accepted | type spoofs rejected | unseen rejected | "
+             "median dwells (genuine / spoof / unseen) |", "|---|---|---|---|---|---|---|"]
+    names = list(dict.fromkeys(k.split("/")[0] for k in doc["tracks"]))
+    for name in names:
+        for snr in doc["snrs"]:
+            k = f"{name}/{snr:g}"
+            t = [doc["tracks"][f"{k}/{c}"] for c in WORLD_CATEGORIES]
+            sd = [doc["single"][f"{k}/{c}"] for c in WORLD_CATEGORIES]
+            cells = [f"{a['right']:.1%} ({b['right']:.1%})" for a, b in zip(t, sd)]
+            med = " / ".join(f"{a['median_dwells']:g}" for a in t)
+            lines.append(f"| {doc['world']} | {name} | {snr:g} dB | " + " | ".join(cells) + f" | {med} |")
+    return "\n".join(lines)
+
+
+def pair_table(doc: dict) -> str:
+    """Markdown: per bundle, SNR and (flown -> claimed) pair, the share of right track decisions."""
+    lines = ["| world | bundle | SNR | flown -> claimed | category | tracks right | n |",
+             "|---|---|---|---|---|---|---|"]
+    for key, row in sorted(doc["pairs"].items()):
+        name, snr, pair = key.split("/")
+        lines.append(f"| {doc['world']} | {name} | {snr} dB | {pair} | {row['category']} | {row['right']:.1%} | "
+                     f"{row['n']} |")
+    return "\n".join(lines)
+
+
 def _share(ts, ok) -> float:
     return round(sum(ok(d, r) for d, r, _ in ts) / len(ts), 4)
 
@@ -144,15 +280,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--base-samples", type=int, default=1500)
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--track", action="store_true", help="test claims as tracks (authn check --track) with the "
+                                                        "single-dwell figures of their first dwells beside")
+    ap.add_argument("--dwells", type=int, default=8, help="with --track: dwells per track at most")
+    ap.add_argument("--pairs", action="store_true", help="with --track: also the per-pair rows")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
-    doc = run(tuple(int(s) for s in a.sizes.split(",")), a.n, tuple(float(s) for s in a.snr.split(",")), a.world,
-              a.seed, a.base_samples, log=lambda m: print(m, file=sys.stderr))
+    args = (tuple(int(s) for s in a.sizes.split(",")), a.n, tuple(float(s) for s in a.snr.split(",")), a.world,
+            a.seed, a.base_samples)
+    say = lambda m: print(m, file=sys.stderr)  # noqa: E731
+    doc = run_tracks(*args, dwells=a.dwells, log=say) if a.track else run(*args, log=say)
     doc["seconds"] = round(time.perf_counter() - t0, 1)
     doc["cpus"] = os.cpu_count()
     if a.json:
         a.json.write_text(json.dumps(doc, indent=1))
-    print(table(doc))
+    print(track_table(doc) if a.track else table(doc))
+    if a.track and a.pairs:
+        print()
+        print(pair_table(doc))
     return 0
 
 
