@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import sys
@@ -353,6 +354,104 @@ def diagnosis_table(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+#: What-if variants, evaluated offline on the diagnosis dwells: (name, constants of `signatures.verify`
+#: to override, classifier clip or None to drop the classifier term, rotors term kept, track correlation rho).
+WHAT_IF: tuple[tuple[str, dict[str, Any], float | None, bool, float], ...] = (
+    ("shipped", {}, 3.0, True, 0.2),
+    ("classifier clip 1", {}, 1.0, True, 0.2),
+    ("no classifier term", {}, None, True, 0.2),
+    ("no rotors term", {}, 3.0, False, 0.2),
+    ("ROTOR_BAND 0.45-1.10", {"ROTOR_BAND": (0.45, 1.10)}, 3.0, True, 0.2),
+    ("REL_FLOOR 0.06", {"REL_FLOOR": 0.06}, 3.0, True, 0.2),
+    ("rho 0.1", {}, 3.0, True, 0.1),
+    ("rho 0.1, classifier clip 1", {}, 1.0, True, 0.1),
+    ("rho 0.1, clip 1, ROTOR_BAND 0.45, REL_FLOOR 0.06", {"ROTOR_BAND": (0.45, 1.10), "REL_FLOOR": 0.06}, 1.0, True,
+     0.1),
+    ("rho 0.05", {}, 3.0, True, 0.05),
+)
+
+
+def _variant_llr(r: dict[str, Any], consts: dict[str, Any], clip: float | None, rotors: bool) -> tuple[float, bool]:
+    """A diagnosis dwell's LLR under a variant: (LLR, physics term present). The physics term is
+    recomputed from the stored estimates (tips aliased in `paper`: no blade term); the classifier
+    term re-clipped (clipping is monotone, so the stored, clipped term can be clipped further)."""
+    from signatures import verify as V
+
+    saved = {k: getattr(V, k) for k in consts}
+    try:
+        for k, v in consts.items():
+            setattr(V, k, v)
+        f = {"flash_rate_hz": r["flash_rate_hz"], "flash_rate_std_hz": r["flash_rate_std_hz"],
+             "flash_score": r["flash_score"], "tip_aliased": r["tip_aliased"], "tip_speed_mps": 0.0,
+             "rotors_seen": r["rotors_seen"] if rotors else 0.0, "rotors_seen_std": r["rotors_seen_std"]}
+        claimed = all_profiles()[r["claims"]]
+        phys = V._physics(f, claimed, None)
+    finally:
+        for k, v in saved.items():
+            setattr(V, k, v)
+    llr = 0.0 if phys is None else phys[0]
+    k = r["terms"].get("classifier")
+    if clip is not None and k is not None:
+        llr += max(-clip, min(clip, k))
+    return llr, phys is not None
+
+
+def _walk(dwells: list[tuple[float, bool]], rho: float = 0.2) -> tuple[str, int]:
+    """`authn.track`'s sequential test alone (default bounds, discount and cap), as the default
+    policy's track rules decide it: (accept | reject | inconclusive, dwells used)."""
+    from authn.track import Sprt
+
+    sprt = Sprt(correlation=rho)
+    acc, rej = math.ceil(sprt.accept_nats * 100), math.floor(sprt.reject_nats * 100)
+    inc: list[float] = []
+    for llr, phys in dwells:
+        inc.append(sprt.increment(llr, phys))
+        cn = round(sprt.track_llr(inc) * 100)
+        if cn >= acc:
+            return "accept", len(inc)
+        if cn <= rej:
+            return "reject", len(inc)
+    return "inconclusive", len(inc)
+
+
+def what_if_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Per world, SNR and variant: genuine / type-spoof / unseen dwells on the right side of 0, and
+    the diagnosis scenes' dwells walked as tracks (truncated at the scene's dwells: inconclusive
+    tracks are rejected, as `track-inconclusive`). Only rows whose radar ran are used."""
+    lines = ["| world | SNR dB | variant | genuine dwells > 0 | spoof dwells < 0 | unseen dwells < 0 | genuine tracks "
+             "accepted | spoof tracks rejected (inconclusive) | unseen tracks rejected (inconclusive) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    keyed: dict[tuple, dict[tuple, list[dict]]] = {}
+    for r in rows:
+        if "terms" in r:
+            keyed.setdefault((r["world"], -r["snr_db"]), {}).setdefault(
+                (r["category"], r["flies"], r["claims"], r["track"]), []).append(r)
+    for (world, nsnr), scenes in sorted(keyed.items()):
+        for name, consts, clip, rotors, rho in WHAT_IF:
+            cells = []
+            walks: dict[str, list[str]] = {c: [] for c in CATEGORIES}
+            dw: dict[str, list[float]] = {c: [] for c in CATEGORIES}
+            for (cat, *_), rs in scenes.items():
+                vals = [_variant_llr(r, consts, clip, rotors) for r in rs]
+                dw[cat] += [v for v, _ in vals]
+                walks[cat].append(_walk(vals, rho)[0])
+            for cat in CATEGORIES:
+                xs = dw[cat]
+                ok = sum((x > 0) if cat == "genuine" else (x < 0) for x in xs)
+                cells.append("n/a" if not xs else _pct(ok / len(xs)))
+            for cat in CATEGORIES:
+                ws = walks[cat]
+                if not ws:
+                    cells.append("n/a")
+                elif cat == "genuine":
+                    cells.append(_pct(ws.count("accept") / len(ws)))
+                else:
+                    cells.append(f"{_pct((len(ws) - ws.count('accept')) / len(ws))} "
+                                 f"({_pct(ws.count('inconclusive') / len(ws))})")
+            lines.append(f"| {world} | {-nsnr:g} | {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m lab.bench.track_must_show", description=__doc__.splitlines()[0])
     ap.add_argument("--preset", default="paper")
@@ -365,8 +464,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--diagnose", action="store_true", help="per-dwell diagnosis of single dwells instead of tracks")
     ap.add_argument("--dwells", type=int, default=8, help="dwells per diagnosis scene")
     ap.add_argument("--json", help="write every track / dwell to this file")
+    ap.add_argument("--what-if", metavar="DIAG_JSON", help="print the what-if table of a --diagnose --json file")
     a = ap.parse_args(argv)
     worlds, snrs = tuple(a.world or ("heldout",)), tuple(a.snr or (10.0, 0.0))
+    if a.what_if:
+        with open(a.what_if) as fh:
+            print("\n".join(what_if_table(json.load(fh))))
+        return 0
     t0 = time.perf_counter()
     print(f"# {' '.join(['python -m lab.bench.track_must_show', *(argv if argv is not None else sys.argv[1:])])}")
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
