@@ -17,16 +17,24 @@ from signatures import fft as _fft
 from signatures.radar import RadarConfig
 from signatures.rd import hann
 
-#: STFT window length in seconds, rounded to a power of two in chirps (paper 16, wide 64).
+#: STFT window length in seconds at 77 GHz, rounded to a power of two in chirps (paper 16, wide 64):
+#: it resolves a ~30 us blade flash in time while keeping 1-2.5 kHz (4-10 m/s) Doppler resolution.
+#: The window scales with the wavelength (`stft_params`), keeping that trade in blade motion.
 STFT_WINDOW_S = 0.5e-3
+STFT_REFERENCE_WAVELENGTH_M = 299_792_458.0 / 77e9
+#: The frames' rate must carry the fastest blade-flash cadence (Hz): hop <= PRF / (2 x this).
+STFT_MAX_CADENCE_HZ = 500.0
 
 
 def stft_params(config: RadarConfig, n_chirps: int) -> tuple[int, int]:
-    """(window, hop) in chirps: ~0.5 ms window (resolves a ~30 us blade flash in time
-    while keeping 1-2.5 kHz Doppler resolution), hop = window / 4."""
-    win = 2 ** max(2, round(math.log2(max(STFT_WINDOW_S / config.pri_s, 1.0))))
+    """(window, hop) in chirps: STFT_WINDOW_S scaled by the wavelength over 77 GHz's, as a power
+    of two (at least 4, at most the dwell's power of two); hop a quarter of it, or less where the
+    frame rate would not carry STFT_MAX_CADENCE_HZ (a low-PRF radar: 5 kHz gives hop 5)."""
+    span = STFT_WINDOW_S * config.wavelength_m / STFT_REFERENCE_WAVELENGTH_M
+    win = 2 ** max(2, round(math.log2(max(span / config.pri_s, 1.0))))
     win = min(win, max(4, 2 ** int(math.log2(max(n_chirps, 1)))))
-    return win, max(1, win // 4)
+    hop = min(max(1, win // 4), max(1, int(config.prf_hz / (2.0 * STFT_MAX_CADENCE_HZ))))
+    return win, hop
 
 
 @dataclass(frozen=True)

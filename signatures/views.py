@@ -22,10 +22,16 @@ class Views:
 
 
 def views(recording, clutter_suppression: bool = True) -> Views:
-    """Everything the plots show, computed the same way as the features."""
-    res = extract_iq(recording.iq, recording.config, clutter_suppression=clutter_suppression)
+    """Everything the plots show, computed the same way as the features. A `range` or `cw`
+    cube already is a range spectrum (docs/format.md): no range FFT, only the clutter's mean
+    removed (a CW return's map is its one channel's Doppler spectrum)."""
+    res = extract_iq(recording.iq, recording.config, clutter_suppression=clutter_suppression,
+                     domain=recording.domain)
     prep = rd.prepare(recording.iq)
-    spectrum = rd.range_fft(prep.iq, clutter_suppression)
+    if recording.domain == "if":
+        spectrum = rd.range_fft(prep.iq, clutter_suppression)
+    else:
+        spectrum = prep.iq - prep.iq.mean(axis=0, keepdims=True) if clutter_suppression else prep.iq
     full = rd.rd_map(spectrum, recording.config)
     lo, hi = res.gate if res.gate[1] > res.gate[0] else (0, GATE_BINS)
     slow = spectrum[:, lo:hi]

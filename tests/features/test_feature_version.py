@@ -30,6 +30,7 @@ SCENES = {
     "m600_hover": dict(model="m600", radial_speed_mps=0.0, seed=2),
     "bird": dict(kind="bird", model=None, radial_speed_mps=4.0, seed=3),
     "phantom4_wide_hover": dict(model="phantom4", preset="wide", radial_speed_mps=0.0, seed=5),  # from version 3
+    "m300_cw_sband_tagged_hover": dict(preset="cw-sband", radial_speed_mps=0.0, tagged_blades=2, seed=6),  # from 5
 }
 
 #: (FEATURE_VERSION, SIMULATOR_VERSION) -> scene -> `extract(rec).as_array()` (FEATURE_NAMES order).
@@ -66,6 +67,15 @@ GOLDEN_FEATURES[("4", "2")] = {**GOLDEN_FEATURES[("2", "2")],
     "phantom4_wide_hover": (400, -0.1199, 0.7024, 62.91, 20.65, 28130, 16620, 90.07, 1, 0.01989, 0.8636, 400,
                             0.1702, -0.001378, 0.002057, 116.8, 0.07654, 58.4, 0.03827, 4, 0.5, 108.8, 0.03802,
                             0.2964, 0.0002201, 0, 27.3, 22, 17.52, 0.6987, 235.8, 0.5397, 18.39, 1)}
+
+# FEATURE_VERSION 5 follows the waveform on long, low-PRF dwells (envelope-spectrum flash rate, rotors seen,
+# a CW body at zero Doppler, wavelength-scaled flash lobe and STFT window): `paper` and `wide` unchanged
+GOLDEN_FEATURES[("5", "2")] = {**GOLDEN_FEATURES[("4", "2")],
+    "m300_cw_sband_tagged_hover": (0.0, -0.4856, 0.0, 61.36, 14.51, 1218.0, 591.7, 48.99, 14.0, 0.00434, 0.8209,
+                                   0.0, 0.0, 0.002663, 0.003178, 80.49, 0.3052, 40.25, 0.1526, 2.0, 0.5, 94.9,
+                                   0.7506, 0.3753, 0.003292, 0.0, 4.483, 178.0, 17.72, 0.4351, 80.55, 0.1047, 7.079,
+                                   1.0),
+}
 
 SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
                      "|lag-1 slow-time autocorrelation|", "its phase (rad)", "peak range bin", "peak range power")
