@@ -92,7 +92,7 @@ def test_piped_tables_are_one_tab_separated_line_per_result(tmp_path: Path, caps
     assert rows and all(len(r) == 5 for r in rows) and [r[2] for r in rows if r[3] == "error"] == [M300]
     assert main(["models", "list"]) == 0
     rows = [line.split("\t") for line in capsys.readouterr().out.splitlines()]
-    assert [r[:2] for r in rows[:2]] == [["paper", "shipped"], ["wide", "shipped"]]
+    assert [r[:3] for r in rows[:2]] == [["*", "paper", "shipped"], ["*", "wide", "shipped"]]  # * = active
     assert main(["--db", db, "registry", "models"]) == 0
     assert "m300\t" in capsys.readouterr().out
 
@@ -100,7 +100,7 @@ def test_piped_tables_are_one_tab_separated_line_per_result(tmp_path: Path, caps
 def test_piped_through_a_real_pipe(tmp_path: Path) -> None:
     run = subprocess.run([sys.executable, "-m", "authn", "models", "list"], capture_output=True, text=True,
                          env={**os.environ, "COLUMNS": "80"}, timeout=120)
-    assert run.returncode == 0 and run.stdout.startswith("paper\tshipped\t600x80 at 77 GHz"), run
+    assert run.returncode == 0 and run.stdout.startswith("*\tpaper\tshipped\t600x80 at 77 GHz"), run
 
 
 def test_tables_at_80_columns_never_split_identifiers(tmp_path: Path, capsys, monkeypatch) -> None:
