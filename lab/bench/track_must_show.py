@@ -385,7 +385,11 @@ def _variant_llr(r: dict[str, Any], consts: dict[str, Any], clip: float | None, 
              "flash_score": r["flash_score"], "tip_aliased": r["tip_aliased"], "tip_speed_mps": 0.0,
              "rotors_seen": r["rotors_seen"] if rotors else 0.0, "rotors_seen_std": r["rotors_seen_std"]}
         claimed = all_profiles()[r["claims"]]
-        phys = V._physics(f, claimed, None)
+        if hasattr(V, "Bands"):  # per-model bands (site enrolment): the bands go in as an argument
+            bands = V.Bands(rate=consts.get("RATE_BAND", V.RATE_BAND), rotors=consts.get("ROTOR_BAND", V.ROTOR_BAND))
+            phys = V._physics(f, claimed, None, bands)
+        else:
+            phys = V._physics(f, claimed, None)
     finally:
         for k, v in saved.items():
             setattr(V, k, v)
