@@ -87,8 +87,8 @@ def _recording_checker() -> Any:
     from lab.bench.decisions import register_identities
 
     class Recorder(Checker):
-        def _verify(self, feats: Any, pred: Any, claimed: Any, rec: Any) -> Any:  # type: ignore[override]
-            v = Checker._verify(feats, pred, claimed, rec)
+        def _verify(self, feats: Any, pred: Any, claimed: Any, rec: Any, *more: Any, **kw: Any) -> Any:  # type: ignore[override]
+            v = Checker._verify(feats, pred, claimed, rec, *more, **kw)
             self.seen.append({"features": {**asdict(feats.features), **feats.physics}, "label": pred.label,
                               "known": bool(pred.known), "simulation": rec.simulation,
                               "verification": None if v is None else v.to_json()})
