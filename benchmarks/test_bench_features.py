@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from signatures.features import extract_iq
+from lab.bench.pareto import extract_full_cube
+from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.scene import Scene
@@ -25,5 +26,5 @@ def rec(request):
 @pytest.mark.parametrize("full_cube", [False, True], ids=["gated", "full"])
 def test_extract(benchmark, rec, full_cube):
     benchmark.group = f"features {rec.n_chirps}x{rec.n_samples}"
-    res = benchmark(extract_iq, rec.iq, rec.config, full_cube=full_cube)
+    res = benchmark(extract_full_cube if full_cube else extract, rec)
     assert res.detected

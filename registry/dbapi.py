@@ -221,7 +221,7 @@ class Database:
     def registered_models(self) -> set[str]:
         """The model slugs of the active identities: the airframes registered at this site (what
         a radar-confusable pair is checked against, `authn.check`)."""
-        return {str(r[0]) for r in self.fetch("SELECT DISTINCT model_slug FROM identities WHERE status = :s",
+        return {str(r[0]) for r in self.fetch("SELECT model_slug FROM identities WHERE status = :s GROUP BY model_slug",
                                               {"s": "active"})}
 
     def profile(self, slug: str) -> UavProfile | None:

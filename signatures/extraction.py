@@ -29,6 +29,7 @@ torch (`signatures.torch_cube`, e.g. a GPU).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import threading
@@ -50,7 +51,7 @@ from signatures.errors import SignaturesError
 from signatures.flash import median_last
 from signatures.radar import RadarConfig
 from signatures.recording import DOMAINS
-from signatures.stats import median
+from signatures.stats import distinct, median
 from signatures.threads import blas_on_one_thread, one_blas_thread
 
 __all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "batch_size", "detections", "extract", "extract_batch", "extract_iq",
@@ -281,10 +282,11 @@ def _extract(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list
              suppress: bool, domain: str, labels: list[int], fft_backend: str = DEFAULT_FFT_BACKEND,
              device=None, *, quick: bool = False, labelled: bool = True) -> list[F.FeatureResult]:
     """The rows' features; `configs[b]` differ at most in their range offset. BLAS runs on one
-    thread (`signatures.threads`: a batch job is one process per core). A bad row's error names
-    it ("row b: ...") when `labelled`."""
+    thread for a batch (`signatures.threads`: a batch job is one process per core; one return's
+    products are too small to be split, so it skips the ~15 ms of finding the BLAS libraries).
+    A bad row's error names it ("row b: ...") when `labelled`."""
     try:
-        with one_blas_thread():
+        with one_blas_thread() if iq.shape[0] > 1 else contextlib.nullcontext():
             return _extract_rows(iq, configs, expected, gate_bins, suppress, domain, labels, fft_backend,
                                  device, quick)
     except _RowError as exc:
@@ -621,8 +623,8 @@ def _window(centre: np.ndarray, size: int, n: int) -> np.ndarray:
 def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
     """x[b, :, lo[b]:lo[b] + size] for every row b (one slice per distinct lo: most rows share
     the gate's centre)."""
-    values = np.unique(lo)
-    if values.size == 1:
+    values = distinct(lo)
+    if len(values) == 1:
         return x[:, :, int(values[0]):int(values[0]) + size].copy()
     out = np.empty(x.shape[:2] + (size,), x.dtype)
     for v in values.tolist():
@@ -950,7 +952,7 @@ def _range_min(lows: list[np.ndarray], r: np.ndarray, lo: np.ndarray, hi: np.nda
     """min of y[r, lo:hi] (hi > lo) from the sparse min table."""
     k = np.floor(np.log2(hi - lo)).astype(int)
     out = np.empty(r.size, dtype=lows[0].dtype)
-    for level in np.unique(k):
+    for level in distinct(k):
         sel = k == level
         t = lows[level]
         out[sel] = np.minimum(t[r[sel], lo[sel]], t[r[sel], hi[sel] - (1 << level)])
@@ -981,7 +983,7 @@ def _flash(slow: np.ndarray, peak_rel: np.ndarray, config: RadarConfig, body_hz:
     rows = slow.shape[0]
     fields = {name: np.zeros(rows, dtype=int if name == "n_events" else np.float64)
               for name in (f.name for f in dataclass_fields(best.PeriodicityBatch))}
-    for w in np.unique(width):
+    for w in distinct(width):
         sel = np.flatnonzero(width == w)
         cols = _columns(slow[sel], lo[sel], int(w))
         per = best.periodicity_batch(best.flash_series_batch(cols, config, body_hz[sel], bin_m, n_bins))

@@ -40,6 +40,7 @@ from signatures.estimators import (
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.radar import RadarConfig
+from signatures.stats import distinct, quantile
 
 __all__ = ["MEMORY_BUDGET_BYTES", "FlashSeriesBatch", "PeriodicityBatch", "flash_series_batch",
            "periodicity_batch"]
@@ -346,7 +347,7 @@ def _periodic_rows(series: FlashSeriesBatch, times: np.ndarray, pos: np.ndarray,
     coherent = series.field is not None and series.field.shape[2] >= n * dec  # kept where flashes fit one PRI
     fraction = TOL_FRACTION if coherent else EVENT_TOL_FRACTION
     groups = []  # (k, batch rows) with the scratch of one group within the memory budget
-    for kk in np.unique(k[work]).tolist():
+    for kk in distinct(k[work]):
         rows = np.flatnonzero(work & (k == kk))
         per_row = 2 * lags.size * kk * 48 + (kk * n * dec * 40 if coherent else 0)
         step = max(1, min(MEMORY_BUDGET_BYTES, GROUP_BYTES) // per_row)
@@ -645,7 +646,7 @@ def _rerank_choose(counts: np.ndarray, share: np.ndarray, times: np.ndarray, wei
     cl = np.where(np.arange(cm)[None, :] < n_c[:, None], cands[:, :cm], lags[0])  # padding: any lag
     ok, hit, chance = _coherent_checks(counts, share, times, np.concatenate([cl, 2.0 * cl, cl / 2.0], axis=1), n)
     found, made = np.zeros((g, 3 * cm)), np.zeros((g, 3 * cm))
-    for c in np.unique(n_c).tolist():
+    for c in distinct(n_c):
         sel = np.flatnonzero(n_c == c)
         cols = np.concatenate([np.arange(c), cm + np.arange(c), 2 * cm + np.arange(c)])
         found[sel[:, None], cols] = _weighted_sums(hit[sel][:, :, cols], weight[sel])
@@ -740,7 +741,7 @@ def _interval_stats(intervals: np.ndarray, matched: np.ndarray,
     n_matched = matched.sum(axis=(1, 2))
     mean = lag.astype(np.float64).copy()
     spread = np.full(lag.shape[0], np.nan)
-    for m in np.unique(n_matched[n_matched > 0]).tolist():
+    for m in distinct(n_matched[n_matched > 0]):
         sel = np.flatnonzero(n_matched == m)
         vals = intervals[sel][matched[sel]].reshape(sel.size, m)
         mean[sel] = vals.mean(axis=1)
@@ -837,7 +838,7 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     rate = (cand[best] + step) * df
     turn = _line(asym, rate / df) > np.maximum(_line(asym, rate / df / 2.0), SPECTRAL_TAG_LINE)
     rate = np.where(turn, 2.0 * rate, rate)
-    med = np.median(harm, axis=1)
+    med = median_last(harm)
     score = np.maximum(np.log(np.maximum(harm[rows, best], 1e-300) / np.maximum(med, 1e-300))
                        - SPECTRAL_NOISE_LOG, 0.0)
     live = harm[rows, best] > 0.0
@@ -868,7 +869,7 @@ def _rotors_seen(envelope: np.ndarray, cycles_per_pulse: float) -> tuple[float, 
         phase = np.minimum(((t * cycles_per_pulse) % 1.0 * bins).astype(int), bins - 1)
         profile = (np.bincount(phase, weights=envelope[s:s + win], minlength=bins)
                    / np.maximum(np.bincount(phase, minlength=bins), 1))
-        profile = profile - float(np.median(profile))
+        profile = profile - float(median_last(profile))
         top = float(profile.max())
         if top <= 0.0:
             counts.append(0)
@@ -877,8 +878,8 @@ def _rotors_seen(envelope: np.ndarray, cycles_per_pulse: float) -> tuple[float, 
         counts.append(int(np.count_nonzero(peaks)))
     if not counts:
         return 0.0, 0.0
-    q1, q3 = np.percentile(counts, (25, 75))
-    return float(np.percentile(counts, FOLD_PERCENTILE)), max(FOLD_MIN_STD, 0.5 * float(q3 - q1))
+    q1, q3 = quantile(counts, 25.0), quantile(counts, 75.0)
+    return quantile(counts, FOLD_PERCENTILE), max(FOLD_MIN_STD, 0.5 * (q3 - q1))
 
 
 def _line(power: np.ndarray, at: np.ndarray) -> np.ndarray:

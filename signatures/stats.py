@@ -24,3 +24,20 @@ def median(x: np.ndarray, axis: int | None = None) -> np.ndarray | float:
     lo = np.take(part, half - 1, axis=axis)
     hi = np.take(part, half, axis=axis)
     return (lo + hi) / 2  # as np.median (the mean of the two): same rounding
+
+
+def distinct(x: np.ndarray) -> list:
+    """The distinct values of `x`, sorted, as Python scalars (`np.unique` would import numpy.ma)."""
+    return sorted(set(np.asarray(x).ravel().tolist()))
+
+
+def quantile(x: np.ndarray, q: float) -> float:
+    """The q-th percentile of `x` (0-100), linear between order statistics as `np.percentile`'s
+    default (which would import numpy.ma)."""
+    a = np.sort(np.asarray(x, dtype=np.float64).ravel())
+    if a.size == 0:
+        raise ValueError("quantile of an empty array")
+    pos = (a.size - 1) * q / 100.0
+    lo = int(np.floor(pos))
+    hi = min(lo + 1, a.size - 1)
+    return float(a[lo] + (a[hi] - a[lo]) * (pos - lo))

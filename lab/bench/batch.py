@@ -50,7 +50,7 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
     turn, so that a shared machine's drift hits them alike; rounds repeat until `budget_s` has
     passed (at least 3, at most 50), medians over rounds."""
     from lab.bench import perf
-    from signatures.batch_features import batch_size, extract_many
+    from signatures.features import batch_size, extract_many
     from signatures.features import extract
     from signatures.inference import load_classifier
 
@@ -95,7 +95,7 @@ def accuracy(preset: str, per_class: int = 20, seed: int = 5) -> dict[str, objec
     the run-time-against-error grid) with single-return and with batched features, same returns,
     and the largest feature difference between the two paths (relative to max(|value|, 1))."""
     from lab.bench import pareto
-    from signatures.batch_features import extract_many
+    from signatures.features import extract_many
     from signatures.evaluate import metrics
     from signatures.features import extract
     from signatures.inference import load_classifier

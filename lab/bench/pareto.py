@@ -98,7 +98,7 @@ def _classify(clf, mode: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     return lambda X, rd: clf.member_proba(mode, X)
 
 
-def _extract_full(rec, expected_range_m: float | None = None):
+def extract_full_cube(rec, expected_range_m: float | None = None):
     """The ungated baseline: the range-Doppler map and the spectrogram of every range bin (what
     an implementation computes before looking at the target), then the features."""
     from signatures import rd
@@ -115,7 +115,7 @@ def _extract_full(rec, expected_range_m: float | None = None):
 _MODES = {
     "gated": (extract, True),
     "detect": (extract, False),
-    "full": (_extract_full, False),
+    "full": (extract_full_cube, False),
 }
 
 

@@ -74,11 +74,12 @@ def test_train_like_then_check_decides_with_the_user_bundle(world: dict, capsys,
 
     assert main(["--db", world["db"], "check", str(world["cut"]), "--serial", M300, "--model", str(folder)]) in (0, 1)
     assert main(["--db", world["db"], "check", str(world["paper"]), "--serial", M300, "--model", str(folder)]) == 2
-    assert "this bundle is for 512x80 at 77 GHz, PRI 44 us, the file's waveform is 600x80" in _err(capsys)
+    assert ("this bundle is for 512x80 at 77 GHz, PRI 44 us (carrier band +-2.5%), the file's waveform is 600x80"
+            in _err(capsys))
 
     assert main(["models", "list"]) == 0
     rows = [line.split("\t") for line in capsys.readouterr().out.splitlines()]  # piped: tab-separated
-    assert [wf.name, "user"] in [r[:2] for r in rows] and ["paper", "shipped"] in [r[:2] for r in rows]
+    assert [wf.name, "user"] in [r[1:3] for r in rows] and ["paper", "shipped"] in [r[1:3] for r in rows]
     monkeypatch.setenv("COLUMNS", "80")
     monkeypatch.setattr(output, "is_terminal", lambda: True)
     assert main(["models", "list"]) == 0

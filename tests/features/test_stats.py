@@ -22,3 +22,12 @@ def test_matches_numpy(a: np.ndarray, axis: int | None) -> None:
 def test_empty_is_an_error() -> None:
     with pytest.raises(ValueError):
         median(np.zeros(0))
+
+
+@settings(max_examples=100, deadline=None)
+@given(values=st.lists(st.integers(-50, 50), min_size=1, max_size=40), q=st.floats(0, 100))
+def test_quantile_and_distinct_are_numpys(values, q):
+    from signatures.stats import distinct, quantile
+
+    assert quantile(np.array(values), q) == pytest.approx(float(np.percentile(values, q)), abs=1e-9)
+    assert distinct(np.array(values)) == np.unique(values).tolist()
