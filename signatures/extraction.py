@@ -714,8 +714,11 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     contrast = d_max / np.maximum(d_med, _TINY)
     # a CW channel has no other range bins to tell clutter from a body at zero Doppler: without a
     # narrow moving line, the body is the one clutter suppression removed there
-    still = np.full(live.size, True) if domain == "cw" else stationary > d_max
-    hovering = suppress & still & (contrast < n / F.MOVING_LINE_BINS)
+    if domain == "cw":  # ... and a line that the micro-Doppler is not symmetric about is a rotor's
+        hovering = suppress & ((contrast < n / F.MOVING_LINE_BINS)
+                               | (_symmetry(d, np.full(live.size, centre)) >= _symmetry(d, np.argmax(d, axis=1))))
+    else:
+        hovering = suppress & (stationary > d_max) & (contrast < n / F.MOVING_LINE_BINS)
     body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering)
     body_hz = (body_idx - centre) * dop_bin_hz
     velocity = body_hz * lam / 2.0
@@ -826,6 +829,22 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         out.append(F.FeatureResult(detected_rows[j], feats, make, (gates[j], gates[j] + size),
                                    physics=F.physics_estimates(seen_rows[j], seen_std_rows[j])))
     return out
+
+
+def _symmetry(d: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """How symmetric each row's Doppler profile is about bin `at[row]`: the correlation of the log
+    profile at +f and -f over BODY_BINS < f <= n / 4 (advancing and retreating blades mirror each
+    other about the body line)."""
+    n = d.shape[1]
+    offsets = np.arange(F.BODY_BINS + 1, max(F.BODY_BINS + 2, n // 4 + 1))
+    logd = np.log(np.maximum(d.astype(np.float64), F.TINY))
+    rows = np.arange(d.shape[0])[:, None]
+    up = logd[rows, (at[:, None] + offsets[None, :]) % n]
+    down = logd[rows, (at[:, None] - offsets[None, :]) % n]
+    up = up - up.mean(axis=1, keepdims=True)
+    down = down - down.mean(axis=1, keepdims=True)
+    den = np.sqrt((up ** 2).sum(axis=1) * (down ** 2).sum(axis=1))
+    return (up * down).sum(axis=1) / np.maximum(den, F.TINY)
 
 
 def _cw_detection(line: np.ndarray, mean_power: np.ndarray,
