@@ -318,16 +318,18 @@ class Checker:
     # --- stages -------------------------------------------------------------------
 
     @staticmethod
-    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any) -> Any:
-        """1:1 verification of the return against the registered model's profile (None: no profile)."""
+    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any, classifier: Any = None) -> Any:
+        """1:1 verification of the return against the registered model's profile (None: no profile),
+        with the claimed model's site bands where a site bundle has them."""
         if claimed is None:
             return None
         from dataclasses import asdict
 
-        from signatures.verify import verify
+        from signatures.verify import bands_from, verify
 
+        bands = bands_from(getattr(classifier, "physics_bands", None), claimed.slug)
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
-                      rec.config.unambiguous_velocity_mps, known=pred.known)
+                      rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands)
 
     def _confusable(self, classifier: Any, model: str, tracks: bool = False) -> bool | None:
         """Whether the registered `model` is radar-confusable, by a site bundle's enrolment card
@@ -389,7 +391,7 @@ class Checker:
                             range_m=None if cw else round(float(feats.range_m), 3),
                             radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
                             operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest,
-                            verification=self._verify(feats, pred, p.claimed, rec))
+                            verification=self._verify(feats, pred, p.claimed, rec, p.classifier))
         kin = None
         if p.expected is not None and radar.detected:
             with p.timer.stage("kinematics"):  # CW: the range part is computed on the expected range, never shown

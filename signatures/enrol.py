@@ -22,7 +22,13 @@ Method (fixed a priori, measured in docs/benchmarks.md "Site enrolment"):
    card's `threshold.applied`);
 5. radar-confusable pairs: enrolled pairs whose cross-validated pairwise false-accept rate at
    the applied threshold exceeds `CONFUSABLE_ERROR` (the policy then asks for a DRIP signature,
-   `radar-confusable-unsigned`).
+   `radar-confusable-unsigned`), of single dwells and of tracks (`track_rates`: tracks of
+   `TRACK_DWELLS` drawn from a model's cross-validated dwell scores, decided by the check's own
+   sequential test, passed in as `sprt` since it lives above this layer);
+6. optionally (`physics_bands`, `models enrol --site-bands`; off by default: measured not to help
+   on the held-out world, docs/enrolment.md) each enrolled model's rate and rotor bands from its
+   site recordings (`site_bands`), today's `signatures.verify` bands the prior; out of fold in the
+   cross-validation (each recording verified with the bands of the other folds).
 
 The bundle is written to a temporary folder beside its destination and renamed into place: an
 interrupted enrolment leaves nothing half-written, and the active bundle switches only after
@@ -54,8 +60,8 @@ from signatures.profiles import UavProfile
 from signatures.radar import Preset
 
 __all__ = ["CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM", "SITE_SHARE",
-           "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts", "default_name",
-           "enrol", "previous_samples", "read_labels", "sha256_of", "track_rates"]
+           "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts",
+           "default_name", "enrol", "site_bands", "previous_samples", "read_labels", "sha256_of", "track_rates"]
 
 #: Fewest recordings per enrolled model: below this a cross-validated error means nothing.
 MIN_RECORDINGS = 5
@@ -71,6 +77,9 @@ N_SIM = 1500
 #: and how many tracks are drawn per (flown, claimed) pair for its track-level errors.
 TRACK_DWELLS = 8
 TRACK_DRAWS = 400
+#: Site physics bands (`site_bands`): the prior's weight in recordings, and the narrowest band (log).
+BAND_PRIOR_WEIGHT = 10
+BAND_MIN_LOG_WIDTH = math.log(1.06)
 CV_FOLDS = 5
 #: Inverse temperatures tried on the out-of-fold probabilities (bounded: see the module docstring).
 BETAS = tuple(float(b) for b in np.geomspace(0.25, 8.0, 31))
@@ -185,19 +194,64 @@ def _site_arrays(samples: Sequence[SiteSample]) -> dict[str, np.ndarray]:
 
 
 def _oof(fit: Callable[[np.ndarray], Any], predict: Callable[[Any, np.ndarray], np.ndarray],
-         y_site: np.ndarray, n_folds: int, seed: int) -> np.ndarray:
-    """Out-of-fold predictions over the site samples (stratified folds)."""
+         y_site: np.ndarray, n_folds: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Out-of-fold predictions over the site samples (stratified folds), and each sample's fold."""
     from sklearn.model_selection import StratifiedKFold
 
     out: np.ndarray | None = None
+    fold_of = np.zeros(len(y_site), dtype=np.int64)
     folds = StratifiedKFold(n_splits=n_folds, shuffle=True, random_state=seed)
-    for train_idx, test_idx in folds.split(np.zeros(len(y_site)), y_site):
+    for k, (train_idx, test_idx) in enumerate(folds.split(np.zeros(len(y_site)), y_site)):
         model = fit(train_idx)
         p = predict(model, test_idx)
         if out is None:
             out = np.zeros((len(y_site), p.shape[1]))
         out[test_idx] = p
+        fold_of[test_idx] = k
     assert out is not None
+    return out, fold_of
+
+
+def _band(logs: list[float], prior: tuple[float, float]) -> tuple[float, float]:
+    """A band (ratio lo, hi) from site log-ratios and the prior band: the uniform whose 10th and 90th
+    percentiles are the site's (edges 1/8 of that span beyond them), each edge shrunk to the prior's
+    in log space with `BAND_PRIOR_WEIGHT` pseudo-recordings; at least `BAND_MIN_LOG_WIDTH` wide."""
+    lo_p, hi_p = math.log(prior[0]), math.log(prior[1])
+    if len(logs) < MIN_RECORDINGS:
+        return prior
+    q10, q90 = (float(v) for v in np.percentile(logs, [10, 90]))
+    span = q90 - q10
+    n, w = len(logs), BAND_PRIOR_WEIGHT
+    lo = (w * lo_p + n * (q10 - span / 8)) / (w + n)
+    hi = (w * hi_p + n * (q90 + span / 8)) / (w + n)
+    if hi - lo < BAND_MIN_LOG_WIDTH:
+        mid = (hi + lo) / 2
+        lo, hi = mid - BAND_MIN_LOG_WIDTH / 2, mid + BAND_MIN_LOG_WIDTH / 2
+    return math.exp(lo), math.exp(hi)
+
+
+def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -> dict[str, dict[str, Any]]:
+    """Each model's physics bands re-estimated from its site recordings (`_band`, today's
+    `signatures.verify` bands the prior): the flash rate over the nominal (estimates the rate
+    term would use) and the rotors seen over the rotor count (counts the rotor term would use)."""
+    from signatures.verify import MAX_REL_STD, MIN_FLASH_GROUPS, MIN_FLASH_SCORE, RATE_BAND, ROTOR_BAND
+
+    out: dict[str, dict[str, Any]] = {}
+    for m in sorted({s.model for s in samples}):
+        prof = profiles[m]
+        rate: list[float] = []
+        rot: list[float] = []
+        for s in samples:
+            if s.model != m or not s.detected:
+                continue
+            f, sd = s.physics.get("flash_rate_hz", 0.0), s.physics.get("flash_rate_std_hz", 0.0)
+            if f > 0 and s.physics.get("flash_score", 0.0) >= MIN_FLASH_SCORE and sd / f <= MAX_REL_STD:
+                rate.append(math.log(f) - math.log(prof.blade_flash_rate_hz))
+            seen, ssd = s.physics.get("rotors_seen", 0.0), s.physics.get("rotors_seen_std", 0.0)
+            if seen > 0 and ssd > 0 and ssd / seen <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9:
+                rot.append(math.log(seen) - math.log(prof.rotors))
+        out[m] = {"rate": [round(v, 6) for v in _band(rate, RATE_BAND)],
+                  "rotors": [round(v, 6) for v in _band(rot, ROTOR_BAND)], "n_rate": len(rate), "n_rotors": len(rot)}
     return out
 
 
@@ -234,13 +288,14 @@ DwellScore = tuple[float, bool] | None
 
 
 def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.ndarray, classes: tuple[str, ...],
-                  profiles: dict[str, UavProfile], enrolled: list[str], max_tip: float
+                  profiles: dict[str, UavProfile], enrolled: list[str], max_tip: float,
+                  bands: Callable[[int], dict[str, Any] | None] = lambda i: None,
                   ) -> tuple[list[float], dict[tuple[str, str], list[float]], dict[tuple[str, str], list[DwellScore]]]:
     """Cross-validated 1:1 verification LLRs: each detected recording against its own model
     (genuine) and against every other enrolled model ((flown, claimed) -> LLRs); and the same
     claims per (flown, claimed), own model included, as a track's dwells (`DwellScore`)."""
     from signatures.features import FEATURE_NAMES
-    from signatures.verify import verify
+    from signatures.verify import bands_from, verify
 
     genuine: list[float] = []
     impostor: dict[tuple[str, str], list[float]] = {}
@@ -251,7 +306,8 @@ def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.nd
         feats = {**dict(zip(FEATURE_NAMES, (float(v) for v in s.features))), **s.physics}
         probs = dict(zip(classes, (float(v) for v in proba[i])))
         for claimed in enrolled:
-            v = verify(feats, profiles[claimed], probs, max_tip, known=bool(known[i]))
+            v = verify(feats, profiles[claimed], probs, max_tip, known=bool(known[i]),
+                       bands=bands_from(bands(i), claimed))
             if claimed == s.model:
                 genuine.append(v.llr)
             else:
@@ -342,13 +398,15 @@ def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile])
 def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], waveform: Preset, dest: Path, *,
           name: str, sources: Sequence[str] = (), previous: str | None = None, seed: int = 0, workers: int = 2,
           n_sim: int = N_SIM, cache: Path | None | bool = None,
-          progress: Callable[[str, float], None] | None = None, sprt: Any = None) -> dict[str, Any]:
+          progress: Callable[[str, float], None] | None = None, sprt: Any = None,
+          physics_bands: bool = False) -> dict[str, Any]:
     """Build the site bundle `dest` (must not exist) from `samples` (the site's labelled
     recordings, of `waveform`) on a simulated base set of `profiles` (every model the bundle
     knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. `sprt`: the
     track check's sequential test (`authn.track.Sprt`: its `walk` and `to_json`), which gives the
     card its track-level pairwise errors (None: single dwells only; `authn models enrol` passes
-    the check's default). Returns the card."""
+    the check's default). `physics_bands`: re-estimate each enrolled model's rate and rotor bands
+    from the site recordings (`site_bands`; cross-validated like the rest). Returns the card."""
     from signatures import classifiers as clf
     from signatures.dataset import Dataset, DatasetSpec, generate
     from signatures.inference import MEMBERS, Classifier
@@ -410,7 +468,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
         return p
 
     say("cross-validating", 0.0)
-    p_oof = _oof(fit_fold, proba, y_site, n_folds, seed)
+    p_oof, fold_of = _oof(fit_fold, proba, y_site, n_folds, seed)
     beta = _beta(p_oof, y_site)
     from signatures.inference import calibrate
 
@@ -418,7 +476,11 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     pred = p_cal.argmax(axis=1)
     unk = phys.verdict(np.nan_to_num(X_site.astype(np.float64)), pred)[0]
     max_tip = wf.config.unambiguous_velocity_mps
-    genuine, impostor, dwell_scores = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip)
+    fold_bands: dict[int, dict[str, Any]] = {}
+    if physics_bands:  # out of fold: each recording verified with the bands of the other folds' recordings
+        fold_bands = {k: site_bands([s for s, f in zip(site, fold_of) if f != k], profiles) for k in range(n_folds)}
+    genuine, impostor, dwell_scores = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip,
+                                                    lambda i: fold_bands.get(int(fold_of[i])))
     t_fa = _threshold(impostor, FALSE_ACCEPT_TARGET)
     applied = 0.0  # the default policy's threshold (radar-claim-inconsistent: LLR < 0 rejects)
 
@@ -499,6 +561,9 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                            "classifier": f"random forest on base + site returns, site weight share {SITE_SHARE}",
                            "temperature": "out-of-fold log-loss over a bounded grid (0.25..8)",
                            "open_set": "physical consistency with the predicted profile (as trained)",
+                           "physics_bands": ("rate and rotor bands per enrolled model from the site recordings, "
+                                             f"today's bands the prior ({BAND_PRIOR_WEIGHT} pseudo-recordings)"
+                                             if physics_bands else "today's fixed bands"),
                            "cv_folds": n_folds},
                 "counts": counts, "detected": det_counts, "not_detected": missed,
                 "confusion": {"rows": enrolled, "cols": [labels[j] for j in used_cols],
@@ -510,6 +575,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                               "genuine_accept_at_target": (round(float(np.mean(g >= t_fa)), 6)
                                                            if len(g) and t_fa is not None else None),
                               "note": "LLR in nats; the default policy rejects below 0 (radar-claim-inconsistent)"},
+                "bands": site_bands(site, profiles) if physics_bands else None,
                 "pairwise": pairs, "confusable_error": CONFUSABLE_ERROR, "confusable_pairs": confusable,
                 "confusable_pairs_tracks": confusable_tracks if sprt is not None else None,
                 "tracks": tracks_card,

@@ -184,6 +184,8 @@ class Classifier:
         track_pairs = (enrolment or {}).get("confusable_pairs_tracks")
         self.confusable_track_pairs: tuple[tuple[str, str], ...] = self.confusable_pairs if track_pairs is None \
             else tuple((str(a), str(b)) for a, b in track_pairs)
+        #: per enrolled model, the physics bands the site's recordings gave (`signatures.verify.bands_from`)
+        self.physics_bands: dict[str, Any] | None = (enrolment or {}).get("bands")
 
     def confusable_with(self, model: str, tracks: bool = False) -> tuple[str, ...]:
         """The enrolled models this site bundle cannot tell `model` apart from (its card's

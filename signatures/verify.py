@@ -29,6 +29,10 @@ independent terms:
   classifier's support for the claim is no evidence, so the term is capped at 0: it may count
   against the claim, never for it.
 
+A site bundle (`authn models enrol`) may carry `Bands` per enrolled model: the rate and rotor
+bands re-estimated from the site's own recordings with the bands above as the prior
+(`signatures.enrol`); without them (every other bundle) the bands above apply unchanged.
+
 A term abstains (is left out) when its estimate is unreliable; the physics term is floored at
 `TERM_FLOOR`. The Cedar policy thresholds the
 sum. numpy and math only: this runs on the inference path.
@@ -39,10 +43,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from signatures.profiles import UavProfile
 
-__all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "ROTOR_BAND", "Verification", "verify"]
+__all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "ROTOR_BAND", "Bands", "Verification",
+           "bands_from", "verify"]
 
 #: Flown rotor rate over the profile's nominal rate (hover to climb, payload, battery sag).
 RATE_BAND = (0.80, 1.20)
@@ -77,6 +83,27 @@ MAX_REPORTED_LOG = 700.0
 
 
 @dataclass(frozen=True)
+class Bands:
+    """One claimed model's physics bands: flown rate over nominal (`RATE_BAND`) and rotors seen
+    over rotors (`ROTOR_BAND`). The defaults are today's fixed bands."""
+
+    rate: tuple[float, float] = RATE_BAND
+    rotors: tuple[float, float] = ROTOR_BAND
+
+
+DEFAULT_BANDS = Bands()
+
+
+def bands_from(card_bands: Mapping[str, Any] | None, model: str) -> Bands | None:
+    """`model`'s bands from a site card's `enrolment.bands` (slug -> {"rate": [lo, hi], "rotors":
+    [lo, hi]}); None (today's bands) where the card has none for it."""
+    b = (card_bands or {}).get(model)
+    if not b:
+        return None
+    return Bands(rate=(float(b["rate"][0]), float(b["rate"][1])), rotors=(float(b["rotors"][0]), float(b["rotors"][1])))
+
+
+@dataclass(frozen=True)
 class Verification:
     """The verification of one return against one claimed airframe."""
 
@@ -108,8 +135,8 @@ def _band_density(x: float, lo: float, hi: float, sigma: float) -> float:
     return (_phi((hi - x) / sigma) - _phi((lo - x) / sigma)) / (hi - lo)
 
 
-def _physics(features: Mapping[str, float], claimed: UavProfile,
-             max_tip_mps: float | None) -> tuple[float, dict[str, dict[str, float]]] | None:
+def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: float | None,
+             bands: Bands = DEFAULT_BANDS) -> tuple[float, dict[str, dict[str, float]]] | None:
     """(log p(rate, blade, rotors | claim) - log p(rate, blade, rotors | other), what was compared),
     or None when the rate estimate is unreliable. Slip hypotheses m scale the measured rate
     (f = m r F) and hence the blade ratio (tip / f carries 1/m) and the rotors seen (1/m): all are
@@ -122,7 +149,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile,
     if not f_rel <= MAX_REL_STD:  # an estimate less certain than itself says nothing (NaN too)
         return None
     x = math.log(f) - math.log(F)  # logs apart: f / F underflows for a subnormal f
-    rate = (math.log(RATE_BAND[0]), math.log(RATE_BAND[1]), math.hypot(f_rel, REL_FLOOR))
+    rate = (math.log(bands.rate[0]), math.log(bands.rate[1]), math.hypot(f_rel, REL_FLOOR))
     tip = float(features.get("tip_speed_mps", 0.0))
     tips_fit = max_tip_mps is None or claimed.tip_speed_mps * RATE_BAND[1] < max_tip_mps
     blade = None
@@ -132,7 +159,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile,
         if tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
             blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
-    rotors = _rotors(features, claimed)
+    rotors = _rotors(features, claimed, bands.rotors)
     compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
     if blade is not None:  # tip speed over flash rate, over the claim's 2 pi L / N: at most 1.05
         # capped for the report: a tip estimate against a near-zero rate can exceed a float's range
@@ -154,7 +181,8 @@ def _physics(features: Mapping[str, float], claimed: UavProfile,
     return max(TERM_FLOOR, math.log(max(p, 1e-300)) - math.log(alt)), compared
 
 
-def _rotors(features: Mapping[str, float], claimed: UavProfile) -> tuple[float, float, float, float] | None:
+def _rotors(features: Mapping[str, float], claimed: UavProfile,
+            band: tuple[float, float] = ROTOR_BAND) -> tuple[float, float, float, float] | None:
     """(log of rotors seen over the claim's rotors, band, sigma), or None when too few flashes
     were seen (or none were counted: an older extraction, a quick one)."""
     seen = float(features.get("rotors_seen", 0.0))
@@ -165,12 +193,12 @@ def _rotors(features: Mapping[str, float], claimed: UavProfile) -> tuple[float, 
     if not rel <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9:  # NaN too
         return None
     z = math.log(seen) - math.log(claimed.rotors)
-    return z, math.log(ROTOR_BAND[0]), math.log(ROTOR_BAND[1]), math.hypot(rel, ROTOR_REL_FLOOR)
+    return z, math.log(band[0]), math.log(band[1]), math.hypot(rel, ROTOR_REL_FLOOR)
 
 
 def verify(features: Mapping[str, float], claimed: UavProfile,
            probabilities: Mapping[str, float] | None = None, max_tip_mps: float | None = None,
-           known: bool = True) -> Verification:
+           known: bool = True, bands: Bands | None = None) -> Verification:
     """Score a return's physical estimates (feature name -> value, `signatures.features`) and
     the classifier's probabilities (class -> p, optional) against the claimed profile.
 
@@ -178,10 +206,12 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
 
     `max_tip_mps`: the fastest LOS speed the waveform measures unaliased (lambda * PRF / 4, the
     radar's `unambiguous_velocity_mps`); the blade term runs only when the claimed airframe's
-    fastest tips stay below it, whatever a noisy return's own aliasing flag says."""
+    fastest tips stay below it, whatever a noisy return's own aliasing flag says.
+
+    `bands`: the claimed model's site-estimated bands (None: `RATE_BAND`, `ROTOR_BAND`)."""
     terms: dict[str, float] = {}
     compared: dict[str, dict[str, float]] = {}
-    physics = _physics(features, claimed, max_tip_mps)
+    physics = _physics(features, claimed, max_tip_mps, bands or DEFAULT_BANDS)
     if physics is not None:
         terms["physics"], compared = physics
     if probabilities and claimed.slug in probabilities:

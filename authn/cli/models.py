@@ -410,6 +410,9 @@ def enrol_cmd(
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated base set, the folds and the forest."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Worker processes (simulation, forest)."),
     base_samples: int = typer.Option(1500, "--base-samples", min=50, help="Simulated base returns (cached)."),
+    site_bands: bool = typer.Option(False, "--site-bands", help="Also re-estimate each model's rate and rotor "
+                                                                "bands from the recordings, today's as the prior "
+                                                                "(measured: no gain on the held-out world)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object at the end (progress on stderr)."),
 ) -> None:
     """Adapt the radar evidence to this site's radar from its recorded flights (site enrolment).
@@ -490,7 +493,8 @@ def enrol_cmd(
             bar.update(task, description=phase, completed=frac)
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
-                     n_sim=base_samples, progress=progress, sprt=Sprt())  # track errors by the check's own test
+                     n_sim=base_samples, progress=progress, sprt=Sprt(),
+                     physics_bands=site_bands)  # track errors by the check's own test
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
 

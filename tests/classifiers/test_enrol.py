@@ -90,6 +90,7 @@ def test_enrol_register_check_uses_the_site_bundle(site: dict, capsys) -> None:
         t = p["tracks"]
         assert t["claims"] > 0 and 0.0 <= t["false_accept_rate"] <= 1.0 and t["dwells"] == N_PER_MODEL
     assert e["tracks"]["dwells"] == 8 and e["tracks"]["sprt"]["accept_nats"] > 0
+    assert e["bands"] is None  # today's physics bands unless --site-bands
     assert set(e["tracks"]["genuine_accept"]) == {"m300", "m600", "phantom4"}
     # 5 recordings make tracks of 5 dwells, short of the 8 a site decides on: the single-dwell verdict stands
     assert e["confusable_pairs_tracks"] == e["confusable_pairs"]
@@ -287,8 +288,14 @@ def test_add_extends_the_active_enrolment(site: dict, tmp_path: Path, capsys) ->
     _make_site(more, 2, seed=99)
     capsys.readouterr()
     assert main(["models", "enrol", str(more), "--labels", str(more / "labels.csv"), "--add", "--name", "site-c",
-                 "--json", *BASE]) == 0
+                 "--site-bands", "--json", *BASE]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["counts"] == {"m300": 7, "m600": 7, "phantom4": 7}
     card = json.loads((site["models"] / "site-c" / "card.json").read_text())
     assert card["enrolment"]["previous"] == "site-a" and list(_active().values()) == ["site-c"]
+    bands = card["enrolment"]["bands"]  # --site-bands: each model's bands from its recordings, today's the prior
+    assert set(bands) == {"m300", "m600", "phantom4"} and all(0 < b["rate"][0] < b["rate"][1] for b in bands.values())
+    from signatures.inference import load_classifier
+    from signatures.verify import bands_from
+
+    assert bands_from(load_classifier(path=site["models"] / "site-c").physics_bands, "m300") is not None

@@ -158,3 +158,33 @@ def test_an_extreme_blade_ratio_is_reported_finite() -> None:
     v = verify(feats, P["m300"], max_tip_mps=WIDE_MAX_TIP)
     assert math.isfinite(v.llr) and math.isfinite(v.compared["blade_ratio"]["measured"])
     json.dumps(v.to_json(), allow_nan=False)
+
+
+def test_site_bands_default_to_todays_and_narrow_or_widen_with_site_data() -> None:
+    """No site bands: verify is today's (the shipped bundle's decisions unchanged). Site bands:
+    each edge shrunk from today's band toward the site's own spread (10 pseudo-recordings of prior);
+    a card's bands read back; too few recordings keep the prior."""
+    import math
+
+    from signatures.enrol import BAND_PRIOR_WEIGHT, _band
+    from signatures.profiles import shipped_profiles
+    from signatures.verify import RATE_BAND, ROTOR_BAND, Bands, bands_from, verify
+
+    prof = shipped_profiles()["m300"]
+    feats = {"flash_rate_hz": prof.blade_flash_rate_hz * 1.1, "flash_rate_std_hz": 1.0, "flash_score": 5.0,
+             "rotors_seen": 3.5, "rotors_seen_std": 0.5}
+    assert verify(feats, prof) == verify(feats, prof, bands=None) == verify(feats, prof, bands=Bands())
+    assert Bands() == Bands(RATE_BAND, ROTOR_BAND)
+    tight = [math.log(1.0 + 0.01 * k) for k in range(-5, 6)] * 3  # 33 site ratios within +-5 %
+    lo, hi = _band(tight, RATE_BAND)
+    assert RATE_BAND[0] < lo < 0.96 and 1.04 < hi < RATE_BAND[1]
+    w = BAND_PRIOR_WEIGHT / (BAND_PRIOR_WEIGHT + len(tight))
+    site_lo = math.log(0.96) - (math.log(1.04) - math.log(0.96)) / 8  # q10 less 1/8 of the q10-q90 span
+    assert math.isclose(math.log(lo), w * math.log(RATE_BAND[0]) + (1 - w) * site_lo, rel_tol=0.1)
+    wide = [math.log(0.4 + 0.02 * k) for k in range(30)]  # rotors read low on this site
+    assert _band(wide, ROTOR_BAND)[0] < ROTOR_BAND[0]
+    assert _band(tight[:4], RATE_BAND) == RATE_BAND
+    narrowed = Bands(rate=(lo, hi))
+    assert verify(feats, prof, bands=narrowed).terms["physics"] != verify(feats, prof).terms["physics"]
+    assert bands_from({"m300": {"rate": [lo, hi], "rotors": list(ROTOR_BAND)}}, "m300") == narrowed
+    assert bands_from(None, "m300") is None and bands_from({"m600": {"rate": [1, 2], "rotors": [1, 2]}}, "m300") is None
