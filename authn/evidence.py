@@ -10,10 +10,13 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from core.errors import AuthnError
 from authn.kinematics import DeclaredState, Expected, Residuals
+
+if TYPE_CHECKING:
+    from registry.dbapi import IdentityFacts
 
 __all__ = ["Claim", "RegistryFacts", "RemoteIdAuth", "RadarEvidence", "KinematicsEvidence", "Evidence", "authenticate",
            "read_claim"]
@@ -141,22 +144,42 @@ def _epoch(when: datetime) -> int:
 
 @dataclass(frozen=True)
 class RegistryFacts:
-    """The claimed identity as the registry holds it; an unregistered serial is a fact too."""
+    """The claimed identity as the registry holds it (`registry.dbapi.IdentityFacts`, the one
+    model of an identity a decision reads), or its absence: an unregistered serial is a fact too."""
 
-    registered: bool = False
-    status: str = "unregistered"
-    model: str = ""
-    id_type: str = ""
-    valid_from: datetime | None = None
-    valid_until: datetime | None = None
-    public_key: bytes | None = None
+    identity: IdentityFacts | None = None
 
     @classmethod
-    def of(cls, identity: Any) -> "RegistryFacts":
-        if identity is None:
-            return cls()
-        return cls(True, identity.status, identity.model, identity.id_type, identity.valid_from,
-                   identity.valid_until, identity.public_key)
+    def of(cls, identity: IdentityFacts | None) -> "RegistryFacts":
+        return cls(identity)
+
+    @property
+    def registered(self) -> bool:
+        return self.identity is not None
+
+    @property
+    def status(self) -> str:
+        return self.identity.status if self.identity is not None else "unregistered"
+
+    @property
+    def model(self) -> str:
+        return self.identity.model if self.identity is not None else ""
+
+    @property
+    def id_type(self) -> str:
+        return self.identity.id_type if self.identity is not None else ""
+
+    @property
+    def valid_from(self) -> datetime | None:
+        return self.identity.valid_from if self.identity is not None else None
+
+    @property
+    def valid_until(self) -> datetime | None:
+        return self.identity.valid_until if self.identity is not None else None
+
+    @property
+    def public_key(self) -> bytes | None:
+        return self.identity.public_key if self.identity is not None else None
 
     def principal(self) -> dict[str, Any]:
         """Cedar attributes of the principal `Uav::"<serial>"`."""

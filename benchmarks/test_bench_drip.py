@@ -87,8 +87,10 @@ def _auth_stage(rec, facts):
 @pytest.mark.parametrize("sam", ["unsigned", "wrapper", "manifest", "frame"])
 def test_check_auth_stage(benchmark, recordings, sam: str) -> None:
     from authn.evidence import RegistryFacts
+    from registry.dbapi import IdentityFacts
 
-    facts = RegistryFacts(True, "active", "m300", "serial", T - timedelta(days=365), None, UA.public_raw)
+    facts = RegistryFacts(IdentityFacts("1581F000", "serial", "m300", "active", T - timedelta(days=365), None,
+                                        UA.public_raw))
     auth = benchmark(_auth_stage, recordings[sam], facts)
     assert auth.status == ("absent" if sam == "unsigned" else "valid")
     assert sam == "unsigned" or auth.sam_types == (sam,)

@@ -55,6 +55,7 @@ from sqlalchemy.orm import Session
 
 from core.errors import BadInput
 from core.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
+from registry.dbapi import IdentityFacts
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile, utcnow
 from registry.serials import validate_uas_id
@@ -151,7 +152,9 @@ class NewIdentity(BaseModel):
 
 
 class IdentityRecord(BaseModel):
-    """A registered identity with its declared airframe (what the decision layer reads)."""
+    """The registry's full record of an identity (operator, airframe profile, notes, times): what
+    the registry commands and the service show. A decision reads its subset, `facts`
+    (`registry.dbapi.IdentityFacts`, read straight from the database on the check path)."""
 
     model_config = ConfigDict(frozen=True, ser_json_bytes="hex")
 
@@ -167,6 +170,12 @@ class IdentityRecord(BaseModel):
     created_at: datetime
     updated_at: datetime
     notes: str | None
+
+    @property
+    def facts(self) -> IdentityFacts:
+        """What a decision reads of this identity."""
+        return IdentityFacts(self.serial, self.id_type, self.model, self.status, self.valid_from,
+                             self.valid_until, self.public_key)
 
 
 def _profile(row: ModelProfile) -> UavProfile:

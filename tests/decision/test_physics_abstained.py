@@ -20,6 +20,7 @@ from authn.demo import register_examples
 from authn.evidence import Evidence, RadarEvidence, RegistryFacts, read_claim
 from authn.policy import PolicyEngine
 from authn.scenario import Broadcast, simulate_flight
+from registry.dbapi import IdentityFacts
 from signatures.features import extract
 from signatures.inference import classifier_for
 from signatures.profiles import shipped_profiles
@@ -67,7 +68,8 @@ def _decide(rec, feats, pred) -> tuple[object, object]:
     profile = shipped_profiles()["m300"]
     v = verify({**asdict(feats.features), **feats.physics}, profile, pred.probabilities,
                rec.config.unambiguous_velocity_mps, known=pred.known)
-    facts = RegistryFacts(True, "active", "m300", "serial", datetime(2025, 1, 1, tzinfo=timezone.utc))
+    since = datetime(2025, 1, 1, tzinfo=timezone.utc)
+    facts = RegistryFacts(IdentityFacts("1581F000", "serial", "m300", "active", since, None))
     radar = RadarEvidence(gated=True, model=pred.label, confidence=pred.confidence, known=pred.known,
                           range_m=float(feats.range_m), radial_velocity_mps=float(feats.radial_velocity_mps),
                           verification=v)

@@ -392,3 +392,18 @@ def test_cli_headerless_csv_is_refused_not_ignored(capsys, new_db, tmp_path, con
     assert err.startswith(f"error: {path}: CSV line 1 (") and "is not a header row" in err
     assert err.count("\n") == 1
     assert json.loads(run(capsys, db, "registry", "list", "--json")[1]) == []
+
+
+def test_a_record_and_the_check_path_read_the_same_identity(tmp_path) -> None:
+    """The registry's full record and the check path's raw read give one identity model
+    (`registry.dbapi.IdentityFacts`): the decision's view of a record is its `facts`."""
+    from registry.dbapi import Database
+    from registry.db import session_scope
+    from registry.store import NewIdentity, get_identity, register_identity
+
+    url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    with session_scope(url) as s:
+        register_identity(s, NewIdentity(serial="1581D5FKD229400R0V", model="m300", operator_id="OP-1"))
+    with session_scope(url) as s:
+        record = get_identity(s, "1581D5FKD229400R0V")
+    assert Database(url).identity("1581D5FKD229400R0V") == record.facts
