@@ -687,13 +687,17 @@ def read_recording(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
 
     Bad input of any kind raises RecordingError with one line naming the field.
     """
-    path = Path(path)
+    return _by_container(Path(path), max_cells, max_bytes, max_file_bytes, _read_npz, _read_h5)
+
+
+def _by_container(path: Path, max_cells: int, max_bytes: int, max_file_bytes: int, npz: Any, h5: Any) -> Any:
+    """Sniff the container and run its reader; every failure is one line of RecordingError."""
     try:
         head = _sniff(path, max_file_bytes)
         if head.startswith(b"PK"):
-            return _read_npz(path, max_cells, max_bytes)
+            return npz(path, max_cells, max_bytes)
         if head == _HDF5_MAGIC or path.suffix.lower() in (".h5", ".hdf5"):
-            return _read_h5(path, max_cells, max_bytes)
+            return h5(path, max_cells, max_bytes)
     except RecordingError as exc:
         text = str(exc)
         if "\n" in text or "\r" in text:  # a path or value with a line break: keep one line
@@ -786,21 +790,7 @@ def read_header(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
                 max_bytes: int = MAX_IQ_BYTES, max_file_bytes: int = MAX_FILE_BYTES) -> Header:
     """Read and validate a recorded return's metadata and Remote ID, not its IQ: the same
     refusals as `read_recording` except the IQ values (NaN/Inf), which only a full read sees."""
-    path = Path(path)
-    try:
-        head = _sniff(path, max_file_bytes)
-        if head.startswith(b"PK"):
-            return _header_npz(path, max_cells, max_bytes)
-        if head == _HDF5_MAGIC or path.suffix.lower() in (".h5", ".hdf5"):
-            return _header_h5(path, max_cells, max_bytes)
-    except RecordingError as exc:
-        text = str(exc)
-        if "\n" in text or "\r" in text:
-            raise RecordingError(" ".join(text.split())) from None
-        raise
-    except _READ_ERRORS as exc:
-        raise RecordingError(f"{path}: unreadable ({_reason(exc)})") from None
-    raise RecordingError(f"{path}: neither HDF5 nor .npz")
+    return _by_container(Path(path), max_cells, max_bytes, max_file_bytes, _header_npz, _header_h5)
 
 
 def write_recording(rec: Recording, path: str | Path) -> Path:
