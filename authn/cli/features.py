@@ -97,17 +97,13 @@ def accuracy(
         for w in world:
             if w not in WORLDS:
                 raise SignaturesError(f"--world: {w!r} is not one of {', '.join(WORLDS)}")
-        crows = [evaluate_condition(c, n, seed, w) for c in condition for w in world]
-        if as_json:
-            typer.echo(json.dumps([r.as_dict() for r in crows]))
-            return
-        typer.echo("| condition | world | n | detected | abs(v) < 1 m/s | rotor rate +-3 % | rotors seen +-1 "
-                   "| median rotor-rate error | rate at 2x truth | rate at 0.5x truth | seconds |")
-        typer.echo("|---|---|---|---|---|---|---|---|---|---|---|")
-        for r in crows:
-            typer.echo(f"| {r.condition} | {r.world} | {r.n} | {r.detected:.0%} | {r.velocity_ok:.0%} "
-                       f"| {r.rotor_ok:.0%} | {r.rotors_ok:.0%} | {r.rotor_median_err:.1%} | {r.at_double:.0%} "
-                       f"| {r.at_half:.0%} | {r.seconds:.1f} |")
+        _print_rows([evaluate_condition(c, n, seed, w) for c in condition for w in world], as_json, (
+            ("condition", lambda r: r.condition), ("world", lambda r: r.world), ("n", lambda r: r.n),
+            ("detected", lambda r: f"{r.detected:.0%}"), ("abs(v) < 1 m/s", lambda r: f"{r.velocity_ok:.0%}"),
+            ("rotor rate +-3 %", lambda r: f"{r.rotor_ok:.0%}"), ("rotors seen +-1", lambda r: f"{r.rotors_ok:.0%}"),
+            ("median rotor-rate error", lambda r: f"{r.rotor_median_err:.1%}"),
+            ("rate at 2x truth", lambda r: f"{r.at_double:.0%}"), ("rate at 0.5x truth", lambda r: f"{r.at_half:.0%}"),
+            ("seconds", lambda r: f"{r.seconds:.1f}")))
         return
 
     try:
@@ -117,14 +113,22 @@ def accuracy(
     for w in world:
         if w not in WORLDS:
             raise SignaturesError(f"--world: {w!r} is not one of {', '.join(WORLDS)}")
-    rows = [evaluate(p, s, n, seed, w) for p in preset for s in snrs for w in world]
+    _print_rows([evaluate(p, s, n, seed, w) for p in preset for s in snrs for w in world], as_json, (
+        ("preset", lambda r: r.preset), ("SNR dB", lambda r: f"{r.snr_db:g}"), ("world", lambda r: r.world),
+        ("n", lambda r: r.n), ("detected", lambda r: f"{r.detected:.0%}"),
+        ("flash rate +-5 %", lambda r: f"{r.flash_ok:.0%}"), ("rotor rate +-5 %", lambda r: f"{r.rotor_ok:.0%}"),
+        ("rotors seen 0.7-1.1", lambda r: f"{r.rotors_ok:.0%}"),
+        ("median rotors seen / rotors", lambda r: f"{r.rotors_median:.2f}"),
+        ("range +-1 bin", lambda r: f"{r.range_ok:.0%}"), ("velocity +-1 bin", lambda r: f"{r.velocity_ok:.0%}"),
+        ("median flash error", lambda r: f"{r.flash_median_err:.1%}")))
+
+
+def _print_rows(rows: list, as_json: bool, columns: tuple) -> None:
+    """The rows as JSON (`as_dict`) or as a Markdown table of `columns` ((title, cell of a row))."""
     if as_json:
         typer.echo(json.dumps([r.as_dict() for r in rows]))
         return
-    typer.echo("| preset | SNR dB | world | n | detected | flash rate +-5 % | rotor rate +-5 % | rotors seen 0.7-1.1 "
-               "| median rotors seen / rotors | range +-1 bin | velocity +-1 bin | median flash error |")
-    typer.echo("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    typer.echo("| " + " | ".join(title for title, _ in columns) + " |")
+    typer.echo("|" + "---|" * len(columns))
     for r in rows:
-        typer.echo(f"| {r.preset} | {r.snr_db:g} | {r.world} | {r.n} | {r.detected:.0%} | {r.flash_ok:.0%} "
-                   f"| {r.rotor_ok:.0%} | {r.rotors_ok:.0%} | {r.rotors_median:.2f} | {r.range_ok:.0%} "
-                   f"| {r.velocity_ok:.0%} | {r.flash_median_err:.1%} |")
+        typer.echo("| " + " | ".join(str(cell(r)) for _, cell in columns) + " |")
