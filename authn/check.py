@@ -10,7 +10,6 @@ the decision always comes from a complete `is_authorized` call over the evidence
 
 from __future__ import annotations
 
-import hashlib
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -20,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from authn.audit import NewEntry, append
+from core.digest import file_sha256
 from core.errors import EXIT_BAD_INPUT, describe, exit_code_for
 from authn.evidence import (Claim, Evidence, KinematicsEvidence, RadarEvidence, RegistryFacts, RemoteIdAuth,
                             authenticate, read_claim)
@@ -134,14 +134,6 @@ def _batch_size(rec: Any) -> int:
     return batch_size(rec.n_chirps, rec.n_samples)
 
 
-def _file_sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with path.open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _issues(claim: Claim, auth: RemoteIdAuth, mid: datetime, rotorcraft: bool | None) -> list[str]:
     """Remote ID sanity issues; with a valid signature, a Location message it does not cover
     is one too (`unsigned-location`: someone may be broadcasting beside the signer)."""
@@ -190,7 +182,7 @@ class CheckInput:
         from signatures.recording import read_recording
 
         p = Path(path)
-        return cls(str(p), serial, lambda: (read_recording(p), _file_sha256(p)), rid_capture)
+        return cls(str(p), serial, lambda: (read_recording(p), file_sha256(p)), rid_capture)
 
     @classmethod
     def recording(cls, rec: Any, serial: str | None = None, name: str = "", digest: str = "") -> "CheckInput":

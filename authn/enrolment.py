@@ -21,7 +21,8 @@ def site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteS
     from authn.evidence import read_claim
     from authn.kinematics import expected_from_radar
     from core.errors import AuthnException
-    from signatures.enrol import EnrolError, SiteSample, sha256_of
+    from core.digest import file_sha256
+    from signatures.enrol import EnrolError, SiteSample
     from signatures.features import extract
     from signatures.radar import recording_waveform
     from signatures.recording import read_recording
@@ -49,6 +50,6 @@ def site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteS
     feats = extract(rec, expected_range_m=gate)
     physics = {k: float(v) for k, v in feats.physics.items()}
     physics.update({k: float(v) for k, v in asdict(feats.features).items() if k not in physics})
-    sample = SiteSample(name=str(path), sha256=sha256_of(path), model=model,
+    sample = SiteSample(name=str(path), sha256=file_sha256(path), model=model,
                         features=feats.as_array().astype("float32"), physics=physics, detected=bool(feats.detected))
     return sample, recording_waveform(rec)

@@ -38,7 +38,6 @@ interrupted enrolment leaves nothing half-written, and the active bundle switche
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import math
 import os
@@ -61,7 +60,7 @@ from signatures.radar import Preset
 
 __all__ = ["CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM", "SITE_SHARE",
            "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts",
-           "default_name", "enrol", "site_bands", "previous_samples", "read_labels", "sha256_of", "track_rates"]
+           "default_name", "enrol", "site_bands", "previous_samples", "read_labels", "track_rates"]
 
 #: Fewest recordings per enrolled model: below this a cross-validated error means nothing.
 MIN_RECORDINGS = 5
@@ -597,15 +596,6 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
             shutil.rmtree(tmp)
     say("done", 1.0)
     return card
-
-
-def sha256_of(path: Path) -> str:
-    """SHA-256 of a file (the card's source digests)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def default_name(wf: Preset, now: datetime | None = None) -> str:

@@ -14,11 +14,12 @@ import json
 from pathlib import Path
 from typing import Any
 
+from core.digest import file_sha256
 from core.parsing import JsonTooDeep, loads_json
 from signatures.errors import SignaturesError
 
 __all__ = ["CARD_FORMAT", "CARD_NAME", "ModelIntegrityError", "card_bytes", "library_versions", "read_card",
-           "sha256_file", "write_card"]
+           "write_card"]
 
 CARD_NAME = "card.json"
 CARD_FORMAT = "uav-radar-authn/model-bundle/1"
@@ -26,14 +27,6 @@ CARD_FORMAT = "uav-radar-authn/model-bundle/1"
 
 class ModelIntegrityError(SignaturesError):
     """A model bundle whose files do not match its card (tampered, corrupted, incomplete)."""
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def card_bytes(card: dict[str, Any]) -> bytes:
@@ -44,7 +37,7 @@ def card_bytes(card: dict[str, Any]) -> bytes:
 def write_card(folder: Path, card: dict[str, Any]) -> str:
     """Add the digests of the files named in `card["files"]`, write card.json, return its digest."""
     card = dict(card, format=CARD_FORMAT)
-    card["files"] = {name: sha256_file(folder / name) for name in sorted(card["files"])}
+    card["files"] = {name: file_sha256(folder / name) for name in sorted(card["files"])}
     data = card_bytes(card)
     (folder / CARD_NAME).write_bytes(data)
     return hashlib.sha256(data).hexdigest()
@@ -68,7 +61,7 @@ def read_card(folder: Path) -> tuple[dict[str, Any], str]:
         f = folder / name
         if not f.is_file():
             raise ModelIntegrityError(f"{f}: model file listed in its card is missing")
-        actual = sha256_file(f)
+        actual = file_sha256(f)
         if actual != expected:
             raise ModelIntegrityError(
                 f"{f}: SHA-256 {actual[:16]}... does not match its model card ({expected[:16]}...); "

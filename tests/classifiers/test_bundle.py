@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from signatures.inference import Classifier, NoModelError, load_classifier, match_preset
-from signatures.modelcard import ModelIntegrityError, read_card, sha256_file
+from core.digest import file_sha256
+from signatures.modelcard import ModelIntegrityError, read_card
 from signatures.radar import get_preset
 from signatures.training import train_bundle
 from tests.classifiers.conftest import tiny_config
@@ -25,7 +26,7 @@ def test_card_lists_every_file_with_its_digest(tiny_bundle: Path) -> None:
     card, digest = read_card(tiny_bundle)
     assert set(card["files"]) == {p.name for p in tiny_bundle.iterdir()} - {"card.json"}
     for name, sha in card["files"].items():
-        assert sha256_file(tiny_bundle / name) == sha
+        assert file_sha256(tiny_bundle / name) == sha
     assert card["preset"] == "paper" and card["classes"][-2:] == ["bird", "none"]
     assert card["training"]["seed"] == 3 and card["training"]["n_train"] == 200
     assert "scikit-learn" in card["libraries"] and len(digest) == 64
