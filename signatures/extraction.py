@@ -995,7 +995,7 @@ def _tip_speed(occupied: np.ndarray, rel_bins: np.ndarray, body_hz: np.ndarray, 
 def _flash(slow: np.ndarray, peak_rel: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
            bin_m: float, n_bins: int) -> best.PeriodicityBatch:
     """The blade-flash estimators on each row's peak bin +- 1 (narrower at the gate's edge):
-    `batch_estimators` once per column count."""
+    `signatures.flash` once per column count."""
     size = slow.shape[2]
     lo = np.maximum(0, peak_rel - 1)
     width = np.minimum(size, peak_rel + 2) - lo

@@ -10,9 +10,9 @@ the default backend is numpy, transforming in complex128 into per-thread
 workspaces that are reused between calls, and handing back complex64. Set
 `AUTHN_FFT=scipy` (read once, at import) in long batch jobs where scipy is
 imported anyway: it is ~2x faster on the 8192x64 `wide` cube. A caller that knows its
-workload picks per call (`fft(..., backend=...)`): the batched front end
-(`signatures.batch_features`) runs scipy's single-precision transforms whatever the
-process default, since a batch job does not care about the import.
+workload picks per call (`fft(..., backend=...)`): a batch (`signatures.features.extract_many`)
+runs scipy's single-precision transforms whatever the process default, since a batch job does
+not care about the import.
 """
 
 from __future__ import annotations

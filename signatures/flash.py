@@ -1,20 +1,22 @@
-"""Blade-flash estimators over a batch of returns that share a radar configuration.
+"""The blade-flash estimators, array-first: B gates of returns that share a radar configuration
+at once (one return is B = 1). The algorithm is `signatures.estimators`'s (flash series,
+periodicity, rotor count; docs/features.md); long dwells add the envelope spectrum
+(`spectral_flash_rate`).
 
-The same estimates as `signatures.estimators` (flash series, periodicity, rotor count)
-for B gates at once: `flash_series_batch(slow[B, chirps, bins], ...)` then
-`periodicity_batch(series)`. Row b equals the single-return functions applied to
-`slow[b]` and `body_hz[b]` to the bit (tests/features/test_batch_estimators.py): the same
-float operations on the same values in the same order, so that no discrete decision (an
-event, a lag, a halving, a rotor group) can differ by rounding. How:
+`flash_series_batch(slow[B, chirps, bins], ...)` then `periodicity_batch(series)`. Row b equals
+the straightforward per-return form of the algorithm (tests/features/reference_flash.py, "the
+reference") applied to `slow[b]` and `body_hz[b]` to the bit (tests/features/test_batch_estimators.py):
+the same float operations on the same values in the same order, so that no discrete decision (an
+event, a lag, a halving, a rotor group) depends on the batch. How:
 
-* flash series: the single path's expressions with a batch axis in front (cumulative sums,
+* flash series: the reference's expressions with a batch axis in front (cumulative sums,
   reductions and the matched-filter product along the same axes; the product stacked, so
-  BLAS sees the single path's per-row shape); rows in cache-sized chunks (CHUNK_BYTES);
+  BLAS sees the reference's per-row shape); rows in cache-sized chunks (CHUNK_BYTES);
 * flash events: the greedy sinc-skirt suppression is a loop over the candidates' rank
   (strongest first), vectorised over the rows still choosing;
 * lag vote: rows grouped by their number of events k (no padding: (G, sign, lag, k)
   arrays); the partner lookup runs from event pairs (`_found`) instead of a `searchsorted`
-  per event, and the weighted check sums are stacked matrix products with the single path's
+  per event, and the weighted check sums are stacked matrix products with the reference's
   per-row shapes (BLAS sums in a shape-dependent order);
 * plateau, re-rank candidates (a loop over the RERANK_N ranks) and the halving rule (a loop
   over halvings) over the whole batch; the coherent hits and checks per group of equal k
@@ -162,7 +164,7 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
                  threshold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """`estimators.flash_series` of a chunk of rows, written into the output views; returns the
     matched-filter field and its power's maximum over positions per chirp. Same
-    expressions as the single path with a leading batch axis."""
+    expressions as the reference with a leading batch axis."""
     g, n, n_bins = slow.shape[0], slow.shape[1], slow.shape[-1]
     windows = slow.shape[2] if slow.ndim == 4 else 1
     t = np.arange(n)
@@ -172,7 +174,7 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     if n > length:
         z = _highpass(z0, length)
         e1 = _sum_last(_power(z))
-        # the single path compares with a Python float: in e1's dtype (NEP 50)
+        # the reference compares with a Python float: in e1's dtype (NEP 50)
         strong = e1 > _noise_level(e1).astype(e1.dtype)[:, None]
         strong[:, 1:] |= strong[:, :-1].copy()
         strong[:, :-1] |= strong[:, 1:].copy()
@@ -182,8 +184,8 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     filters = est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)
     m = (n // dec) * dec
     if slow.ndim == 4:  # each chirp: the window whose best position holds the most energy
-        y4 = (z.reshape(g, n * windows, n_bins) @ filters).reshape(g, n, windows, -1)  # the single path's product
-        best = _max_last(_power(y4))  # the same floats as the single path's
+        y4 = (z.reshape(g, n * windows, n_bins) @ filters).reshape(g, n, windows, -1)  # the reference's product
+        best = _max_last(_power(y4))  # the same floats as the reference's
         pick = np.argmax(best, axis=2)
         peak = np.take_along_axis(best, pick[:, :, None], axis=2)[:, :, 0]  # the picked window's maximum
         at = (np.arange(g * n) * windows + pick.reshape(-1))  # a gather of the picked windows' rows
@@ -282,7 +284,7 @@ def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.
 
 
 def _minus_mean(z: np.ndarray, sums: np.ndarray, count: np.ndarray) -> np.ndarray:
-    """z - sums / count as the single path computes it (a complex array over a float32 count), in
+    """z - sums / count as the reference computes it (a complex array over a float32 count), in
     place in `sums`. numpy divides by the complex (count + 0j) as Smith's algorithm does with a zero
     ratio: both parts times the reciprocal 1 / count in z's real precision (the same floats but
     for the sign of a zero real part, which nothing downstream reads); here on the interleaved
@@ -463,7 +465,7 @@ def _flash_events(e: np.ndarray, threshold: np.ndarray, per_bin: np.ndarray, rad
 
 def _weighted_sums(mask: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """(g, 2, m, k) checks weighted by (g, k) events, summed over events and both signs: (g, m).
-    One stacked matrix product: each row's sums are the single path's `(mask @ weight).sum(axis=0)`
+    One stacked matrix product: each row's sums are the reference's `(mask @ weight).sum(axis=0)`
     to the bit (same BLAS call shape per row)."""
     return np.matmul(mask.astype(np.float64, copy=False), weight[:, None, :, None])[..., 0].sum(axis=1)
 
@@ -480,7 +482,7 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     t +- L (`searchsorted`). Here the lookup runs the other way round: event j is one of those two
     for target T exactly when t[j-1] < T <= t[j+1], and can only be found within the tolerance
     when |t[j] - t[i]| is within a few samples of L; so every pair of events is checked at the
-    few lags near its interval, with the single path's expressions (same floats, same decisions).
+    few lags near its interval, with the reference's expressions (same floats, same decisions).
     """
     g, k = times.shape
     informative = (pos > 0.0) & (pos < n_bins - 1)
@@ -491,7 +493,7 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     tol = TOL_SAMPLES + fraction * lags
     t2 = tol[None, :, None]
     upper = n - 1 - t2
-    # checks as the float64 0/1 copies the single path's matmul makes: found (+, -), valid (+, -).
+    # checks as the float64 0/1 copies the reference's matmul makes: found (+, -), valid (+, -).
     # Valid is `tol <= t +- L <= n - 1 - tol`; with 0 <= t <= n - 1 (centroids) and L >= 2 > tol + 0.98
     # one side always holds: t + L >= tol and t - L <= n - 1 - tol, so only the other is tested
     checks = np.empty((g, 4, lags.size, k))
@@ -499,7 +501,7 @@ def _votes(times: np.ndarray, pos: np.ndarray, weight: np.ndarray, lags: np.ndar
     checks[:, 2] = times[:, None, :] + lags[None, :, None] <= upper
     checks[:, 3] = times[:, None, :] + (-1.0 * lags)[None, :, None] >= t2
     _found(times, compat, lags, n, checks, fraction)
-    w = np.matmul(checks, weight[:, None, :, None])[..., 0]  # per row the single path's (2, L, k) @ (k,)
+    w = np.matmul(checks, weight[:, None, :, None])[..., 0]  # per row the reference's (2, L, k) @ (k,)
     found_w, valid_w = w[:, 0] + w[:, 1], w[:, 2] + w[:, 3]
     if counts:
         c = np.matmul(checks, np.ones((g, 1, k, 1)))[..., 0]  # sums of 0/1: exact in any order
@@ -560,13 +562,13 @@ def _coherent(field: np.ndarray, total: np.ndarray, times: np.ndarray, n: int,
     rows = ti * dec
     if dec > 1:
         block = field.reshape(g, -1, n, dec)[gi, :, rows // dec]  # (g, k, positions, dec)
-        block = np.ascontiguousarray(block.transpose(0, 1, 3, 2))  # (g, k, dec, positions) as the single path
+        block = np.ascontiguousarray(block.transpose(0, 1, 3, 2))  # (g, k, dec, positions) as the reference
         rows = rows + np.argmax((block.real ** 2 + block.imag ** 2).sum(axis=3), axis=2)
     at_rows = np.take_along_axis(field, rows[:, None, :], axis=2)  # (g, positions, k)
     at = np.argmax(at_rows.real ** 2 + at_rows.imag ** 2, axis=1)  # (g, k): each event's best position
     own = field[gi, at, rows]
     phase = own / np.maximum(np.abs(own), 1e-30)
-    # (g, k, n * dec): the same products as the single path's (n * dec, k) layout, to the bit
+    # (g, k, n * dec): the same products as the reference's (n * dec, k) layout, to the bit
     power = np.square((field[gi, at] * phase.conj()[:, :, None]).real)
     coherent = power >= np.float32(COHERENT_SHARE) * total[:, None, :]
     if dec > 1:
@@ -639,7 +641,7 @@ def _rerank_choose(counts: np.ndarray, share: np.ndarray, times: np.ndarray, wei
                    cands: np.ndarray, scores: np.ndarray, n_c: np.ndarray, lags: np.ndarray, n: int) -> np.ndarray:
     """`estimators._rerank`'s choice among each row's n_c candidates (rows with the same k),
     halving applied: the chosen lag per row. The checks run at the candidates padded to the
-    most any row has; their weighted sums per number of candidates c, with the single path's
+    most any row has; their weighted sums per number of candidates c, with the reference's
     (2, 3c, k) shapes (BLAS sums depend on the shape)."""
     g = cands.shape[0]
     cm = int(n_c.max())
@@ -701,9 +703,9 @@ def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndar
             fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The tail of `estimators.periodicity` for a group: rate, rate std, score, phases, tolerance
     (in periods), period (series samples). After a search wider than TOL_FRACTION the lag is
-    refined and matched again closely where that matches anything, as the single path; the score
+    refined and matched again closely where that matches anything, as the reference; the score
     counts the search's pairs. Mean and std of the matched intervals run per match count (numpy's
-    pairwise sums depend on the length); the scalar tail in Python floats, as the single path."""
+    pairwise sums depend on the length); the scalar tail in Python floats, as the reference."""
     g, k = times.shape
     diff = times[:, None, :] - times[:, :, None]
     intervals, matched, mult = est._matched_intervals(diff, lag0[:, None, None], fraction)  # the score's pairs
@@ -737,7 +739,7 @@ def _period(times: np.ndarray, pos: np.ndarray, drift: np.ndarray, lag0: np.ndar
 def _interval_stats(intervals: np.ndarray, matched: np.ndarray,
                     lag: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per row: matched count, mean of the matched intervals (`lag` where none), their std (NaN
-    below two), run per match count as the single path's 1-D means."""
+    below two), run per match count as the reference's 1-D means."""
     n_matched = matched.sum(axis=(1, 2))
     mean = lag.astype(np.float64).copy()
     spread = np.full(lag.shape[0], np.nan)

@@ -1,18 +1,17 @@
-"""One BLAS thread for the batch paths.
+"""One BLAS thread for batches of returns.
 
-A batch job runs one process per core (`batch_features._WORKERS`: one thread per scipy
-transform), but OpenBLAS starts a thread per core for every matrix product big enough (the
-kNN distances of a batch, the flash estimators' stacked products). On a machine whose other
-core is busy those threads wait for each other: measured on the shared 2-core machine, the
-`paper` batch of 256 (features + classifier) took 0.97 ms per return with the default BLAS
-threads and 0.72 ms with one (issue 19). The number of threads can change a product's last
-bits: a complex product of (128-256 x 80) by (80 x 9) differs between one and two threads
-(measured, OpenBLAS 0.3.31), so code whose single and batch paths must agree to the bit makes
-products too small to be split (`estimators.SUBCHIRP_BLOCK`).
+A batch job runs one process per core (one thread per scipy transform), but OpenBLAS starts a
+thread per core for every matrix product big enough (the kNN distances of a batch, the flash
+estimators' stacked products). On a machine whose other core is busy those threads wait for
+each other: measured on the shared 2-core machine, the `paper` batch of 256 (features +
+classifier) took 0.97 ms per return with the default BLAS threads and 0.72 ms with one. The
+number of threads can also change a product's last bits (a complex (128-256 x 80) by (80 x 9)
+product differs between one and two threads, OpenBLAS 0.3.31), so a return's features would
+depend on its batch: products are kept too small to be split (`estimators.SUBCHIRP_BLOCK`).
 
 On one thread a product's rows do not depend on how many rows it has (OpenBLAS 0.3.31, complex64,
-measured), so inside the block (`blas_on_one_thread()`) the batch path may stack many rows into
-one product: the sub-chirp bins of a `paper` batch cost about a third less that way.
+measured), so inside the block (`blas_on_one_thread()`) a batch may stack many rows into one
+product: the sub-chirp bins of a `paper` batch cost about a third less that way.
 
 `one_blas_thread()` limits the loaded BLAS libraries to one thread for a block of code
 (threadpoolctl, a scikit-learn dependency; nothing happens without it). Its controller is made

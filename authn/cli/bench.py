@@ -70,8 +70,8 @@ def bench(
     Example: authn bench --stress --quick
 
     Batch mode (--batch): batched features + classifier per return at batch sizes 1 to 1024
-    beside the single-return path and the FFT floor (batch-size.png with --plot), macro F1
-    of both paths on the same returns, and registry-only rejections in batch mode against
+    beside one return at a time and the FFT floor (batch-size.png with --plot), macro F1
+    of both on the same returns, and registry-only rejections in batch mode against
     the I/O floor (open + validate + hash + one Cedar decision).
 
     Example: authn bench --worlds-only --world both --n 100 --plot docs/figures

@@ -1,5 +1,5 @@
 """Batch mode at fleet scale: per-return cost of batched features + classifier against the FFT
-floor, the same accuracy as the single-return path, and registry-only rejections against the
+floor, the same accuracy as one return at a time, and registry-only rejections against the
 I/O floor. All figures of one call come from one run on one machine (ratios, medians).
 """
 
@@ -46,7 +46,7 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
     them all at least once (a batch of 1: each return alone; 256: the returns repeated to fill
     it), so a small batch is not timed on the first few scenes only (`extract_many` splits a
     batch larger than memory allows). Measured
-    **interleaved**: each round times the floor, the single path and every batch size once, in
+    **interleaved**: each round times the floor, one return at a time and every batch size once, in
     turn, so that a shared machine's drift hits them alike; rounds repeat until `budget_s` has
     passed (at least 3, at most 50), medians over rounds."""
     from lab.bench import perf
