@@ -7,13 +7,18 @@ figures in docs/features.md come from `authn features accuracy --condition ...`.
 
 from __future__ import annotations
 
+import functools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from lab.accuracy import evaluate_condition
 from signatures import flash
+from signatures.features import extract
 from signatures.radar import EXTRA_PRESETS
 from signatures.scene import Scene
 from signatures.simulate import simulate
@@ -60,3 +65,24 @@ def test_spectral_rate_is_refined_below_a_bin():
         train = flash.spectral_flash_rate(x.astype(np.complex64), config, np.zeros(1))
         assert abs(train.rate_hz[0] - rate) <= 0.005 * rate, (rate, train.rate_hz[0])
         assert train.score[0] >= flash.SPECTRAL_DETECT_SCORE and 0 < train.rate_std_hz[0] < 1.0
+
+
+@settings(max_examples=8, deadline=None)
+@given(log10_scale=st.floats(-25, 25))
+def test_long_dwell_estimates_ignore_the_iq_scale(log10_scale):
+    """Envelope spectrum, rotors seen, detection and body line of a CW dwell do not depend on the
+    IQ scale (the cube is scaled by a power of two first; only the peak amplitude moves)."""
+    rec = _tagged_cw()
+    base = extract(rec)
+    scaled = extract(replace(rec, iq=rec.iq.astype(np.complex128) * 10.0 ** log10_scale))
+    for name in ("flash_rate_hz", "rotor_rate_hz", "radial_velocity_mps", "detected", "flash_score"):
+        a, b = getattr(base.features, name), getattr(scaled.features, name)
+        assert b == pytest.approx(a, rel=1e-4, abs=1e-6), name
+    assert scaled.physics["rotors_seen"] == base.physics["rotors_seen"]
+
+
+@functools.cache
+def _tagged_cw():
+    from lab.accuracy import CONDITIONS, render_condition
+
+    return render_condition(CONDITIONS["cw-hover-tagged"], "training", 3)[0]
