@@ -570,18 +570,25 @@ def _write_h5(rec: Recording, path: Path) -> None:
 _NPY_VERSIONS = ((1, 0), (2, 0), (3, 0))
 
 
+def _npy_header(fh: Any, check: Any) -> tuple[tuple[int, ...], bool, np.dtype]:
+    """(shape, Fortran order, dtype) of an open .npy member from its header, `check(shape, dtype)`
+    run on them before anything else is read."""
+    version = np.lib.format.read_magic(fh)
+    if version not in _NPY_VERSIONS:
+        raise ValueError(f"unsupported .npy version {version}")
+    reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+              else np.lib.format.read_array_header_2_0)
+    shape, fortran, dtype = reader(fh)
+    shape = tuple(shape)
+    check(shape, dtype)
+    return shape, fortran, dtype
+
+
 def _npz_member(zf: zipfile.ZipFile, member: str, check: Any) -> np.ndarray:
     """One .npy member: its header is read and `check(shape, dtype)` run before any data
     are allocated; object (pickled) arrays are refused."""
     with zf.open(member) as fh:
-        version = np.lib.format.read_magic(fh)
-        if version not in _NPY_VERSIONS:
-            raise ValueError(f"unsupported .npy version {version}")
-        reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                  else np.lib.format.read_array_header_2_0)
-        shape, fortran, dtype = reader(fh)
-        shape = tuple(shape)
-        check(shape, dtype)
+        shape, fortran, dtype = _npy_header(fh, check)
         if dtype.hasobject:
             raise RecordingError(f"member '{member}': object arrays (pickles) are not read")
         buf = bytearray(math.prod(shape) * dtype.itemsize)  # bounded by check
@@ -744,14 +751,7 @@ def _header_h5(path: Path, max_cells: int, max_bytes: int) -> Header:
 def _npz_header_only(zf: zipfile.ZipFile, member: str, check: Any) -> tuple[int, ...]:
     """The shape of one .npy member from its header (its data are not read)."""
     with zf.open(member) as fh:
-        version = np.lib.format.read_magic(fh)
-        if version not in _NPY_VERSIONS:
-            raise ValueError(f"unsupported .npy version {version}")
-        reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                  else np.lib.format.read_array_header_2_0)
-        shape, _, dtype = reader(fh)
-        check(tuple(shape), dtype)
-        return tuple(shape)
+        return _npy_header(fh, check)[0]
 
 
 def _header_npz(path: Path, max_cells: int, max_bytes: int) -> Header:
