@@ -21,6 +21,7 @@ from lab.bench.track import icc, track_recordings
 from signatures.profiles import shipped_profiles
 from signatures.recording import read_header, read_recording, write_recording
 from signatures.scene import Scene
+from tests.decision.test_policy import ACTIVE, GOOD, SITE
 
 M600, M300 = "1581BDEM00000001", "1581BDEM00000002"
 DWELLS = 6
@@ -246,14 +247,6 @@ def test_bench_track_rows(capsys) -> None:
 
 
 TRACK = {"accept_cn": 691, "reject_cn": -461}
-T_NOW = 1_767_268_800
-ACTIVE = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=T_NOW - 86400,
-              has_key=False)
-SITE = dict(time_s=T_NOW, preset="paper")
-GOOD = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300", radar_known=True,
-            radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120, range_tolerance_cm=850,
-            velocity_residual_cmps=40, velocity_tolerance_cmps=170, remote_id_present=True, remote_id_issues=[],
-            remote_id_auth="absent", verification_llr_cn=250)
 
 
 @pytest.mark.parametrize("llr_cn,ctx,reasons", [

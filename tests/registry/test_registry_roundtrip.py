@@ -12,7 +12,6 @@ from datetime import datetime, timezone
 
 import pytest
 
-from authn.cli import main
 from registry.db import dispose_engines, session_scope
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile
@@ -32,6 +31,7 @@ from registry.store import (
     revoke_identity,
 )
 from signatures.profiles import UavProfile, shipped_profiles
+from tests.registry.test_registry_cli import run
 
 PG_URL = os.environ.get("AUTHN_TEST_POSTGRES_URL")
 KEY = bytes(range(32))
@@ -310,15 +310,6 @@ def test_revoke_reason_may_not_make_notes_unexportable(new_db):
 
 
 # ------------------------------------------------------------------ through the CLI
-def run(capsys, db_url, *args):
-    """Exit code, stdout, stderr; stderr without the notice of a new database (the first
-    command on a fresh test database creates it: tests/registry/test_db_url.py tests it)."""
-    code = main(["--db", db_url, *args])
-    out, err = capsys.readouterr()
-    return code, out, "".join(line for line in err.splitlines(keepends=True)
-                              if not line.startswith("authn: created new database "))
-
-
 def test_cli_export_import_round_trip(capsys, new_db, tmp_path):
     src, dst = new_db(), new_db()
     key = tmp_path / "key.hex"
