@@ -627,7 +627,7 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
     if len(values) == 1:
         return x[:, :, int(values[0]):int(values[0]) + size].copy()
     out = np.empty(x.shape[:2] + (size,), x.dtype)
-    for v in values.tolist():
+    for v in values:
         sel = np.flatnonzero(lo == v)
         out[sel] = x[sel, :, v:v + size]
     return out
