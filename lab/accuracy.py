@@ -11,7 +11,7 @@ Truth: flash rate = the profile's flashes per turn x the mean rotor rate flown; 
 range at the first chirp; radial velocity (at mid-dwell where the target accelerates).
 
 Conditions (`CONDITIONS`, `evaluate_condition`): scene families of a real radar the estimators
-must hold on (issue 31: an S-band CW radar, a hovering quadcopter with tagged blades, strong
+must hold on (an S-band CW radar, a hovering quadcopter with tagged blades, strong
 static clutter, idling rotors, 0.82 s and 10 s dwells), scored on what that radar needs:
 |v| < 1 m/s, the mechanical rotor rate within 3 %, rotors seen within +-1.
 """
@@ -113,7 +113,7 @@ def evaluate(preset_name: str, snr_db: float, n: int, seed: int = 0, world: str 
                float(np.median(errs)), rotors_ok / n, float(np.median(rotors)) if rotors else 0.0, world)
 
 
-# --- conditions of a real radar (issue 31): an S-band CW radar and a hovering, tagged quadcopter ---
+# --- conditions of a real radar: an S-band CW radar and a hovering, tagged quadcopter ---
 
 #: A DJI-class quadcopter (Phantom / Mavic size: 9.4-inch propellers, 0.35 m diagonal wheelbase),
 #: nominal rotor rate mid-way in the 143-179 Hz of flight. Not a shipped profile: no classifier

@@ -1,4 +1,4 @@
-"""One bundle for a band of carriers, measured (issue 31): the same scenes rendered at several
+"""One bundle for a band of carriers, measured: the same scenes rendered at several
 carriers of one waveform, their features before and after `signatures.carrier.normalise`, and
 a bundle trained at the middle carrier classifying all of them.
 

@@ -1,4 +1,4 @@
-"""Site enrolment measured (issue 32): decisions before and after `authn models enrol`, on a world
+"""Site enrolment measured: decisions before and after `authn models enrol`, on a world
 the shipped bundles were not built on, with enrolment and test scenes disjoint.
 
     python -m lab.bench.enrolment --sizes 5,10,30 --n 100 --snr 0,10 --world heldout --json out.json
