@@ -604,41 +604,64 @@ def _attr_member_check(name: str) -> Any:
     return check
 
 
-def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
+@dataclass(frozen=True)
+class _NpzParts:
+    """An .npz return's members and metadata, every header checked (`_npz_parts`)."""
+
+    iq: np.ndarray | None  # None when only the header was read
+    shape: tuple[int, ...]
+    attrs: dict[str, Any]
+    domain: str
+    config: RadarConfig
+    site: RadarSite
+    start_time: datetime
+    source: str | None
+    remote_id: np.ndarray | None
+    remote_id_time_s: np.ndarray | None
+
+
+def _npz_parts(path: Path, max_cells: int, max_bytes: int, with_iq: bool) -> _NpzParts:
+    """What `read_recording` (`with_iq`) and `read_header` (the IQ's header only) share of an .npz:
+    each member's header checked before its data are read; object arrays refused."""
     name = "iq"
     try:
         with zipfile.ZipFile(path) as zf:
             members = {n.removesuffix(".npy"): n for n in zf.namelist()}
             if "iq" not in members:
                 raise RecordingError("missing dataset '/iq'")
-            iq = _npz_member(zf, members["iq"],
-                             lambda s, d: _check_iq_header(s, d, max_cells, max_bytes))
+            check_iq = lambda s, d: _check_iq_header(s, d, max_cells, max_bytes)  # noqa: E731
+            iq = _npz_member(zf, members["iq"], check_iq) if with_iq else None
+            shape = tuple(iq.shape) if iq is not None else _npz_header_only(zf, members["iq"], check_iq)
             attrs = {}
             for name in _ATTR_NAMES:
                 if name in members:
                     attrs[name] = _npz_member(zf, members[name], _attr_member_check(name))
             domain = _domain(attrs)
-            _check_domain_shape(domain, iq.shape)
+            _check_domain_shape(domain, shape)
             config, site, when = _metadata(attrs)
-            simulation = _simulation_attr(attrs)
             source = _rid_source_attr(attrs)
             data: dict[str, np.ndarray | None] = {"remote_id": None, "remote_id_time_s": None}
             for name in data:
                 if name in members:
-                    data[name] = _npz_member(zf, members[name],
-                                             lambda s, d, n=name: _check_rid_header(n, s, d))
+                    data[name] = _npz_member(zf, members[name], lambda s, d, n=name: _check_rid_header(n, s, d))
     except RecordingError:
         raise
     except _READ_ERRORS as exc:
         raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt; "
                              f"member '{name}': {_reason(exc)})") from None
-    iq = _native(iq)
     rid = None if data["remote_id"] is None else np.asarray(data["remote_id"], dtype=np.uint8)
     times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
-    _check_iq_values(iq)
     _check_rid(rid, times)
     _check_rid_source(source, times)
-    return Recording(config, site, when, iq, rid, times, simulation, domain, source)
+    return _NpzParts(iq, shape, attrs, domain, config, site, when, source, rid, times)
+
+
+def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
+    parts = _npz_parts(path, max_cells, max_bytes, with_iq=True)
+    iq = _native(parts.iq)
+    _check_iq_values(iq)
+    return Recording(parts.config, parts.site, parts.start_time, iq, parts.remote_id, parts.remote_id_time_s,
+                     _simulation_attr(parts.attrs), parts.domain, parts.source)
 
 
 def _write_npz(rec: Recording, path: Path) -> None:
@@ -755,35 +778,9 @@ def _npz_header_only(zf: zipfile.ZipFile, member: str, check: Any) -> tuple[int,
 
 
 def _header_npz(path: Path, max_cells: int, max_bytes: int) -> Header:
-    name = "iq"
-    try:
-        with zipfile.ZipFile(path) as zf:
-            members = {n.removesuffix(".npy"): n for n in zf.namelist()}
-            if "iq" not in members:
-                raise RecordingError("missing dataset '/iq'")
-            shape = _npz_header_only(zf, members["iq"], lambda s, d: _check_iq_header(s, d, max_cells, max_bytes))
-            attrs = {}
-            for name in _ATTR_NAMES:
-                if name in members:
-                    attrs[name] = _npz_member(zf, members[name], _attr_member_check(name))
-            domain = _domain(attrs)
-            _check_domain_shape(domain, shape)
-            config, site, when = _metadata(attrs)
-            source = _rid_source_attr(attrs)
-            data: dict[str, np.ndarray | None] = {"remote_id": None, "remote_id_time_s": None}
-            for name in data:
-                if name in members:
-                    data[name] = _npz_member(zf, members[name], lambda s, d, n=name: _check_rid_header(n, s, d))
-    except RecordingError:
-        raise
-    except _READ_ERRORS as exc:
-        raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt; "
-                             f"member '{name}': {_reason(exc)})") from None
-    rid = None if data["remote_id"] is None else np.asarray(data["remote_id"], dtype=np.uint8)
-    times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
-    _check_rid(rid, times)
-    _check_rid_source(source, times)
-    return Header(config, site, when, (int(shape[0]), int(shape[1])), domain, rid, times)
+    parts = _npz_parts(path, max_cells, max_bytes, with_iq=False)
+    return Header(parts.config, parts.site, parts.start_time, (int(parts.shape[0]), int(parts.shape[1])),
+                  parts.domain, parts.remote_id, parts.remote_id_time_s)
 
 
 def read_header(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
