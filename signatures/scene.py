@@ -170,3 +170,13 @@ class MultiScene(BaseModel):
         if self.clutter_db is not None and self.clutter_to_signal_db is not None:
             raise ValueError("give clutter_db (over noise) or clutter_to_signal_db (over the target), not both")
         return self
+
+    def clutter_power(self) -> float | None:
+        """The shared clutter's power over the unit noise, or None without clutter."""
+        if self.clutter_db is not None:
+            return 10 ** (self.clutter_db / 10)
+        if self.clutter_to_signal_db is not None:
+            first = self.targets[0].snr_db
+            assert first is not None  # validated
+            return 10 ** ((self.clutter_to_signal_db + first) / 10)
+        return None

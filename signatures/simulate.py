@@ -473,13 +473,7 @@ def simulate_many(multi: MultiScene, preset: Preset, seed: int | None = None, *,
         cube += part * np.float32(10 ** (target.snr_db / 20))
         truths.append(Truth(**{**truth.__dict__, "range_offset_m": config.range_offset_m}))
     rng = streams[-1]
-    clutter_power = None
-    if multi.clutter_db is not None:
-        clutter_power = 10 ** (multi.clutter_db / 10)
-    elif multi.clutter_to_signal_db is not None:
-        first = multi.targets[0].snr_db
-        assert first is not None
-        clutter_power = 10 ** ((multi.clutter_to_signal_db + first) / 10)
+    clutter_power = multi.clutter_power()
     if clutter_power is not None:
         cube += _clutter_cube(config, preset.n_chirps, preset.n_samples, clutter_power, rng)
     cube += _noise_cube(preset.n_chirps, preset.n_samples, 1.0, rng)

@@ -190,13 +190,7 @@ def simulate_many(multi: MultiScene, preset: Preset, seed: int | None = None, *,
         cube *= np.float32(10 ** (target.snr_db / 20))
         air = cube if air is None else air + cube
         frames.append(frame)
-    power = None
-    if multi.clutter_db is not None:
-        power = 10 ** (multi.clutter_db / 10)
-    elif multi.clutter_to_signal_db is not None:
-        first = multi.targets[0].snr_db
-        assert first is not None
-        power = 10 ** ((multi.clutter_to_signal_db + first) / 10)
+    power = multi.clutter_power()
     if power is not None:
         air = air + clutter(config, preset.n_chirps, preset.n_samples, power, streams[n])
     noise = thermal_noise(preset.n_chirps, preset.n_samples, 1.0, streams[n + 1])
