@@ -453,18 +453,21 @@ def _walk_collection(path: Path, fd: int, addr: int, lsize: int, file_size: int)
 
 
 @dataclass(frozen=True)
-class _H5Parts:
-    """An open HDF5 return's datasets and metadata, its headers checked (`_h5_parts`)."""
+class _Parts:
+    """A return's metadata and Remote ID, every header checked, and its IQ: the open HDF5 dataset
+    (read by the caller while the file is open), the array of an .npz, or None when only the
+    header was read (`_h5_parts`, `_npz_parts`)."""
 
     iq: Any
-    remote_id: Any
-    remote_id_time_s: Any
+    shape: tuple[int, ...]
     attrs: dict[str, Any]
     domain: str
     config: RadarConfig
     site: RadarSite
     start_time: datetime
     source: str | None
+    remote_id: np.ndarray | None
+    remote_id_time_s: np.ndarray | None
 
 
 def _open_h5(path: Path):
@@ -476,7 +479,7 @@ def _open_h5(path: Path):
         raise RecordingError(f"{path}: not a readable HDF5 file (truncated or corrupt)") from None
 
 
-def _h5_parts(f: Any, path: Path, max_cells: int, max_bytes: int) -> _H5Parts:
+def _h5_parts(f: Any, path: Path, max_cells: int, max_bytes: int) -> _Parts:
     """The datasets and metadata of an open file, every header checked before any data is read:
     what `read_recording` and `read_header` share."""
     ds = _h5_dataset(f, "iq", required=True)
@@ -497,19 +500,22 @@ def _h5_parts(f: Any, path: Path, max_cells: int, max_bytes: int) -> _H5Parts:
         if isinstance(exc, RecordingError):
             raise
         raise RecordingError(f"{path}: unsupported datatype ({_reason(exc)})") from None
-    return _H5Parts(ds, r, t, attrs, domain, config, site, when, source)
+    rid, times = _h5_remote_id(r, t, path)
+    _check_rid(rid, times)
+    _check_rid_source(source, times)
+    return _Parts(ds, (int(ds.shape[0]), int(ds.shape[1])), attrs, domain, config, site, when, source, rid, times)
 
 
-def _h5_remote_id(parts: _H5Parts, path: Path) -> tuple[np.ndarray | None, np.ndarray | None]:
+def _h5_remote_id(r: Any, t: Any, path: Path) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The Remote ID datasets' values; an unreadable one is named."""
     rid = times = None
     name = "remote_id"
     try:
-        if parts.remote_id is not None:
-            rid = np.asarray(parts.remote_id[()], dtype=np.uint8)
+        if r is not None:
+            rid = np.asarray(r[()], dtype=np.uint8)
         name = "remote_id_time_s"
-        if parts.remote_id_time_s is not None:
-            times = np.asarray(parts.remote_id_time_s[()]).astype(np.float64)
+        if t is not None:
+            times = np.asarray(t[()]).astype(np.float64)
     except _READ_ERRORS as exc:
         raise _unreadable(path, exc, name) from None
     return rid, times
@@ -528,13 +534,9 @@ def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
             ds.read_direct(iq)  # ~0.1 ms against ~0.3 ms for ds[()] on a paper cube; HDF5 byte-swaps
         except _READ_ERRORS as exc:
             raise _unreadable(path, exc, "iq") from None
-        rid, times = _h5_remote_id(parts, path)
-        simulation = _simulation_attr(parts.attrs)
     _check_iq_values(iq)
-    _check_rid(rid, times)
-    _check_rid_source(parts.source, times)
-    return Recording(parts.config, parts.site, parts.start_time, iq, rid, times, simulation, parts.domain,
-                     parts.source)
+    return Recording(parts.config, parts.site, parts.start_time, iq, parts.remote_id, parts.remote_id_time_s,
+                     _simulation_attr(parts.attrs), parts.domain, parts.source)
 
 
 def _attrs_of(rec: Recording) -> dict[str, Any]:
@@ -604,23 +606,7 @@ def _attr_member_check(name: str) -> Any:
     return check
 
 
-@dataclass(frozen=True)
-class _NpzParts:
-    """An .npz return's members and metadata, every header checked (`_npz_parts`)."""
-
-    iq: np.ndarray | None  # None when only the header was read
-    shape: tuple[int, ...]
-    attrs: dict[str, Any]
-    domain: str
-    config: RadarConfig
-    site: RadarSite
-    start_time: datetime
-    source: str | None
-    remote_id: np.ndarray | None
-    remote_id_time_s: np.ndarray | None
-
-
-def _npz_parts(path: Path, max_cells: int, max_bytes: int, with_iq: bool) -> _NpzParts:
+def _npz_parts(path: Path, max_cells: int, max_bytes: int, with_iq: bool) -> _Parts:
     """What `read_recording` (`with_iq`) and `read_header` (the IQ's header only) share of an .npz:
     each member's header checked before its data are read; object arrays refused."""
     name = "iq"
@@ -653,7 +639,7 @@ def _npz_parts(path: Path, max_cells: int, max_bytes: int, with_iq: bool) -> _Np
     times = None if data["remote_id_time_s"] is None else data["remote_id_time_s"].astype(np.float64)
     _check_rid(rid, times)
     _check_rid_source(source, times)
-    return _NpzParts(iq, shape, attrs, domain, config, site, when, source, rid, times)
+    return _Parts(iq, shape, attrs, domain, config, site, when, source, rid, times)
 
 
 def _read_npz(path: Path, max_cells: int, max_bytes: int) -> Recording:
@@ -763,12 +749,12 @@ class Header:
 
 def _header_h5(path: Path, max_cells: int, max_bytes: int) -> Header:
     with _open_h5(path) as f:
-        parts = _h5_parts(f, path, max_cells, max_bytes)
-        rid, times = _h5_remote_id(parts, path)
-        shape = (int(parts.iq.shape[0]), int(parts.iq.shape[1]))
-    _check_rid(rid, times)
-    _check_rid_source(parts.source, times)
-    return Header(parts.config, parts.site, parts.start_time, shape, parts.domain, rid, times)
+        return _header_of(_h5_parts(f, path, max_cells, max_bytes))
+
+
+def _header_of(parts: _Parts) -> Header:
+    return Header(parts.config, parts.site, parts.start_time, (int(parts.shape[0]), int(parts.shape[1])),
+                  parts.domain, parts.remote_id, parts.remote_id_time_s)
 
 
 def _npz_header_only(zf: zipfile.ZipFile, member: str, check: Any) -> tuple[int, ...]:
@@ -778,9 +764,7 @@ def _npz_header_only(zf: zipfile.ZipFile, member: str, check: Any) -> tuple[int,
 
 
 def _header_npz(path: Path, max_cells: int, max_bytes: int) -> Header:
-    parts = _npz_parts(path, max_cells, max_bytes, with_iq=False)
-    return Header(parts.config, parts.site, parts.start_time, (int(parts.shape[0]), int(parts.shape[1])),
-                  parts.domain, parts.remote_id, parts.remote_id_time_s)
+    return _header_of(_npz_parts(path, max_cells, max_bytes, with_iq=False))
 
 
 def read_header(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
