@@ -37,12 +37,33 @@ def _sqlite_setup(engine: Engine) -> None:
         cur.execute("PRAGMA busy_timeout = 30000")
         cur.execute("PRAGMA foreign_keys = ON")
         if engine.url.database not in (None, "", ":memory:"):
-            cur.execute("PRAGMA journal_mode = WAL")
+            _set_wal(cur)
         cur.close()
 
     @event.listens_for(engine, "begin")
     def _on_begin(conn: Connection) -> None:
         conn.exec_driver_sql("BEGIN IMMEDIATE")
+
+
+#: Switching a new file to WAL takes an exclusive lock that SQLite's busy handler does not wait
+#: for: processes opening the same new database at once retry it this often, this far apart.
+_WAL_TRIES = 100
+_WAL_WAIT_S = 0.05
+
+
+def _set_wal(cur) -> None:
+    """PRAGMA journal_mode = WAL, retried while another connection holds the lock it needs."""
+    import sqlite3
+    import time
+
+    for attempt in range(_WAL_TRIES):
+        try:
+            cur.execute("PRAGMA journal_mode = WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) or attempt == _WAL_TRIES - 1:
+                raise
+            time.sleep(_WAL_WAIT_S)
 
 
 def create_db_engine(url: str | None = None, *, create: bool = False) -> Engine:
