@@ -1,7 +1,10 @@
 """The append-only triggers an audit table gets (refuse UPDATE and DELETE, and TRUNCATE on
-PostgreSQL), as DDL for one dialect: the audit tables of revisions 0002, 0004 and 0005."""
+PostgreSQL): the DDL for one dialect, and the create/drop steps every audit-table migration
+(0001 to 0005) takes."""
 
 from __future__ import annotations
+
+from typing import Any
 
 
 def append_only(table: str, dialect: str) -> list[str]:
@@ -17,3 +20,22 @@ def append_only(table: str, dialect: str) -> list[str]:
             f"CREATE TRIGGER {table}_no_delete BEFORE DELETE ON {table} FOR EACH ROW EXECUTE FUNCTION {fn}()",
             f"CREATE TRIGGER {table}_no_truncate BEFORE TRUNCATE ON {table} "
             f"FOR EACH STATEMENT EXECUTE FUNCTION {fn}()"]
+
+
+def make_append_only(op: Any, table: str) -> None:
+    """Give `table` its append-only triggers (alembic's `op`, inside a migration)."""
+    for ddl in append_only(table, op.get_bind().dialect.name):
+        op.execute(ddl)
+
+
+def create_append_only(op: Any, table: str, *elements: Any) -> None:
+    """`op.create_table(table, *elements)`, append-only from its first row."""
+    op.create_table(table, *elements)
+    make_append_only(op, table)
+
+
+def drop_append_only(op: Any, table: str) -> None:
+    """Drop an append-only table: its triggers go with it, its PostgreSQL trigger function not."""
+    op.drop_table(table)
+    if op.get_bind().dialect.name == "postgresql":
+        op.execute(f"DROP FUNCTION IF EXISTS {table}_append_only()")

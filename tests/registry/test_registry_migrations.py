@@ -45,3 +45,34 @@ def test_head_revision_constant_matches_alembic() -> None:
     from registry.db import alembic_config
 
     assert ScriptDirectory.from_config(alembic_config()).get_heads() == [migrations.HEAD_REVISION]
+
+
+def _schema(engine) -> tuple[set[str], set[str]]:
+    """(tables, append-only triggers) as the database reports them."""
+    tables = set(inspect(engine).get_table_names())
+    query = ("SELECT name FROM sqlite_master WHERE type = 'trigger'" if engine.dialect.name == "sqlite"
+             else "SELECT tgname FROM pg_trigger WHERE NOT tgisinternal")
+    with engine.connect() as conn:
+        return tables, {r[0] for r in conn.execute(text(query))}
+
+
+def test_downgrade_to_base_and_back_restores_the_schema(db_url) -> None:
+    """Every revision's downgrade undoes its upgrade: down to nothing, then up again, gives the
+    same tables and append-only triggers (PostgreSQL: trigger functions dropped with them, or
+    the second upgrade's CREATE FUNCTION would fail)."""
+    from alembic import command
+
+    from registry.db import alembic_config
+
+    engine = create_db_engine(db_url)
+    upgrade(engine)
+    head = _schema(engine)
+    assert {"audit_log_no_update", "audit_log_no_delete", "audit_batches_no_update",
+            "audit_log_meta_no_delete"} <= head[1]
+    with engine.begin() as conn:
+        command.downgrade(alembic_config(conn), "base")
+    tables, triggers = _schema(engine)
+    assert tables <= {"alembic_version"} and not triggers
+    upgrade(engine)
+    assert _schema(engine) == head
+    engine.dispose()

@@ -1,19 +1,16 @@
 """Initial schema: model profiles (seeded), identities, append-only audit log.
 
-Revision ID: 0001
-Revises:
-Create Date: 2025-11-22
+Revision 0001 (the first), 2025-11-22.
 """
 
 import sqlalchemy as sa
 from alembic import op
 
+from registry.migrations.triggers import create_append_only, drop_append_only
 from registry.models import UtcDateTime
 
 revision = "0001"
 down_revision = None
-branch_labels = None
-depends_on = None
 
 #: The shipped profiles (signatures/data/profiles.json) as of this revision, frozen here so that this
 #: revision never changes.
@@ -24,23 +21,6 @@ SHIPPED_PROFILES = [
      "blade_length_m": 0.40, "rotor_rate_hz": 40.0, "propeller_distance_m": 0.885},
     {"slug": "phantom4", "name": "DJI Phantom 4", "rotors": 4, "arms": 4, "blades_per_rotor": 2,
      "blade_length_m": 0.30, "rotor_rate_hz": 58.3333, "propeller_distance_m": 0.35},
-]
-
-_SQLITE_TRIGGERS = [
-    "CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-    "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END",
-    "CREATE TRIGGER audit_log_no_delete BEFORE DELETE ON audit_log "
-    "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END",
-]
-_PG_TRIGGERS = [
-    "CREATE FUNCTION audit_log_append_only() RETURNS trigger LANGUAGE plpgsql AS $$ "
-    "BEGIN RAISE EXCEPTION 'audit_log is append-only'; END; $$",
-    "CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-    "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()",
-    "CREATE TRIGGER audit_log_no_delete BEFORE DELETE ON audit_log "
-    "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()",
-    "CREATE TRIGGER audit_log_no_truncate BEFORE TRUNCATE ON audit_log "
-    "FOR EACH STATEMENT EXECUTE FUNCTION audit_log_append_only()",
 ]
 
 
@@ -99,8 +79,8 @@ def upgrade() -> None:
         sa.UniqueConstraint("serial", name=op.f("uq_identities_serial")),
     )
     op.create_index(op.f("ix_identities_model_slug"), "identities", ["model_slug"])
-    op.create_table(
-        "audit_log",
+    create_append_only(
+        op, "audit_log",
         sa.Column("id", sa.Integer(), autoincrement=True, nullable=False),
         sa.Column("seq", sa.BigInteger(), nullable=False),
         sa.Column("created_at", UtcDateTime(), nullable=False),
@@ -117,16 +97,11 @@ def upgrade() -> None:
         sa.UniqueConstraint("seq", name=op.f("uq_audit_log_seq")),
         sa.UniqueConstraint("entry_hash", name=op.f("uq_audit_log_entry_hash")),
     )
-    dialect = op.get_bind().dialect.name
-    for ddl in _PG_TRIGGERS if dialect == "postgresql" else _SQLITE_TRIGGERS if dialect == "sqlite" else []:
-        op.execute(ddl)
     op.bulk_insert(profiles, SHIPPED_PROFILES)
 
 
 def downgrade() -> None:
-    op.drop_table("audit_log")
-    if op.get_bind().dialect.name == "postgresql":
-        op.execute("DROP FUNCTION IF EXISTS audit_log_append_only()")
+    drop_append_only(op, "audit_log")
     op.drop_index(op.f("ix_identities_model_slug"), table_name="identities")
     op.drop_table("identities")
     op.drop_table("model_profiles")

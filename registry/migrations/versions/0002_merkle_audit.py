@@ -6,9 +6,7 @@ so that they become the first leaves of the tree. audit_log's UPDATE trigger is 
 for the backfill and recreated in the same transaction. The new tables are append-only
 by trigger, like audit_log.
 
-Revision ID: 0002
-Revises: 0001
-Create Date: 2026-11-23
+Revision 0002 (after 0001), 2026-11-23.
 """
 
 import hashlib
@@ -18,13 +16,11 @@ from datetime import datetime, timezone
 import sqlalchemy as sa
 from alembic import op
 
-from registry.migrations.triggers import append_only
+from registry.migrations.triggers import append_only, drop_append_only, make_append_only
 from registry.models import UtcDateTime
 
 revision = "0002"
 down_revision = "0001"
-branch_labels = None
-depends_on = None
 
 _NEW_TABLES = ("audit_policies", "audit_tree_heads")
 
@@ -46,12 +42,9 @@ def _leaf_hash(seq, created_at, kind, serial, decision, payload, prev_hash) -> s
 
 def _restore_no_update_trigger(dialect: str) -> None:
     """Recreate revision 0001's UPDATE trigger, dropped while leaf_hash is written or removed."""
-    if dialect == "postgresql":
-        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-                   "FOR EACH ROW EXECUTE FUNCTION audit_log_append_only()")
-    elif dialect == "sqlite":
-        op.execute("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-                   "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END")
+    for ddl in append_only("audit_log", dialect):
+        if ddl.startswith("CREATE TRIGGER audit_log_no_update "):
+            op.execute(ddl)
 
 
 def upgrade() -> None:
@@ -96,18 +89,15 @@ def upgrade() -> None:
         last = rows[-1][0]
     _restore_no_update_trigger(dialect)
     for table in _NEW_TABLES:
-        for ddl in append_only(table, dialect):
-            op.execute(ddl)
+        make_append_only(op, table)
 
 
 def downgrade() -> None:
     dialect = op.get_bind().dialect.name
     op.drop_index(op.f("ix_audit_tree_heads_tree_size"), table_name="audit_tree_heads")
-    op.drop_table("audit_tree_heads")
-    op.drop_table("audit_policies")
+    for table in reversed(_NEW_TABLES):
+        drop_append_only(op, table)
     if dialect == "postgresql":
-        for table in _NEW_TABLES:
-            op.execute(f"DROP FUNCTION IF EXISTS {table}_append_only()")
         op.execute("DROP TRIGGER audit_log_no_update ON audit_log")
     elif dialect == "sqlite":
         op.execute("DROP TRIGGER audit_log_no_update")

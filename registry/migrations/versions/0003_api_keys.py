@@ -6,28 +6,21 @@ naming the acting key). Widening a CHECK needs a table rebuild on SQLite: the ro
 copied unchanged (hashes cover their bytes, not their rowids) and the append-only triggers
 are recreated in the same transaction.
 
-Revision ID: 0003
-Revises: 0002
-Create Date: 2026-11-23
+Revision 0003 (after 0002), 2026-11-23.
 """
 
 import sqlalchemy as sa
 from alembic import op
 
+from registry.migrations.triggers import make_append_only
 from registry.models import UtcDateTime
 
 revision = "0003"
 down_revision = "0002"
-branch_labels = None
-depends_on = None
 
 
 _OLD_KINDS = "kind IN ('decision', 'error')"
 _NEW_KINDS = "kind IN ('decision', 'error', 'registry')"
-_SQLITE_TRIGGERS = ("CREATE TRIGGER audit_log_no_update BEFORE UPDATE ON audit_log "
-                    "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END",
-                    "CREATE TRIGGER audit_log_no_delete BEFORE DELETE ON audit_log "
-                    "BEGIN SELECT RAISE(ABORT, 'audit_log is append-only'); END")
 
 
 def _audit_kinds(old: str, new: str) -> None:
@@ -49,8 +42,7 @@ def _audit_kinds(old: str, new: str) -> None:
     op.execute("ALTER TABLE audit_log_rebuilt RENAME TO audit_log")
     for sql in indexes:
         op.execute(sql)
-    for sql in _SQLITE_TRIGGERS:
-        op.execute(sql)
+    make_append_only(op, "audit_log")
 
 
 def upgrade() -> None:

@@ -3,33 +3,25 @@ written once by the first append under this revision), and `audit_tree_heads.ori
 which log each head names (NULL for authn-sth/1 heads, which name none). Append-only by
 trigger, like the other audit tables.
 
-Revision ID: 0005
-Revises: 0004
-Create Date: 2026-11-26
+Revision 0005 (after 0004), 2026-11-26.
 """
 
 import sqlalchemy as sa
 from alembic import op
 
-from registry.migrations.triggers import append_only
+from registry.migrations.triggers import create_append_only, drop_append_only
 
 revision = "0005"
 down_revision = "0004"
-branch_labels = None
-depends_on = None
-
-_TABLE = "audit_log_meta"
 
 
 def upgrade() -> None:
-    op.create_table(
-        _TABLE,
+    create_append_only(
+        op, "audit_log_meta",
         sa.Column("name", sa.String(64), nullable=False),
         sa.Column("value", sa.Text(), nullable=False),
         sa.PrimaryKeyConstraint("name", name=op.f("pk_audit_log_meta")),
     )
-    for ddl in append_only(_TABLE, op.get_bind().dialect.name):
-        op.execute(ddl)
     with op.batch_alter_table("audit_tree_heads") as batch:
         batch.add_column(sa.Column("origin", sa.Text(), nullable=True))
 
@@ -37,6 +29,4 @@ def upgrade() -> None:
 def downgrade() -> None:
     with op.batch_alter_table("audit_tree_heads") as batch:
         batch.drop_column("origin")
-    op.drop_table(_TABLE)
-    if op.get_bind().dialect.name == "postgresql":
-        op.execute(f"DROP FUNCTION IF EXISTS {_TABLE}_append_only()")
+    drop_append_only(op, "audit_log_meta")
