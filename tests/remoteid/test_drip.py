@@ -26,35 +26,10 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from remoteid import (
-    AuthPage,
-    AuthPage0,
-    BasicId,
-    Location,
-    decode,
-    decode_rows,
-    decode_rows_raw,
-    encode,
-    flatten,
-)
-from remoteid.drip import (
-    DripError,
-    cshake128,
-    det_fields,
-    det_from_public_key,
-    det_matches_key,
-    det_to_text,
-    encode_frame,
-    encode_link,
-    encode_manifest,
-    encode_wrapper,
-    message_hash,
-    paginate,
-    parse_det,
-    parse_sam,
-    reassemble,
-    verify,
-)
+from remoteid import (AuthPage, AuthPage0, BasicId, Location, decode, decode_rows, decode_rows_raw, encode, flatten)
+from remoteid.drip import (DripError, cshake128, det_fields, det_from_public_key, det_matches_key, det_to_text,
+                           encode_frame, encode_link, encode_manifest, encode_wrapper, message_hash, paginate,
+                           parse_det, parse_sam, reassemble, verify)
 
 T = datetime(2026, 5, 1, 12, 0, 0, tzinfo=timezone.utc)
 VNB, VNA = T - timedelta(seconds=30), T + timedelta(seconds=60)

@@ -9,23 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from remoteid import (
-    AuthPage,
-    AuthPage0,
-    BasicId,
-    Location,
-    MessagePack,
-    OperatorId,
-    RemoteIdError,
-    SelfId,
-    System,
-    decode,
-    decode_hex,
-    decode_rows,
-    encode,
-    flatten,
-    location_time,
-)
+from remoteid import (AuthPage, AuthPage0, BasicId, Location, MessagePack, OperatorId, RemoteIdError, SelfId, System,
+                      decode, decode_hex, decode_rows, encode, flatten, location_time)
 
 # ------------------------------------------------------------------ known vectors
 BEACON_PACK = bytes.fromhex(
