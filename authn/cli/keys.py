@@ -9,14 +9,19 @@ import typer
 
 keys_app = typer.Typer(help="Keys for signed Remote ID (IETF DRIP).", no_args_is_help=True)
 
+#: The DET's authorities and the output form, alike for `generate` and `show`.
+RAA_OPTION = typer.Option(16376, "--raa", help="Registered Assigning Authority of the DET (14 bits).")
+HDA_OPTION = typer.Option(1, "--hda", help="HHIT Domain Authority of the DET (14 bits).")
+JSON_OPTION = typer.Option(False, "--json", help="Print JSON.")
+
 
 @keys_app.command("generate")
 def generate_cmd(
     out: Path = typer.Option(..., "--out", help="Private key file to write (PEM, mode 0600); the public key "
                                                "goes beside it as NAME.pub.pem."),
-    raa: int = typer.Option(16376, "--raa", help="Registered Assigning Authority of the DET (14 bits)."),
-    hda: int = typer.Option(1, "--hda", help="HHIT Domain Authority of the DET (14 bits)."),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    raa: int = RAA_OPTION,
+    hda: int = HDA_OPTION,
+    as_json: bool = JSON_OPTION,
 ) -> None:
     """Generate an Ed25519 key pair and its DRIP Entity Tag (RFC 9374, EdDSA/cSHAKE128 suite).
 
@@ -39,9 +44,9 @@ def generate_cmd(
 def show_cmd(
     public_key: str = typer.Option(..., "--public-key", help="Public key: a file (PEM, 32 raw bytes or 64 hex "
                                                              "digits) or the 64 hex digits themselves."),
-    raa: int = typer.Option(16376, "--raa", help="Registered Assigning Authority of the DET (14 bits)."),
-    hda: int = typer.Option(1, "--hda", help="HHIT Domain Authority of the DET (14 bits)."),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    raa: int = RAA_OPTION,
+    hda: int = HDA_OPTION,
+    as_json: bool = JSON_OPTION,
 ) -> None:
     """Print the DRIP Entity Tag and session ID of an existing public key (RFC 9374).
 
@@ -80,7 +85,7 @@ def api_create_cmd(
     ctx: typer.Context,
     role: str = typer.Option(..., "--role", help="operator (checks, audit reads) or admin (everything)."),
     name: str | None = typer.Option(None, "--name", help="A label to tell keys apart."),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    as_json: bool = JSON_OPTION,
 ) -> None:
     """Create an API key and print its secret, once: store it now, it cannot be shown again.
 
@@ -98,7 +103,7 @@ def api_create_cmd(
 
 
 @api_app.command("list")
-def api_list_cmd(ctx: typer.Context, as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+def api_list_cmd(ctx: typer.Context, as_json: bool = JSON_OPTION) -> None:
     """List API keys (never their secrets).
 
     Example: authn keys api list

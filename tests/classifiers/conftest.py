@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -19,6 +21,16 @@ def tiny_config(seed: int = 3, cnn: bool = True, extra: bool = False) -> TrainCo
         profiles.update(load_profiles(ENROL))
     return TrainConfig(preset="paper", profiles=tuple(profiles.values()), n_train=200, n_val=100,
                        seed=seed, cnn=cnn, workers=1)
+
+
+@contextmanager
+def own_models(root: Path) -> Iterator[pytest.MonkeyPatch]:
+    """Models and dataset cache of one test module, under `root` (a module-scoped fixture
+    cannot take `monkeypatch`); the patch is yielded for more variables."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("AUTHN_MODELS_DIR", str(root / "models"))
+        mp.setenv("AUTHN_CACHE_DIR", str(root / "cache"))
+        yield mp
 
 
 @pytest.fixture(scope="session")

@@ -20,6 +20,7 @@ import pytest
 from authn.cli import main
 from authn.policy import PolicyEngine
 from tests.decision.test_policy import ACTIVE, GOOD, SITE
+from tests.classifiers.conftest import own_models
 
 N_PER_MODEL = 5
 BASE = ["--base-samples", "120"]
@@ -54,9 +55,7 @@ def _make_site(folder: Path, n: int, seed: int = 11) -> None:
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
     """A clean data folder (registry, models) and a site's recordings; the first enrolment."""
     root = tmp_path_factory.mktemp("enrol")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("AUTHN_MODELS_DIR", str(root / "models"))
-        mp.setenv("AUTHN_CACHE_DIR", str(root / "cache"))
+    with own_models(root) as mp:
         mp.setenv("AUTHN_DATABASE_URL", f"sqlite:///{root / 'r.sqlite3'}")
         _make_site(root / "flights", N_PER_MODEL)
         yield {"root": root, "flights": root / "flights", "models": root / "models"}

@@ -15,6 +15,7 @@ from authn.demo import register_examples
 from signatures.inference import bundle_dir
 from signatures.radar import recording_waveform
 from signatures.recording import read_recording
+from tests.classifiers.conftest import own_models
 
 M300 = "1581BDEM00000002"
 
@@ -23,9 +24,7 @@ M300 = "1581BDEM00000002"
 def world(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
     """A registry, a 512-chirp genuine m300 flight, a paper flight; models and cache in temp folders."""
     root = tmp_path_factory.mktemp("like")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("AUTHN_MODELS_DIR", str(root / "models"))
-        mp.setenv("AUTHN_CACHE_DIR", str(root / "cache"))
+    with own_models(root):
         db = f"sqlite:///{root / 'r.sqlite3'}"
         register_examples(db)
         files = {}

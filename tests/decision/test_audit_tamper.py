@@ -170,6 +170,15 @@ GROWING_OVER = {"delete the tail": (_delete_tail, 9), "truncate all": (_truncate
                 "forged append": (_forge_insert, 11), "rewrite after the checkpoint": (_rewrite_recompute, 8)}
 
 
+def _assert_next_append_refused(db_url: str) -> None:
+    db = Database(db_url)
+    try:
+        with pytest.raises(SystemFault, match="audit log"):
+            append(db, [NewEntry("decision", "NEXT", "reject", {"reasons": ["r"]})])
+    finally:
+        db.close()
+
+
 @pytest.mark.parametrize("name", list(GROWING_OVER))
 def test_append_refuses_to_grow_a_tampered_log(db_url: str, name: str) -> None:
     """The next decision is not appended over a truncated, extended or rewritten history
@@ -179,12 +188,7 @@ def test_append_refuses_to_grow_a_tampered_log(db_url: str, name: str) -> None:
     _setup(db_url)
     with get_engine(db_url).begin() as conn:
         tamper(conn, where)
-    db = Database(db_url)
-    try:
-        with pytest.raises(SystemFault, match="audit log"):
-            append(db, [NewEntry("decision", "NEXT", "reject", {"reasons": ["r"]})])
-    finally:
-        db.close()
+    _assert_next_append_refused(db_url)
 
 
 def test_forged_tree_head_in_the_database_is_reported(db_url: str, tmp_path: Path, capsys) -> None:
@@ -320,12 +324,7 @@ def test_tamper_before_the_last_periodic_head_stops_the_next_append(db_url: str,
     with get_engine(db_url).begin() as conn:
         tamper(conn, before)
     n = _count(db_url)
-    db = Database(db_url)
-    try:
-        with pytest.raises(SystemFault, match="audit log"):
-            append(db, [NewEntry("decision", "NEXT", "reject", {"reasons": ["r"]})])
-    finally:
-        db.close()
+    _assert_next_append_refused(db_url)
     assert _count(db_url) == n
 
 

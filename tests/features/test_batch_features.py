@@ -41,17 +41,18 @@ def _drawn(preset: str, n: int):
     return out
 
 
-@pytest.fixture(scope="module")
-def paper():
-    return _drawn("paper", 30)
+def drawn_fixture(preset: str, n: int):
+    """A module-scoped fixture, named after the preset, of `_drawn(preset, n)`."""
+    return pytest.fixture(scope="module", name=preset)(lambda: _drawn(preset, n))
 
 
-@pytest.fixture(scope="module")
-def wide():
-    return _drawn("wide", 8)
+paper = drawn_fixture("paper", 30)
+wide = drawn_fixture("wide", 8)
 
 
-def assert_same(single: F.FeatureResult, batch: F.FeatureResult, where: str) -> None:
+def assert_same(single: F.FeatureResult, batch: F.FeatureResult, where: str, patch_atol: float = 1e-5) -> None:
+    """Same detection, gate and counts; every feature and physics estimate within REL of
+    max(|value|, 1); the CNN patch within `patch_atol`."""
     assert (batch.detected, batch.gate) == (single.detected, single.gate), where
     a, b = single.as_array().astype(np.float64), batch.as_array().astype(np.float64)
     exact = [F.FEATURE_NAMES.index(n) for n in EXACT]
@@ -62,7 +63,7 @@ def assert_same(single: F.FeatureResult, batch: F.FeatureResult, where: str) -> 
     assert batch.physics.keys() == single.physics.keys(), where
     for name, value in single.physics.items():
         assert abs(batch.physics[name] - value) <= REL * max(abs(value), 1.0), (where, name)
-    np.testing.assert_allclose(batch.rd_patch, single.rd_patch, rtol=0, atol=1e-5, err_msg=where)
+    np.testing.assert_allclose(batch.rd_patch, single.rd_patch, rtol=0, atol=patch_atol, err_msg=where)
 
 
 def _expected(config, n: int, detected: list[float]) -> list[float | None]:

@@ -1,7 +1,7 @@
 """The torch cube stage (`signatures.torch_cube`, `extract_batch(..., device=...)`) gives the
 numpy path's results to float32 rounding: same detection, gate and counts, every feature within
-REL of max(|value|, 1) (measured: <= 2.4e-6 on these returns), the CNN patch within PATCH_ATOL;
-its cube-stage arrays within CUBE_REL of their row's largest value."""
+REL of max(|value|, 1) (the batch tests' `assert_same`; measured: <= 2.4e-6 on these returns), the
+CNN patch within 1e-5; its cube-stage arrays within CUBE_REL of their row's largest value."""
 
 from __future__ import annotations
 
@@ -15,35 +15,14 @@ from signatures import torch_cube  # noqa: E402
 from signatures.domain import as_recorded  # noqa: E402
 from signatures.errors import SignaturesError  # noqa: E402
 
-from .test_batch_features import EXACT, _drawn  # noqa: E402
+from .test_batch_features import assert_same, drawn_fixture  # noqa: E402
 
-REL = 1e-5
-PATCH_ATOL = 1e-5
 CUBE_REL = 1e-5
 NO_GPU = "no CUDA GPU on this machine (or torch is a CPU build): the CUDA path is untested here"
 
 
-@pytest.fixture(scope="module")
-def paper():
-    return _drawn("paper", 24)
-
-
-@pytest.fixture(scope="module")
-def wide():
-    return _drawn("wide", 4)
-
-
-def assert_close(ref, got, where: str) -> None:
-    from signatures import features as F
-
-    assert (got.detected, got.gate) == (ref.detected, ref.gate), where
-    a, b = ref.as_array().astype(np.float64), got.as_array().astype(np.float64)
-    exact = [F.FEATURE_NAMES.index(n) for n in EXACT]
-    assert np.array_equal(a[exact], b[exact]), f"{where}: counts {a[exact]} != {b[exact]}"
-    err = np.abs(a - b) / np.maximum(np.abs(a), 1.0)
-    bad = {n: (a[i], b[i]) for i, n in enumerate(F.FEATURE_NAMES) if not err[i] <= REL}
-    assert not bad, f"{where}: {bad}"
-    np.testing.assert_allclose(got.rd_patch, ref.rd_patch, rtol=0, atol=PATCH_ATOL, err_msg=where)
+paper = drawn_fixture("paper", 24)
+wide = drawn_fixture("wide", 4)
 
 
 def _features_match(drawn, device: str) -> None:
@@ -54,7 +33,7 @@ def _features_match(drawn, device: str) -> None:
     assert len(got) == len(ref)
     for b, (r, g) in enumerate(zip(ref, got)):
         scene = drawn[b][0]
-        assert_close(r, g, f"{device} row {b} ({scene.label}, {scene.snr_db:.0f} dB)")
+        assert_same(r, g, f"{device} row {b} ({scene.label}, {scene.snr_db:.0f} dB)")
 
 
 @pytest.mark.parametrize("preset", ["paper", "wide"])

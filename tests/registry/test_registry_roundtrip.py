@@ -109,11 +109,16 @@ def snapshot(url: str) -> tuple[list[dict], list[dict]]:
                 [p.model_dump() for p in list_profiles(s)])
 
 
-def test_json_round_trip_is_lossless(new_db):
+def exported(new_db, export):
+    """(a populated registry, an empty one, what `export` makes of the first)."""
     src, dst = new_db(), new_db()
     populate(src)
     with session_scope(src) as s:
-        text = export_json(s)
+        return src, dst, export(s)
+
+
+def test_json_round_trip_is_lossless(new_db):
+    src, dst, text = exported(new_db, export_json)
     with session_scope(dst) as s:
         result = import_json(s, text)
     assert (result.identities, result.profiles_added, result.profiles_existing) == (5, 2, 3)
@@ -153,10 +158,7 @@ def test_json_document_shape(new_db):
 
 
 def test_csv_round_trip_keeps_status_and_key(new_db):
-    src, dst = new_db(), new_db()
-    populate(src)
-    with session_scope(src) as s:
-        text = export_csv(s)
+    src, dst, text = exported(new_db, export_csv)
     assert text.splitlines()[0] == ("serial,id_type,model,operator_id,valid_from,valid_until,notes,"
                                     "status,public_key")
     with session_scope(dst) as s:
@@ -173,10 +175,7 @@ def test_csv_round_trip_keeps_status_and_key(new_db):
 
 
 def test_csv_without_the_profile_fails_naming_json(new_db):
-    src, dst = new_db(), new_db()
-    populate(src)
-    with session_scope(src) as s:
-        text = export_csv(s)
+    src, dst, text = exported(new_db, export_csv)
     with pytest.raises(RegistryError, match=r"line \d+: unknown model 'x8' \(CSV carries no profiles"), \
             session_scope(dst) as s:
         import_csv(s, text)
@@ -194,10 +193,7 @@ def test_old_csv_without_status_and_key_still_imports(new_db):
 
 
 def test_existing_identical_profile_accepted_conflicting_refused_atomically(new_db):
-    src, dst = new_db(), new_db()
-    populate(src)
-    with session_scope(src) as s:
-        doc = export_document(s)
+    src, dst, doc = exported(new_db, export_document)
     with session_scope(dst) as s:
         register_profile(s, X8)  # identical: fine
     changed = json.loads(json.dumps(doc))
@@ -213,10 +209,7 @@ def test_existing_identical_profile_accepted_conflicting_refused_atomically(new_
 
 
 def test_a_bad_last_record_writes_nothing(new_db):
-    src, dst = new_db(), new_db()
-    populate(src)
-    with session_scope(src) as s:
-        doc = export_document(s)
+    src, dst, doc = exported(new_db, export_document)
     doc["identities"].append({"serial": "1581F5FJD12345678909", "model": "nope"})
     with pytest.raises(RegistryError, match=r"identities\[5\] \(serial 1581F5FJD12345678909\): unknown model"), \
             session_scope(dst) as s:
@@ -359,10 +352,7 @@ def test_cli_stdout_json_by_default_csv_by_suffix_or_flag_with_profile_warning(c
 
 
 def test_cli_import_from_stdin_and_forced_format(capsys, new_db, monkeypatch, tmp_path):
-    src, dst = new_db(), new_db()
-    populate(src)
-    with session_scope(src) as s:
-        text = export_json(s)
+    src, dst, text = exported(new_db, export_json)
     monkeypatch.setattr("sys.stdin", io.StringIO("\ufeff" + text))
     code, out, err = run(capsys, dst, "registry", "import", "-")
     assert code == 0, err
