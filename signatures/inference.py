@@ -76,17 +76,19 @@ class Prediction:
     nearest: str = ""  # best known class even when the label is "unknown"
 
 
+def _arrays(path: Path, **kinds: Any) -> dict[str, Any]:
+    """The named members of an .npz (no pickle), each as its numpy dtype, or `int` for a scalar."""
+    with np.load(path, allow_pickle=False) as z:
+        return {k: int(z[k]) if kind is int else z[k].astype(kind) for k, kind in kinds.items()}
+
+
 class KnnArrays:
     """k-nearest-neighbour vote from `knn.npz` (what KNeighborsClassifier.predict_proba computes)."""
 
     def __init__(self, path: Path) -> None:
-        with np.load(path, allow_pickle=False) as z:
-            self.mean = z["mean"].astype(np.float64)
-            self.scale = z["scale"].astype(np.float64)
-            self.refs = z["refs"].astype(np.float64)
-            self.labels = z["labels"].astype(np.int64)
-            self.k = int(z["k"])
-            self.n_classes = int(z["n_classes"])
+        a = _arrays(path, mean=np.float64, scale=np.float64, refs=np.float64, labels=np.int64, k=int, n_classes=int)
+        self.mean, self.scale, self.refs, self.labels = a["mean"], a["scale"], a["refs"], a["labels"]
+        self.k, self.n_classes = a["k"], a["n_classes"]
         self._ref_sq = np.sum(self.refs * self.refs, axis=1)
 
     def proba(self, X: np.ndarray) -> np.ndarray:
@@ -107,14 +109,10 @@ class ForestArrays:
     """
 
     def __init__(self, path: Path) -> None:
-        with np.load(path, allow_pickle=False) as z:
-            self.feature = z["feature"].astype(np.intp)
-            self.threshold = z["threshold"].astype(np.float64)
-            self.left = z["left"].astype(np.intp)
-            self.right = z["right"].astype(np.intp)
-            self.value = z["value"].astype(np.float32)
-            self.roots = z["roots"].astype(np.intp)
-            self.depth = int(z["depth"])
+        a = _arrays(path, feature=np.intp, threshold=np.float64, left=np.intp, right=np.intp, value=np.float32,
+                    roots=np.intp, depth=int)
+        self.feature, self.threshold, self.left, self.right = a["feature"], a["threshold"], a["left"], a["right"]
+        self.value, self.roots, self.depth = a["value"], a["roots"], a["depth"]
         n = len(self.feature)
         if not (len(self.threshold) == len(self.left) == len(self.right) == len(self.value) == n) or n == 0 \
                 or min(self.left.min(), self.right.min(), self.roots.min()) < 0 \
