@@ -199,24 +199,36 @@ class RangeCollector:
 
 # --- verification ------------------------------------------------------------------------
 
+def _sides(fn: int, sn: int, path: Sequence[bytes]) -> list[tuple[bytes, bool]] | None:
+    """RFC 9162's walk up a proof from node `fn` of last node `sn` (2.1.3.2 and 2.1.4.2 share it):
+    each node of `path` with whether it joins on the left; None when the path does not end
+    exactly at the root (too long, or too short)."""
+    sides = []
+    for c in path:
+        if sn == 0:
+            return None
+        left = bool(fn & 1) or fn == sn
+        sides.append((c, left))
+        if left:
+            while not fn & 1 and fn != 0:
+                fn >>= 1
+                sn >>= 1
+        fn >>= 1
+        sn >>= 1
+    return sides if sn == 0 else None
+
+
 def verify_inclusion(index: int, size: int, leaf: bytes, path: Sequence[bytes], root: bytes) -> bool:
     """2.1.3.2: does `path` prove leaf hash `leaf` at `index` in the tree of `size` with `root`?"""
     if not 0 <= index < size:
         return False
-    fn, sn, r = index, size - 1, leaf
-    for p in path:
-        if sn == 0:
-            return False
-        if fn & 1 or fn == sn:
-            r = node_hash(p, r)
-            while not fn & 1 and fn != 0:
-                fn >>= 1
-                sn >>= 1
-        else:
-            r = node_hash(r, p)
-        fn >>= 1
-        sn >>= 1
-    return sn == 0 and r == root
+    sides = _sides(index, size - 1, path)
+    if sides is None:
+        return False
+    r = leaf
+    for c, left in sides:
+        r = node_hash(c, r) if left else node_hash(r, c)
+    return r == root
 
 
 def verify_consistency(old: int, new: int, old_root: bytes, new_root: bytes, proof: Sequence[bytes]) -> bool:
@@ -236,21 +248,17 @@ def verify_consistency(old: int, new: int, old_root: bytes, new_root: bytes, pro
     while fn & 1:
         fn >>= 1
         sn >>= 1
+    sides = _sides(fn, sn, path[1:])
+    if sides is None:
+        return False
     fr = sr = path[0]
-    for c in path[1:]:
-        if sn == 0:
-            return False
-        if fn & 1 or fn == sn:
+    for c, left in sides:
+        if left:
             fr = node_hash(c, fr)
             sr = node_hash(c, sr)
-            while not fn & 1 and fn != 0:
-                fn >>= 1
-                sn >>= 1
         else:
             sr = node_hash(sr, c)
-        fn >>= 1
-        sn >>= 1
-    return sn == 0 and fr == old_root and sr == new_root
+    return fr == old_root and sr == new_root
 
 
 def consistency_proof_from(old: Frontier, new_leaves: Sequence[bytes]) -> list[bytes]:
