@@ -12,6 +12,7 @@ from pathlib import Path
 
 import typer
 
+from authn.cli.groups import subgroup
 from authn.cli.state import CliState
 from core.parsing import parse_iso_time
 
@@ -301,10 +302,8 @@ def public_key_cmd(
     typer.echo(f"log_key_id {key.key_id}", err=True)
 
 
-witness_app = typer.Typer(help="Run a witness of audit log heads on another host.\n\n"
-                               "Example: authn audit witness serve --dir /srv/authn-witness --public-key authn-log.pub",
-                          no_args_is_help=True)
-audit_app.add_typer(witness_app, name="witness")
+witness_app = subgroup(audit_app, "witness", "Run a witness of audit log heads on another host.",
+                       "authn audit witness serve --dir /srv/authn-witness --public-key authn-log.pub")
 
 
 @witness_app.command("serve")

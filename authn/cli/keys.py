@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from authn.cli.groups import subgroup
+
 keys_app = typer.Typer(help="Keys for signed Remote ID (IETF DRIP).", no_args_is_help=True)
 
 #: The DET's authorities and the output form, alike for `generate` and `show`.
@@ -19,9 +21,7 @@ JSON_OPTION = typer.Option(False, "--json", help="Print JSON.")
 def generate_cmd(
     out: Path = typer.Option(..., "--out", help="Private key file to write (PEM, mode 0600); the public key "
                                                "goes beside it as NAME.pub.pem."),
-    raa: int = RAA_OPTION,
-    hda: int = HDA_OPTION,
-    as_json: bool = JSON_OPTION,
+    raa: int = RAA_OPTION, hda: int = HDA_OPTION, as_json: bool = JSON_OPTION,
 ) -> None:
     """Generate an Ed25519 key pair and its DRIP Entity Tag (RFC 9374, EdDSA/cSHAKE128 suite).
 
@@ -44,9 +44,7 @@ def generate_cmd(
 def show_cmd(
     public_key: str = typer.Option(..., "--public-key", help="Public key: a file (PEM, 32 raw bytes or 64 hex "
                                                              "digits) or the 64 hex digits themselves."),
-    raa: int = RAA_OPTION,
-    hda: int = HDA_OPTION,
-    as_json: bool = JSON_OPTION,
+    raa: int = RAA_OPTION, hda: int = HDA_OPTION, as_json: bool = JSON_OPTION,
 ) -> None:
     """Print the DRIP Entity Tag and session ID of an existing public key (RFC 9374).
 
@@ -74,10 +72,8 @@ def _emit(doc: dict, as_json: bool) -> None:
         typer.echo(f"{name:16} {value}")
 
 
-api_app = typer.Typer(help="API keys of `authn serve` (the secret is shown once; only its hash is stored)."
-                           "\n\nExample: authn keys api create --role operator --json",
-                      no_args_is_help=True)
-keys_app.add_typer(api_app, name="api")
+api_app = subgroup(keys_app, "api", "API keys of `authn serve` (the secret is shown once; only its hash is stored).",
+                   "authn keys api create --role operator --json")
 
 
 @api_app.command("create")
