@@ -312,16 +312,19 @@ class Checker:
     @staticmethod
     def _verify(feats: Any, pred: Any, claimed: Any, rec: Any, classifier: Any = None) -> Any:
         """1:1 verification of the return against the registered model's profile (None: no profile),
-        with the claimed model's site bands where a site bundle has them."""
+        with the claimed model's site bands and the site's score calibration where a site bundle
+        has them."""
         if claimed is None:
             return None
         from dataclasses import asdict
 
+        from signatures.calibration import calibration_of
         from signatures.verify import bands_from, verify
 
         bands = bands_from(getattr(classifier, "physics_bands", None), claimed.slug)
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
-                      rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands)
+                      rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands,
+                      calibration=None if classifier is None else calibration_of(classifier))
 
     def _confusable(self, classifier: Any, model: str, tracks: bool = False) -> bool | None:
         """Whether the registered `model` is radar-confusable, by a site bundle's enrolment card

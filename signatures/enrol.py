@@ -288,11 +288,12 @@ DwellScore = tuple[float, bool] | None
 
 def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.ndarray, classes: tuple[str, ...],
                   profiles: dict[str, UavProfile], enrolled: list[str], max_tip: float,
-                  bands: Callable[[int], dict[str, Any] | None] = lambda i: None,
+                  bands: Callable[[int], dict[str, Any] | None] = lambda i: None, rows: list | None = None,
                   ) -> tuple[list[float], dict[tuple[str, str], list[float]], dict[tuple[str, str], list[DwellScore]]]:
     """Cross-validated 1:1 verification LLRs: each detected recording against its own model
     (genuine) and against every other enrolled model ((flown, claimed) -> LLRs); and the same
-    claims per (flown, claimed), own model included, as a track's dwells (`DwellScore`)."""
+    claims per (flown, claimed), own model included, as a track's dwells (`DwellScore`).
+    `rows`, where given, receives each claim's (recording index, flown, claimed, RawTerms)."""
     from signatures.features import FEATURE_NAMES
     from signatures.verify import bands_from, verify
 
@@ -312,7 +313,40 @@ def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.nd
             else:
                 impostor.setdefault((s.model, claimed), []).append(v.llr)
             dwells.setdefault((s.model, claimed), []).append((v.llr, not v.physics_abstained) if v.terms else None)
+            if rows is not None:
+                rows.append((i, s.model, claimed, v.raw))
     return genuine, impostor, dwells
+
+
+def _calibrated(rows: Sequence[tuple[int, str, str, Any]], fold_of: np.ndarray, n_folds: int, applied: bool,
+                ) -> tuple[Any, list[float], dict[tuple[str, str], list[float]],
+                           dict[tuple[str, str], list[DwellScore]]]:
+    """The site's score calibration (`signatures.calibration.fit` on every claim's out-of-fold raw
+    terms), and the claims re-scored as `_verification` gives them, each recording's by a
+    calibration fitted on the other folds' claims only (cross-fitted: no claim scores itself)."""
+    from signatures.calibration import fit
+
+    raws = [r[3] for r in rows]
+    gen = [r[1] == r[2] for r in rows]
+    folds = np.array([int(fold_of[r[0]]) for r in rows])
+    llrs = np.zeros(len(rows))
+    terms: list[dict[str, float]] = [{} for _ in rows]
+    for k in range(n_folds):
+        out = folds != k
+        cal_k = fit([r for r, o in zip(raws, out) if o], [g for g, o in zip(gen, out) if o])
+        for j in np.flatnonzero(~out):
+            terms[j] = cal_k.terms(raws[j])
+            llrs[j] = sum(terms[j].values())
+    genuine: list[float] = []
+    impostor: dict[tuple[str, str], list[float]] = {}
+    dwells: dict[tuple[str, str], list[DwellScore]] = {}
+    for (_, flown, claimed, _raw), llr, t in zip(rows, llrs, terms):
+        if flown == claimed:
+            genuine.append(float(llr))
+        else:
+            impostor.setdefault((flown, claimed), []).append(float(llr))
+        dwells.setdefault((flown, claimed), []).append((float(llr), "physics" in t) if t else None)
+    return fit(raws, gen, applied=applied), genuine, impostor, dwells
 
 
 def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[float, bool]]], tuple[str, int]],
@@ -332,6 +366,10 @@ def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[flo
         track = [d for d in (dwells[j] for j in pick) if d is not None]
         accepted += walk(track)[0] == "accept"
     return accepted / draws, draws, n
+
+
+def _mean(v: Sequence[float]) -> float | None:
+    return round(float(np.mean(v)), 4) if len(v) else None
 
 
 def _rate(x: float) -> float | None:
@@ -398,14 +436,16 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
           name: str, sources: Sequence[str] = (), previous: str | None = None, seed: int = 0, workers: int = 2,
           n_sim: int = N_SIM, cache: Path | None | bool = None,
           progress: Callable[[str, float], None] | None = None, sprt: Any = None,
-          physics_bands: bool = False) -> dict[str, Any]:
+          physics_bands: bool = False, score_calibration: bool = False) -> dict[str, Any]:
     """Build the site bundle `dest` (must not exist) from `samples` (the site's labelled
     recordings, of `waveform`) on a simulated base set of `profiles` (every model the bundle
     knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. `sprt`: the
     track check's sequential test (`authn.track.Sprt`: its `walk` and `to_json`), which gives the
     card its track-level pairwise errors (None: single dwells only; `authn models enrol` passes
     the check's default). `physics_bands`: re-estimate each enrolled model's rate and rotor bands
-    from the site recordings (`site_bands`; cross-validated like the rest). Returns the card."""
+    from the site recordings (`site_bands`; cross-validated like the rest). `score_calibration`:
+    verify with the score calibration fitted on the cross-validated terms (`signatures.calibration`;
+    always fitted and reported in the card, applied only with it). Returns the card."""
     from signatures import classifiers as clf
     from signatures.dataset import Dataset, DatasetSpec, generate
     from signatures.inference import MEMBERS, Classifier
@@ -478,8 +518,13 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     fold_bands: dict[int, dict[str, Any]] = {}
     if physics_bands:  # out of fold: each recording verified with the bands of the other folds' recordings
         fold_bands = {k: site_bands([s for s, f in zip(site, fold_of) if f != k], profiles) for k in range(n_folds)}
+    rows: list[tuple[int, str, str, Any]] = []
     genuine, impostor, dwell_scores = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip,
-                                                    lambda i: fold_bands.get(int(fold_of[i])))
+                                                    lambda i: fold_bands.get(int(fold_of[i])), rows)
+    uncal_genuine = genuine
+    calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, fold_of, n_folds, score_calibration)
+    if score_calibration:  # the card's threshold, pairwise and track figures are then the calibrated scores'
+        genuine, impostor, dwell_scores = cal_genuine, cal_impostor, cal_dwells
     t_fa = _threshold(impostor, FALSE_ACCEPT_TARGET)
     applied = 0.0  # the default policy's threshold (radar-claim-inconsistent: LLR < 0 rejects)
 
@@ -563,6 +608,9 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                            "physics_bands": ("rate and rotor bands per enrolled model from the site recordings, "
                                              f"today's bands the prior ({BAND_PRIOR_WEIGHT} pseudo-recordings)"
                                              if physics_bands else "today's fixed bands"),
+                           "score_calibration": ("logistic regression on the out-of-fold verification terms "
+                                                 "(card `calibration`)" if score_calibration else "none (fitted and "
+                                                 "reported in `calibration`, not applied)"),
                            "cv_folds": n_folds},
                 "counts": counts, "detected": det_counts, "not_detected": missed,
                 "confusion": {"rows": enrolled, "cols": [labels[j] for j in used_cols],
@@ -575,6 +623,11 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                                                            if len(g) and t_fa is not None else None),
                               "note": "LLR in nats; the default policy rejects below 0 (radar-claim-inconsistent)"},
                 "bands": site_bands(site, profiles) if physics_bands else None,
+                "calibration": {**calibration.to_json(), "evidence_per_genuine_dwell": {
+                    "uncalibrated": _mean(uncal_genuine), "calibrated": _mean(cal_genuine),
+                    "note": "mean cross-validated LLR of genuine claims, nats: with calibrated scores what a "
+                            "genuine dwell is worth (its expected LLR); a track of `tracks.dwells` needs the "
+                            "accept bound times (1 + (n - 1) rho) / n per dwell"}},
                 "pairwise": pairs, "confusable_error": CONFUSABLE_ERROR, "confusable_pairs": confusable,
                 "confusable_pairs_tracks": confusable_tracks if sprt is not None else None,
                 "tracks": tracks_card,

@@ -33,6 +33,10 @@ A site bundle (`authn models enrol`) may carry `Bands` per enrolled model: the r
 bands re-estimated from the site's own recordings with the bands above as the prior
 (`signatures.enrol`); without them (every other bundle) the bands above apply unchanged.
 
+A site bundle may also carry a score calibration (`signatures.calibration`, fitted on its
+enrolment's cross-validated terms, applied with `authn models enrol --calibrate`): the LLR is then
+the calibrated terms' sum; where the physics term abstains it stays absent all the same.
+
 A term abstains (is left out) when its estimate is unreliable; the physics term is floored at
 `TERM_FLOOR`. The Cedar policy thresholds the
 sum. numpy and math only: this runs on the inference path.
@@ -111,6 +115,10 @@ class Verification:
     terms: dict[str, float] = field(default_factory=dict)  # the terms that did not abstain
     #: what the physics term compared: measured against claimed, for the operator
     compared: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: the terms before clipping and calibration (`signatures.calibration.RawTerms`)
+    raw: Any = None
+    #: with a site calibration: the uncalibrated terms (what verify gives without it)
+    uncalibrated: dict[str, float] = field(default_factory=dict)
 
     @property
     def physics_abstained(self) -> bool:
@@ -123,6 +131,8 @@ class Verification:
         doc: dict[str, object] = {"llr": round(self.llr, 4), "terms": {k: round(v, 4) for k, v in self.terms.items()}}
         if self.compared:
             doc["compared"] = {k: {n: round(v, 3) for n, v in d.items()} for k, d in self.compared.items()}
+        if self.uncalibrated:
+            doc["uncalibrated"] = {k: round(v, 4) for k, v in self.uncalibrated.items()}
         return doc
 
 
@@ -198,7 +208,7 @@ def _rotors(features: Mapping[str, float], claimed: UavProfile,
 
 def verify(features: Mapping[str, float], claimed: UavProfile,
            probabilities: Mapping[str, float] | None = None, max_tip_mps: float | None = None,
-           known: bool = True, bands: Bands | None = None) -> Verification:
+           known: bool = True, bands: Bands | None = None, calibration: Any = None) -> Verification:
     """Score a return's physical estimates (feature name -> value, `signatures.features`) and
     the classifier's probabilities (class -> p, optional) against the claimed profile.
 
@@ -208,16 +218,27 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
     radar's `unambiguous_velocity_mps`); the blade term runs only when the claimed airframe's
     fastest tips stay below it, whatever a noisy return's own aliasing flag says.
 
-    `bands`: the claimed model's site-estimated bands (None: `RATE_BAND`, `ROTOR_BAND`)."""
+    `bands`: the claimed model's site-estimated bands (None: `RATE_BAND`, `ROTOR_BAND`).
+
+    `calibration`: a site's score calibration (`signatures.calibration.Calibration`, fitted on its
+    enrolment's cross-validated terms): the LLR is then its calibrated terms' sum, the terms above
+    kept as `uncalibrated`; a physics term that abstained stays absent. None: the terms above."""
+    from signatures.calibration import RawTerms
+
     terms: dict[str, float] = {}
     compared: dict[str, dict[str, float]] = {}
     physics = _physics(features, claimed, max_tip_mps, bands or DEFAULT_BANDS)
     if physics is not None:
         terms["physics"], compared = physics
+    odds = None
     if probabilities and claimed.slug in probabilities:
         uav = [c for c in probabilities if c not in ("bird", "none")]
         prior = 1.0 / max(len(uav), 2)
         p = min(max(float(probabilities[claimed.slug]), 1e-6), 1.0 - 1e-6)
         odds = math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
         terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP if known else 0.0, odds))
-    return Verification(llr=sum(terms.values()), terms=terms, compared=compared)
+    raw = RawTerms(None if physics is None else physics[0], odds, known)
+    if calibration is not None:
+        cal = calibration.terms(raw)
+        return Verification(llr=sum(cal.values()), terms=cal, compared=compared, raw=raw, uncalibrated=terms)
+    return Verification(llr=sum(terms.values()), terms=terms, compared=compared, raw=raw)

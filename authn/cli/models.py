@@ -413,6 +413,10 @@ def enrol_cmd(
     site_bands: bool = typer.Option(False, "--site-bands", help="Also re-estimate each model's rate and rotor "
                                                                 "bands from the recordings, today's as the prior "
                                                                 "(measured: no gain on the held-out world)."),
+    calibrate: bool = typer.Option(False, "--calibrate", help="Verify with the score calibration fitted on the "
+                                                              "cross-validated scores (always fitted and shown; "
+                                                              "measured: honest, and too weak to accept held-out "
+                                                              "tracks, docs/enrolment.md)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object at the end (progress on stderr)."),
 ) -> None:
     """Adapt the radar evidence to this site's radar from its recorded flights (site enrolment).
@@ -494,7 +498,7 @@ def enrol_cmd(
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
                      n_sim=base_samples, progress=progress, sprt=Sprt(),
-                     physics_bands=site_bands)  # track errors by the check's own test
+                     physics_bands=site_bands, score_calibration=calibrate)  # track errors by the check's own test
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
 
@@ -522,7 +526,7 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
                                "counts": e["counts"], "confusion": e["confusion"], "pairwise": e["pairwise"],
                                "confusable_pairs": e["confusable_pairs"],
                                "confusable_pairs_tracks": e.get("confusable_pairs_tracks"), "tracks": e.get("tracks"),
-                               "threshold": e["threshold"],
+                               "threshold": e["threshold"], "calibration": e.get("calibration"),
                                "sources": len(e["sources"])}, indent=2))
         return
     console = Console()
@@ -552,6 +556,12 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
     console.print(f"  genuine accepted (cross-validated) at the applied threshold {th['applied']:g} nats: "
                   f"{th['genuine_accept_at_applied']:.1%}; threshold at {th['false_accept_target']:.0%} false accepts: "
                   f"{th['at_false_accept_target']}")
+    cal = e.get("calibration")
+    if cal:
+        ev = cal["evidence_per_genuine_dwell"]
+        console.print(f"  evidence per genuine dwell (cross-validated, calibrated): {ev['calibrated']} nats "
+                      f"(uncalibrated {ev['uncalibrated']}); score calibration "
+                      f"{'applied' if cal['applied'] else 'not applied (--calibrate applies it)'}")
     console.print(f"  card: {folder / 'card.json'} ({len(e['sources'])} source digests)")
 
 

@@ -101,11 +101,12 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
 
 
 def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base_samples: int, out: dict,
-                 log, site_bands: bool = False) -> tuple[str, dict[str, Path | None]]:
+                 log, site_bands: bool = False, calibrate: bool = False) -> tuple[str, dict[str, Path | None]]:
     """The bench registry and the site bundles: `max(sizes)` enrolment recordings per shipped
     airframe at 0-20 dB from the enrolment stream, the first k of each enrolled at each size k
     (with the check's sequential test: the card's track-level errors) as `authn models enrol`
-    does; with `site_bands` also with site physics bands ('site-k site bands'). (database URL, bundles)."""
+    does; with `site_bands` also with site physics bands ('site-k site bands'), with `calibrate` also with
+    the site's score calibration applied ('site-k calibrated'). (database URL, bundles)."""
     from authn.enrolment import site_sample
     from authn.scenario import Broadcast
     from authn.track import Sprt
@@ -132,22 +133,25 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
             path = write_recording(rec, root / "enrol" / f"{slug}-{i:03d}.h5")
             pool.append((i, site_sample(path, slug, db, rec)[0]))
     bundles: dict[str, Path | None] = {"shipped": None}
-    for k, bands in ((k, b) for k in sizes for b in ((False, True) if site_bands else (False,))):
+    variants = [(False, False), *([(True, False)] if site_bands else []), *([(False, True)] if calibrate else [])]
+    for k, (bands, cal) in ((k, v) for k in sizes for v in variants):
         t0 = time.perf_counter()
-        name = f"site-{k} site bands" if bands else f"site-{k}"
+        suffix = " site bands" if bands else " calibrated" if cal else ""
+        name = f"site-{k}{suffix}"
         folder = root / "models" / name.replace(" ", "-")
         card = enrol([s for i, s in pool if i < k], shipped, pre, folder, name=name.replace(" ", "-"), seed=seed,
-                     n_sim=base_samples, sprt=Sprt(), physics_bands=bands)
+                     n_sim=base_samples, sprt=Sprt(), physics_bands=bands, score_calibration=cal)
         e = card["enrolment"]
-        out["enrolments"][f"{k} site bands" if bands else k] = {
+        out["enrolments"][f"{k}{suffix}" if suffix else k] = {
             "seconds": round(time.perf_counter() - t0, 1), "confusable_pairs": e["confusable_pairs"],
             "confusable_pairs_tracks": e["confusable_pairs_tracks"],
             "pairwise": {"/".join(p["models"]): p["single_dwell"] for p in e["pairwise"]},
             "pairwise_tracks": {"/".join(p["models"]): p["tracks"] for p in e["pairwise"]},
-            "tracks": e["tracks"], "threshold": e["threshold"], "bands": e["bands"],
+            "tracks": e["tracks"], "threshold": e["threshold"], "bands": e["bands"], "calibration": e["calibration"],
             "cv_accuracy": card["metrics"]["validation"]}
         log(f"enrolled {name} in {time.perf_counter() - t0:.1f} s; confusable {e['confusable_pairs']}, "
-            f"over tracks {e['confusable_pairs_tracks']}; bands {e['bands']}")
+            f"over tracks {e['confusable_pairs_tracks']}; bands {e['bands']}; calibration {e['calibration']['coef']} "
+            f"{e['calibration']['intercept']:.3f}, genuine dwell {e['calibration']['evidence_per_genuine_dwell']}")
         bundles[name] = folder
     return db_url, bundles
 
@@ -166,7 +170,8 @@ def _radar_alone_policy(root: Path) -> Path:
 
 
 def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, seed: int,
-               base_samples: int, dwells: int = 8, log=print, site_bands: bool = False) -> dict:
+               base_samples: int, dwells: int = 8, log=print, site_bands: bool = False,
+               calibrate: bool = False) -> dict:
     """Enrol at each size; n tracks per category and SNR, decided with the shipped bundle and each
     site bundle (default policy and radar alone); their first dwells checked alone beside them."""
     from authn.check import CheckInput, Checker
@@ -186,7 +191,7 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
     pairs: dict[tuple[str, str, float, str, str], list[str]] = defaultdict(list)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
-        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log, site_bands)
+        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log, site_bands, calibrate)
         alone = _radar_alone_policy(root)
         checkers = {"shipped": Checker(db_url)}
         for name, folder in bundles.items():
@@ -289,12 +294,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pairs", action="store_true", help="with --track: also the per-pair rows")
     ap.add_argument("--site-bands", action="store_true", help="with --track: also each site bundle enrolled "
                                                               "with site physics bands (models enrol --site-bands)")
+    ap.add_argument("--calibrate", action="store_true", help="with --track: also each site bundle enrolled with "
+                                                             "its score calibration applied (models enrol --calibrate)")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     args = (tuple(int(s) for s in a.sizes.split(",")), a.n, tuple(float(s) for s in a.snr.split(",")), a.world,
             a.seed, a.base_samples)
     say = lambda m: print(m, file=sys.stderr)  # noqa: E731
-    doc = run_tracks(*args, dwells=a.dwells, log=say, site_bands=a.site_bands) if a.track else run(*args, log=say)
+    doc = (run_tracks(*args, dwells=a.dwells, log=say, site_bands=a.site_bands, calibrate=a.calibrate) if a.track
+           else run(*args, log=say))
     doc["seconds"] = round(time.perf_counter() - t0, 1)
     doc["cpus"] = os.cpu_count()
     if a.json:
