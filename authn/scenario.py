@@ -119,7 +119,7 @@ def _signed(rows: list[bytes], times: list[float], signing: Signing, start: date
     if signing.tamper_after_signing:
         first = next(i for i, r in enumerate(rows) if isinstance(decode(r), Location))
         loc = decode(rows[first])
-        rows = [*rows[:first], encode(loc.model_copy(update={"latitude_deg": loc.latitude_deg + 50.0 / 111_320.0})),
+        rows = [*rows[:first], encode(loc.replace(latitude_deg=loc.latitude_deg + 50.0 / 111_320.0)),
                 *rows[first + 1:]]
     pages = paginate(data, start + shift, fec=signing.fec)
     if signing.link is not None:  # a different page-0 timestamp keeps the two messages apart

@@ -188,7 +188,7 @@ def _validate(dwells: Sequence[Dwell], serial: str | None) -> str:
     prev: tuple[datetime, str] | None = None
     for d in dwells:
         head = d.header()
-        wave = (head.config.model_dump(exclude={"range_offset_m"}), head.domain, head.shape)  # the window may move
+        wave = (head.config.to_dict(exclude=("range_offset_m",)), head.domain, head.shape)  # the window may move
         if first is None:
             first = (wave, d.name)
         elif wave != first[0]:

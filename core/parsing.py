@@ -1,7 +1,7 @@
 """Text from outside, parsed once for every layer: ISO 8601 times, JSON documents (with a
-nesting limit) and pydantic errors.
+nesting limit) and validation errors (`core.checked.Invalid`, pydantic's ValidationError).
 
-A leaf module (standard library and pydantic types only), so the radar, registry and
+A leaf module (standard library only), so the radar, registry and
 decision layers share one reading of a date and one way of turning a validation error
 into the one-line message the CLI prints.
 """
@@ -12,6 +12,7 @@ import json
 from datetime import datetime, timedelta, timezone
 from typing import Any
 
+from core.checked import Invalid
 from core.errors import BadInput
 
 __all__ = ["parse_iso_time", "in_utc_range", "first_error", "loads_json", "JsonTooDeep", "MAX_JSON_DEPTH"]
@@ -55,8 +56,11 @@ def in_utc_range(when: datetime) -> bool:
 
 
 def first_error(exc: Any) -> tuple[str, str, Any]:
-    """The first error of a pydantic ValidationError: (dotted location, message, input).
-    The location is '' for a model-level check; pydantic's "Value error, " prefix is dropped."""
+    """The first error of a validation failure, a `core.checked.Invalid` or a pydantic
+    ValidationError: (dotted location, message, input). The location is '' for a rule across
+    fields; pydantic's "Value error, " prefix is dropped."""
+    if isinstance(exc, Invalid):
+        return exc.loc, exc.msg, exc.value
     err = exc.errors()[0]
     loc = ".".join(str(p) for p in err["loc"])
     return loc, str(err["msg"]).removeprefix("Value error, "), err.get("input")

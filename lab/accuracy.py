@@ -150,7 +150,7 @@ class Condition:
         """One scene of the condition and the radar that sees it (its carrier drawn)."""
         pre = get_preset(self.preset).with_pulses(self.n_pulses)
         carrier = float(self.carriers_hz[int(rng.integers(len(self.carriers_hz)))])
-        pre = replace(pre, config=pre.config.model_copy(update={"carrier_hz": carrier}))
+        pre = replace(pre, config=pre.config.replace(carrier_hz=carrier))
         scene = Scene(profile=self.profile, range_m=float(rng.uniform(*self.range_m)), radial_speed_mps=0.0,
                       snr_db=float(rng.uniform(*self.snr_db)), rotor_rate_hz=float(rng.uniform(*self.rotor_rate_hz)),
                       tagged_blades=int(rng.integers(self.tagged_blades[0], self.tagged_blades[1] + 1)),

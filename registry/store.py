@@ -53,6 +53,7 @@ from sqlalchemy import select
 from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.orm import Session
 
+from core.checked import Checked, Invalid
 from core.errors import BadInput
 from core.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
 from registry.dbapi import IdentityFacts
@@ -72,8 +73,9 @@ Status = Literal["active", "revoked"]
 _HEX_KEY = re.compile(r"^[0-9a-fA-F]{64}$")
 
 
-def describe_validation_error(exc: ValidationError) -> str:
-    """The first error of a pydantic ValidationError as one line (`field: reason`)."""
+def describe_validation_error(exc: ValidationError | Invalid) -> str:
+    """The first error of a pydantic ValidationError or a `core.checked.Invalid` as one line
+    (`field: reason`)."""
     loc, msg, _ = first_error(exc)
     return f"{loc}: {msg}" if loc else msg
 
@@ -225,7 +227,7 @@ def register_profile(session: Session, profile: UavProfile) -> UavProfile:
     """Add a new airframe; an existing slug is an error (profiles are never silently changed)."""
     if session.get(ModelProfile, profile.slug) is not None:
         raise RegistryError(f"model {profile.slug!r}: already registered")
-    session.add(ModelProfile(**profile.model_dump()))
+    session.add(ModelProfile(**profile.to_dict()))
     _flush(session, f"model {profile.slug!r}")
     return profile
 
@@ -402,11 +404,12 @@ def _record_label(kind: str, i: int, raw: dict[str, Any], key: str) -> str:
     return f"{kind}[{i}] ({key} {name})" if isinstance(name, str) and name else f"{kind}[{i}]"
 
 
-def _validated(model: type[BaseModel], raw: Any, label: str) -> Any:
-    """One record of an import file through its pydantic model; errors name the record."""
+def _validated(model: type[BaseModel] | type[Checked], raw: Any, label: str) -> Any:
+    """One record of an import file through its model (pydantic, or a `core.checked` dataclass
+    such as UavProfile); errors name the record."""
     try:
-        return model.model_validate(raw)
-    except ValidationError as exc:
+        return model.from_dict(raw) if issubclass(model, Checked) else model.model_validate(raw)
+    except (ValidationError, Invalid) as exc:
         raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
     except (RegistryError, ValueError) as exc:
         raise RegistryError(f"{label}: {exc}") from None
@@ -463,7 +466,7 @@ def parse_import(text: str, fmt: str = "auto") -> RegistryImport:
 
 
 def _profile_difference(a: UavProfile, b: UavProfile) -> str:
-    for name, value in a.model_dump().items():
+    for name, value in a.to_dict().items():
         other = getattr(b, name)
         if value != other:
             return f"{name} {value!r} in the file, {other!r} registered"
@@ -504,7 +507,7 @@ def import_records(session: Session, data: RegistryImport, skip_existing: bool =
         raise RegistryError(f"serial {sorted(taken)[0]}: already registered "
                             f"({len(taken)} of the file's serials are)")
     new_ones = [new for _, new in data.identities if new.serial not in taken]
-    session.add_all(ModelProfile(**p.model_dump()) for p in added)
+    session.add_all(ModelProfile(**p.to_dict()) for p in added)
     _flush(session, "import (profiles)")
     now = utcnow()
     session.add_all(_row(new, now) for new in new_ones)
@@ -533,7 +536,7 @@ def export_document(session: Session) -> dict[str, Any]:
     return {
         "format": REGISTRY_FORMAT,
         "exported_at": _iso(utcnow()),
-        "profiles": [p.model_dump() for p in list_profiles(session)],
+        "profiles": [p.to_dict() for p in list_profiles(session)],
         "identities": [{
             "serial": r.serial, "id_type": r.id_type, "model": r.model,
             "operator_id": r.operator_id,

@@ -16,11 +16,11 @@ import stat
 import struct
 from collections.abc import Iterator
 from datetime import datetime, timedelta, timezone
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
-
+from core.checked import Checked
 from remoteid.codec import MESSAGE_SIZE, decode
 from remoteid.errors import CaptureError, RemoteIdError
 from remoteid.messages import Message
@@ -43,10 +43,9 @@ ODID_APP_CODE = 0x0D
 _EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 
 
-class CapturedMessage(BaseModel):
+@dataclass(frozen=True, kw_only=True)
+class CapturedMessage(Checked):
     """One Open Drone ID payload (a message or a message pack) found in a capture."""
-
-    model_config = ConfigDict(frozen=True)
 
     frame: int  # 1-based packet number in the file
     captured_at: datetime | None  # None only for pcapng simple packet blocks
@@ -56,7 +55,11 @@ class CapturedMessage(BaseModel):
     #: the transmitter's address (Wi-Fi source MAC, BLE AdvA) as aa:bb:..; None when the frame has none
     sender: str | None = None
     #: the payload's wire bytes (one 25-byte message or a whole pack); not in the JSON
-    raw: bytes = Field(default=b"", exclude=True, repr=False)
+    raw: bytes = field(default=b"", repr=False)
+
+    def to_dict(self, *, json: bool = False, exclude: tuple[str, ...] = ("raw",)) -> dict[str, Any]:
+        """The fields without `raw` (by default), the message as its dict."""
+        return super().to_dict(json=json, exclude=exclude)
 
 
 # ------------------------------------------------------------------ containers
@@ -373,10 +376,9 @@ WINDOW_MARGIN_S = 5.0
 DEFAULT_SKEW_S = 2.0
 
 
-class Broadcaster(BaseModel):
+@dataclass(frozen=True)
+class Broadcaster:
     """One drone heard in a capture during a dwell: its UAS ID and its single messages."""
-
-    model_config = ConfigDict(frozen=True)
 
     uas_id: str
     senders: tuple[str, ...]

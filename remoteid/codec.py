@@ -7,7 +7,8 @@ the area radius are truncated toward zero (C integer casts). Latitude and
 longitude are truncated from the exact decimal value of the float, so that a
 decoded value re-encodes to the same bytes (the C double product can land a
 hair below the integer). Reserved bits are ignored on decode and written as 0.
-Imports only the standard library and pydantic: `authn rid decode` starts fast.
+Imports only the standard library (the messages are `core.checked` dataclasses): `authn rid
+decode` and a check start fast.
 """
 
 from __future__ import annotations
@@ -18,9 +19,7 @@ from collections.abc import Iterable, Iterator
 from datetime import datetime, timedelta, timezone
 from decimal import Decimal
 
-from pydantic import BaseModel, ValidationError
-
-from core.parsing import first_error
+from core.checked import Invalid
 from remoteid.errors import RemoteIdError
 from remoteid.messages import (
     SESSION_ID,
@@ -33,6 +32,7 @@ from remoteid.messages import (
     OperatorId,
     SelfId,
     System,
+    _Message,
 )
 
 MESSAGE_SIZE = 25
@@ -61,12 +61,11 @@ def _round_half_away(x: float) -> int:
     return math.floor(x + 0.5) if x >= 0 else -math.floor(-x + 0.5)
 
 
-def _build(cls: type[BaseModel], what: str, **fields: object) -> BaseModel:
+def _build(cls: type[_Message], what: str, **fields: object) -> _Message:
     try:
         return cls(**fields)
-    except ValidationError as exc:
-        loc, msg, _ = first_error(exc)
-        raise RemoteIdError(f"{what}: {loc or what}: {msg}") from None
+    except Invalid as exc:
+        raise RemoteIdError(f"{what}: {exc.loc or what}: {exc.msg}") from None
 
 
 def _text(raw: bytes, what: str) -> str:
@@ -328,7 +327,7 @@ def flatten(messages: Iterable) -> list:
 
 
 # ---------------------------------------------------------------- encode
-def _head(msg: BaseModel) -> int:
+def _head(msg: _Message) -> int:
     return TYPE_CODES[msg.type] << 4 | msg.protocol_version
 
 
@@ -375,7 +374,7 @@ def _encode_system(m: System) -> bytes:
     )
 
 
-def encode(msg: BaseModel) -> bytes:
+def encode(msg: _Message) -> bytes:
     """Typed model -> wire bytes (25, or 3 + 25 n for a message pack)."""
     if isinstance(msg, BasicId):
         uas_id = bytes.fromhex(msg.uas_id).ljust(20, b"\0") if msg.id_type == SESSION_ID else _pad(msg.uas_id, 20)

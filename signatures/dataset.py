@@ -124,7 +124,7 @@ class DatasetSpec:
             del doc["nuisance"]
         else:
             doc["nuisance"] = asdict(self.nuisance)
-        doc["profiles"] = [p.model_dump(mode="json") for p in self.profiles]
+        doc["profiles"] = [p.to_dict(json=True) for p in self.profiles]
         wf = self.waveform
         doc["preset"] = wf.name if wf.shipped else {"name": wf.name, "key": wf.key, "max_range_m": wf.max_range_m}
         doc["generator_version"] = GENERATOR_VERSION

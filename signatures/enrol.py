@@ -578,10 +578,10 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
         created = datetime.now(timezone.utc).replace(microsecond=0)
         card: dict[str, Any] = {
             "preset": wf.name,
-            "radar": {**wf.config.model_dump(exclude={"range_offset_m"}), "n_chirps": wf.n_chirps,
+            "radar": {**wf.config.to_dict(exclude=("range_offset_m",)), "n_chirps": wf.n_chirps,
                       "n_samples": wf.n_samples},
             "classes": list(classes), "feature_names": names, "class_features": [names[i] for i in cols],
-            "profiles": [p.model_dump(mode="json") for p in plist],
+            "profiles": [p.to_dict(json=True) for p in plist],
             "training": {"seed": seed, "n_train": n_s + len(site), "n_val": 0, "base_simulated": n_s,
                          "command": "authn models enrol RECORDINGS (the card's enrolment.sources)"},
             "models": {"knn": "StandardScaler + KNeighborsClassifier(k=5) on base + site returns (unweighted)",

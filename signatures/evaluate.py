@@ -106,7 +106,7 @@ def evaluate(model: Classifier, snrs: Sequence[float], n_per_snr: int, seed: int
              unknown_profiles: Sequence[UavProfile] = (), featurizer: Featurizer | None = None,
              cache: Path | None | bool = None, progress: bool = False, workers: int = 2) -> dict[str, Any]:
     """Metrics per model and SNR on test-split data, open-set rates on never-trained profiles."""
-    known = tuple(UavProfile.model_validate(p) for p in model.card["profiles"])
+    known = tuple(UavProfile.from_dict(p) for p in model.card["profiles"])
     report: dict[str, Any] = {"preset": model.preset, "card_sha256": model.card_digest, "seed": seed,
                               "n_per_snr": n_per_snr, "per_snr": {}, "open_set": {}}
     first: Dataset | None = None

@@ -187,7 +187,7 @@ def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] 
         iq = np.asarray(rec.iq)
         if iq.ndim != 2 or iq.shape[0] < 1 or iq.shape[1] < 1:
             raise SignaturesError(f"row {i}: IQ cube must be 2-D (n_chirps, n_samples), got shape {iq.shape}")
-        waveform = rec.config.model_copy(update={"range_offset_m": 0.0})
+        waveform = rec.config.replace(range_offset_m=0.0)
         groups.setdefault((waveform, iq.shape, iq.dtype.str, rec.domain), []).append(i)
     for (_, shape, _, domain), rows in groups.items():
         step = batch_size(shape[0], shape[1], memory_bytes)

@@ -9,11 +9,11 @@ from __future__ import annotations
 import json
 import math
 from importlib import resources
+from dataclasses import dataclass
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
-
-from core.parsing import JsonTooDeep, first_error, loads_json
+from core.checked import Checked, Invalid, integer, number, text
+from core.parsing import JsonTooDeep, loads_json
 from signatures.errors import SignaturesError
 
 #: Classes the radar knows besides UAV profiles.
@@ -21,27 +21,24 @@ NON_UAV_CLASSES = ("bird", "none")
 UNKNOWN = "unknown"
 
 
-class UavProfile(BaseModel):
-    """Physical parameters of a multirotor airframe."""
+@dataclass(frozen=True, kw_only=True)
+class UavProfile(Checked):
+    """Physical parameters of a multirotor airframe (checked on construction: `core.checked`)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid", defer_build=True)
+    slug: str = text(pattern=r"^[a-z0-9][a-z0-9_-]{0,31}$")
+    name: str = text(min_length=1, max_length=100)
+    rotors: int = integer(ge=1, le=16)
+    arms: int = integer(ge=1, le=16)
+    blades_per_rotor: int = integer(2, ge=1, le=8)
+    blade_length_m: float = number(gt=0.01, le=3.0)
+    rotor_rate_hz: float = number(gt=1.0, le=500.0)
+    propeller_distance_m: float = number(gt=0.05, le=10.0)
 
-    slug: str = Field(pattern=r"^[a-z0-9][a-z0-9_-]{0,31}$")
-    name: str = Field(min_length=1, max_length=100)
-    rotors: int = Field(ge=1, le=16)
-    arms: int = Field(ge=1, le=16)
-    blades_per_rotor: int = Field(default=2, ge=1, le=8)
-    blade_length_m: float = Field(gt=0.01, le=3.0)
-    rotor_rate_hz: float = Field(gt=1.0, le=500.0)
-    propeller_distance_m: float = Field(gt=0.05, le=10.0)
-
-    @model_validator(mode="after")
-    def _check(self) -> "UavProfile":
+    def _check(self) -> None:
         if self.slug in NON_UAV_CLASSES or self.slug == UNKNOWN:
             raise ValueError(f"slug {self.slug!r} is reserved")
         if self.rotors % self.arms and self.arms % self.rotors:
             raise ValueError("rotors must be a multiple of arms (coaxial) or equal to it")
-        return self
 
     @property
     def tip_speed_mps(self) -> float:
@@ -62,10 +59,9 @@ def parse_profiles(data: object, source: str) -> dict[str, UavProfile]:
     out: dict[str, UavProfile] = {}
     for i, entry in enumerate(data["profiles"]):
         try:
-            p = UavProfile.model_validate(entry)
-        except ValidationError as exc:
-            loc, msg, _ = first_error(exc)
-            raise SignaturesError(f"{source}: profiles[{i}].{loc or 'profile'}: {msg}") from None
+            p = UavProfile.from_dict(entry)
+        except Invalid as exc:
+            raise SignaturesError(f"{source}: profiles[{i}].{exc.loc or 'profile'}: {exc.msg}") from None
         if p.slug in out:
             raise SignaturesError(f"{source}: duplicate profile slug {p.slug!r}")
         out[p.slug] = p

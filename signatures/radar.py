@@ -13,33 +13,30 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
-
+from core.checked import Checked, Invalid, choice, integer, number
 from core.parsing import JsonTooDeep, loads_json
 from signatures.profiles import UavProfile
 
 C = 299_792_458.0  # speed of light, m/s
 
 
-class RadarConfig(BaseModel):
-    """Waveform of one recorded dwell: the radar attributes of docs/format.md."""
+@dataclass(frozen=True, kw_only=True)
+class RadarConfig(Checked):
+    """Waveform of one recorded dwell: the radar attributes of docs/format.md (checked on
+    construction: `core.checked`)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    carrier_hz: float = number(gt=0, le=1e12)
+    bandwidth_hz: float = number(gt=0, le=1e11)
+    ramp_s: float = number(gt=0, le=1.0)
+    pri_s: float = number(gt=0, le=10.0)
+    sample_rate_hz: float = number(gt=0, le=1e11)
+    range_offset_m: float = number(0.0, ge=0, le=1e6)
 
-    carrier_hz: float = Field(gt=0, le=1e12)
-    bandwidth_hz: float = Field(gt=0, le=1e11)
-    ramp_s: float = Field(gt=0, le=1.0)
-    pri_s: float = Field(gt=0, le=10.0)
-    sample_rate_hz: float = Field(gt=0, le=1e11)
-    range_offset_m: float = Field(default=0.0, ge=0, le=1e6)
-
-    @model_validator(mode="after")
-    def _pri_covers_ramp(self) -> "RadarConfig":
+    def _check(self) -> None:
         if self.pri_s < self.ramp_s:
             raise ValueError(f"pri_s ({self.pri_s:g}) < ramp_s ({self.ramp_s:g}): chirps would overlap")
-        return self
 
     # --- derived quantities -------------------------------------------------
     @property
@@ -167,7 +164,7 @@ class Preset:
         return replace(self, name=f"{self.name}-{n}", n_chirps=n)
 
     def with_offset(self, range_offset_m: float) -> RadarConfig:
-        return self.config.model_copy(update={"range_offset_m": float(range_offset_m)})
+        return self.config.replace(range_offset_m=float(range_offset_m))
 
     @property
     def key(self) -> str:
@@ -193,7 +190,7 @@ class Preset:
 
     def as_json(self) -> dict[str, Any]:
         """The radar-configuration document (`load_waveform` reads it back)."""
-        return {**self.config.model_dump(include=set(WAVEFORM_FIELDS)), "n_chirps": self.n_chirps,
+        return {**{f: getattr(self.config, f) for f in WAVEFORM_FIELDS}, "n_chirps": self.n_chirps,
                 "n_samples": self.n_samples, "max_range_m": self.max_range_m, "domain": self.domain}
 
 
@@ -275,7 +272,7 @@ def waveform_of(config: RadarConfig, n_chirps: int, n_samples: int, domain: str 
     found = shipped_preset(config, n_chirps, n_samples, domain)
     if found is not None:
         return found
-    cfg = config.model_copy(update={"range_offset_m": 0.0})
+    cfg = config.replace(range_offset_m=0.0)
     tag = "" if domain == "if" else f"-{domain}"
     key = waveform_key(cfg, n_chirps, n_samples, domain)
     name = f"{cfg.carrier_hz / 1e9:g}GHz{tag}-{n_chirps}x{n_samples}-{key[:8]}"
@@ -288,31 +285,28 @@ def recording_waveform(recording: Any) -> Preset:
                        getattr(recording, "domain", "if"))
 
 
-class WaveformFile(BaseModel):
+@dataclass(frozen=True, kw_only=True)
+class WaveformFile(Checked):
     """A radar-configuration JSON file: the RadarConfig fields plus cube size, range cover, domain."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    carrier_hz: float = number()
+    bandwidth_hz: float = number()
+    ramp_s: float = number()
+    pri_s: float = number()
+    sample_rate_hz: float = number()
+    range_offset_m: float = number(0.0)  # accepted (a recording's attributes), ignored: the gate follows the target
+    n_chirps: int = integer(ge=16, le=1_000_000)
+    n_samples: int = integer(ge=1, le=65_536)
+    max_range_m: float = number(DEFAULT_MAX_RANGE_M, ge=100.0, le=1e5)
+    domain: str = choice("if", "range", "cw", default="if")
 
-    carrier_hz: float
-    bandwidth_hz: float
-    ramp_s: float
-    pri_s: float
-    sample_rate_hz: float
-    range_offset_m: float = 0.0  # accepted (a recording's attributes), ignored: the gate follows the target
-    n_chirps: int = Field(ge=16, le=1_000_000)
-    n_samples: int = Field(ge=1, le=65_536)
-    max_range_m: float = Field(default=DEFAULT_MAX_RANGE_M, ge=100.0, le=1e5)
-    domain: Literal["if", "range", "cw"] = "if"
-
-    @model_validator(mode="after")
-    def _cube_fits(self) -> "WaveformFile":
+    def _check(self) -> None:
         if self.n_chirps * self.n_samples > 1 << 25:
             raise ValueError(f"a {self.n_chirps}x{self.n_samples} cube exceeds 2^25 samples")
         if self.domain == "cw" and self.n_samples != 1:
             raise ValueError(f"n_samples: a CW waveform has exactly one sample per pulse, not {self.n_samples}")
         if self.domain != "cw" and self.n_samples < 8:
             raise ValueError(f"n_samples: a {self.domain}-domain waveform needs at least 8, not {self.n_samples}")
-        return self
 
 
 def parse_waveform(doc: object, source: str) -> Preset:
@@ -320,12 +314,10 @@ def parse_waveform(doc: object, source: str) -> Preset:
     from signatures.errors import SignaturesError
 
     try:
-        w = WaveformFile.model_validate(doc)
-        cfg = RadarConfig(**w.model_dump(include=set(WAVEFORM_FIELDS)))
-    except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = ".".join(str(p) for p in err["loc"]) or "document"
-        raise SignaturesError(f"{source}: {loc}: {err['msg']}") from None
+        w = WaveformFile.from_dict(doc)
+        cfg = RadarConfig(**{f: getattr(w, f) for f in WAVEFORM_FIELDS})
+    except Invalid as exc:
+        raise SignaturesError(f"{source}: {exc.loc or 'document'}: {exc.msg}") from None
     return waveform_of(cfg, w.n_chirps, w.n_samples, w.domain, w.max_range_m)
 
 

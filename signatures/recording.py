@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from core.parsing import first_error, parse_iso_time
+from core.checked import Checked, Invalid, number
+from core.parsing import parse_iso_time
 from signatures.errors import RecordingError
 from signatures.radar import RadarConfig
 
@@ -65,14 +65,13 @@ _CONFIG_ATTRS = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_h
 _SITE_ATTRS = ("radar_lat_deg", "radar_lon_deg", "radar_alt_m")
 
 
-class RadarSite(BaseModel):
-    """WGS-84 position of the radar."""
+@dataclass(frozen=True, kw_only=True)
+class RadarSite(Checked):
+    """WGS-84 position of the radar (checked on construction: `core.checked`)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    lat_deg: float = Field(ge=-90, le=90)
-    lon_deg: float = Field(ge=-180, le=180)
-    alt_m: float = Field(ge=-1000, le=20000)
+    lat_deg: float = number(ge=-90, le=90)
+    lon_deg: float = number(ge=-180, le=180)
+    alt_m: float = number(ge=-1000, le=20000)
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,12 +154,11 @@ def _float_attr(attrs: dict[str, Any], name: str, default: float | None = None) 
     return value
 
 
-def _pydantic_error(exc: ValidationError) -> RecordingError:
-    """One line naming the attribute (the model-level check is the pri_s >= ramp_s rule)."""
-    loc, msg, given = first_error(exc)
-    if not loc:
-        return RecordingError(f"attribute 'pri_s': {msg}")
-    return RecordingError(f"attribute '{loc.split('.')[0]}': {msg} (got {_show(given)})")
+def _config_error(exc: Invalid) -> RecordingError:
+    """One line naming the attribute (the rule across fields is the pri_s >= ramp_s one)."""
+    if not exc.loc:
+        return RecordingError(f"attribute 'pri_s': {exc.msg}")
+    return RecordingError(f"attribute '{exc.loc.split('.')[0]}': {exc.msg} (got {_show(exc.value)})")
 
 
 def _start_time(attrs: dict[str, Any]) -> datetime:
@@ -207,15 +205,14 @@ def _metadata(attrs: dict[str, Any]) -> tuple[RadarConfig, RadarSite, datetime]:
     values["range_offset_m"] = _float_attr(attrs, "range_offset_m", default=0.0)
     try:
         config = RadarConfig(**values)
-    except ValidationError as exc:
-        raise _pydantic_error(exc) from None
+    except Invalid as exc:
+        raise _config_error(exc) from None
     site_values = {n: _float_attr(attrs, n) for n in _SITE_ATTRS}
     try:
         site = RadarSite(lat_deg=site_values["radar_lat_deg"], lon_deg=site_values["radar_lon_deg"],
                          alt_m=site_values["radar_alt_m"])
-    except ValidationError as exc:
-        loc, msg, _ = first_error(exc)
-        raise RecordingError(f"attribute 'radar_{loc.split('.')[0]}': {msg}") from None
+    except Invalid as exc:
+        raise RecordingError(f"attribute 'radar_{exc.loc.split('.')[0]}': {exc.msg}") from None
     return config, site, _start_time(attrs)
 
 
@@ -542,7 +539,7 @@ def _read_h5(path: Path, max_cells: int, max_bytes: int) -> Recording:
 def _attrs_of(rec: Recording) -> dict[str, Any]:
     attrs: dict[str, Any] = {"format": FORMAT_TAG if rec.domain == "if" else FORMAT_TAG_DOMAINS,
                              "domain": rec.domain}
-    attrs.update(rec.config.model_dump())
+    attrs.update(rec.config.to_dict())
     attrs["radar_lat_deg"] = rec.site.lat_deg
     attrs["radar_lon_deg"] = rec.site.lon_deg
     attrs["radar_alt_m"] = rec.site.alt_m

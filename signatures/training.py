@@ -182,12 +182,12 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                         "input_std": std, "epochs": 12}
         card: dict[str, Any] = {
             "preset": wf.name,
-            "radar": {**wf.config.model_dump(exclude={"range_offset_m"}),
+            "radar": {**wf.config.to_dict(exclude=("range_offset_m",)),
                       "n_chirps": wf.n_chirps, "n_samples": wf.n_samples},
             "classes": list(train.classes),
             "feature_names": list(train.feature_names),
             "class_features": [train.feature_names[i] for i in cols],
-            "profiles": [p.model_dump(mode="json") for p in cfg.profiles],
+            "profiles": [p.to_dict(json=True) for p in cfg.profiles],
             "training": {"seed": cfg.seed, "n_train": cfg.n_train, "n_val": cfg.n_val,
                          "generator_version": GENERATOR_VERSION,
                          "dataset": {**{k: v for k, v in DatasetSpec(split="train", n=1, **common).__dict__.items()

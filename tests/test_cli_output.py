@@ -125,7 +125,7 @@ def test_no_bundle_names_the_nearest_and_the_parameter_that_differs(tmp_path: Pa
     from signatures.radar import PRESETS, waveform_of
 
     paper = PRESETS["paper"]
-    rounded = paper.config.model_copy(update={"pri_s": 4.403e-5, "ramp_s": 4.403e-5})  # docs' 4 digits
+    rounded = paper.config.replace(pri_s=4.403e-5, ramp_s=4.403e-5)  # docs' 4 digits
     with pytest.raises(NoModelError) as err:
         find_bundle(waveform_of(rounded, 600, 80), "x.h5")
     text = str(err.value)

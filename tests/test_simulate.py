@@ -74,7 +74,7 @@ def test_blade_flash_period_is_blades_times_rotor_rate(preset_name: str, slug: s
     period_chirps = round(1.0 / (p.blade_flash_rate_hz * pre.config.pri_s))
     rate = 1.0 / (p.blades_per_rotor * period_chirps * pre.config.pri_s)
     assert rate == pytest.approx(p.rotor_rate_hz, rel=5e-3)
-    scene = _clean(slug, range_m=300.0).model_copy(update={"profile": p.model_copy(update={"rotor_rate_hz": rate})})
+    scene = _clean(slug, range_m=300.0).model_copy(update={"profile": p.replace(rotor_rate_hz=rate)})
     rec, truth = simulate(scene, pre, seed=3)
     k = int(np.argmax(_range_profile(rec.iq)))
     slow = np.fft.fft(rec.iq.astype(np.complex128), axis=1)[:, k]

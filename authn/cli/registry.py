@@ -39,15 +39,17 @@ def _default_valid_from() -> datetime:
 
 
 def _validated(cls, **fields):
-    """Build a pydantic input model; its first error becomes a one-line RegistryError."""
+    """Build an input model (a pydantic one, or a `core.checked` dataclass such as UavProfile);
+    its first error becomes a one-line RegistryError."""
     from pydantic import ValidationError
 
+    from core.checked import Invalid
     from registry.errors import RegistryError
     from registry.store import describe_validation_error
 
     try:
         return cls(**fields)
-    except ValidationError as exc:
+    except (ValidationError, Invalid) as exc:
         raise RegistryError(describe_validation_error(exc)) from None
 
 
@@ -125,7 +127,7 @@ def register_cmd(
             register_profile(session, new_profile)
         rec = register_identity(session, new) if new is not None else None
     if as_json:
-        out = {"profile": new_profile.model_dump() if new_profile else None,
+        out = {"profile": new_profile.to_dict() if new_profile else None,
                "identity": _record_json(rec) if rec else None}
         typer.echo(json.dumps(out, indent=2))
         return
@@ -361,7 +363,7 @@ def models_cmd(
     with session_scope(ctx.obj.db_url) as session:
         profiles = list_profiles(session)
     if as_json:
-        typer.echo(json.dumps([p.model_dump() for p in profiles], indent=2))
+        typer.echo(json.dumps([p.to_dict() for p in profiles], indent=2))
         return
     from rich.table import Table
 

@@ -13,7 +13,7 @@ rid_app = typer.Typer(help="Remote ID (ASTM F3411 / Open Drone ID) tools.", no_a
 
 
 def _summary(msg) -> str:
-    fields = msg.model_dump(mode="json", exclude={"type", "protocol_version"})
+    fields = msg.to_dict(json=True, exclude=("type", "protocol_version"))
     return ", ".join(f"{k}={v}" for k, v in fields.items() if v not in (None, "", 0) or k == "page")
 
 
@@ -58,7 +58,7 @@ def decode_cmd(
         found = read_capture(pcap)
         wire = [m for c in found for m in _flat(c.message)]  # re-encoded when verified (canonical senders)
         if as_json:
-            typer.echo(json.dumps([json.loads(c.model_dump_json()) for c in found], indent=2))
+            typer.echo(json.dumps([c.to_dict(json=True) for c in found], indent=2))
             _print_auth(wire, public_key, at, as_json=True)
             return
         rows = [(str(c.frame), c.captured_at.isoformat() if c.captured_at else "", c.transport, m)
@@ -69,7 +69,7 @@ def decode_cmd(
         decoded = [decode_hex(h) for h in messages]
         wire = decode_rows_raw([bytes.fromhex(h.replace(" ", "")) for h in messages])
         if as_json:
-            typer.echo(json.dumps([m.model_dump(mode="json") for m in decoded], indent=2))
+            typer.echo(json.dumps([m.to_dict(json=True) for m in decoded], indent=2))
             _print_auth(wire, public_key, at, as_json=True)
             return
         rows = [(str(i), "", "", m) for i, d in enumerate(decoded, 1) for m in _flat(d)]

@@ -150,8 +150,9 @@ def simulate(
     Example (S-band CW, 10 s, hovering, tagged): authn simulate --model phantom4 --range 300 --preset cw-sband \\
       --chirps 50000 --rotor-rate 160 --tagged-blades 2 --clutter-to-signal 30 --out cw.h5
     """
-    from pydantic import ValidationError
+    from pydantic import ValidationError  # the Scene is a pydantic model (not on a check's path)
 
+    from core.checked import Invalid
     from signatures.errors import SignaturesError
     from signatures.domain import as_recorded
     from signatures.radar import get_preset, waveform_of
@@ -166,7 +167,7 @@ def simulate(
                               "no spaces)")
     pre = get_preset(preset)
     if chirps is not None or carrier is not None:
-        cfg = pre.config if carrier is None else pre.config.model_copy(update={"carrier_hz": float(carrier)})
+        cfg = pre.config if carrier is None else pre.config.replace(carrier_hz=float(carrier))
         pre = waveform_of(cfg, chirps or pre.n_chirps, pre.n_samples, pre.domain, max_range_m=pre.max_range_m)
     if pre.domain != "if" and domain not in ("if", pre.domain):
         raise SignaturesError(f"--domain: preset {preset!r} records {pre.domain}, not {domain}")
@@ -177,7 +178,7 @@ def simulate(
         scene = _scene_for(model, profiles, range_m=range_m, radial_speed_mps=speed, snr_db=snr,
                            elevation_deg=elevation, clutter_db=clutter, rotor_rate_hz=rotor_rate,
                            tagged_blades=tagged_blades, tag_gain_db=tag_gain, clutter_to_signal_db=clutter_to_signal)
-    except ValidationError as exc:
+    except (ValidationError, Invalid) as exc:
         loc, msg, _ = first_error(exc)
         field = loc.split(".")[0] or "model"
         raise SignaturesError(f"--{_OPTION_OF.get(field, field)}: {msg}") from None
@@ -200,7 +201,7 @@ def simulate(
         try:
             rec, truth = simulate_flight(scene, pre, seed + i, broadcast, azimuth, range_offset, start)
             return as_recorded(rec, pre.domain), truth
-        except ValidationError as exc:
+        except (ValidationError, Invalid) as exc:
             loc, msg, _ = first_error(exc)
             raise SignaturesError(f"--rid-*: {loc}: {msg}") from None
 

@@ -251,4 +251,4 @@ def profiles(request: Request, _caller: Caller = Depends(require("read_registry"
     from registry.store import list_profiles
 
     with session_scope(runtime(request).settings.db_url) as s:
-        return [p.model_dump(mode="json") for p in list_profiles(s)]
+        return [p.to_dict(json=True) for p in list_profiles(s)]

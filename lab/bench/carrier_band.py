@@ -35,7 +35,7 @@ def render(model_dir: str, carriers: tuple[float, ...], n: int, snr: float, seed
 
     clf = load_classifier(path=model_dir)
     wf = clf.waveform
-    presets = [replace(wf, name=f"{wf.name}@{f:g}", config=wf.config.model_copy(update={"carrier_hz": f}))
+    presets = [replace(wf, name=f"{wf.name}@{f:g}", config=wf.config.replace(carrier_hz=f))
                for f in carriers]
     spec = DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="test", n=n, seed=seed,
                        snr_db=float(snr))

@@ -205,7 +205,7 @@ def _retrain(clf, preset: str, n_train: int) -> list[tuple[str, Callable, list[i
     from signatures.profiles import UavProfile
     from signatures.training import GEOMETRY_FEATURES, LEVEL_FEATURES
 
-    profiles = tuple(UavProfile.model_validate(p) for p in clf.card["profiles"])
+    profiles = tuple(UavProfile.from_dict(p) for p in clf.card["profiles"])
     seed = int(clf.card["training"]["seed"])
     spec = DatasetSpec(split="train", n=n_train, preset=preset, profiles=profiles, seed=seed)
     index = {c: i for i, c in enumerate(clf.classes)}

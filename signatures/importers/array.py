@@ -227,15 +227,12 @@ def waveform_config(w: Waveform, domain: str, n_cols: int, real_if: bool):
 
 
 def _checked(build):
-    from pydantic import ValidationError
-
-    from core.parsing import first_error
+    from core.checked import Invalid
 
     try:
         return build()
-    except ValidationError as exc:
-        loc, msg, _ = first_error(exc)
-        raise SignaturesError(f"waveform: radar attribute '{loc.split('.')[0] or 'pri_s'}': {msg}") from None
+    except Invalid as exc:
+        raise SignaturesError(f"waveform: radar attribute '{exc.loc.split('.')[0] or 'pri_s'}': {exc.msg}") from None
 
 
 def dwells(path: Path, src: ArraySource, domain: str, w: Waveform,

@@ -14,9 +14,9 @@ from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
-from pydantic import ValidationError
 
-from core.parsing import first_error, parse_iso_time
+from core.checked import Invalid
+from core.parsing import parse_iso_time
 from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
 from signatures.recording import (EARLIEST_START, MAX_FUTURE_SKEW, MAX_IQ_CELLS, RadarSite, Recording,
@@ -41,9 +41,8 @@ class Capture:
         when = parse_iso_time(start_time, "--start-time", error=SignaturesError).astimezone(timezone.utc)
         try:
             site = RadarSite(lat_deg=lat_deg, lon_deg=lon_deg, alt_m=alt_m)
-        except ValidationError as exc:
-            loc, msg, _ = first_error(exc)
-            raise SignaturesError(f"--site-{loc.split('_')[0]}: {msg}") from None
+        except Invalid as exc:
+            raise SignaturesError(f"--site-{exc.loc.split('_')[0]}: {exc.msg}") from None
         return cls(site, when)
 
 
@@ -62,11 +61,10 @@ def radar_config(what: str, **values: float) -> RadarConfig:
     """A RadarConfig, or a one-line error naming the attribute and what it came from."""
     try:
         return RadarConfig(**values)
-    except ValidationError as exc:
-        loc, msg, given = first_error(exc)
-        field = loc.split(".")[0] or "pri_s"
-        shown = f" (got {given:g})" if isinstance(given, float) else ""
-        raise SignaturesError(f"{what}: radar attribute '{field}': {msg}{shown}") from None
+    except Invalid as exc:
+        field = exc.loc.split(".")[0] or "pri_s"
+        shown = f" (got {exc.value:g})" if isinstance(exc.value, float) else ""
+        raise SignaturesError(f"{what}: radar attribute '{field}': {exc.msg}{shown}") from None
 
 
 def analytic_half_rate(real: np.ndarray) -> np.ndarray:

@@ -148,7 +148,7 @@ def test_preset_is_matched_from_the_waveform() -> None:
         pre = get_preset(name)
         assert match_preset(pre.with_offset(321.0), pre.n_chirps, pre.n_samples) == name
     pre = get_preset("paper")
-    other = pre.config.model_copy(update={"carrier_hz": 24e9})
+    other = pre.config.replace(carrier_hz=24e9)
     with pytest.raises(NoModelError, match="no classifier for this waveform"):
         match_preset(other, pre.n_chirps, pre.n_samples)
     with pytest.raises(NoModelError):

@@ -24,7 +24,7 @@ CW = get_preset("cw-sband")
 
 
 def _at(pre, carrier_hz: float, n_chirps: int | None = None):
-    cfg = pre.config.model_copy(update={"carrier_hz": carrier_hz})
+    cfg = pre.config.replace(carrier_hz=carrier_hz)
     return waveform_of(cfg, n_chirps or pre.n_chirps, pre.n_samples, pre.domain, pre.max_range_m)
 
 
@@ -40,8 +40,8 @@ def test_band_is_stated_and_covers_a_radar_hopping_over_3_30_to_3_40_ghz() -> No
     for f in (3.30e9, 3.35e9, 3.40e9):
         assert carrier_ratio(bundle, _at(CW, f)) == pytest.approx(f / 3.35e9)
     assert carrier_ratio(bundle, _at(CW, 3.35e9 * 1.026)) is None  # outside the band
-    other = waveform_of(bundle.config.model_copy(update={"carrier_hz": 3.36e9, "pri_s": 2.5e-4, "ramp_s": 2.5e-4,
-                                                         "bandwidth_hz": 4e3, "sample_rate_hz": 4e3}),
+    other = waveform_of(bundle.config.replace(carrier_hz=3.36e9, pri_s=2.5e-4, ramp_s=2.5e-4,
+                                                  bandwidth_hz=4e3, sample_rate_hz=4e3),
                         4096, 1, "cw")
     assert carrier_ratio(bundle, other) is None  # only the carrier may differ
     assert carrier_ratio(bundle, _at(CW, 3.35e9, 2048)) is None

@@ -24,7 +24,7 @@ def test_shipped_bundle_classifies_fresh_returns(preset: str) -> None:
     from signatures.profiles import UavProfile
 
     clf = load_classifier(preset)
-    profiles = tuple(UavProfile.model_validate(p) for p in clf.card["profiles"])
+    profiles = tuple(UavProfile.from_dict(p) for p in clf.card["profiles"])
     ds = generate(DatasetSpec(preset=preset, profiles=profiles, split="test", n=25, seed=99_999, snr_db=20.0),
                   workers=1, cache=False)
     labels = [clf.predict(x, rd).label for x, rd in zip(ds.X, ds.rd)]

@@ -27,7 +27,7 @@ PROFILES = tuple(shipped_profiles().values())
 
 def _cut(n_chirps: int = 512, domain: str = "if", **config):
     """The paper waveform with another chirp count (and config changes)."""
-    return waveform_of(PAPER.config.model_copy(update=config), n_chirps, PAPER.n_samples, domain)
+    return waveform_of(PAPER.config.replace(**config), n_chirps, PAPER.n_samples, domain)
 
 
 def _rec(wf, offset: float = 300.0, domain: str | None = None) -> SimpleNamespace:
@@ -57,11 +57,14 @@ def test_another_waveform_is_named_after_its_parameters() -> None:
 @given(offset=st.floats(0, 5000), rel=st.floats(-5e-7, 5e-7), chirps=st.integers(16, 4096))
 def test_matching_ignores_the_range_gate_and_rounding(offset: float, rel: float, chirps: int) -> None:
     wf = _cut(chirps)
-    cfg = wf.config.model_copy(update={"range_offset_m": offset, "pri_s": wf.config.pri_s * (1 + rel)})
+    # ramp_s moves with pri_s: the paper's chirps are back to back, and a config with pri_s < ramp_s
+    # is refused on construction (replace checks it)
+    cfg = wf.config.replace(range_offset_m=offset, pri_s=wf.config.pri_s * (1 + rel),
+                            ramp_s=wf.config.ramp_s * (1 + rel))
     assert wf.matches(cfg, chirps, wf.n_samples)
     assert waveform_of(wf.with_offset(offset), chirps, wf.n_samples).key == wf.key
     assert not wf.matches(cfg, chirps, wf.n_samples, "cw")
-    assert not wf.matches(cfg.model_copy(update={"pri_s": wf.config.pri_s * 1.001}), chirps, wf.n_samples)
+    assert not wf.matches(cfg.replace(pri_s=wf.config.pri_s * 1.001), chirps, wf.n_samples)
 
 
 def test_radar_configuration_file_round_trips(tmp_path: Path) -> None:
@@ -105,7 +108,7 @@ def _legacy_key(spec: DatasetSpec) -> str:
     doc = asdict(DatasetSpec(**{**spec.__dict__, "preset": "paper"}))
     del doc["nuisance"]  # the field came later; a spec without randomisation keeps the old key
     doc["preset"] = spec.waveform.name
-    doc["profiles"] = [p.model_dump(mode="json") for p in spec.profiles]
+    doc["profiles"] = [p.to_dict(json=True) for p in spec.profiles]
     doc["generator_version"] = GENERATOR_VERSION
     blob = json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
     return hashlib.sha256(blob).hexdigest()[:24]

@@ -132,7 +132,7 @@ def test_a_model_registered_from_its_physics_is_verified_without_a_classifier(se
     M300 flies for a serial registered as an airframe with its physics (accepted) and for one
     registered as an airframe turning 40 % faster (rejected)."""
     root, db, _ = setup
-    m300 = shipped_profiles()["m300"].model_dump()
+    m300 = shipped_profiles()["m300"].to_dict()
     twin = {**m300, "slug": "m300-twin", "name": "M300 twin"}
     fast = {**m300, "slug": "fast-quad", "name": "Fast quad", "rotor_rate_hz": 56.0}
     ids = [{"serial": serial, "model": model, "id_type": "serial", "status": "active",

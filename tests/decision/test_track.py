@@ -185,7 +185,7 @@ def test_a_track_that_is_not_one_targets_is_bad_input(setup, tmp_path, case: str
     elif case == "mixed-waveforms":
         rec = read_recording(gen[1])
         other = tmp_path / "other.h5"
-        write_recording(replace(rec, config=rec.config.model_copy(update={"pri_s": rec.config.pri_s * 1.5})), other)
+        write_recording(replace(rec, config=rec.config.replace(pri_s=rec.config.pri_s * 1.5)), other)
         args, words = [str(gen[0]), str(other)], "a track is one radar waveform"
     else:
         args, words = [str(gen[2]), str(gen[1])], "must be in time order"

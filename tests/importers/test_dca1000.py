@@ -108,7 +108,7 @@ def test_every_frame_is_a_dwell_in_a_directory(scene_rec, two_lane_capture, cli)
 def test_four_lanes_tdm_and_real_adc(scene_rec, tmp_path: Path, cli) -> None:
     """4 lanes (lane r = RX r, disabled lanes zero), two TX chirps per loop (--tx 1 keeps the
     second: PRI = two chirp periods), real ADC samples made complex at half the rate."""
-    c = scene_rec.config.model_copy(update={"pri_s": 2 * scene_rec.config.pri_s})
+    c = scene_rec.config.replace(pri_s=2 * scene_rec.config.pri_s)
     z = scene_rec.iq[:64].astype(np.complex128)
     n = z.shape[1]
     up = np.zeros((64, 2 * n), complex)

@@ -106,7 +106,7 @@ def snapshot(url: str) -> tuple[list[dict], list[dict]]:
     """Every field of every identity (with its profile) and every profile."""
     with session_scope(url) as s:
         return ([r.model_dump() for r in list_identities(s)],
-                [p.model_dump() for p in list_profiles(s)])
+                [p.to_dict() for p in list_profiles(s)])
 
 
 def exported(new_db, export):
@@ -129,7 +129,7 @@ def test_json_round_trip_is_lossless(new_db):
     assert by_serial[S_REVOKED]["status"] == "revoked"
     assert by_serial[S_REVOKED]["updated_at"] > by_serial[S_REVOKED]["created_at"]
     assert by_serial[S_KEY]["public_key"] == KEY and by_serial[S_KEY]["notes"] == NOTES
-    assert by_serial[S_KEY]["profile"] == X8.model_dump() and by_serial[S_CAA]["notes"] == ""
+    assert by_serial[S_KEY]["profile"] == X8.to_dict() and by_serial[S_CAA]["notes"] == ""
     with session_scope(dst) as s:
         assert get_identity(s, S_REVOKED).status == "revoked"
         again = export_document(s)
@@ -214,7 +214,7 @@ def test_a_bad_last_record_writes_nothing(new_db):
     with pytest.raises(RegistryError, match=r"identities\[5\] \(serial 1581F5FJD12345678909\): unknown model"), \
             session_scope(dst) as s:
         import_json(s, json.dumps(doc))
-    assert snapshot(dst) == ([], [p.model_dump() for p in sorted(shipped_profiles().values(),
+    assert snapshot(dst) == ([], [p.to_dict() for p in sorted(shipped_profiles().values(),
                                                                    key=lambda p: p.slug)])
     with session_scope(dst) as s:  # already-registered serials: refused as a whole too
         register_identity(s, NewIdentity(serial=S_UUID, id_type="utm_uuid", model="m300"))
@@ -251,11 +251,11 @@ def _doc(**identity) -> str:
     (json.dumps({"format": "authn-registry/1", "identities": [
         {"serial": S_KEY, "model": "m300"}, {"serial": S_KEY.lower(), "model": "m600"}]}),
      rf"identities\[1\] \(serial {S_KEY.lower()}\): serial {S_KEY} repeats identities\[0\]"),
-    (json.dumps({"format": "authn-registry/1", "profiles": [{**X8.model_dump(), "rotors": 3}]}),
+    (json.dumps({"format": "authn-registry/1", "profiles": [{**X8.to_dict(), "rotors": 3}]}),
      r"^profiles\[0\] \(slug x8\): rotors must be a multiple of arms"),
-    (json.dumps({"format": "authn-registry/1", "profiles": [X8.model_dump(), X8.model_dump()]}),
+    (json.dumps({"format": "authn-registry/1", "profiles": [X8.to_dict(), X8.to_dict()]}),
      r"profiles\[1\] \(slug x8\): slug 'x8' repeats profiles\[0\]"),
-    (json.dumps({"format": "authn-registry/1", "profiles": [{**X8.model_dump(), "slug": "bird"}]}),
+    (json.dumps({"format": "authn-registry/1", "profiles": [{**X8.to_dict(), "slug": "bird"}]}),
      r"reserved"),
 ])
 def test_json_validation_errors_are_one_line_and_name_the_record(text, match):

@@ -74,10 +74,9 @@ def rewrite(src: Path, dst: Path, *, shift_m: float = 0.0, az_deg: float = 0.0, 
             m = decode(row)
             if isinstance(m, Location) and m.latitude_deg is not None and shift_m:
                 lat, lon, _ = pymap3d.enu2geodetic(d[0], d[1], 0.0, m.latitude_deg, m.longitude_deg, 0.0)
-                row = encode(m.model_copy(update={"latitude_deg": round(float(lat), 7),
-                                                  "longitude_deg": round(float(lon), 7)}))
+                row = encode(m.replace(latitude_deg=round(float(lat), 7), longitude_deg=round(float(lon), 7)))
             elif isinstance(m, BasicId) and uas_id is not None:
-                row = encode(m.model_copy(update={"uas_id": uas_id}))
+                row = encode(m.replace(uas_id=uas_id))
             rows.append(row)
         new = c.raw[:3] + b"".join(rows) if len(c.raw) > 25 else rows[0]
         at = data.find(c.raw)

@@ -203,7 +203,7 @@ def _close(orig, back) -> None:
         for a, b in zip(orig.messages, back.messages):
             _close(a, b)
         return
-    for name, a in orig:
+    for name, a in orig.to_dict().items():
         b = getattr(back, name)
         if a is None or isinstance(a, (str, bytes)) or name in ("protocol_version", "type"):
             assert b == a, name
