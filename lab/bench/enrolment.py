@@ -233,6 +233,81 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
     return out
 
 
+def dwell_evidence(size: int, n: int, dwells: int, snrs: tuple[float, ...], world: str, seed: int,
+                   base_samples: int, log=print) -> dict:
+    """What one dwell is worth with each site bundle (enrolled at `size`, uncalibrated and with its
+    score calibration): n scenes per category (genuine, type spoof) and SNR, `dwells` dwells each (a
+    new simulator seed per dwell, `lab.bench.track`), every dwell checked alone. Per bundle, SNR and
+    category: the share of dwells with a target detected, of those with the physics term abstained,
+    the mean verification LLR and the mean track increment (capped, `Sprt.increment`), and the
+    intra-class correlation of the capped LLRs within one (flown, claimed) pair (`lab.bench.track.icc`:
+    the dwell correlation the track's discount needs, re-measured on these scores)."""
+    from authn.check import CheckInput, Checker
+    from authn.track import Sprt
+    from lab.bench.track import _pair as track_pair, icc, track_recordings
+    from signatures.profiles import shipped_profiles
+    from signatures.sampling import sample_scene
+
+    shipped = shipped_profiles()
+    slugs = list(shipped)
+    sprt = Sprt()
+    out: dict = {"world": world, "size": size, "n": n, "dwells": dwells, "snrs": list(snrs), "seed": seed,
+                 "enrolments": {}, "rows": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        db_url, bundles = _enrol_sizes(root, (size,), world, seed, base_samples, out, log, calibrate=True)
+        checkers = {name: Checker(db_url, model=folder) for name, folder in bundles.items() if folder is not None}
+        for s_idx, snr in enumerate(snrs):
+            for c_idx, cat in enumerate(("genuine", "type_spoof")):
+                rng = np.random.default_rng([seed, 4, s_idx, c_idx])  # a stream of its own
+                per: dict[str, dict] = {name: {"seen": 0, "detected": 0, "abstained": 0, "llr": [], "inc": [],
+                                               "pairs": defaultdict(list)} for name in checkers}
+                for i in range(n):
+                    flies, claims = track_pair(cat, i, slugs)
+                    scene = sample_scene(rng, shipped[flies], replace(CLAIM_SCENES, snr_db=float(snr)))
+                    az, base = float(rng.uniform(0.0, 360.0)), int(rng.integers(2**31 - dwells))
+                    recs = track_recordings(scene, "paper", list(range(base, base + dwells)), bench_serial(claims),
+                                            az, world=world)
+                    for name, checker in checkers.items():
+                        acc, group = per[name], []
+                        for rec in recs:
+                            o = checker.decide_one(CheckInput.recording(rec, None))
+                            acc["seen"] += 1
+                            v = o.radar.verification if o.radar is not None and o.radar.detected else None
+                            if o.radar is not None and o.radar.detected:
+                                acc["detected"] += 1
+                            if v is None or not v.terms:
+                                continue
+                            acc["abstained"] += v.physics_abstained
+                            acc["llr"].append(v.llr)
+                            acc["inc"].append(sprt.increment(v.llr, not v.physics_abstained))
+                            group.append(max(-sprt.cap_nats, min(sprt.cap_nats, v.llr)))
+                        acc["pairs"][(flies, claims)].append(group)
+                for name, acc in per.items():
+                    pair_icc = [(sum(map(len, gs)), icc(gs)) for gs in acc["pairs"].values()
+                                if sum(len(g) >= 2 for g in gs) >= 2]
+                    out["rows"][f"{name}/{snr:g}/{cat}"] = {
+                        "dwells": acc["seen"], "detected": round(acc["detected"] / max(acc["seen"], 1), 4),
+                        "physics_abstained": round(acc["abstained"] / max(acc["detected"], 1), 4),
+                        "mean_llr": round(float(np.mean(acc["llr"])), 4) if acc["llr"] else None,
+                        "mean_increment": round(float(np.mean(acc["inc"])), 4) if acc["inc"] else None,
+                        "icc": (round(sum(w * v for w, v in pair_icc) / sum(w for w, _ in pair_icc), 4)
+                                if pair_icc else None)}
+                log(f"{world} {snr:g} dB {cat}: {n} scenes x {dwells} dwells")
+    return out
+
+
+def evidence_table(doc: dict) -> str:
+    """Markdown: per bundle, SNR and category, what a dwell is worth."""
+    lines = ["| world | bundle | SNR | claims | detected | physics abstained | mean LLR | mean increment | "
+             "dwell correlation (ICC) |", "|---|---|---|---|---|---|---|---|---|"]
+    for key, r in doc["rows"].items():
+        name, snr, cat = key.split("/")
+        lines.append(f"| {doc['world']} | {name} | {snr} dB | {cat} | {r['detected']:.0%} | "
+                     f"{r['physics_abstained']:.0%} | {r['mean_llr']} | {r['mean_increment']} | {r['icc']} |")
+    return "\n".join(lines)
+
+
 def track_table(doc: dict) -> str:
     """Markdown: per bundle and SNR, tracks right (single dwells right) per category."""
     lines = ["| world | bundle | SNR | genuine accepted | type spoofs rejected | unseen rejected | "
@@ -294,6 +369,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pairs", action="store_true", help="with --track: also the per-pair rows")
     ap.add_argument("--site-bands", action="store_true", help="with --track: also each site bundle enrolled "
                                                               "with site physics bands (models enrol --site-bands)")
+    ap.add_argument("--dwell-evidence", action="store_true",
+                    help="what one dwell is worth with the site bundle of the largest size, uncalibrated and "
+                         "calibrated: detection, physics abstained, mean LLR and increment, dwell correlation "
+                         "(--n scenes x --dwells dwells per category and SNR)")
     ap.add_argument("--calibrate", action="store_true", help="with --track: also each site bundle enrolled with "
                                                              "its score calibration applied (models enrol --calibrate)")
     a = ap.parse_args(argv)
@@ -301,6 +380,13 @@ def main(argv: list[str] | None = None) -> int:
     args = (tuple(int(s) for s in a.sizes.split(",")), a.n, tuple(float(s) for s in a.snr.split(",")), a.world,
             a.seed, a.base_samples)
     say = lambda m: print(m, file=sys.stderr)  # noqa: E731
+    if a.dwell_evidence:
+        doc = dwell_evidence(max(args[0]), a.n, a.dwells, args[2], a.world, a.seed, a.base_samples, log=say)
+        doc["seconds"] = round(time.perf_counter() - t0, 1)
+        if a.json:
+            a.json.write_text(json.dumps(doc, indent=1))
+        print(evidence_table(doc))
+        return 0
     doc = (run_tracks(*args, dwells=a.dwells, log=say, site_bands=a.site_bands, calibrate=a.calibrate) if a.track
            else run(*args, log=say))
     doc["seconds"] = round(time.perf_counter() - t0, 1)
