@@ -50,16 +50,25 @@ def _iso(when: datetime) -> str:
     return text[:-6] + "Z" if text.endswith("+00:00") else text
 
 
+def _as_text(value: Any) -> Any:
+    """bytes read as UTF-8 text, as a lax validator reads them; anything else unchanged."""
+    return value.decode("utf-8", "replace") if isinstance(value, (bytes, bytearray)) else value
+
+
+def _parse(text: str, kind: type, what: str) -> Any:
+    """`kind(text)` or pydantic's words for text that is not a `what` ("a number", "an integer")."""
+    try:
+        return kind(text.strip())
+    except ValueError:
+        raise ValueError(f"Input should be a valid {what.split()[1]}, unable to parse string as {what}") from None
+
+
 def _to_float(value: Any) -> float:
     if isinstance(value, float):
         return value
-    if isinstance(value, (bytes, bytearray)):
-        value = value.decode("utf-8", "replace")
+    value = _as_text(value)
     if isinstance(value, str):
-        try:
-            return float(value.strip())
-        except ValueError:
-            raise ValueError("Input should be a valid number, unable to parse string as a number") from None
+        return _parse(value, float, "a number")
     try:
         return float(value) if isinstance(value, (int, float)) or hasattr(value, "__float__") else _bad_number()
     except (TypeError, OverflowError):
@@ -73,13 +82,9 @@ def _bad_number() -> float:
 def _to_int(value: Any) -> int:
     if type(value) is int:
         return value
-    if isinstance(value, (bytes, bytearray)):
-        value = value.decode("utf-8", "replace")
+    value = _as_text(value)
     if isinstance(value, str):
-        try:
-            return int(value.strip())
-        except ValueError:
-            raise ValueError("Input should be a valid integer, unable to parse string as an integer") from None
+        return _parse(value, int, "an integer")
     if isinstance(value, float) or (hasattr(value, "__float__") and not hasattr(value, "__index__")):
         value = float(value)
         if not math.isfinite(value):
@@ -237,6 +242,16 @@ def _plain(value: Any, json: bool) -> Any:
     return value
 
 
+def _apply(name: str, check: Callable[[Any], Any], value: Any) -> Any:
+    """Field `name`'s check of `value`: its coerced value, or Invalid located at the field."""
+    try:
+        return check(value)
+    except Invalid as exc:
+        raise Invalid(f"{name}.{exc.loc}" if exc.loc else name, exc.msg, exc.value) from None
+    except ValueError as exc:
+        raise Invalid(name, str(exc), value) from None
+
+
 class Checked:
     """Base of a frozen dataclass whose fields declare their constraints (see the module doc).
 
@@ -248,12 +263,7 @@ class Checked:
     def __post_init__(self) -> None:
         for name, check in _rules(type(self)):
             value = getattr(self, name)
-            try:
-                new = check(value)
-            except Invalid as exc:
-                raise Invalid(f"{name}.{exc.loc}" if exc.loc else name, exc.msg, exc.value) from None
-            except ValueError as exc:
-                raise Invalid(name, str(exc), value) from None
+            new = _apply(name, check, value)
             if new is not value:
                 object.__setattr__(self, name, new)
         try:
@@ -279,12 +289,7 @@ class Checked:
             if f.name in doc:
                 check = f.metadata.get("check")
                 if check is not None:
-                    try:
-                        check(doc[f.name])
-                    except Invalid as exc:
-                        raise Invalid(f"{f.name}.{exc.loc}" if exc.loc else f.name, exc.msg, exc.value) from None
-                    except ValueError as exc:
-                        raise Invalid(f.name, str(exc), doc[f.name]) from None
+                    _apply(f.name, check, doc[f.name])
             elif f.default is _MISSING and f.default_factory is _MISSING:
                 raise Invalid(f.name, "Field required", doc)
         extra = next((k for k in doc if k not in names), None)
