@@ -56,7 +56,6 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.sampling import sample_scene
 
     pre = get_preset("paper")
     shipped = shipped_profiles()
@@ -70,20 +69,14 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
         db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log)
         checkers = {name: Checker(db_url, model=folder) for name, folder in bundles.items()}
         trials: dict[tuple[str, float, str], list[tuple[str, tuple[str, ...], float]]] = defaultdict(list)
-        for s_idx, snr in enumerate(snrs):
-            for c_idx, cat in enumerate(WORLD_CATEGORIES):
-                rng = np.random.default_rng([seed, 2, s_idx, c_idx])  # the test stream: disjoint from enrolment
-                for i in range(n):
-                    flies, claims = _pair(cat, i, slugs, unseen)
-                    scene = sample_scene(rng, profiles[flies], replace(CLAIM_SCENES, snr_db=float(snr)))
-                    rec = render_claim(world, scene, pre, int(rng.integers(2**31)),
-                                       Broadcast(serial=bench_serial(claims)), float(rng.uniform(0.0, 360.0)), now)
-                    path = write_recording(rec, root / "claim.h5")
-                    for name, checker in checkers.items():
-                        o = checker.evaluate(path)
-                        trials[(name, float(snr), cat)].append((o.decision, tuple(o.reasons),
-                                                                verification_score(o.to_json()["radar"])))
-            log(f"checked {snr:g} dB")
+        for snr, cat, _, claims, scene, rng in _test_claims(seed, 2, snrs, n, slugs, unseen, profiles, log):
+            rec = render_claim(world, scene, pre, int(rng.integers(2**31)),
+                               Broadcast(serial=bench_serial(claims)), float(rng.uniform(0.0, 360.0)), now)
+            path = write_recording(rec, root / "claim.h5")
+            for name, checker in checkers.items():
+                o = checker.evaluate(path)
+                trials[(name, float(snr), cat)].append((o.decision, tuple(o.reasons),
+                                                        verification_score(o.to_json()["radar"])))
     for (name, snr, cat), ts in trials.items():
         key = f"{name}/{snr:g}/{cat}"
         if cat == "genuine":
@@ -156,6 +149,23 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
     return db_url, bundles
 
 
+def _test_claims(seed: int, stream: int, snrs: tuple[float, ...], n: int, slugs: list[str], unseen: list[str],
+                 profiles: dict, log=print):
+    """The test claims of one random stream, disjoint from the enrolment stream ([seed, 1]): for each
+    SNR and category, n (snr, category, flown, claimed, scene, rng), the generator drawing on; a
+    progress line after each SNR and category."""
+    from signatures.sampling import sample_scene
+
+    for s_idx, snr in enumerate(snrs):
+        for c_idx, cat in enumerate(WORLD_CATEGORIES):
+            rng = np.random.default_rng([seed, stream, s_idx, c_idx])
+            for i in range(n):
+                flies, claims = _pair(cat, i, slugs, unseen)
+                scene = sample_scene(rng, profiles[flies], replace(CLAIM_SCENES, snr_db=float(snr)))
+                yield snr, cat, flies, claims, scene, rng
+            log(f"{snr:g} dB {cat}: {n} claims")
+
+
 def _radar_alone_policy(root: Path) -> Path:
     """The default policy without `radar-confusable-unsigned`: what a validly signed claim meets."""
     import re
@@ -179,7 +189,6 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
     from lab.bench.track import _lazy_dwell
     from lab.heldout import unseen_profiles
     from signatures.profiles import shipped_profiles
-    from signatures.sampling import sample_scene
 
     shipped = shipped_profiles()
     profiles = {**shipped, **unseen_profiles()}
@@ -198,23 +207,17 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
             if folder is not None:
                 checkers[name] = Checker(db_url, model=folder)
                 checkers[f"{name} radar alone"] = Checker(db_url, policy_path=alone, model=folder)
-        for s_idx, snr in enumerate(snrs):
-            for c_idx, cat in enumerate(WORLD_CATEGORIES):
-                rng = np.random.default_rng([seed, 3, s_idx, c_idx])  # the test stream: disjoint from enrolment
-                for i in range(n):
-                    flies, claims = _pair(cat, i, slugs, unseen)
-                    scene = sample_scene(rng, profiles[flies], replace(CLAIM_SCENES, snr_db=float(snr)))
-                    az, base = float(rng.uniform(0.0, 360.0)), int(rng.integers(2**31 - dwells))
-                    start = datetime.now(timezone.utc)
-                    track = [_lazy_dwell(scene, "paper", base + j, bench_serial(claims), az, start, j, world)
-                             for j in range(dwells)]
-                    for name, checker in checkers.items():
-                        o = decide_track(checker, track)
-                        rows[(name, world, float(snr), cat)].append((o.decision, tuple(o.reasons), o.dwells_used))
-                        pairs[(name, float(snr), cat, flies, claims)].append(o.decision)
-                        one = checker.decide_one(CheckInput.recording(track[0].load()[0], None))
-                        single[(name, world, float(snr), cat)].append((one.decision, tuple(one.reasons)))
-                log(f"{world} {snr:g} dB {cat}: {n} tracks")
+        for snr, cat, flies, claims, scene, rng in _test_claims(seed, 3, snrs, n, slugs, unseen, profiles, log):
+            az, base = float(rng.uniform(0.0, 360.0)), int(rng.integers(2**31 - dwells))
+            start = datetime.now(timezone.utc)
+            track = [_lazy_dwell(scene, "paper", base + j, bench_serial(claims), az, start, j, world)
+                     for j in range(dwells)]
+            for name, checker in checkers.items():
+                o = decide_track(checker, track)
+                rows[(name, world, float(snr), cat)].append((o.decision, tuple(o.reasons), o.dwells_used))
+                pairs[(name, float(snr), cat, flies, claims)].append(o.decision)
+                one = checker.decide_one(CheckInput.recording(track[0].load()[0], None))
+                single[(name, world, float(snr), cat)].append((one.decision, tuple(one.reasons)))
     for key, ts in rows.items():
         name, _, snr, cat = key
         want = "accept" if cat == "genuine" else "reject"
