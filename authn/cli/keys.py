@@ -11,17 +11,19 @@ from authn.cli.groups import subgroup
 
 keys_app = typer.Typer(help="Keys for signed Remote ID (IETF DRIP).", no_args_is_help=True)
 
-#: The DET's authorities and the output form, alike for `generate` and `show`.
+#: The options of `generate` and `show` (the DET's authorities and the output form are both's).
 RAA_OPTION = typer.Option(16376, "--raa", help="Registered Assigning Authority of the DET (14 bits).")
 HDA_OPTION = typer.Option(1, "--hda", help="HHIT Domain Authority of the DET (14 bits).")
 JSON_OPTION = typer.Option(False, "--json", help="Print JSON.")
+OUT_OPTION = typer.Option(..., "--out", help="Private key file to write (PEM, mode 0600); the public key goes "
+                                             "beside it as NAME.pub.pem.")
+PUBLIC_KEY_OPTION = typer.Option(..., "--public-key", help="Public key: a file (PEM, 32 raw bytes or 64 hex digits) "
+                                                           "or the 64 hex digits themselves.")
 
 
 @keys_app.command("generate")
 def generate_cmd(
-    out: Path = typer.Option(..., "--out", help="Private key file to write (PEM, mode 0600); the public key "
-                                               "goes beside it as NAME.pub.pem."),
-    raa: int = RAA_OPTION, hda: int = HDA_OPTION, as_json: bool = JSON_OPTION,
+    out: Path = OUT_OPTION, raa: int = RAA_OPTION, hda: int = HDA_OPTION, as_json: bool = JSON_OPTION,
 ) -> None:
     """Generate an Ed25519 key pair and its DRIP Entity Tag (RFC 9374, EdDSA/cSHAKE128 suite).
 
@@ -42,9 +44,7 @@ def generate_cmd(
 
 @keys_app.command("show")
 def show_cmd(
-    public_key: str = typer.Option(..., "--public-key", help="Public key: a file (PEM, 32 raw bytes or 64 hex "
-                                                             "digits) or the 64 hex digits themselves."),
-    raa: int = RAA_OPTION, hda: int = HDA_OPTION, as_json: bool = JSON_OPTION,
+    public_key: str = PUBLIC_KEY_OPTION, raa: int = RAA_OPTION, hda: int = HDA_OPTION, as_json: bool = JSON_OPTION,
 ) -> None:
     """Print the DRIP Entity Tag and session ID of an existing public key (RFC 9374).
 
