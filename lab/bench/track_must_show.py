@@ -5,6 +5,7 @@ simulator; and the per-dwell diagnosis of genuine claims (docs/tracks.md, "Must 
 
     python -m lab.bench.track_must_show --world heldout --world training --snr 10 --snr 0 --n 16
     python -m lab.bench.track_must_show --diagnose --world heldout --snr 10 --snr 0 --n 12 --dwells 8
+    python -m lab.bench.track_must_show --icc d.json [--first 5] [--rho-terms 0.3,0.4]
 
 Which pairs the physics can separate (`separable`): the claimed and the flown airframe's nominal
 blade-flash rates lie outside each other's `signatures.verify.RATE_BAND`, or their rotor counts
@@ -456,6 +457,170 @@ def what_if_table(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+#: The terms a dwell's verification LLR is the sum of (`signatures.verify`), and their sum.
+TERMS = ("physics", "classifier", "total")
+
+
+def _capped_term(r: dict[str, Any], which: str, cap: float) -> float | None:
+    """A diagnosis dwell's term capped at +-cap as the track test caps the LLR (None: it abstained;
+    "total": the capped LLR of a dwell that verified anything, as `lab.bench.track.dependence`)."""
+    t = r.get("terms") or {}
+    p, k = t.get("physics"), t.get("classifier")
+    x = (None if p is None and k is None else (p or 0.0) + (k or 0.0)) if which == "total" else t.get(which)
+    return None if x is None else max(-cap, min(cap, float(x)))
+
+
+def _term_values(rs: list[dict[str, Any]], which: str, cap: float) -> list[float]:
+    """One scene's capped values of a term, abstained dwells left out."""
+    return [v for v in (_capped_term(r, which, cap) for r in rs) if v is not None]
+
+
+def _pair_icc(scenes: list[list[dict[str, Any]]], which: str, cap: float) -> tuple[float, int]:
+    """(ICC of one pair's scenes, dwells): `lab.bench.track.icc` over the scenes' capped term values
+    (abstained dwells left out; no spread at all: 0, as `dependence` counts it); NaN with fewer than
+    two scenes of two values."""
+    from lab.bench.track import icc
+
+    groups = [g for g in (_term_values(rs, which, cap) for rs in scenes) if len(g) >= 2]
+    if len(groups) < 2:
+        return float("nan"), 0
+    return icc(groups), sum(len(g) for g in groups)
+
+
+def term_icc(pairs_scenes: dict[tuple[str, str], list[list[dict[str, Any]]]], which: str, cap: float,
+             rng: np.random.Generator | None = None) -> float:
+    """The discount's statistic per term (`lab.bench.track.dependence`'s): the ICC within each
+    (flown, claimed) pair, weighted by the pair's dwells. With `rng`: one bootstrap replicate
+    (the scenes of each pair resampled with replacement)."""
+    num = den = 0.0
+    for scenes in pairs_scenes.values():
+        if rng is not None:
+            scenes = [scenes[i] for i in rng.integers(len(scenes), size=len(scenes))]
+        v, w = _pair_icc(scenes, which, cap)
+        if w:
+            num, den = num + w * v, den + w
+    return num / den if den else float("nan")
+
+
+def _scene_mean_corr(pairs_scenes: dict[tuple[str, str], list[list[dict[str, Any]]]], cap: float) -> float:
+    """Pearson correlation of the scenes' mean physics and mean classifier terms, each pair's own
+    means removed: > 0 when a scene that is bad for one term is bad for the other (a shared bias)."""
+    xs: list[float] = []
+    ys: list[float] = []
+    for scenes in pairs_scenes.values():
+        means = []
+        for rs in scenes:
+            p, k = _term_values(rs, "physics", cap), _term_values(rs, "classifier", cap)
+            if p and k:
+                means.append((statistics.fmean(p), statistics.fmean(k)))
+        if len(means) >= 2:
+            a = np.asarray(means) - np.mean(means, axis=0)
+            xs += list(a[:, 0])
+            ys += list(a[:, 1])
+    if len(xs) < 3 or np.std(xs) == 0 or np.std(ys) == 0:
+        return float("nan")
+    return float(np.corrcoef(xs, ys)[0, 1])
+
+
+def _diag_scenes(rows: list[dict[str, Any]], first: int | None = None) -> dict[tuple, dict[tuple, list[list[dict]]]]:
+    """(world, SNR, category) -> (flown, claimed) -> each scene's dwells in order (the first `first`)."""
+    keyed: dict[tuple, dict[tuple, dict[int, list[dict]]]] = {}
+    for r in rows:
+        keyed.setdefault((r["world"], r["snr_db"], r["category"]), {}).setdefault(
+            (r["flies"], r["claims"]), {}).setdefault(r["track"], []).append(r)
+    return {k: {p: [rs[:first] if first else rs for _, rs in sorted(sc.items())] for p, sc in v.items()}
+            for k, v in keyed.items()}
+
+
+def term_icc_table(rows: list[dict[str, Any]], first: int | None = None, boot: int = 200) -> list[str]:
+    """Per world, SNR and category of a `--diagnose --json` file: the ICC within a pair of the
+    capped physics term, classifier term and their sum (90 % interval of `boot` scene bootstraps),
+    the terms' mean (sd), how often the physics abstained, and the scene-mean correlation of the
+    two terms (`_scene_mean_corr`)."""
+    from authn.track import DWELL_CAP_NATS as cap
+
+    lines = ["| world | SNR dB | claims | pairs x scenes x dwells | ICC physics | ICC classifier | ICC total "
+             "| physics mean (sd) | classifier mean (sd) | physics abstained | scene means phys ~ clf |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for (world, snr, cat), ps in sorted(_diag_scenes(rows, first).items(),
+                                        key=lambda kv: (kv[0][0], -kv[0][1], CATEGORIES.index(kv[0][2]))):
+        cells = []
+        for which in TERMS:
+            rng = np.random.default_rng([31, len(cells)])
+            reps = [x for x in (term_icc(ps, which, cap, rng) for _ in range(boot)) if not math.isnan(x)]
+            lo, hi = np.percentile(reps, [5, 95]) if reps else (float("nan"), float("nan"))
+            cells.append(f"{term_icc(ps, which, cap):.2f} [{lo:.2f}, {hi:.2f}]")
+        dw = [r for scenes in ps.values() for rs in scenes for r in rs]
+        det = [r for r in dw if r.get("terms")]
+        vals = {w: _term_values(det, w, cap) for w in ("physics", "classifier")}
+        n_sc = sum(len(s) for s in ps.values())
+        stats = [f"{statistics.fmean(v):+.2f} ({statistics.pstdev(v):.2f})" if v else "n/a" for v in vals.values()]
+        lines.append(f"| {world} | {snr:g} | {cat.replace('_', ' ')} | {len(ps)} x {n_sc // len(ps)} x "
+                     f"{len(dw) // max(n_sc, 1)} | {' | '.join(cells)} | {' | '.join(stats)} | "
+                     f"{_pct(sum(r['terms'].get('physics') is None for r in det) / max(len(det), 1))} | "
+                     f"{_scene_mean_corr(ps, cap):+.2f} |")
+    return lines
+
+
+def term_increments(rs: list[dict[str, Any]], cap: float) -> list[tuple[float, float]]:
+    """Diagnosis dwells as (physics, classifier) increments of a per-term test: the dwell's LLR capped
+    at +-cap with both terms scaled alike (so their sum is `Sprt.increment`'s); physics abstained:
+    only a negative classifier part. Dwells that verified nothing are left out (not counted in n)."""
+    out = []
+    for r in rs:
+        t = r.get("terms") or {}
+        p, k = t.get("physics"), t.get("classifier")
+        if p is None and k is None:
+            continue
+        if p is None:
+            out.append((0.0, min(0.0, max(-cap, float(k)))))
+            continue
+        s = float(p) + float(k or 0.0)
+        f = 1.0 if abs(s) <= cap else cap / abs(s)
+        out.append((float(p) * f, float(k or 0.0) * f))
+    return out
+
+
+def walk_terms(incs: list[tuple[float, float]], rho_physics: float, rho_classifier: float) -> tuple[str, int]:
+    """A per-term discount, sum_phys / (1 + (n-1) rho_phys) + sum_clf / (1 + (n-1) rho_clf), at the
+    default bounds as `_walk` decides them: (accept | reject | inconclusive, dwells used)."""
+    from authn.track import Sprt
+
+    sprt = Sprt()
+    acc, rej = math.ceil(sprt.accept_nats * 100), math.floor(sprt.reject_nats * 100)
+    sp = sk = 0.0
+    for n, (p, k) in enumerate(incs, 1):
+        sp, sk = sp + p, sk + k
+        cn = round((sp / (1 + (n - 1) * rho_physics) + sk / (1 + (n - 1) * rho_classifier)) * 100)
+        if cn >= acc:
+            return "accept", n
+        if cn <= rej:
+            return "reject", n
+    return "inconclusive", len(incs)
+
+
+def term_walk_table(rows: list[dict[str, Any]], rhos: list[tuple[float, float]]) -> list[str]:
+    """The diagnosis scenes walked as tracks (all their dwells; inconclusive is rejected, as
+    `track-inconclusive`: right for an impostor) under today's single rho and under per-term rhos
+    (rho_physics, rho_classifier)."""
+    from authn.track import DWELL_CAP_NATS as cap, DWELL_CORRELATION as rho
+
+    lines = ["| world | SNR dB | claims | tracks | rho physics / classifier | right | inconclusive | median dwells |",
+             "|---|---|---|---|---|---|---|---|"]
+    for (world, snr, cat), ps in sorted(_diag_scenes(rows).items(),
+                                        key=lambda kv: (kv[0][0], -kv[0][1], CATEGORIES.index(kv[0][2]))):
+        want = "accept" if cat == "genuine" else "reject"
+        tracks = [term_increments(rs, cap) for scenes in ps.values() for rs in scenes]
+        for rp, rk in [(rho, rho), *rhos]:
+            res = [walk_terms(t, rp, rk) for t in tracks]
+            label = f"{rp:g} / {rk:g}" + (" (today)" if (rp, rk) == (rho, rho) else "")
+            lines.append(f"| {world} | {snr:g} | {cat.replace('_', ' ')} | {len(res)} | {label} | "
+                         f"{_pct(sum((d == 'accept') == (want == 'accept') for d, _ in res) / len(res))} | "
+                         f"{_pct(sum(d == 'inconclusive' for d, _ in res) / len(res))} | "
+                         f"{statistics.median(n for _, n in res):g} |")
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m lab.bench.track_must_show", description=__doc__.splitlines()[0])
     ap.add_argument("--preset", default="paper")
@@ -469,11 +634,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dwells", type=int, default=8, help="dwells per diagnosis scene")
     ap.add_argument("--json", help="write every track / dwell to this file")
     ap.add_argument("--what-if", metavar="DIAG_JSON", help="print the what-if table of a --diagnose --json file")
+    ap.add_argument("--icc", metavar="DIAG_JSON", help="print the ICC within a pair per verification term of a "
+                    "--diagnose --json file")
+    ap.add_argument("--first", type=int, help="--icc: the first FIRST dwells of each scene only")
+    ap.add_argument("--rho-terms", action="append", metavar="PHYS,CLF", default=[],
+                    help="--icc: also walk the scenes as tracks under per-term correlations (repeatable)")
     a = ap.parse_args(argv)
     worlds, snrs = tuple(a.world or ("heldout",)), tuple(a.snr or (10.0, 0.0))
     if a.what_if:
         with open(a.what_if) as fh:
             print("\n".join(what_if_table(json.load(fh))))
+        return 0
+    if a.icc:
+        with open(a.icc) as fh:
+            rows = json.load(fh)
+        print("\n".join(term_icc_table(rows, a.first)))
+        if a.rho_terms:
+            rhos = [(float(x), float(y)) for x, y in (s.split(",") for s in a.rho_terms)]
+            print()
+            print("\n".join(term_walk_table(rows, rhos)))
         return 0
     t0 = time.perf_counter()
     print(f"# {' '.join(['python -m lab.bench.track_must_show', *(argv if argv is not None else sys.argv[1:])])}")

@@ -3,8 +3,11 @@ offline sequential test against authn.track's (lab/bench/track_must_show.py)."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from authn.track import Sprt
-from lab.bench.track_must_show import _walk, all_profiles, pairs, separable
+from lab.bench.track_must_show import (_walk, all_profiles, pairs, separable, term_icc, term_icc_table,
+                                       term_increments, walk_terms)
 
 
 def test_the_rule_names_rate_and_rotor_separations() -> None:
@@ -30,3 +33,50 @@ def test_the_offline_walk_stops_where_the_track_test_does() -> None:
     assert _walk([(5.0, False)] * 10) == ("inconclusive", 10)  # the classifier alone never carries a claim
     assert _walk([(1.0, True)] * 75)[0] == "inconclusive"  # mean below accept_nats * rho never accepts
     assert sprt.accept_nats * sprt.correlation > 1.0
+
+
+def _rows(phys: list[list[float | None]], clf: list[list[float]]) -> list[dict]:
+    """Diagnosis rows of one genuine pair: scene i's dwells with the given terms."""
+    return [{"world": "heldout", "snr_db": 10.0, "category": "genuine", "flies": "m300", "claims": "m300",
+             "track": i, "terms": {"physics": p, "classifier": k}}
+            for i, (ps, ks) in enumerate(zip(phys, clf)) for p, k in zip(ps, ks)]
+
+
+def test_the_icc_per_term_tells_a_repeated_bias_from_noise() -> None:
+    rng = np.random.default_rng(0)
+    bias = rng.normal(0.0, 1.0, 12)  # the classifier's error repeats within a scene, the physics' does not
+    clf = [list(b + rng.normal(0.0, 0.2, 8)) for b in bias]
+    phys = [list(rng.normal(1.0, 1.0, 8)) for _ in bias]
+    rows = _rows(phys, clf)
+    scenes = {("m300", "m300"): [[r for r in rows if r["track"] == i] for i in range(12)]}
+    assert term_icc(scenes, "classifier", 4.0) > 0.8
+    assert abs(term_icc(scenes, "physics", 4.0)) < 0.2
+    table = term_icc_table(rows, boot=5)
+    assert len(table) == 3 and "| heldout | 10 | genuine | 1 x 12 x 8 |" in table[2]
+
+
+def test_per_term_increments_keep_the_cap_and_the_classifier_alone_rule() -> None:
+    sprt = Sprt()
+    rows = _rows([[3.0, None, None, -8.0, 1.0]], [[3.0, 2.5, -5.0, 3.0, -0.5]])
+    incs = term_increments(rows, sprt.cap_nats)
+    for (p, k), r in zip(incs, rows):
+        t = r["terms"]
+        llr = (t["physics"] or 0.0) + t["classifier"]
+        assert np.isclose(p + k, sprt.increment(llr, t["physics"] is not None))
+    assert incs[1] == (0.0, 0.0) and incs[2] == (0.0, -4.0)  # physics abstained: only against the claim
+
+
+def test_per_term_walk_with_one_rho_is_the_track_test() -> None:
+    rng = np.random.default_rng(1)
+    sprt = Sprt()
+    for _ in range(200):
+        n = int(rng.integers(1, 30))
+        phys = [float(x) if rng.random() > 0.2 else None for x in rng.normal(0.5, 2.5, n)]
+        clf = [float(x) for x in rng.normal(0.0, 2.0, n)]
+        incs = term_increments(_rows([phys], [clf]), sprt.cap_nats)
+        dwells = [((p or 0.0) + k, p is not None) for p, k in zip(phys, clf)]
+        assert walk_terms(incs, 0.2, 0.2) == sprt.walk(dwells)
+    # a classifier part discounted as more repeated: the same dwells (2 nats a dwell) no longer
+    # accept (at most 1 / 0.2 + 1 / 0.8 = 6.25 nats < 6.9)
+    assert walk_terms([(1.0, 1.0)] * 10, 0.2, 0.2) == ("accept", 9)  # 18 / 2.6 = 6.92
+    assert walk_terms([(1.0, 1.0)] * 10, 0.2, 0.8) == ("inconclusive", 10)
