@@ -5,7 +5,8 @@ the single-dwell stages (`Checker.decide`, one dwell at a time) and combine thei
 log-likelihood ratios by Wald's sequential probability ratio test: after each dwell the
 accumulated evidence is put to the Cedar policy, which accepts once it reaches the accept bound
 and rejects once it falls to the reject bound (or on any other forbid: a kinematic mismatch, an
-implausible Remote ID, a registry fact). The dwells after the deciding one are not read beyond
+implausible Remote ID, a registry fact). A dwell that sees nothing (`no-target`) is no evidence:
+the track goes on while no dwell has seen its target. The dwells after the deciding one are not read beyond
 their headers (the track is validated whole first: one waveform, one claim, time order).
 
 Bounds (Wald): with target error rates alpha (false accept: an impostor's track accepted) and
@@ -60,6 +61,10 @@ DWELL_CORRELATION = 0.2
 DWELL_CAP_NATS = 4.0
 #: The one reason that lets a track go on to its next dwell (no bound crossed yet).
 INCONCLUSIVE = "track-inconclusive"
+#: Reasons a track goes on with: no bound crossed yet, and, while no dwell has seen the target, a
+#: dwell that saw nothing (a missed detection is no evidence; a track whose dwells never see the
+#: target ends rejected `no-target`).
+GOES_ON = frozenset({INCONCLUSIVE, "no-target"})
 _CN = 100.0  # centinats: Cedar compares integers
 
 
@@ -371,7 +376,7 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
         t1 = time.perf_counter()
         result = checker.policy.decide(claim, request["principal"], request["resource"], request["context"])
         timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
-        if not (result.decision == "reject" and set(result.reasons) <= {INCONCLUSIVE}):
+        if not (result.decision == "reject" and set(result.reasons) <= GOES_ON):
             break  # accepted, or a forbid more dwells cannot lift
     if result is None or request is None:  # unreachable: _validate refuses an empty track
         raise AuthnError("a track needs at least one dwell")

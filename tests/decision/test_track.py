@@ -112,6 +112,34 @@ def test_a_position_spoof_stops_the_track_on_its_first_dwell(setup, capsys) -> N
     assert out["dwells_skipped"] == 2
 
 
+def test_a_missed_detection_is_no_evidence(setup, capsys) -> None:
+    """A dwell that sees nothing (here: the target 60 dB under the noise) does not end the track:
+    the genuine dwells after it decide; a track that never sees its target is rejected `no-target`
+    after its last dwell."""
+    from datetime import datetime, timedelta, timezone
+
+    root, db, _ = setup
+    t0 = datetime.now(timezone.utc)
+    lost = Scene(kind="uav", profile=shipped_profiles()["m300"], snr_db=-60.0, range_m=400.0, radial_speed_mps=3.0,
+                 elevation_deg=10.0)
+    seen = lost.model_copy(update={"snr_db": 20.0, "range_m": 400.0 + 3.0 * 2.0})
+    folder, blind = root / "missed", root / "blind"
+    folder.mkdir()
+    blind.mkdir()
+    recs = (track_recordings(lost, "paper", [500, 501], M300, start=t0)
+            + track_recordings(seen, "paper", list(range(502, 502 + DWELLS)), M300, start=t0 + timedelta(seconds=2)))
+    for i, rec in enumerate(recs):
+        write_recording(rec, folder / f"dwell_{i:06d}.h5")
+    for i, rec in enumerate(track_recordings(lost, "paper", [600, 601, 602], M300, start=t0)):
+        write_recording(rec, blind / f"dwell_{i:06d}.h5")
+    code, out, err = _run(db, capsys, str(folder))
+    assert code == 0 and out["decision"] == "accept", (err, out.get("reasons"))
+    assert [d["dwell_reasons"] for d in out["dwells"][:2]] == [["no-target"], ["no-target"]]
+    assert out["dwells"][0]["increment"] is None and out["dwells_used"] > 2
+    code, out, _ = _run(db, capsys, str(blind))
+    assert code == 1 and "no-target" in out["reasons"] and out["dwells_used"] == 3 and out["dwells_skipped"] == 0
+
+
 def test_a_registry_decision_needs_no_dwell(setup, capsys) -> None:
     _, db, tracks = setup
     code, out, _ = _run(db, capsys, str(tracks["genuine"]), "--serial", "1581BUNKNOWN0001")
