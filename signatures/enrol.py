@@ -46,7 +46,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -58,14 +58,17 @@ from signatures.errors import SignaturesError
 from signatures.profiles import UavProfile
 from signatures.radar import Preset
 
-__all__ = ["CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM", "SITE_SHARE",
-           "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts",
+__all__ = ["CALIBRATION_GAIN", "CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM",
+           "SITE_SHARE", "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts",
            "default_name", "enrol", "site_bands", "previous_samples", "read_labels", "track_rates"]
 
 #: Fewest recordings per enrolled model: below this a cross-validated error means nothing.
 MIN_RECORDINGS = 5
 #: A pair whose cross-validated pairwise false-accept rate exceeds this is radar-confusable.
 CONFUSABLE_ERROR = 0.01
+#: Genuine acceptance the score calibration must add, on the site's cross-validated claims, before
+#: `authn models enrol` applies it unasked (fixed a priori: a gain the folds' noise does not make).
+CALIBRATION_GAIN = 0.05
 #: The false-accept target the reported verification threshold is chosen at.
 FALSE_ACCEPT_TARGET = 0.01
 #: Site returns' share of each enrolled model's training weight.
@@ -368,6 +371,36 @@ def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[flo
     return accepted / draws, draws, n
 
 
+def _separation(genuine: Sequence[float], impostor: dict[tuple[str, str], list[float]],
+                dwells: dict[tuple[str, str], list[DwellScore]], enrolled: Sequence[str], sprt: Any,
+                seed: int) -> dict[str, Any]:
+    """How one scoring of the cross-validated claims separates them at the level checks decide at:
+    with a sequential test, the mean over enrolled models of genuine tracks accepted and the worst
+    pair's type-spoof tracks accepted (`track_rates`); without one, single dwells at LLR >= 0."""
+    if sprt is not None:
+        level = "tracks"
+        gen = [track_rates(dwells.get((m, m), []), sprt.walk, seed=seed)[0] for m in enrolled]
+        fa = [track_rates(v, sprt.walk, seed=seed)[0] for k, v in dwells.items() if k[0] != k[1]]
+    else:
+        level = "single_dwell"
+        gen = [float(np.mean(np.asarray(genuine) >= 0.0))] if len(genuine) else []
+        fa = [float(np.mean(np.asarray(v) >= 0.0)) for v in impostor.values() if len(v)]
+    gen, fa = [g for g in gen if not math.isnan(g)], [f for f in fa if not math.isnan(f)]
+    return {"level": level, "genuine_accept": _mean(gen), "worst_pair_false_accept": max(fa) if fa else None}
+
+
+def _calibration_pays(choice: dict[str, dict[str, Any]]) -> bool:
+    """Apply the score calibration where the site's own cross-validated claims say it pays: genuine
+    acceptance up by at least `CALIBRATION_GAIN` and the worst pair's false accepts no higher than
+    uncalibrated (or than `CONFUSABLE_ERROR`, whichever is larger). A tie keeps the uncalibrated
+    score: the verification every other bundle uses."""
+    u, c = choice["uncalibrated"], choice["calibrated"]
+    if u["genuine_accept"] is None or c["genuine_accept"] is None:
+        return False
+    fa_u, fa_c = u["worst_pair_false_accept"] or 0.0, c["worst_pair_false_accept"] or 0.0
+    return c["genuine_accept"] >= u["genuine_accept"] + CALIBRATION_GAIN and fa_c <= max(fa_u, CONFUSABLE_ERROR)
+
+
 def _mean(v: Sequence[float]) -> float | None:
     return round(float(np.mean(v)), 4) if len(v) else None
 
@@ -436,7 +469,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
           name: str, sources: Sequence[str] = (), previous: str | None = None, seed: int = 0, workers: int = 2,
           n_sim: int = N_SIM, cache: Path | None | bool = None,
           progress: Callable[[str, float], None] | None = None, sprt: Any = None,
-          physics_bands: bool = False, score_calibration: bool = False) -> dict[str, Any]:
+          physics_bands: bool = False, score_calibration: bool | None = None) -> dict[str, Any]:
     """Build the site bundle `dest` (must not exist) from `samples` (the site's labelled
     recordings, of `waveform`) on a simulated base set of `profiles` (every model the bundle
     knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. `sprt`: the
@@ -445,7 +478,8 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     the check's default). `physics_bands`: re-estimate each enrolled model's rate and rotor bands
     from the site recordings (`site_bands`; cross-validated like the rest). `score_calibration`:
     verify with the score calibration fitted on the cross-validated terms (`signatures.calibration`;
-    always fitted and reported in the card, applied only with it). Returns the card."""
+    always fitted and reported in the card): True applies it, False does not, None (the default)
+    applies it where the site's cross-validated claims say it pays (`_calibration_pays`). Returns the card."""
     from signatures import classifiers as clf
     from signatures.dataset import Dataset, DatasetSpec, generate
     from signatures.inference import MEMBERS, Classifier
@@ -522,8 +556,12 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     genuine, impostor, dwell_scores = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip,
                                                     lambda i: fold_bands.get(int(fold_of[i])), rows)
     uncal_genuine = genuine
-    calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, fold_of, n_folds, score_calibration)
-    if score_calibration:  # the card's threshold, pairwise and track figures are then the calibrated scores'
+    calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, fold_of, n_folds, False)
+    choice = {"uncalibrated": _separation(genuine, impostor, dwell_scores, enrolled, sprt, seed),
+              "calibrated": _separation(cal_genuine, cal_impostor, cal_dwells, enrolled, sprt, seed)}
+    use_cal = _calibration_pays(choice) if score_calibration is None else score_calibration
+    calibration = replace(calibration, applied=use_cal)
+    if use_cal:  # the card's threshold, pairwise and track figures are then the calibrated scores'
         genuine, impostor, dwell_scores = cal_genuine, cal_impostor, cal_dwells
     t_fa = _threshold(impostor, FALSE_ACCEPT_TARGET)
     applied = 0.0  # the default policy's threshold (radar-claim-inconsistent: LLR < 0 rejects)
@@ -609,7 +647,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                                              f"today's bands the prior ({BAND_PRIOR_WEIGHT} pseudo-recordings)"
                                              if physics_bands else "today's fixed bands"),
                            "score_calibration": ("logistic regression on the out-of-fold verification terms "
-                                                 "(card `calibration`)" if score_calibration else "none (fitted and "
+                                                 "(card `calibration`)" if use_cal else "none (fitted and "
                                                  "reported in `calibration`, not applied)"),
                            "cv_folds": n_folds},
                 "counts": counts, "detected": det_counts, "not_detected": missed,
@@ -623,7 +661,11 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                                                            if len(g) and t_fa is not None else None),
                               "note": "LLR in nats; the default policy rejects below 0 (radar-claim-inconsistent)"},
                 "bands": site_bands(site, profiles) if physics_bands else None,
-                "calibration": {**calibration.to_json(), "evidence_per_genuine_dwell": {
+                "calibration": {**calibration.to_json(), "choice": {
+                    **choice, "by": "auto" if score_calibration is None else "asked",
+                    "rule": f"applied unasked when cross-validated genuine acceptance gains >= {CALIBRATION_GAIN} "
+                            "and the worst pair's false accepts do not rise (above the confusable line)"},
+                    "evidence_per_genuine_dwell": {
                     "uncalibrated": _mean(uncal_genuine), "calibrated": _mean(cal_genuine),
                     "note": "mean cross-validated LLR of genuine claims, nats: with calibrated scores what a "
                             "genuine dwell is worth (its expected LLR); a track of `tracks.dwells` needs the "

@@ -12,6 +12,9 @@ from pathlib import Path
 import typer
 
 
+#: `models enrol --calibrate`: the score calibration's use (None: where the site's scores say it pays).
+CALIBRATE = {"auto": None, "on": True, "off": False}
+
 models_app = typer.Typer(help="Train, enrol, list and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
                          no_args_is_help=True)
 
@@ -413,10 +416,10 @@ def enrol_cmd(
     site_bands: bool = typer.Option(False, "--site-bands", help="Also re-estimate each model's rate and rotor "
                                                                 "bands from the recordings, today's as the prior "
                                                                 "(measured: no gain on the held-out world)."),
-    calibrate: bool = typer.Option(False, "--calibrate", help="Verify with the score calibration fitted on the "
-                                                              "cross-validated scores (always fitted and shown; "
-                                                              "measured: honest, and too weak to accept held-out "
-                                                              "tracks, docs/enrolment.md)."),
+    calibrate: str = typer.Option("auto", "--calibrate",
+                                  help="Verify with the score calibration fitted on the cross-validated scores: "
+                                       "on, off, or auto (where those scores say it pays). Always fitted and "
+                                       "shown."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object at the end (progress on stderr)."),
 ) -> None:
     """Adapt the radar evidence to this site's radar from its recorded flights (site enrolment).
@@ -445,6 +448,8 @@ def enrol_cmd(
     if name is not None and not bundle_name_ok(name):
         raise EnrolError(f"--name {name!r}: lower-case letters, digits, '.', '_' or '-' (at most 64), "
                          "not a preset name or 'shipped'")
+    if calibrate not in CALIBRATE:
+        raise EnrolError(f"--calibrate {calibrate!r}: one of {', '.join(CALIBRATE)}")
     db = Database(ctx.obj.db_url if ctx.obj else None)
     files = _recording_files(recordings)
     todo = _labelled(files, labels, db)
@@ -497,8 +502,8 @@ def enrol_cmd(
             bar.update(task, description=phase, completed=frac)
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
-                     n_sim=base_samples, progress=progress, sprt=Sprt(),
-                     physics_bands=site_bands, score_calibration=calibrate)  # track errors by the check's own test
+                     n_sim=base_samples, progress=progress, sprt=Sprt(),  # track errors by the check's own test
+                     physics_bands=site_bands, score_calibration=CALIBRATE[calibrate])
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
 
@@ -561,8 +566,20 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
         ev = cal["evidence_per_genuine_dwell"]
         console.print(f"  evidence per genuine dwell (cross-validated, calibrated): {ev['calibrated']} nats "
                       f"(uncalibrated {ev['uncalibrated']}); score calibration "
-                      f"{'applied' if cal['applied'] else 'not applied (--calibrate applies it)'}")
+                      f"{'applied' if cal['applied'] else 'not applied'} ({_calibration_why(cal)})")
     console.print(f"  card: {folder / 'card.json'} ({len(e['sources'])} source digests)")
+
+
+def _calibration_why(cal: dict) -> str:
+    """Why the score calibration is or is not applied: asked, or what the site's own
+    cross-validated claims showed (genuine accepted, worst pair's false accepts, each scoring)."""
+    choice = cal.get("choice") or {}
+    if choice.get("by") != "auto":
+        return "as asked" if choice else "--calibrate on applies it"
+    u, c = choice["uncalibrated"], choice["calibrated"]
+    return (f"cross-validated {u['level'].replace('_', ' ')}: genuine accepted {u['genuine_accept']} uncalibrated, "
+            f"{c['genuine_accept']} calibrated; worst pair's false accepts {u['worst_pair_false_accept']} / "
+            f"{c['worst_pair_false_accept']}")
 
 
 @models_app.command("use")

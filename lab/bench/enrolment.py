@@ -126,7 +126,9 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
             path = write_recording(rec, root / "enrol" / f"{slug}-{i:03d}.h5")
             pool.append((i, site_sample(path, slug, db, rec)[0]))
     bundles: dict[str, Path | None] = {"shipped": None}
-    variants = [(False, False), *([(True, False)] if site_bands else []), *([(False, True)] if calibrate else [])]
+    # (site bands, score calibration): the default is what `authn models enrol` does (None: applied
+    # where the site's cross-validated claims say it pays); --calibrate adds one with it forced on
+    variants = [(False, None), *([(True, None)] if site_bands else []), *([(False, True)] if calibrate else [])]
     for k, (bands, cal) in ((k, v) for k in sizes for v in variants):
         t0 = time.perf_counter()
         suffix = " site bands" if bands else " calibrated" if cal else ""
@@ -376,8 +378,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="what one dwell is worth with the site bundle of the largest size, uncalibrated and "
                          "calibrated: detection, physics abstained, mean LLR and increment, dwell correlation "
                          "(--n scenes x --dwells dwells per category and SNR)")
-    ap.add_argument("--calibrate", action="store_true", help="with --track: also each site bundle enrolled with "
-                                                             "its score calibration applied (models enrol --calibrate)")
+    ap.add_argument("--calibrate", action="store_true",
+                    help="with --track: also each site bundle enrolled with its score calibration applied "
+                         "(models enrol --calibrate on)")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     args = (tuple(int(s) for s in a.sizes.split(",")), a.n, tuple(float(s) for s in a.snr.split(",")), a.world,

@@ -19,6 +19,7 @@ import pytest
 
 from authn.cli import main
 from authn.policy import PolicyEngine
+from signatures.enrol import _calibration_pays
 from tests.decision.test_policy import ACTIVE, GOOD, SITE
 from tests.classifiers.conftest import own_models
 
@@ -90,11 +91,14 @@ def test_enrol_register_check_uses_the_site_bundle(site: dict, capsys) -> None:
         assert t["claims"] > 0 and 0.0 <= t["false_accept_rate"] <= 1.0 and t["dwells"] == N_PER_MODEL
     assert e["tracks"]["dwells"] == 8 and e["tracks"]["sprt"]["accept_nats"] > 0
     assert e["bands"] is None  # today's physics bands unless --site-bands
-    cal = e["calibration"]  # the score calibration: always fitted on the out-of-fold terms and reported, not applied
-    assert cal["applied"] is False and cal["features"] == ["physics", "physics_above_knee", "classifier"]
+    cal = e["calibration"]  # the score calibration: always fitted on the out-of-fold terms and reported
+    assert cal["features"] == ["physics", "physics_above_knee", "classifier"]
     assert all(c >= 0 for c in cal["coef"]) and cal["fitted_on"] == {"genuine": 15, "type_spoof": 30}
     assert set(cal["evidence_per_genuine_dwell"]) >= {"calibrated", "uncalibrated"}
-    assert e["method"]["score_calibration"].startswith("none")
+    # applied unasked only where the site's cross-validated claims say it pays, and the card says which
+    assert cal["choice"]["by"] == "auto" and cal["applied"] is _calibration_pays(cal["choice"])
+    assert {cal["choice"][k]["level"] for k in ("calibrated", "uncalibrated")} == {"tracks"}
+    assert e["method"]["score_calibration"].startswith("none") is not cal["applied"]
     assert set(e["tracks"]["genuine_accept"]) == {"m300", "m600", "phantom4"}
     # 5 recordings make tracks of 5 dwells, short of the 8 a site decides on: the single-dwell verdict stands
     assert e["confusable_pairs_tracks"] == e["confusable_pairs"]
@@ -292,7 +296,7 @@ def test_add_extends_the_active_enrolment(site: dict, tmp_path: Path, capsys) ->
     _make_site(more, 2, seed=99)
     capsys.readouterr()
     assert main(["models", "enrol", str(more), "--labels", str(more / "labels.csv"), "--add", "--name", "site-c",
-                 "--site-bands", "--calibrate", "--json", *BASE]) == 0
+                 "--site-bands", "--calibrate", "on", "--json", *BASE]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["counts"] == {"m300": 7, "m600": 7, "phantom4": 7}
     card = json.loads((site["models"] / "site-c" / "card.json").read_text())
