@@ -157,3 +157,11 @@ def test_separation_reads_the_walk_of_each_pair() -> None:
     single = _separation([1.0, -1.0, 2.0, 3.0], {("a", "b"): [-1.0, 0.5], ("b", "a"): [-2.0, -3.0]}, dwells,
                          ["a", "b"], None, seed=0)
     assert single == {"level": "single_dwell", "genuine_accept": 0.75, "worst_pair_false_accept": 0.5}
+
+
+def test_an_unknown_calibrate_value_is_bad_input(capsys) -> None:
+    from authn.cli import main
+
+    assert main(["models", "enrol", "nowhere", "--calibrate", "maybe"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--calibrate 'maybe': one of auto, on, off" in err
