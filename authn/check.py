@@ -318,13 +318,12 @@ class Checker:
             return None
         from dataclasses import asdict
 
-        from signatures.calibration import calibration_of
         from signatures.verify import bands_from, verify
 
         bands = bands_from(getattr(classifier, "physics_bands", None), claimed.slug)
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
                       rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands,
-                      calibration=None if classifier is None else calibration_of(classifier))
+                      calibration=getattr(classifier, "score_calibration", None))
 
     def _confusable(self, classifier: Any, model: str, tracks: bool = False) -> bool | None:
         """Whether the registered `model` is radar-confusable, by a site bundle's enrolment card

@@ -152,17 +152,9 @@ def fit(raws: Sequence[RawTerms], genuine: Sequence[bool], applied: bool = True)
 
 
 def calibration_of(classifier: Any) -> Calibration | None:
-    """The score calibration a bundle's card applies (None: none, or not applied), read once per
-    loaded bundle."""
-    cached = getattr(classifier, "_score_calibration", False)
-    if cached is not False:
-        return cached
+    """The score calibration a bundle's card applies (None: none, or not applied); a loaded
+    bundle keeps it as `Classifier.score_calibration`."""
     card = getattr(classifier, "card", None)
     enrolment = card.get("enrolment") if isinstance(card, dict) else None
     cal = Calibration.from_json(enrolment.get("calibration")) if isinstance(enrolment, dict) else None
-    cal = cal if cal is not None and cal.applied else None
-    try:
-        classifier._score_calibration = cal
-    except AttributeError:
-        pass
-    return cal
+    return cal if cal is not None and cal.applied else None

@@ -300,9 +300,7 @@ def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.nd
     from signatures.features import FEATURE_NAMES
     from signatures.verify import bands_from, verify
 
-    genuine: list[float] = []
-    impostor: dict[tuple[str, str], list[float]] = {}
-    dwells: dict[tuple[str, str], list[DwellScore]] = {}
+    claims: list[tuple[str, str, float, dict[str, float]]] = []
     for i, s in enumerate(samples):
         if not s.detected:
             continue
@@ -311,17 +309,30 @@ def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.nd
         for claimed in enrolled:
             v = verify(feats, profiles[claimed], probs, max_tip, known=bool(known[i]),
                        bands=bands_from(bands(i), claimed))
-            if claimed == s.model:
-                genuine.append(v.llr)
-            else:
-                impostor.setdefault((s.model, claimed), []).append(v.llr)
-            dwells.setdefault((s.model, claimed), []).append((v.llr, not v.physics_abstained) if v.terms else None)
+            claims.append((s.model, claimed, v.llr, v.terms))
             if rows is not None:
                 rows.append((i, s.model, claimed, v.raw))
+    return _scored(claims)
+
+
+def _scored(claims: Sequence[tuple[str, str, float, dict[str, float]]],
+            ) -> tuple[list[float], dict[tuple[str, str], list[float]], dict[tuple[str, str], list[DwellScore]]]:
+    """Claims (flown, claimed, LLR, the terms that did not abstain) as the enrolment reads them:
+    genuine LLRs, impostor LLRs per (flown, claimed), and every pair's claims as a track's dwells
+    (`DwellScore`: None where nothing was verified)."""
+    genuine: list[float] = []
+    impostor: dict[tuple[str, str], list[float]] = {}
+    dwells: dict[tuple[str, str], list[DwellScore]] = {}
+    for flown, claimed, llr, terms in claims:
+        if flown == claimed:
+            genuine.append(llr)
+        else:
+            impostor.setdefault((flown, claimed), []).append(llr)
+        dwells.setdefault((flown, claimed), []).append((llr, "physics" in terms) if terms else None)
     return genuine, impostor, dwells
 
 
-def _calibrated(rows: Sequence[tuple[int, str, str, Any]], fold_of: np.ndarray, n_folds: int, applied: bool,
+def _calibrated(rows: Sequence[tuple[int, str, str, Any]], fold_of: np.ndarray, n_folds: int,
                 ) -> tuple[Any, list[float], dict[tuple[str, str], list[float]],
                            dict[tuple[str, str], list[DwellScore]]]:
     """The site's score calibration (`signatures.calibration.fit` on every claim's out-of-fold raw
@@ -340,16 +351,8 @@ def _calibrated(rows: Sequence[tuple[int, str, str, Any]], fold_of: np.ndarray, 
         for j in np.flatnonzero(~out):
             terms[j] = cal_k.terms(raws[j])
             llrs[j] = sum(terms[j].values())
-    genuine: list[float] = []
-    impostor: dict[tuple[str, str], list[float]] = {}
-    dwells: dict[tuple[str, str], list[DwellScore]] = {}
-    for (_, flown, claimed, _raw), llr, t in zip(rows, llrs, terms):
-        if flown == claimed:
-            genuine.append(float(llr))
-        else:
-            impostor.setdefault((flown, claimed), []).append(float(llr))
-        dwells.setdefault((flown, claimed), []).append((float(llr), "physics" in t) if t else None)
-    return fit(raws, gen, applied=applied), genuine, impostor, dwells
+    scored = _scored([(flown, claimed, float(llr), t) for (_, flown, claimed, _raw), llr, t in zip(rows, llrs, terms)])
+    return (fit(raws, gen), *scored)
 
 
 def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[float, bool]]], tuple[str, int]],
@@ -556,7 +559,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     genuine, impostor, dwell_scores = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip,
                                                     lambda i: fold_bands.get(int(fold_of[i])), rows)
     uncal_genuine = genuine
-    calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, fold_of, n_folds, False)
+    calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, fold_of, n_folds)
     choice = {"uncalibrated": _separation(genuine, impostor, dwell_scores, enrolled, sprt, seed),
               "calibrated": _separation(cal_genuine, cal_impostor, cal_dwells, enrolled, sprt, seed)}
     use_cal = _calibration_pays(choice) if score_calibration is None else score_calibration

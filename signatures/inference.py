@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from signatures.calibration import calibration_of
 from signatures.errors import SignaturesError
 from signatures.modelcard import CARD_NAME, read_card
 from signatures.openset import OpenSet
@@ -184,6 +185,8 @@ class Classifier:
             else tuple((str(a), str(b)) for a, b in track_pairs)
         #: per enrolled model, the physics bands the site's recordings gave (`signatures.verify.bands_from`)
         self.physics_bands: dict[str, Any] | None = (enrolment or {}).get("bands")
+        #: the site's score calibration where its card applies one (`signatures.calibration`)
+        self.score_calibration = calibration_of(self)
 
     def confusable_with(self, model: str, tracks: bool = False) -> tuple[str, ...]:
         """The enrolled models this site bundle cannot tell `model` apart from (its card's
