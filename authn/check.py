@@ -163,6 +163,8 @@ class _Pending:
     digest: str
     timer: _Timer
     association: Any = None  # how the claim's target was chosen (`authn.association.Association`)
+    #: a signed claim of a radar-confusable model: the registered models it is verified together with
+    group: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,9 @@ class CheckInput:
     #: a Remote ID capture heard beside the radar (`--rid-capture`): its messages replace the
     #: return's own, one claim per drone heard in the dwell's window (docs/remoteid.md)
     rid_capture: "RidCapture | None" = None
+    #: a dwell of a track (`authn check --track`): radar-confusable models are those of the site
+    #: card's track-level errors, the level the track decides at
+    track: bool = False
 
     @classmethod
     def file(cls, path: str | Path, serial: str | None = None, rid_capture: "RidCapture | None" = None) -> "CheckInput":
@@ -310,33 +315,52 @@ class Checker:
     # --- stages -------------------------------------------------------------------
 
     @staticmethod
-    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any, classifier: Any = None) -> Any:
+    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any, classifier: Any = None, group: tuple = ()) -> Any:
         """1:1 verification of the return against the registered model's profile (None: no profile),
         with the claimed model's site bands and the site's score calibration where a site bundle
-        has them."""
+        has them; against the claim and `group` together (a signed claim of a radar-confusable
+        model, `_group`) where `group` names models."""
         if claimed is None:
             return None
         from dataclasses import asdict
 
         from signatures.verify import bands_from, verify
 
-        bands = bands_from(getattr(classifier, "physics_bands", None), claimed.slug)
+        card_bands = getattr(classifier, "physics_bands", None)
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
-                      rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands,
-                      calibration=getattr(classifier, "score_calibration", None))
+                      rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands_from(card_bands, claimed.slug),
+                      calibration=getattr(classifier, "score_calibration", None),
+                      also=[(p, bands_from(card_bands, p.slug)) for p in group])
 
-    def _confusable(self, classifier: Any, model: str, tracks: bool = False) -> bool | None:
-        """Whether the registered `model` is radar-confusable, by a site bundle's enrolment card
-        (its single-dwell pairs, or its track pairs when `tracks`), with another model registered
-        (active) at this site; None for a bundle that is not a site bundle (the policy input is
-        then unchanged). One query, only when the card lists a pair with `model`."""
+    def _confusable_models(self, classifier: Any, model: str, tracks: bool = False) -> tuple[str, ...] | None:
+        """The models registered (active) at this site that a site bundle's enrolment card says
+        radar cannot tell from the registered `model` (its single-dwell pairs, or its track pairs when
+        `tracks`); None for a bundle that is not a site bundle. One query, only when the card lists
+        a pair with `model`."""
         if not getattr(classifier, "site", False):
             return None
         others = classifier.confusable_with(model, tracks) if model else ()
-        return bool(others) and bool(set(others) & self.db.registered_models())
+        return tuple(sorted(set(others) & self.db.registered_models())) if others else ()
+
+    def _confusable(self, classifier: Any, model: str, tracks: bool = False) -> bool | None:
+        """Whether the registered `model` is radar-confusable with another registered model (the
+        policy's `radar_confusable`); None for a bundle that is not a site bundle (the policy input
+        is then unchanged)."""
+        others = self._confusable_models(classifier, model, tracks)
+        return None if others is None else bool(others)
+
+    def _group(self, classifier: Any, model: str, auth: RemoteIdAuth, track: bool) -> tuple:
+        """The profiles a claim is verified together with: where its DRIP signature is valid (the
+        signature vouches for the exact identity) and the site card says radar cannot tell its
+        registered model from others registered here (at the level the check decides at), those
+        others, so that radar vouches for what it can tell; () otherwise."""
+        if auth.status != "valid" or not model:
+            return ()
+        others = self._confusable_models(classifier, model, track) or ()
+        return tuple(p for p in (self.db.profile(m) for m in others) if p is not None)
 
     def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer,
-               captured: bool = False) -> Outcome | _Pending:
+               captured: bool = False, track: bool = False) -> Outcome | _Pending:
         """Everything before the radar: the claim, the registry, DRIP, and the policy with the radar
         not run. An Outcome when that already decides; otherwise what the radar stages need.
         `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`)."""
@@ -364,6 +388,7 @@ class Checker:
             claimed = self.db.profile(facts.model) if facts.model else None
             evidence.radar_confusable = self._confusable(classifier, facts.model)
             evidence.radar_confusable_track = self._confusable(classifier, facts.model, tracks=True)
+            group = self._group(classifier, facts.model, auth, track)
         expected = None  # at the first chirp, the time the radar's range estimate refers to
         if claim.state is not None:
             expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
@@ -373,7 +398,7 @@ class Checker:
         with timer.stage("associate"):  # the claim's own target: position, then velocity (CW: none, docs/format.md)
             assoc = associate(rec, expected, claim.state)
         return _Pending(rec, claim, auth, mid, evidence, classifier, claimed, expected, assoc.gate, file, digest,
-                        timer, assoc)
+                        timer, assoc, group)
 
     def _finish(self, p: _Pending, feats: Any, pred: Any) -> Outcome:
         """The radar evidence from the features and the class, kinematics, the full policy decision."""
@@ -385,7 +410,7 @@ class Checker:
                             range_m=None if cw else round(float(feats.range_m), 3),
                             radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
                             operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest,
-                            verification=self._verify(feats, pred, p.claimed, rec, p.classifier))
+                            verification=self._verify(feats, pred, p.claimed, rec, p.classifier, p.group))
         kin = None
         if p.expected is not None and radar.detected:
             with p.timer.stage("kinematics"):  # CW: the range part is computed on the expected range, never shown
@@ -449,7 +474,7 @@ class Checker:
                 with timer.stage("read"):
                     rec, digest = item.load()
                 if item.rid_capture is None:
-                    fronts = [self._front(rec, item.serial, item.name, digest, timer)]
+                    fronts = [self._front(rec, item.serial, item.name, digest, timer, track=item.track)]
                 else:  # one claim per drone heard: each its own decision (and audit entry)
                     with timer.stage("rid_capture"):
                         claims = item.rid_capture.claims(rec, item.serial)

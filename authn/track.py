@@ -349,7 +349,7 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
     increments: list[float] = []
     result = request = None
     for d in dwells:
-        batch = checker.decide([CheckInput(d.name, claim if serial is not None else None, d.load)])
+        batch = checker.decide([CheckInput(d.name, claim if serial is not None else None, d.load, track=True)])
         if batch.fault is not None:
             raise batch.fault
         o = batch.items[0]

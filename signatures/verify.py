@@ -33,6 +33,14 @@ A site bundle (`authn models enrol`) may carry `Bands` per enrolled model: the r
 bands re-estimated from the site's own recordings with the bands above as the prior
 (`signatures.enrol`); without them (every other bundle) the bands above apply unchanged.
 
+**A group of radar-confusable models** (`also`): where a site's enrolment card says radar cannot
+tell the claimed model from other models registered there, and a valid DRIP signature vouches for
+the exact identity (the check decides when), the return is verified against the group: the physics
+term is the log of the mean of the members' likelihood ratios (the claim is one of them, equally
+likely), the classifier's term the summed probability of the members against their share of the
+prior (absent where the group holds every class the bundle knows: it then tells the group from
+nothing). Radar vouches for what it can tell; the signature for the rest.
+
 A site bundle may also carry a score calibration (`signatures.calibration`, fitted on its
 enrolment's cross-validated terms, applied with `authn models enrol --calibrate`): the LLR is then
 the calibrated terms' sum; where the physics term abstains it stays absent all the same.
@@ -45,7 +53,7 @@ sum. numpy and math only: this runs on the inference path.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -119,6 +127,8 @@ class Verification:
     raw: Any = None
     #: with a site calibration: the uncalibrated terms (what verify gives without it)
     uncalibrated: dict[str, float] = field(default_factory=dict)
+    #: verified against a group of radar-confusable models: the group's slugs, the claim's first
+    verified_as: tuple[str, ...] = ()
 
     @property
     def physics_abstained(self) -> bool:
@@ -133,6 +143,8 @@ class Verification:
             doc["compared"] = {k: {n: round(v, 3) for n, v in d.items()} for k, d in self.compared.items()}
         if self.uncalibrated:
             doc["uncalibrated"] = {k: round(v, 4) for k, v in self.uncalibrated.items()}
+        if self.verified_as:
+            doc["verified_as"] = list(self.verified_as)
         return doc
 
 
@@ -206,9 +218,34 @@ def _rotors(features: Mapping[str, float], claimed: UavProfile,
     return z, math.log(band[0]), math.log(band[1]), math.hypot(rel, ROTOR_REL_FLOOR)
 
 
+def _group_physics(features: Mapping[str, float], members: Sequence[tuple[UavProfile, Bands]],
+                   max_tip_mps: float | None) -> tuple[float, dict[str, dict[str, float]]] | None:
+    """The physics term of "one of `members`" (the claim first): the log of the mean of their
+    likelihood ratios; what was compared is the claim's. None where the claim's term abstains."""
+    scored = [_physics(features, p, max_tip_mps, b) for p, b in members]
+    if scored[0] is None:
+        return None
+    llrs = [s[0] for s in scored if s is not None]
+    top = max(llrs)
+    return top + math.log(sum(math.exp(x - top) for x in llrs) / len(members)), scored[0][1]
+
+
+def _log_odds(probabilities: Mapping[str, float], slugs: Sequence[str]) -> float | None:
+    """Log-odds of the summed probability of `slugs` against their share of a uniform prior over the
+    bundle's UAV classes; None where none of them is a class, or they are every class."""
+    uav = [c for c in probabilities if c not in ("bird", "none")]
+    inside = [s for s in slugs if s in probabilities]
+    if not inside or len(inside) >= max(len(uav), 2):
+        return None
+    prior = len(inside) / max(len(uav), 2)
+    p = min(max(sum(float(probabilities[s]) for s in inside), 1e-6), 1.0 - 1e-6)
+    return math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
+
+
 def verify(features: Mapping[str, float], claimed: UavProfile,
            probabilities: Mapping[str, float] | None = None, max_tip_mps: float | None = None,
-           known: bool = True, bands: Bands | None = None, calibration: Any = None) -> Verification:
+           known: bool = True, bands: Bands | None = None, calibration: Any = None,
+           also: Sequence[tuple[UavProfile, Bands | None]] = ()) -> Verification:
     """Score a return's physical estimates (feature name -> value, `signatures.features`) and
     the classifier's probabilities (class -> p, optional) against the claimed profile.
 
@@ -222,23 +259,25 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
 
     `calibration`: a site's score calibration (`signatures.calibration.Calibration`, fitted on its
     enrolment's cross-validated terms): the LLR is then its calibrated terms' sum, the terms above
-    kept as `uncalibrated`; a physics term that abstained stays absent. None: the terms above."""
+    kept as `uncalibrated`; a physics term that abstained stays absent. None: the terms above.
+
+    `also`: the models (with their site bands, None: the defaults) the claim is verified together
+    with, as one group (module docstring); (): the claimed model alone."""
     from signatures.calibration import RawTerms
 
     terms: dict[str, float] = {}
     compared: dict[str, dict[str, float]] = {}
-    physics = _physics(features, claimed, max_tip_mps, bands or DEFAULT_BANDS)
+    members = [(claimed, bands or DEFAULT_BANDS), *((p, b or DEFAULT_BANDS) for p, b in also if p.slug != claimed.slug)]
+    physics = _group_physics(features, members, max_tip_mps)
     if physics is not None:
         terms["physics"], compared = physics
-    odds = None
-    if probabilities and claimed.slug in probabilities:
-        uav = [c for c in probabilities if c not in ("bird", "none")]
-        prior = 1.0 / max(len(uav), 2)
-        p = min(max(float(probabilities[claimed.slug]), 1e-6), 1.0 - 1e-6)
-        odds = math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
+    odds = _log_odds(probabilities, [p.slug for p, _ in members]) if probabilities else None
+    if odds is not None:
         terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP if known else 0.0, odds))
+    group = tuple(p.slug for p, _ in members) if len(members) > 1 else ()
     raw = RawTerms(None if physics is None else physics[0], odds, known)
     if calibration is not None:
         cal = calibration.terms(raw)
-        return Verification(llr=sum(cal.values()), terms=cal, compared=compared, raw=raw, uncalibrated=terms)
-    return Verification(llr=sum(terms.values()), terms=terms, compared=compared, raw=raw)
+        return Verification(llr=sum(cal.values()), terms=cal, compared=compared, raw=raw, uncalibrated=terms,
+                            verified_as=group)
+    return Verification(llr=sum(terms.values()), terms=terms, compared=compared, raw=raw, verified_as=group)

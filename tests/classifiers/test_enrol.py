@@ -154,6 +154,59 @@ def test_confusable_pair_needs_a_signature(site: dict, capsys, monkeypatch) -> N
     assert checker._confusable(clf, "m300") is False
 
 
+def _signed_m300(key, serial: str, dwells: int, seed: int = 5) -> list:
+    """Held-out dwells of an M300 whose Remote ID `serial` is signed with `key` (DRIP)."""
+    from authn.scenario import Broadcast, Signing
+    from lab.bench.decisions import CLAIM_SCENES
+    from lab.bench.track import track_recordings
+    from signatures.profiles import shipped_profiles
+    from signatures.sampling import sample_scene
+
+    scene = sample_scene(np.random.default_rng(seed), shipped_profiles()["m300"], replace(CLAIM_SCENES, snr_db=20.0))
+    bc = Broadcast(serial=serial, signing=Signing(private_key=key.private_raw, det=key.det))
+    return track_recordings(scene, "paper", list(range(1, dwells + 1)), serial, world="heldout", broadcast=bc)
+
+
+@pytest.mark.parametrize("track_pairs", [(), (("m300", "m600"),)])
+def test_a_signed_claim_of_a_confusable_model_is_verified_as_the_group(site: dict, tmp_path: Path, monkeypatch,
+                                                                      capsys, track_pairs: tuple) -> None:
+    """Where the card says radar cannot tell the registered M300 from a registered M600 and the
+    claim's DRIP signature is valid, radar verifies "an M300 or an M600" (the signature vouches for
+    which); an unsigned claim is verified against the M300 alone (and rejected for the signature it
+    lacks). A track asks the card's track-level pairs."""
+    from authn import uakeys
+    from authn.check import CheckInput, Checker
+    from authn.track import Dwell, decide_track
+    from signatures.inference import load_classifier
+
+    main(["models", "use", "site-a"])
+    clf = load_classifier(path=site["models"] / "site-a")
+    monkeypatch.setattr(clf, "confusable_pairs", (("m300", "m600"),))
+    monkeypatch.setattr(clf, "confusable_track_pairs", track_pairs)
+    key = uakeys.generate()
+    pub = tmp_path / "ua.pub"
+    pub.write_bytes(key.public_raw)
+    tag = "H" if track_pairs else "G"  # one registry for the module: serials of their own
+    keyed = f"1581BBENCH00300{tag}"
+    assert main(["register", "--serial", keyed, "--model", "m300", "--public-key", str(pub),
+                 "--valid-from", "2025-01-01T00:00:00Z"]) == 0
+    assert main(["register", "--serial", f"1581BBENCH00600{tag}", "--model", "m600",
+                 "--valid-from", "2025-01-01T00:00:00Z"]) == 0
+    capsys.readouterr()
+    checker = Checker()
+    recs = _signed_m300(key, keyed, 3)
+    one = checker.decide_one(CheckInput.recording(recs[0], None))
+    assert one.evidence.auth.status == "valid"
+    v = one.evidence.radar.verification
+    assert v.verified_as == ("m300", "m600") and v.to_json()["verified_as"] == ["m300", "m600"]
+    assert "radar-confusable-unsigned" not in one.reasons
+    unsigned = checker.evaluate(site["flights"] / "m300-00.h5")
+    assert unsigned.evidence.radar.verification.verified_as == ()
+    assert "radar-confusable-unsigned" in unsigned.reasons
+    out = decide_track(checker, [Dwell.recording(r, f"d{i}") for i, r in enumerate(recs)])
+    assert out.evidence.radar.verification.verified_as == (("m300", "m600") if track_pairs else ())
+
+
 @pytest.mark.parametrize("track_pairs", [(), (("m300", "m600"),)])
 def test_a_track_check_uses_the_track_figure(site: dict, capsys, monkeypatch, track_pairs: tuple) -> None:
     """A pair confusable over single dwells: a single-dwell check rejects the unsigned claim; a

@@ -188,3 +188,51 @@ def test_site_bands_default_to_todays_and_narrow_or_widen_with_site_data() -> No
     assert verify(feats, prof, bands=narrowed).terms["physics"] != verify(feats, prof).terms["physics"]
     assert bands_from({"m300": {"rate": [lo, hi], "rotors": list(ROTOR_BAND)}}, "m300") == narrowed
     assert bands_from(None, "m300") is None and bands_from({"m600": {"rate": [1, 2], "rotors": [1, 2]}}, "m300") is None
+
+
+def test_a_group_of_one_is_the_claim_alone() -> None:
+    """`also` naming only the claimed model (or nothing) changes neither the terms nor the LLR."""
+    seen = {**_seen(P["m300"], 1.05, aliased=True), **_rotors(3.8, 8)}
+    probs = {"m300": 0.6, "m600": 0.3, "phantom4": 0.1}
+    alone = verify(seen, P["m300"], probs, max_tip_mps=22.0)
+    assert verify(seen, P["m300"], probs, max_tip_mps=22.0, also=[(P["m300"], None)]) == alone
+    assert alone.verified_as == () and "verified_as" not in alone.to_json()
+
+
+def test_a_confusable_group_carries_what_radar_can_tell() -> None:
+    """An M300 at 0.92 of its rate flashes where an M600 would at 1.0: the classifier splits its
+    mass between the two. Against the M300 alone the return is doubtful; against "an M300 or an
+    M600" it is consistent, and a Phantom 4 still is not."""
+    seen = {**_seen(P["m300"], 0.92, aliased=True), **_rotors(4.6, 8)}
+    probs = {"m300": 0.48, "m600": 0.47, "phantom4": 0.05}
+    alone = verify(seen, P["m300"], probs, max_tip_mps=22.0)
+    group = verify(seen, P["m300"], probs, max_tip_mps=22.0, also=[(P["m600"], None)])
+    assert group.verified_as == ("m300", "m600") and group.to_json()["verified_as"] == ["m300", "m600"]
+    # the classifier: 0.95 of the mass on a group holding 2 of 3 classes, against 0.48 on one of 3
+    assert group.terms["classifier"] == pytest.approx(math.log(0.95 / 0.05) - math.log(2.0), abs=1e-6)
+    assert alone.terms["classifier"] == pytest.approx(math.log(0.48 / 0.52) - math.log(0.5), abs=1e-6)
+    assert group.llr > alone.llr + 1.0
+    # the physics term: the log of the mean of the members' likelihood ratios
+    m300 = verify(seen, P["m300"], max_tip_mps=22.0).terms["physics"]
+    m600 = verify(seen, P["m600"], max_tip_mps=22.0).terms["physics"]
+    assert group.terms["physics"] == pytest.approx(math.log((math.exp(m300) + math.exp(m600)) / 2), abs=1e-9)
+    assert min(m300, m600) <= group.terms["physics"] <= max(m300, m600)
+    # a Phantom 4 (117 Hz) claiming the M300 with the M600 beside it: neither member fits
+    p4 = {**_seen(P["phantom4"], aliased=True), **_rotors(3.9, 8)}
+    assert verify(p4, P["m300"], {"phantom4": 0.9, "m300": 0.05, "m600": 0.05}, max_tip_mps=22.0,
+                  also=[(P["m600"], None)]).llr < -4.0
+
+
+def test_a_group_of_every_class_leaves_the_classifier_out() -> None:
+    seen = _seen(P["m300"], aliased=True)
+    probs = {"m300": 0.4, "m600": 0.3, "phantom4": 0.2, "bird": 0.1}
+    v = verify(seen, P["m300"], probs, max_tip_mps=22.0, also=[(P["m600"], None), (P["phantom4"], None)])
+    assert set(v.terms) == {"physics"} and v.verified_as == ("m300", "m600", "phantom4")
+
+
+def test_a_group_abstains_with_its_claim() -> None:
+    """No usable rate: no physics term for the group either, so the classifier cannot carry it."""
+    seen = {**_seen(P["m300"], aliased=True), "flash_score": 0.2}
+    v = verify(seen, P["m300"], {"m300": 0.5, "m600": 0.45, "phantom4": 0.05}, max_tip_mps=22.0,
+               also=[(P["m600"], None)])
+    assert v.physics_abstained and "classifier" in v.terms
