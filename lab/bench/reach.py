@@ -1,0 +1,290 @@
+"""How far any per-dwell scoring can reach: a learner fitted on a world's own dwells (docs/tracks.md,
+"What any per-dwell scoring can reach").
+
+The track must-shows ask genuine tracks of the held-out world to be accepted at 95-97 %. Whether a
+better estimator or scoring could get there is measured here with an oracle far stronger than any
+deployed bundle: gradient-boosted trees fitted, per fold, on thousands of the world's *own* dwells
+(scenes disjoint between folds; a site enrols 30 recordings per airframe), given today's feature
+vector and a raw view of the target's slow time (`dwell_view`). Its out-of-fold probabilities become
+one calibrated LLR per ordered pair (genuine A against an impostor B claiming A: Platt-scaled, cross
+fitted, classes balanced), which is what the sequential test could add per dwell at best with this
+much knowledge of the world. Tracks are then walked by `authn.track.Sprt` (the check's own bounds,
+cap and discount) over each scene's dwells drawn with replacement, and the within-scene correlation
+of the oracle's LLRs is measured beside it.
+
+    python -m lab.bench.reach --world heldout --snr 10 --snr 0 --scenes 200 --dwells 5 --workers 2
+
+Scenes are drawn as `lab.bench.track_must_show` draws them (another seed: no scene of the must-show is
+fitted on); nothing here ships or tunes anything that ships.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+#: A genuine track's dwells in 2 s of back-to-back `paper` dwells (lab.bench.track_must_show).
+TRACK_DWELLS = 75
+#: STFT of the view: frames of this many chirps, a hop of a quarter.
+VIEW_WIN = 32
+#: Envelope spectrum kept up to this rate (Hz; paper flash rates are 66-140 Hz, harmonics above).
+VIEW_MAX_HZ = 700.0
+#: Envelope autocorrelation sampled at this many lags over 1-30 ms (one to three flash periods).
+VIEW_LAGS = 60
+_TINY = 1e-30
+
+
+def dwell_view(iq: np.ndarray, pri_s: float) -> np.ndarray:
+    """What a learner sees beyond the feature vector, from an IF cube (chirps x samples): the
+    strongest range bin +- 1 as slow time, its STFT power with the body line centred, and three
+    scale-invariant summaries: the Doppler profile (log over its mean), the log spectrum of the
+    flash envelope (power off the body line, over its mean; 4-bin means to `VIEW_MAX_HZ`) and the
+    envelope's normalised autocorrelation at `VIEW_LAGS` lags. float32."""
+    x = np.asarray(iq).astype(np.complex128)
+    x = x - x.mean(axis=0, keepdims=True)
+    spec = np.fft.fft(x * np.hanning(x.shape[1]), axis=1)
+    prof = (np.abs(spec) ** 2).mean(axis=0)
+    prof[0] = prof[-1] = 0.0
+    peak = int(np.argmax(prof))
+    slow = spec[:, max(0, peak - 1):peak + 2]
+    frames = sliding_window_view(slow, VIEW_WIN, axis=0)[::VIEW_WIN // 4]  # (frames, cols, win)
+    power = (np.abs(np.fft.fft(frames * np.hanning(VIEW_WIN), axis=-1)) ** 2).sum(axis=1)
+    power = np.roll(power, VIEW_WIN // 2 - int(np.argmax(power.mean(axis=0))), axis=1)
+    doppler = np.log(np.maximum(power.mean(axis=0), _TINY) / max(float(power.mean()), _TINY))
+    off = np.ones(VIEW_WIN, dtype=bool)
+    off[VIEW_WIN // 2 - 2:VIEW_WIN // 2 + 3] = False
+    env = np.log(np.maximum(power[:, off].sum(axis=1), _TINY))
+    env = (env - env.mean()) * np.hanning(env.size)
+    step = VIEW_WIN // 4 * pri_s
+    s = np.abs(np.fft.rfft(env, 1024)) ** 2
+    s = np.log(s / max(float(s.mean()), _TINY) + 1e-6)[np.fft.rfftfreq(1024, step) < VIEW_MAX_HZ]
+    s = s[:s.size // 4 * 4].reshape(-1, 4).mean(axis=1)
+    ac = np.correlate(env, env, "full")[env.size - 1:]
+    ac = ac / ac[0] if ac[0] > 0 else np.zeros_like(ac)
+    acs = np.interp(np.linspace(0.001, 0.03, VIEW_LAGS), np.arange(ac.size) * step, ac, right=0.0)
+    return np.concatenate([doppler, s, acs]).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Dwell:
+    world: str
+    snr_db: float
+    flies: str
+    scene: int
+    features: list[float]
+    view: list[float]
+
+
+def _render(job: tuple) -> list[Dwell]:
+    """The dwells of one genuine scene of `flies` (drawn as the must-show draws them)."""
+    from dataclasses import asdict as fields_of
+
+    from lab.bench.decisions import bench_serial
+    from lab.bench.track import track_recordings
+    from lab.bench.track_must_show import _scene_and_draws
+    from signatures.extraction import extract
+    from signatures.radar import get_preset
+
+    world, snr, seed, p_idx, flies, i, k = job
+    pre = get_preset("paper")
+    scene, az, base = _scene_and_draws(seed, 0, snr, p_idx, i, flies)
+    recs = track_recordings(scene, "paper", list(range(base, base + k)), bench_serial(flies), az,
+                            spacing_s=pre.dwell_s, world=world)
+    out = []
+    for rec in recs:
+        f = fields_of(extract(rec).features)
+        out.append(Dwell(world, snr, flies, i, [float(f[n]) for n in sorted(f)],
+                         dwell_view(rec.iq, rec.config.pri_s).tolist()))
+    return out
+
+
+def render(world: str, snr: float, scenes: int, dwells: int, seed: int, workers: int) -> list[Dwell]:
+    """`scenes` genuine scenes of each shipped airframe, `dwells` back-to-back dwells each."""
+    from lab.bench.track_must_show import pairs
+
+    jobs = [(world, snr, seed, p_idx, flies, i, dwells)
+            for p_idx, (cat, flies, _claims, _why) in enumerate(pairs()) if cat == "genuine" for i in range(scenes)]
+    if workers <= 1:
+        return [d for j in jobs for d in _render(j)]
+    with ProcessPoolExecutor(workers) as ex:
+        return [d for ds in ex.map(_render, jobs, chunksize=4) for d in ds]
+
+
+def out_of_fold(X: np.ndarray, y: np.ndarray, groups: np.ndarray, folds: int = 5, share: float = 1.0,
+                seed: int = 0) -> tuple[np.ndarray, list[str]]:
+    """Out-of-fold class probabilities of gradient-boosted trees (scenes never split across folds);
+    `share` < 1 fits each fold on that share of its training scenes (the learning curve)."""
+    from sklearn.ensemble import HistGradientBoostingClassifier
+    from sklearn.model_selection import GroupKFold
+
+    classes = sorted(set(y.tolist()))
+    p = np.zeros((y.size, len(classes)))
+    rng = np.random.default_rng(seed)
+    for tr, te in GroupKFold(folds).split(X, y, groups):
+        if share < 1.0:
+            keep = rng.permutation(np.unique(groups[tr]))[:max(2, int(round(share * np.unique(groups[tr]).size)))]
+            tr = tr[np.isin(groups[tr], keep)]
+        model = HistGradientBoostingClassifier(max_iter=300, learning_rate=0.05, l2_regularization=1.0,
+                                               random_state=seed).fit(X[tr], y[tr])
+        cols = [classes.index(c) for c in model.classes_]
+        p[np.ix_(te, cols)] = model.predict_proba(X[te])
+    return p, classes
+
+
+def pair_llr(p: np.ndarray, classes: list[str], y: np.ndarray, groups: np.ndarray, a: str, b: str,
+             folds: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """Calibrated per-dwell LLR of "A" against "B" on the dwells of A and B: the log ratio of the
+    two probabilities, Platt-scaled by a logistic regression fitted on the other folds' scenes with
+    the classes weighted equally (so that it is a likelihood ratio, not posterior odds). Returns
+    (llr, is_a) over the selected dwells, in data order."""
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.model_selection import GroupKFold
+
+    sel = (y == a) | (y == b)
+    ia, ib = classes.index(a), classes.index(b)
+    raw = np.log(np.clip(p[sel, ia], 1e-4, 1.0)) - np.log(np.clip(p[sel, ib], 1e-4, 1.0))
+    is_a = (y[sel] == a).astype(int)
+    llr = np.zeros_like(raw)
+    for tr, te in GroupKFold(folds).split(raw, is_a, groups[sel]):
+        lr = LogisticRegression(C=1e4, class_weight="balanced").fit(raw[tr, None], is_a[tr])
+        llr[te] = lr.decision_function(raw[te, None])
+    return llr, is_a.astype(bool)
+
+
+def scene_icc(llr: np.ndarray, scenes: np.ndarray, cap: float) -> float:
+    """Intra-class correlation of the capped LLRs within scenes (`lab.bench.track.icc`)."""
+    from lab.bench.track import icc
+
+    v = np.clip(llr, -cap, cap)
+    return icc([v[scenes == s].tolist() for s in np.unique(scenes)])
+
+
+def walk_scenes(llr: np.ndarray, scenes: np.ndarray, rho: float, seed: int = 0,
+                dwells: int = TRACK_DWELLS) -> list[tuple[str, int]]:
+    """One track per scene: `dwells` of the scene's LLRs drawn with replacement, walked by the
+    check's sequential test (`authn.track.Sprt`, default bounds and cap, correlation `rho`)."""
+    from authn.track import Sprt
+
+    sprt = Sprt(correlation=rho)
+    rng = np.random.default_rng(seed)
+    return [sprt.walk([(float(x), True) for x in rng.choice(llr[scenes == s], dwells)]) for s in np.unique(scenes)]
+
+
+@dataclass(frozen=True)
+class PairReach:
+    world: str
+    snr_db: float
+    inputs: str
+    share: float
+    genuine: str
+    impostor: str
+    mean_genuine: float
+    mean_impostor: float
+    icc_genuine: float
+    accepted: float
+    accepted_rho_measured: float
+    rejected: float
+    median_dwells: float
+
+
+def reach(dwells: list[Dwell], inputs: str = "features+view", shares: tuple[float, ...] = (1.0,),
+          groups: dict[str, str] | None = None) -> list[PairReach]:
+    """Per ordered pair of (grouped) airframes: the oracle's per-dwell evidence and the tracks it
+    would decide. `groups` maps airframes to a group label (e.g. two radar-confusable models to one)."""
+    from authn.track import DWELL_CAP_NATS, DWELL_CORRELATION
+
+    out = []
+    for (world, snr), ds in itertools.groupby(sorted(dwells, key=lambda d: (d.world, -d.snr_db)),
+                                              key=lambda d: (d.world, d.snr_db)):
+        ds = list(ds)
+        parts = {"features": lambda d: d.features, "view": lambda d: d.view,
+                 "features+view": lambda d: d.features + d.view}[inputs]
+        X = np.nan_to_num(np.array([parts(d) for d in ds], dtype=np.float64))
+        y = np.array([(groups or {}).get(d.flies, d.flies) for d in ds])
+        scenes = np.array([f"{d.flies}/{d.scene}" for d in ds])
+        scene_ids = np.unique(scenes, return_inverse=True)[1]
+        for share in shares:
+            p, classes = out_of_fold(X, y, scene_ids, share=share)
+            for a, b in itertools.permutations(classes, 2):
+                llr, is_a = pair_llr(p, classes, y, scene_ids, a, b)
+                sc = scenes[(y == a) | (y == b)]
+                rho_g = scene_icc(llr[is_a], sc[is_a], DWELL_CAP_NATS)
+                gen = walk_scenes(llr[is_a], sc[is_a], DWELL_CORRELATION)
+                gen_m = walk_scenes(llr[is_a], sc[is_a], min(0.95, max(0.0, rho_g)))
+                imp = walk_scenes(llr[~is_a], sc[~is_a], DWELL_CORRELATION)
+                out.append(PairReach(
+                    world, snr, inputs, share, a, b,
+                    round(float(np.mean(np.clip(llr[is_a], -DWELL_CAP_NATS, DWELL_CAP_NATS))), 3),
+                    round(float(np.mean(np.clip(llr[~is_a], -DWELL_CAP_NATS, DWELL_CAP_NATS))), 3),
+                    round(rho_g, 3), float(np.mean([d == "accept" for d, _ in gen])),
+                    float(np.mean([d == "accept" for d, _ in gen_m])),
+                    float(np.mean([d != "accept" for d, _ in imp])),
+                    float(np.median([n for _, n in gen]))))
+    return out
+
+
+def table(rows: list[PairReach]) -> list[str]:
+    lines = ["| world | SNR dB | inputs | fitted on | genuine | impostor claiming it | mean LLR genuine / impostor "
+             "| ICC genuine | genuine tracks accepted (rho 0.2 / measured) | impostor tracks rejected "
+             "| median dwells |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r.world} | {r.snr_db:g} | {r.inputs} | {r.share:.0%} | {r.genuine} | {r.impostor} | "
+                     f"{r.mean_genuine:+.2f} / {r.mean_impostor:+.2f} | {r.icc_genuine:.2f} | {r.accepted:.0%} / "
+                     f"{r.accepted_rho_measured:.0%} | {r.rejected:.0%} | {r.median_dwells:g} |")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m lab.bench.reach", description=__doc__.splitlines()[0])
+    ap.add_argument("--world", action="append", choices=("heldout", "training"))
+    ap.add_argument("--snr", action="append", type=float)
+    ap.add_argument("--scenes", type=int, default=200, help="genuine scenes per airframe, world and SNR")
+    ap.add_argument("--dwells", type=int, default=5, help="back-to-back dwells per scene")
+    ap.add_argument("--seed", type=int, default=11, help="scene seed (the must-show uses 7)")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--inputs", action="append", choices=("features", "view", "features+view"))
+    ap.add_argument("--share", action="append", type=float,
+                    help="learning curve: the share of each fold's scenes fitted on")
+    ap.add_argument("--group", action="append", default=[], metavar="A,B",
+                    help="also report with these airframes as one class (repeatable)")
+    ap.add_argument("--cache", help="dwells cache (JSON): read if present, else rendered and written")
+    ap.add_argument("--json", help="write the rows to this file")
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    print(f"# {' '.join(['python -m lab.bench.reach', *(argv if argv is not None else sys.argv[1:])])}")
+    print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
+    if a.cache and os.path.exists(a.cache):
+        with open(a.cache) as fh:
+            dwells = [Dwell(**d) for d in json.load(fh)]
+    else:
+        dwells = [d for w in (a.world or ["heldout"]) for s in (a.snr or [10.0, 0.0])
+                  for d in render(w, s, a.scenes, a.dwells, a.seed, a.workers)]
+        if a.cache:
+            with open(a.cache, "w") as fh:
+                json.dump([asdict(d) for d in dwells], fh)
+    print(f"# {len(dwells)} dwells rendered/read in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    rows = [r for inputs in (a.inputs or ["features", "features+view"])
+            for r in reach(dwells, inputs, tuple(a.share or [1.0]))]
+    for spec in a.group:
+        members = spec.split(",")
+        rows += reach(dwells, "features+view", (1.0,), {m: "+".join(members) for m in members})
+    print("\n".join(table(rows)))
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump([asdict(r) for r in rows], fh)
+    print(f"# {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,70 @@
+"""The reach bench's parts (lab/bench/reach.py): a view that does not depend on the return's scale,
+pairwise LLRs that are calibrated (near 0 where two classes cannot be told apart, large where they
+can), and tracks walked by the check's own sequential test."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lab.bench.reach import dwell_view, pair_llr, scene_icc, walk_scenes
+
+PRI_S = 44e-6
+
+
+def _cube(seed: int) -> np.ndarray:
+    """A body line plus a flash train at 120 Hz and noise: 600 chirps x 80 IF samples."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(600)[:, None] * PRI_S
+    k = np.arange(80)[None, :]
+    body = np.exp(2j * np.pi * (0.2 * k + 900.0 * t))
+    flash = (np.cos(np.pi * 120.0 * t) ** 40) * np.exp(2j * np.pi * (0.2 * k + rng.uniform(-9e3, 9e3, (600, 1)) * t))
+    return (body + 3.0 * flash + 0.3 * (rng.standard_normal((600, 80)) + 1j * rng.standard_normal((600, 80))))
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.floats(-9.0, 9.0), st.floats(0.0, 6.283), st.integers(0, 3))
+def test_the_view_is_scale_invariant(log10_scale: float, phase: float, seed: int) -> None:
+    cube = _cube(seed)
+    scaled = cube * (10.0 ** log10_scale) * np.exp(1j * phase)
+    np.testing.assert_allclose(dwell_view(scaled, PRI_S), dwell_view(cube, PRI_S), rtol=1e-3, atol=1e-3)
+
+
+def test_the_view_of_an_empty_cube_is_finite() -> None:
+    assert np.isfinite(dwell_view(np.zeros((600, 80), np.complex64), PRI_S)).all()
+
+
+def _probabilities(sep: float, n: int = 400, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Probabilities of classes a and b from a score that separates them by `sep` standard deviations."""
+    rng = np.random.default_rng(seed)
+    y = np.array(["a", "b"] * (n // 2))
+    score = np.where(y == "a", sep / 2, -sep / 2) + rng.standard_normal(n)
+    pa = 1.0 / (1.0 + np.exp(-score))
+    return np.column_stack([pa, 1.0 - pa]), y, np.arange(n) // 4  # scenes of 4 dwells
+
+
+def test_pairwise_llrs_are_calibrated() -> None:
+    p, y, g = _probabilities(0.0)
+    llr, is_a = pair_llr(p, ["a", "b"], y, g, "a", "b")
+    assert abs(llr[is_a].mean()) < 0.1 and abs(llr[~is_a].mean()) < 0.1  # no information: about 0
+    p, y, g = _probabilities(4.0)
+    llr, is_a = pair_llr(p, ["a", "b"], y, g, "a", "b")
+    # two unit normals 4 apart: the true LLR is 4 x score, its mean under each class +-8 (KL)
+    assert 6.5 < llr[is_a].mean() < 9.5 and -9.5 < llr[~is_a].mean() < -6.5
+
+
+def test_tracks_walk_as_the_check_does() -> None:
+    scenes = np.repeat(np.arange(5), 4)
+    assert walk_scenes(np.full(20, 5.0), scenes, 0.2) == [("accept", 3)] * 5  # 4, 6.67, 8.57 nats
+    assert walk_scenes(np.full(20, -5.0), scenes, 0.2) == [("reject", 2)] * 5
+    # a mean dwell LLR under accept_nats x rho (6.9 x 0.2) never accepts, however long the track
+    assert {d for d, _ in walk_scenes(np.full(20, 1.3), scenes, 0.2)} == {"inconclusive"}
+    assert {d for d, _ in walk_scenes(np.full(20, 1.3), scenes, 0.1)} == {"accept"}
+
+
+def test_the_scene_correlation_tells_repeated_bias_from_noise() -> None:
+    rng = np.random.default_rng(1)
+    scenes = np.repeat(np.arange(50), 5)
+    assert abs(scene_icc(rng.standard_normal(250), scenes, 4.0)) < 0.15
+    assert scene_icc(np.repeat(rng.standard_normal(50), 5) + 0.1 * rng.standard_normal(250), scenes, 4.0) > 0.9
