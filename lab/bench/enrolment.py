@@ -23,6 +23,9 @@ errors, and whose track checks use them); its first dwell is also checked alone 
 figures beside). A site bundle is run twice: under the default policy (unsigned claims), and
 under the default policy without `radar-confusable-unsigned` ("radar alone": what a claim with
 a valid DRIP signature meets; for a type spoof, what radar does without the signature rule).
+Each genuine scene is also flown with its Remote ID signed (DRIP, a keyed identity of the model)
+and checked under the default policy: where the card calls the model radar-confusable, that claim
+is verified against the confusable group (`authn.check`, docs/enrolment.md).
 """
 
 from __future__ import annotations
@@ -94,12 +97,14 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
 
 
 def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base_samples: int, out: dict,
-                 log, site_bands: bool = False, calibrate: bool = False) -> tuple[str, dict[str, Path | None]]:
+                 log, site_bands: bool = False, calibrate: bool = False,
+                 keys: dict | None = None) -> tuple[str, dict[str, Path | None]]:
     """The bench registry and the site bundles: `max(sizes)` enrolment recordings per shipped
     airframe at 0-20 dB from the enrolment stream, the first k of each enrolled at each size k
     (with the check's sequential test: the card's track-level errors) as `authn models enrol`
     does; with `site_bands` also with site physics bands ('site-k site bands'), with `calibrate` also with
-    the site's score calibration applied ('site-k calibrated'). (database URL, bundles)."""
+    the site's score calibration applied ('site-k calibrated'); `keys` (slug -> DRIP key): also a
+    keyed identity per slug (`register_identities`). (database URL, bundles)."""
     from authn.enrolment import site_sample
     from authn.scenario import Broadcast
     from authn.track import Sprt
@@ -114,7 +119,7 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
     shipped = shipped_profiles()
     now = datetime.now(timezone.utc)
     db_url = f"sqlite:///{root / 'bench.sqlite3'}"
-    register_identities(db_url)
+    register_identities(db_url, keys)
     db = Database(db_url)
     rng = np.random.default_rng([seed, 1])  # the enrolment stream
     pool = []
@@ -185,9 +190,13 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
                base_samples: int, dwells: int = 8, log=print, site_bands: bool = False,
                calibrate: bool = False) -> dict:
     """Enrol at each size; n tracks per category and SNR, decided with the shipped bundle and each
-    site bundle (default policy and radar alone); their first dwells checked alone beside them."""
+    site bundle (default policy and radar alone); their first dwells checked alone beside them. Each
+    genuine scene is also flown with its Remote ID signed (DRIP, the keyed identity of the model:
+    category `genuine_signed`) and checked under the default policy."""
+    from authn import uakeys
     from authn.check import CheckInput, Checker
     from authn.track import decide_track
+    from lab.bench.decisions import drip_broadcast, keyed_serial
     from lab.bench.track import _lazy_dwell
     from lab.heldout import unseen_profiles
     from signatures.profiles import shipped_profiles
@@ -202,7 +211,8 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
     pairs: dict[tuple[str, str, float, str, str], list[str]] = defaultdict(list)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
-        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log, site_bands, calibrate)
+        keys = {slug: uakeys.generate() for slug in slugs}
+        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log, site_bands, calibrate, keys)
         alone = _radar_alone_policy(root)
         checkers = {"shipped": Checker(db_url)}
         for name, folder in bundles.items():
@@ -214,15 +224,22 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
             start = datetime.now(timezone.utc)
             track = [_lazy_dwell(scene, "paper", base + j, bench_serial(claims), az, start, j, world)
                      for j in range(dwells)]
-            for name, checker in checkers.items():
-                o = decide_track(checker, track)
-                rows[(name, world, float(snr), cat)].append((o.decision, tuple(o.reasons), o.dwells_used))
-                pairs[(name, float(snr), cat, flies, claims)].append(o.decision)
-                one = checker.decide_one(CheckInput.recording(track[0].load()[0], None))
-                single[(name, world, float(snr), cat)].append((one.decision, tuple(one.reasons)))
+            runs = [(cat, track, checkers)]
+            if cat == "genuine":  # the same scene and seeds, its Remote ID signed by the model's keyed identity
+                signed = drip_broadcast("drip_genuine", keyed_serial(claims), 0.0, keys[claims], keys[claims])
+                runs.append(("genuine_signed", [_lazy_dwell(scene, "paper", base + j, keyed_serial(claims), az, start,
+                                                            j, world, broadcast=signed) for j in range(dwells)],
+                             {k: c for k, c in checkers.items() if not k.endswith("radar alone")}))
+            for category, dwells_of, by_name in runs:
+                for name, checker in by_name.items():
+                    o = decide_track(checker, dwells_of)
+                    rows[(name, world, float(snr), category)].append((o.decision, tuple(o.reasons), o.dwells_used))
+                    pairs[(name, float(snr), category, flies, claims)].append(o.decision)
+                    one = checker.decide_one(CheckInput.recording(dwells_of[0].load()[0], None))
+                    single[(name, world, float(snr), category)].append((one.decision, tuple(one.reasons)))
     for key, ts in rows.items():
         name, _, snr, cat = key
-        want = "accept" if cat == "genuine" else "reject"
+        want = "accept" if cat.startswith("genuine") else "reject"
         k = f"{name}/{snr:g}/{cat}"
         used = sorted(t[2] for t in ts)
         out["tracks"][k] = {"right": _share([(d, r, 0) for d, r, _ in ts], lambda d, r, want=want: d == want),
@@ -232,7 +249,7 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
         out["single"][k] = {"right": _share([(d, r, 0) for d, r in single[key]], lambda d, r, want=want: d == want),
                             "n": len(single[key])}
     for (name, snr, cat, flies, claims), ds in pairs.items():
-        want = "accept" if cat == "genuine" else "reject"
+        want = "accept" if cat.startswith("genuine") else "reject"
         out["pairs"][f"{name}/{snr:g}/{flies}->{claims}"] = {"right": round(sum(d == want for d in ds) / len(ds), 4),
                                                               "n": len(ds), "category": cat}
     return out
@@ -315,14 +332,17 @@ def evidence_table(doc: dict) -> str:
 
 def track_table(doc: dict) -> str:
     """Markdown: per bundle and SNR, tracks right (single dwells right) per category."""
-    lines = ["| world | bundle | SNR | genuine accepted | type spoofs rejected | unseen rejected | "
-             "median dwells (genuine / spoof / unseen) |", "|---|---|---|---|---|---|---|"]
+    lines = ["| world | bundle | SNR | genuine accepted | genuine signed accepted | type spoofs rejected | "
+             "unseen rejected | median dwells (genuine / signed / spoof / unseen) |",
+             "|---|---|---|---|---|---|---|---|"]
     names = list(dict.fromkeys(k.split("/")[0] for k in doc["tracks"]))
+    cats = ("genuine", "genuine_signed", "type_spoof", "unseen")
+    none = {"right": float("nan"), "median_dwells": float("nan")}
     for name in names:
         for snr in doc["snrs"]:
             k = f"{name}/{snr:g}"
-            t = [doc["tracks"][f"{k}/{c}"] for c in WORLD_CATEGORIES]
-            sd = [doc["single"][f"{k}/{c}"] for c in WORLD_CATEGORIES]
+            t = [doc["tracks"].get(f"{k}/{c}", none) for c in cats]  # radar alone: no signed run
+            sd = [doc["single"].get(f"{k}/{c}", none) for c in cats]
             cells = [f"{a['right']:.1%} ({b['right']:.1%})" for a, b in zip(t, sd)]
             med = " / ".join(f"{a['median_dwells']:g}" for a in t)
             lines.append(f"| {doc['world']} | {name} | {snr:g} dB | " + " | ".join(cells) + f" | {med} |")

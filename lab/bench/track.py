@@ -38,24 +38,25 @@ DEFAULT_TRACK_SNRS = (0.0, 5.0, 10.0, 20.0)
 
 def track_recordings(scene: Scene, preset: str, seeds: list[int], serial: str | None, azimuth_deg: float = 60.0,
                      start: datetime | None = None, spacing_s: float = DWELL_SPACING_S,
-                     world: str = "training") -> list[Recording]:
+                     world: str = "training", broadcast: Broadcast | None = None) -> list[Recording]:
     """The dwells of one target: `scene` rendered once per seed, `spacing_s` apart, its range
-    moving with its radial speed, each carrying the Remote ID of `serial` (None: none). `world`:
-    the training simulator, or `heldout` (lab.heldout, the signal model nothing was fitted to)."""
+    moving with its radial speed, each carrying the Remote ID of `serial` (None: none), or
+    `broadcast` where given (a signed one, say). `world`: the training simulator, or `heldout`
+    (lab.heldout, the signal model nothing was fitted to)."""
     pre = get_preset(preset)
     start = start or datetime.now(timezone.utc)
     out = []
     for i, seed in enumerate(seeds):
         sc = scene.model_copy(update={"range_m": max(1.0, scene.range_m + scene.radial_speed_mps * i * spacing_s)})
         when = start + timedelta(seconds=i * spacing_s)
-        if world != "training" and serial:
+        bc = broadcast or (Broadcast(serial=serial) if serial else None)
+        if world != "training" and bc is not None:
             from lab.bench.worlds import render_claim
 
-            out.append(render_claim(world, sc, pre, seed, Broadcast(serial=serial), azimuth_deg, when))
+            out.append(render_claim(world, sc, pre, seed, bc, azimuth_deg, when))
             continue
         if world != "training":
             raise ValueError("a held-out track needs a serial to broadcast")
-        bc = Broadcast(serial=serial) if serial else None
         out.append(simulate_flight(sc, pre, seed, bc, azimuth_deg=azimuth_deg, start_time=when)[0])
     return out
 
@@ -224,9 +225,10 @@ def run_tracks(preset: str = "paper", snrs: tuple[float, ...] = DEFAULT_TRACK_SN
 
 
 def _lazy_dwell(scene: Scene, preset: str, seed: int, serial: str, az: float, start: datetime, j: int,
-                world: str = "training", spacing_s: float = DWELL_SPACING_S) -> Any:
+                world: str = "training", spacing_s: float = DWELL_SPACING_S, broadcast: Broadcast | None = None) -> Any:
     """Dwell j of a track (starts `spacing_s` apart), simulated on first use (its header needs the
-    Remote ID, which the simulator writes beside the IQ) and kept for the full read."""
+    Remote ID, which the simulator writes beside the IQ) and kept for the full read; `broadcast`:
+    its Remote ID where not plain `serial`'s."""
     from authn.track import Dwell
 
     cache: dict[str, Any] = {}
@@ -235,7 +237,7 @@ def _lazy_dwell(scene: Scene, preset: str, seed: int, serial: str, az: float, st
         if "rec" not in cache:
             sc = scene.model_copy(update={"range_m": max(1.0, scene.range_m + scene.radial_speed_mps * j * spacing_s)})
             when = start + timedelta(seconds=j * spacing_s)
-            cache["rec"] = track_recordings(sc, preset, [seed], serial, az, when, world=world)[0]
+            cache["rec"] = track_recordings(sc, preset, [seed], serial, az, when, world=world, broadcast=broadcast)[0]
         return cache["rec"]
 
     def header() -> Any:
