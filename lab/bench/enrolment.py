@@ -250,8 +250,9 @@ def run_tracks(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: s
                             "n": len(single[key])}
     for (name, snr, cat, flies, claims), ds in pairs.items():
         want = "accept" if cat.startswith("genuine") else "reject"
-        out["pairs"][f"{name}/{snr:g}/{flies}->{claims}"] = {"right": round(sum(d == want for d in ds) / len(ds), 4),
-                                                              "n": len(ds), "category": cat}
+        signed = " signed" if cat == "genuine_signed" else ""
+        out["pairs"][f"{name}/{snr:g}/{flies}->{claims}{signed}"] = {
+            "right": round(sum(d == want for d in ds) / len(ds), 4), "n": len(ds), "category": cat}
     return out
 
 

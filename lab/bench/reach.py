@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import math
 import os
 import sys
 import time
@@ -42,6 +43,8 @@ VIEW_MAX_HZ = 700.0
 #: Envelope autocorrelation sampled at this many lags over 1-30 ms (one to three flash periods).
 VIEW_LAGS = 60
 _TINY = 1e-30
+#: Fits on fewer rows than this use a random forest instead of boosting.
+SMALL_FIT = 600
 
 
 def dwell_view(iq: np.ndarray, pri_s: float) -> np.ndarray:
@@ -120,11 +123,14 @@ def render(world: str, snr: float, scenes: int, dwells: int, seed: int, workers:
         return [d for ds in ex.map(_render, jobs, chunksize=4) for d in ds]
 
 
-def out_of_fold(X: np.ndarray, y: np.ndarray, groups: np.ndarray, folds: int = 5, share: float = 1.0,
-                seed: int = 0) -> tuple[np.ndarray, list[str]]:
-    """Out-of-fold class probabilities of gradient-boosted trees (scenes never split across folds);
-    `share` < 1 fits each fold on that share of its training scenes (the learning curve)."""
-    from sklearn.ensemble import HistGradientBoostingClassifier
+def out_of_fold(X: np.ndarray, y: np.ndarray, groups: np.ndarray, folds: int = 5, share: float = 1.0, seed: int = 0,
+                per_class: int | None = None, first: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+    """Out-of-fold class probabilities of gradient-boosted trees (a random forest below
+    `SMALL_FIT` rows, where boosting's leaves of 20 are too coarse), scenes never split across folds;
+    `share` < 1 fits each fold on that share of its training scenes (the learning curve);
+    `per_class` fits it on that many training scenes of each class, one dwell each (the rows where
+    `first` is true): what a site enrolling `per_class` recordings per airframe has."""
+    from sklearn.ensemble import HistGradientBoostingClassifier, RandomForestClassifier
     from sklearn.model_selection import GroupKFold
 
     classes = sorted(set(y.tolist()))
@@ -134,8 +140,12 @@ def out_of_fold(X: np.ndarray, y: np.ndarray, groups: np.ndarray, folds: int = 5
         if share < 1.0:
             keep = rng.permutation(np.unique(groups[tr]))[:max(2, int(round(share * np.unique(groups[tr]).size)))]
             tr = tr[np.isin(groups[tr], keep)]
-        model = HistGradientBoostingClassifier(max_iter=300, learning_rate=0.05, l2_regularization=1.0,
-                                               random_state=seed).fit(X[tr], y[tr])
+        if per_class is not None:
+            tr = tr[first[tr]] if first is not None else tr
+            tr = np.concatenate([rng.permutation(tr[y[tr] == c])[:per_class] for c in classes])
+        model = (HistGradientBoostingClassifier(max_iter=300, learning_rate=0.05, l2_regularization=1.0,
+                                                random_state=seed) if tr.size >= SMALL_FIT else
+                 RandomForestClassifier(500, min_samples_leaf=2, random_state=seed, n_jobs=2)).fit(X[tr], y[tr])
         cols = [classes.index(c) for c in model.classes_]
         p[np.ix_(te, cols)] = model.predict_proba(X[te])
     return p, classes
@@ -169,6 +179,39 @@ def scene_icc(llr: np.ndarray, scenes: np.ndarray, cap: float) -> float:
     return icc([v[scenes == s].tolist() for s in np.unique(scenes)])
 
 
+def _components(x: np.ndarray, scenes: np.ndarray) -> tuple[float, float, float]:
+    """(mean, between-scene variance, within-scene variance) of a one-way random-effects layout."""
+    groups = [x[scenes == s] for s in np.unique(scenes)]
+    within = float(np.mean([g.var(ddof=1) for g in groups if g.size > 1]))
+    k = float(np.mean([g.size for g in groups]))
+    between = max(0.0, float(np.var([g.mean() for g in groups], ddof=1)) - within / k)
+    return float(x.mean()), between, within
+
+
+def _eer_normal(mu_a: float, sd_a: float, mu_b: float, sd_b: float) -> float:
+    """Equal error rate of a threshold between N(mu_a, sd_a) (above) and N(mu_b, sd_b) (below)."""
+    phi = lambda z: 0.5 * math.erfc(-z / math.sqrt(2.0))  # noqa: E731
+    lo, hi = min(mu_a, mu_b) - 10 * max(sd_a, sd_b), max(mu_a, mu_b) + 10 * max(sd_a, sd_b)
+    for _ in range(200):  # miss(t) rises and false accept(t) falls with t: bisect on their difference
+        t = 0.5 * (lo + hi)
+        if phi((t - mu_a) / sd_a) < 1.0 - phi((t - mu_b) / sd_b):
+            lo = t
+        else:
+            hi = t
+    return phi((lo - mu_a) / sd_a)
+
+
+def track_eer(llr: np.ndarray, is_a: np.ndarray, scenes: np.ndarray, cap: float, dwells: int = TRACK_DWELLS) -> float:
+    """The equal error rate any rule on the mean capped LLR of a track of `dwells` dwells could reach,
+    genuine against impostor tracks, in the random-effects model of each class's dwells (a scene's
+    bias, its between-scene variance, repeats in every dwell; the within-scene part averages out):
+    the track mean is N(mean, between + within / dwells). No discount or bound is assumed."""
+    x = np.clip(llr, -cap, cap)
+    ma, ba, wa = _components(x[is_a], scenes[is_a])
+    mb, bb, wb = _components(x[~is_a], scenes[~is_a])
+    return _eer_normal(ma, math.sqrt(ba + wa / dwells), mb, math.sqrt(bb + wb / dwells))
+
+
 def walk_scenes(llr: np.ndarray, scenes: np.ndarray, rho: float, seed: int = 0,
                 dwells: int = TRACK_DWELLS) -> list[tuple[str, int]]:
     """One track per scene: `dwells` of the scene's LLRs drawn with replacement, walked by the
@@ -185,7 +228,7 @@ class PairReach:
     world: str
     snr_db: float
     inputs: str
-    share: float
+    fitted_on: str  # the share of each fold's training scenes, or "N dwells" per class
     genuine: str
     impostor: str
     mean_genuine: float
@@ -195,10 +238,11 @@ class PairReach:
     accepted_rho_measured: float
     rejected: float
     median_dwells: float
+    track_eer: float
 
 
 def reach(dwells: list[Dwell], inputs: str = "features+view", shares: tuple[float, ...] = (1.0,),
-          groups: dict[str, str] | None = None) -> list[PairReach]:
+          groups: dict[str, str] | None = None, per_class: int | None = None) -> list[PairReach]:
     """Per ordered pair of (grouped) airframes: the oracle's per-dwell evidence and the tracks it
     would decide. `groups` maps airframes to a group label (e.g. two radar-confusable models to one)."""
     from authn.track import DWELL_CAP_NATS, DWELL_CORRELATION
@@ -208,13 +252,16 @@ def reach(dwells: list[Dwell], inputs: str = "features+view", shares: tuple[floa
                                               key=lambda d: (d.world, d.snr_db)):
         ds = list(ds)
         parts = {"features": lambda d: d.features, "view": lambda d: d.view,
-                 "features+view": lambda d: d.features + d.view}[inputs]
+                 "features+view": lambda d: d.features + d.view, "doppler": lambda d: d.view[:VIEW_WIN],
+                 "envelope spectrum": lambda d: d.view[VIEW_WIN:-VIEW_LAGS],
+                 "envelope autocorrelation": lambda d: d.view[-VIEW_LAGS:]}[inputs]
         X = np.nan_to_num(np.array([parts(d) for d in ds], dtype=np.float64))
         y = np.array([(groups or {}).get(d.flies, d.flies) for d in ds])
         scenes = np.array([f"{d.flies}/{d.scene}" for d in ds])
         scene_ids = np.unique(scenes, return_inverse=True)[1]
+        first = np.r_[True, scenes[1:] != scenes[:-1]]  # a scene's first dwell (they are rendered in order)
         for share in shares:
-            p, classes = out_of_fold(X, y, scene_ids, share=share)
+            p, classes = out_of_fold(X, y, scene_ids, share=share, per_class=per_class, first=first)
             for a, b in itertools.permutations(classes, 2):
                 llr, is_a = pair_llr(p, classes, y, scene_ids, a, b)
                 sc = scenes[(y == a) | (y == b)]
@@ -223,24 +270,25 @@ def reach(dwells: list[Dwell], inputs: str = "features+view", shares: tuple[floa
                 gen_m = walk_scenes(llr[is_a], sc[is_a], min(0.95, max(0.0, rho_g)))
                 imp = walk_scenes(llr[~is_a], sc[~is_a], DWELL_CORRELATION)
                 out.append(PairReach(
-                    world, snr, inputs, share, a, b,
+                    world, snr, inputs, f"{per_class} dwells" if per_class else f"{share:.0%}", a, b,
                     round(float(np.mean(np.clip(llr[is_a], -DWELL_CAP_NATS, DWELL_CAP_NATS))), 3),
                     round(float(np.mean(np.clip(llr[~is_a], -DWELL_CAP_NATS, DWELL_CAP_NATS))), 3),
                     round(rho_g, 3), float(np.mean([d == "accept" for d, _ in gen])),
                     float(np.mean([d == "accept" for d, _ in gen_m])),
                     float(np.mean([d != "accept" for d, _ in imp])),
-                    float(np.median([n for _, n in gen]))))
+                    float(np.median([n for _, n in gen])),
+                    round(track_eer(llr, is_a, sc, DWELL_CAP_NATS), 4)))
     return out
 
 
 def table(rows: list[PairReach]) -> list[str]:
     lines = ["| world | SNR dB | inputs | fitted on | genuine | impostor claiming it | mean LLR genuine / impostor "
              "| ICC genuine | genuine tracks accepted (rho 0.2 / measured) | impostor tracks rejected "
-             "| median dwells |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| median dwells | 75-dwell track EER, any rule |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r.world} | {r.snr_db:g} | {r.inputs} | {r.share:.0%} | {r.genuine} | {r.impostor} | "
+        lines.append(f"| {r.world} | {r.snr_db:g} | {r.inputs} | {r.fitted_on} | {r.genuine} | {r.impostor} | "
                      f"{r.mean_genuine:+.2f} / {r.mean_impostor:+.2f} | {r.icc_genuine:.2f} | {r.accepted:.0%} / "
-                     f"{r.accepted_rho_measured:.0%} | {r.rejected:.0%} | {r.median_dwells:g} |")
+                     f"{r.accepted_rho_measured:.0%} | {r.rejected:.0%} | {r.median_dwells:g} | {r.track_eer:.1%} |")
     return lines
 
 
@@ -252,9 +300,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dwells", type=int, default=5, help="back-to-back dwells per scene")
     ap.add_argument("--seed", type=int, default=11, help="scene seed (the must-show uses 7)")
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--inputs", action="append", choices=("features", "view", "features+view"))
+    ap.add_argument("--inputs", action="append", choices=("features", "view", "features+view", "doppler",
+                                                          "envelope spectrum", "envelope autocorrelation"),
+                    help="what the oracle is given (repeatable; the last three are parts of the view)")
     ap.add_argument("--share", action="append", type=float,
                     help="learning curve: the share of each fold's scenes fitted on")
+    ap.add_argument("--per-class", type=int, action="append", default=[],
+                    help="also fit on this many scenes per airframe, one dwell each (a site's enrolment size)")
     ap.add_argument("--group", action="append", default=[], metavar="A,B",
                     help="also report with these airframes as one class (repeatable)")
     ap.add_argument("--cache", help="dwells cache (JSON): read if present, else rendered and written")
@@ -265,7 +317,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
     if a.cache and os.path.exists(a.cache):
         with open(a.cache) as fh:
-            dwells = [Dwell(**d) for d in json.load(fh)]
+            dwells = [Dwell(**d) for d in json.load(fh)
+                      if d["world"] in (a.world or ["heldout"]) and d["snr_db"] in (a.snr or [10.0, 0.0])]
     else:
         dwells = [d for w in (a.world or ["heldout"]) for s in (a.snr or [10.0, 0.0])
                   for d in render(w, s, a.scenes, a.dwells, a.seed, a.workers)]
@@ -275,6 +328,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"# {len(dwells)} dwells rendered/read in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
     rows = [r for inputs in (a.inputs or ["features", "features+view"])
             for r in reach(dwells, inputs, tuple(a.share or [1.0]))]
+    for k in a.per_class:
+        rows += reach(dwells, "features+view", (1.0,), per_class=k)
     for spec in a.group:
         members = spec.split(",")
         rows += reach(dwells, "features+view", (1.0,), {m: "+".join(members) for m in members})

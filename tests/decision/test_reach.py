@@ -5,6 +5,7 @@ can), and tracks walked by the check's own sequential test."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -68,3 +69,23 @@ def test_the_scene_correlation_tells_repeated_bias_from_noise() -> None:
     scenes = np.repeat(np.arange(50), 5)
     assert abs(scene_icc(rng.standard_normal(250), scenes, 4.0)) < 0.15
     assert scene_icc(np.repeat(rng.standard_normal(50), 5) + 0.1 * rng.standard_normal(250), scenes, 4.0) > 0.9
+
+
+def test_the_track_eer_follows_the_random_effects_model() -> None:
+    """Dwells N(+-1, 1) around scene biases of variance 0.25: a 75-dwell mean is N(+-1, 0.25 + 1/75),
+    an EER of Phi(-1 / 0.513) = 2.6 %; without scene biases the same dwells separate almost surely,
+    and a scene bias alone (no dwell noise) is the floor however many dwells are averaged."""
+    import math
+
+    from lab.bench.reach import _eer_normal, track_eer
+
+    rng = np.random.default_rng(3)
+    scenes = np.repeat(np.arange(400), 6)
+    is_a = scenes < 200
+    bias = np.repeat(rng.normal(0.0, 0.5, 400), 6)
+    llr = np.where(is_a, 1.0, -1.0) + bias + rng.standard_normal(scenes.size)
+    want = 0.5 * math.erfc(1.0 / math.sqrt(0.25 + 1 / 75) / math.sqrt(2.0))
+    assert track_eer(llr, is_a, scenes, 4.0) == pytest.approx(want, abs=0.012)
+    no_bias = np.where(is_a, 1.0, -1.0) + rng.standard_normal(scenes.size)
+    assert track_eer(no_bias, is_a, scenes, 4.0) < 1e-6
+    assert _eer_normal(1.0, 0.5, -1.0, 0.5) == pytest.approx(0.5 * math.erfc(2.0 / math.sqrt(2.0)), rel=1e-6)
