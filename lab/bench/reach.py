@@ -13,6 +13,12 @@ cap and discount) over each scene's dwells drawn with replacement, and the withi
 of the oracle's LLRs is measured beside it.
 
     python -m lab.bench.reach --world heldout --snr 10 --snr 0 --scenes 200 --dwells 5 --workers 2
+    python -m lab.bench.reach ... --per-class 30 --inputs "envelope autocorrelation" --cache dwells.json
+
+`--per-class N` fits on N single dwells per airframe (what a site enrolling N recordings has);
+`--inputs` names the oracle's inputs, parts of the view among them (the ablation); `--cache` keeps the
+rendered dwells for the next run. The track EER column is what any rule on a track's mean LLR could
+reach under a random-effects model of the dwells (`track_eer`), beside what the check's test does.
 
 Scenes are drawn as `lab.bench.track_must_show` draws them (another seed: no scene of the must-show is
 fitted on); nothing here ships or tunes anything that ships.
