@@ -17,7 +17,8 @@ of the oracle's LLRs is measured beside it.
 
 `--per-class N` fits on N single dwells per airframe (what a site enrolling N recordings has);
 `--inputs` names the oracle's inputs, parts of the view among them (the ablation); `--cache` keeps the
-rendered dwells for the next run. The track EER column is what any rule on a track's mean LLR could
+rendered dwells for the next run; `--transfer INPUTS` fits on the training world and scores the
+held-out one (what a shipped bundle must do). The track EER column is what any rule on a track's mean LLR could
 reach under a random-effects model of the dwells (`track_eer`), beside what the check's test does.
 
 Scenes are drawn as `lab.bench.track_must_show` draws them (another seed: no scene of the must-show is
@@ -157,6 +158,11 @@ def out_of_fold(X: np.ndarray, y: np.ndarray, groups: np.ndarray, folds: int = 5
     return p, classes
 
 
+def _log_ratio(p: np.ndarray, classes: list[str], a: str, b: str) -> np.ndarray:
+    """log p(a) - log p(b) per row, the probabilities floored at 1e-4."""
+    return np.log(np.clip(p[:, classes.index(a)], 1e-4, 1.0)) - np.log(np.clip(p[:, classes.index(b)], 1e-4, 1.0))
+
+
 def pair_llr(p: np.ndarray, classes: list[str], y: np.ndarray, groups: np.ndarray, a: str, b: str,
              folds: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """Calibrated per-dwell LLR of "A" against "B" on the dwells of A and B: the log ratio of the
@@ -167,8 +173,7 @@ def pair_llr(p: np.ndarray, classes: list[str], y: np.ndarray, groups: np.ndarra
     from sklearn.model_selection import GroupKFold
 
     sel = (y == a) | (y == b)
-    ia, ib = classes.index(a), classes.index(b)
-    raw = np.log(np.clip(p[sel, ia], 1e-4, 1.0)) - np.log(np.clip(p[sel, ib], 1e-4, 1.0))
+    raw = _log_ratio(p[sel], classes, a, b)
     is_a = (y[sel] == a).astype(int)
     llr = np.zeros_like(raw)
     for tr, te in GroupKFold(folds).split(raw, is_a, groups[sel]):
@@ -247,43 +252,80 @@ class PairReach:
     track_eer: float
 
 
+_PARTS = {"features": lambda d: d.features, "view": lambda d: d.view,
+          "features+view": lambda d: d.features + d.view, "doppler": lambda d: d.view[:VIEW_WIN],
+          "envelope spectrum": lambda d: d.view[VIEW_WIN:-VIEW_LAGS],
+          "envelope autocorrelation": lambda d: d.view[-VIEW_LAGS:],
+          "features+autocorrelation": lambda d: d.features + d.view[-VIEW_LAGS:]}
+
+
+def _layout(ds: list[Dwell], inputs: str, groups: dict[str, str] | None = None):
+    """(X, labels, scene names) of dwells."""
+    X = np.nan_to_num(np.array([_PARTS[inputs](d) for d in ds], dtype=np.float64))
+    y = np.array([(groups or {}).get(d.flies, d.flies) for d in ds])
+    return X, y, np.array([f"{d.flies}/{d.scene}" for d in ds])
+
+
+def _pair_row(world: str, snr: float, inputs: str, fitted_on: str, a: str, b: str, llr: np.ndarray,
+              is_a: np.ndarray, sc: np.ndarray) -> PairReach:
+    from authn.track import DWELL_CAP_NATS, DWELL_CORRELATION
+
+    rho_g = scene_icc(llr[is_a], sc[is_a], DWELL_CAP_NATS)
+    gen = walk_scenes(llr[is_a], sc[is_a], DWELL_CORRELATION)
+    gen_m = walk_scenes(llr[is_a], sc[is_a], min(0.95, max(0.0, rho_g)))
+    imp = walk_scenes(llr[~is_a], sc[~is_a], DWELL_CORRELATION)
+    capped = np.clip(llr, -DWELL_CAP_NATS, DWELL_CAP_NATS)
+    return PairReach(world, snr, inputs, fitted_on, a, b, round(float(capped[is_a].mean()), 3),
+                     round(float(capped[~is_a].mean()), 3), round(rho_g, 3),
+                     float(np.mean([d == "accept" for d, _ in gen])), float(np.mean([d == "accept" for d, _ in gen_m])),
+                     float(np.mean([d != "accept" for d, _ in imp])), float(np.median([n for _, n in gen])),
+                     round(track_eer(llr, is_a, sc, DWELL_CAP_NATS), 4))
+
+
+def _by_world_snr(dwells: list[Dwell]):
+    key = lambda d: (d.world, d.snr_db)  # noqa: E731
+    return itertools.groupby(sorted(dwells, key=lambda d: (d.world, -d.snr_db)), key=key)
+
+
 def reach(dwells: list[Dwell], inputs: str = "features+view", shares: tuple[float, ...] = (1.0,),
           groups: dict[str, str] | None = None, per_class: int | None = None) -> list[PairReach]:
     """Per ordered pair of (grouped) airframes: the oracle's per-dwell evidence and the tracks it
     would decide. `groups` maps airframes to a group label (e.g. two radar-confusable models to one)."""
-    from authn.track import DWELL_CAP_NATS, DWELL_CORRELATION
-
     out = []
-    for (world, snr), ds in itertools.groupby(sorted(dwells, key=lambda d: (d.world, -d.snr_db)),
-                                              key=lambda d: (d.world, d.snr_db)):
-        ds = list(ds)
-        parts = {"features": lambda d: d.features, "view": lambda d: d.view,
-                 "features+view": lambda d: d.features + d.view, "doppler": lambda d: d.view[:VIEW_WIN],
-                 "envelope spectrum": lambda d: d.view[VIEW_WIN:-VIEW_LAGS],
-                 "envelope autocorrelation": lambda d: d.view[-VIEW_LAGS:]}[inputs]
-        X = np.nan_to_num(np.array([parts(d) for d in ds], dtype=np.float64))
-        y = np.array([(groups or {}).get(d.flies, d.flies) for d in ds])
-        scenes = np.array([f"{d.flies}/{d.scene}" for d in ds])
+    for (world, snr), ds in _by_world_snr(dwells):
+        X, y, scenes = _layout(list(ds), inputs, groups)
         scene_ids = np.unique(scenes, return_inverse=True)[1]
         first = np.r_[True, scenes[1:] != scenes[:-1]]  # a scene's first dwell (they are rendered in order)
         for share in shares:
             p, classes = out_of_fold(X, y, scene_ids, share=share, per_class=per_class, first=first)
             for a, b in itertools.permutations(classes, 2):
                 llr, is_a = pair_llr(p, classes, y, scene_ids, a, b)
-                sc = scenes[(y == a) | (y == b)]
-                rho_g = scene_icc(llr[is_a], sc[is_a], DWELL_CAP_NATS)
-                gen = walk_scenes(llr[is_a], sc[is_a], DWELL_CORRELATION)
-                gen_m = walk_scenes(llr[is_a], sc[is_a], min(0.95, max(0.0, rho_g)))
-                imp = walk_scenes(llr[~is_a], sc[~is_a], DWELL_CORRELATION)
-                out.append(PairReach(
-                    world, snr, inputs, f"{per_class} dwells" if per_class else f"{share:.0%}", a, b,
-                    round(float(np.mean(np.clip(llr[is_a], -DWELL_CAP_NATS, DWELL_CAP_NATS))), 3),
-                    round(float(np.mean(np.clip(llr[~is_a], -DWELL_CAP_NATS, DWELL_CAP_NATS))), 3),
-                    round(rho_g, 3), float(np.mean([d == "accept" for d, _ in gen])),
-                    float(np.mean([d == "accept" for d, _ in gen_m])),
-                    float(np.mean([d != "accept" for d, _ in imp])),
-                    float(np.median([n for _, n in gen])),
-                    round(track_eer(llr, is_a, sc, DWELL_CAP_NATS), 4)))
+                out.append(_pair_row(world, snr, inputs, f"{per_class} dwells" if per_class else f"{share:.0%}",
+                                     a, b, llr, is_a, scenes[(y == a) | (y == b)]))
+    return out
+
+
+def transfer(dwells: list[Dwell], inputs: str, fit_world: str = "training") -> list[PairReach]:
+    """The same learner fitted on all of `fit_world`'s dwells at an SNR and scored on every other
+    world's at that SNR: whether what it learned holds in a world it never saw (what a shipped
+    bundle must do). The LLR is the log ratio of the two probabilities, uncalibrated (a calibration
+    would need the test world), so only its EER column is comparable with the oracle's."""
+    from sklearn.ensemble import HistGradientBoostingClassifier
+
+    groups = {key: list(ds) for key, ds in _by_world_snr(dwells)}
+    out = []
+    for (world, snr), ds in groups.items():
+        if world == fit_world or (fit_world, snr) not in groups:
+            continue
+        Xf, yf, _ = _layout(groups[(fit_world, snr)], inputs)
+        X, y, scenes = _layout(ds, inputs)
+        model = HistGradientBoostingClassifier(max_iter=300, learning_rate=0.05, l2_regularization=1.0,
+                                               random_state=0).fit(Xf, yf)
+        p, classes = model.predict_proba(X), list(model.classes_)
+        for a, b in itertools.permutations(classes, 2):
+            sel = (y == a) | (y == b)
+            llr = _log_ratio(p[sel], classes, a, b)
+            out.append(_pair_row(world, snr, inputs, f"{fit_world} world", a, b, llr, y[sel] == a, scenes[sel]))
     return out
 
 
@@ -306,13 +348,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dwells", type=int, default=5, help="back-to-back dwells per scene")
     ap.add_argument("--seed", type=int, default=11, help="scene seed (the must-show uses 7)")
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--inputs", action="append", choices=("features", "view", "features+view", "doppler",
-                                                          "envelope spectrum", "envelope autocorrelation"),
+    ap.add_argument("--inputs", action="append", choices=tuple(_PARTS),
                     help="what the oracle is given (repeatable; the last three are parts of the view)")
     ap.add_argument("--share", action="append", type=float,
                     help="learning curve: the share of each fold's scenes fitted on")
     ap.add_argument("--per-class", type=int, action="append", default=[],
                     help="also fit on this many scenes per airframe, one dwell each (a site's enrolment size)")
+    ap.add_argument("--transfer", action="append", default=[], choices=tuple(_PARTS),
+                    help="also fit on the training world and score the others with these inputs (repeatable)")
     ap.add_argument("--group", action="append", default=[], metavar="A,B",
                     help="also report with these airframes as one class (repeatable)")
     ap.add_argument("--cache", help="dwells cache (JSON): read if present, else rendered and written")
@@ -332,8 +375,11 @@ def main(argv: list[str] | None = None) -> int:
             with open(a.cache, "w") as fh:
                 json.dump([asdict(d) for d in dwells], fh)
     print(f"# {len(dwells)} dwells rendered/read in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
-    rows = [r for inputs in (a.inputs or ["features", "features+view"])
+    oracle = a.inputs or ([] if a.transfer else ["features", "features+view"])  # --transfer alone: its rows only
+    rows = [r for inputs in oracle
             for r in reach(dwells, inputs, tuple(a.share or [1.0]))]
+    for inputs in a.transfer:
+        rows += transfer(dwells, inputs)
     for k in a.per_class:
         rows += reach(dwells, "features+view", (1.0,), per_class=k)
     for spec in a.group:
