@@ -121,10 +121,10 @@ def test_a_crashing_file_does_not_stop_the_batch(archive: Path, db: str, capsys,
 
     real = authn.check.Checker._front
 
-    def front(self, rec, serial, file, digest, timer):
+    def front(self, rec, serial, file, digest, timer, **kw):
         if Path(file).name == "r001.h5":
             raise OverflowError("date value out of range")
-        return real(self, rec, serial, file, digest, timer)
+        return real(self, rec, serial, file, digest, timer, **kw)
 
     monkeypatch.setattr(authn.check.Checker, "_front", front)
     files = sorted(archive.iterdir())[:4]  # r000 good, r001 crashes, r002-r003 good
