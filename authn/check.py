@@ -167,6 +167,11 @@ class _Pending:
     group: tuple = ()
 
 
+def _flag(confusable: tuple[str, ...] | None) -> bool | None:
+    """A `_confusable_models` answer as the policy's `radar_confusable` (None: not a site bundle)."""
+    return None if confusable is None else bool(confusable)
+
+
 @dataclass(frozen=True)
 class CheckInput:
     """One return to check: its name (file or upload), the claimed serial (None: the return's
@@ -346,17 +351,15 @@ class Checker:
         """Whether the registered `model` is radar-confusable with another registered model (the
         policy's `radar_confusable`); None for a bundle that is not a site bundle (the policy input
         is then unchanged)."""
-        others = self._confusable_models(classifier, model, tracks)
-        return None if others is None else bool(others)
+        return _flag(self._confusable_models(classifier, model, tracks))
 
-    def _group(self, classifier: Any, model: str, auth: RemoteIdAuth, track: bool) -> tuple:
+    def _group(self, others: tuple[str, ...] | None, auth: RemoteIdAuth) -> tuple:
         """The profiles a claim is verified together with: where its DRIP signature is valid (the
-        signature vouches for the exact identity) and the site card says radar cannot tell its
-        registered model from others registered here (at the level the check decides at), those
-        others, so that radar vouches for what it can tell; () otherwise."""
-        if auth.status != "valid" or not model:
+        signature vouches for the exact identity), the registered models radar cannot tell from its
+        own (`others`, at the level the check decides at), so that radar vouches for what it can
+        tell; () otherwise."""
+        if auth.status != "valid" or not others:
             return ()
-        others = self._confusable_models(classifier, model, track) or ()
         return tuple(p for p in (self.db.profile(m) for m in others) if p is not None)
 
     def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer,
@@ -386,9 +389,10 @@ class Checker:
         evidence.preset = classifier.preset
         with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
             claimed = self.db.profile(facts.model) if facts.model else None
-            evidence.radar_confusable = self._confusable(classifier, facts.model)
-            evidence.radar_confusable_track = self._confusable(classifier, facts.model, tracks=True)
-            group = self._group(classifier, facts.model, auth, track)
+            single = self._confusable_models(classifier, facts.model)
+            over_tracks = self._confusable_models(classifier, facts.model, tracks=True)
+            evidence.radar_confusable, evidence.radar_confusable_track = _flag(single), _flag(over_tracks)
+            group = self._group(over_tracks if track else single, auth)
         expected = None  # at the first chirp, the time the radar's range estimate refers to
         if claim.state is not None:
             expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,

@@ -86,7 +86,9 @@ def dwell_view(iq: np.ndarray, pri_s: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Dwell:
+class RenderedDwell:
+    """One genuine dwell as the oracle sees it: today's feature vector (by name) and `dwell_view`."""
+
     world: str
     snr_db: float
     flies: str
@@ -95,10 +97,8 @@ class Dwell:
     view: list[float]
 
 
-def _render(job: tuple) -> list[Dwell]:
+def _render(job: tuple) -> list[RenderedDwell]:
     """The dwells of one genuine scene of `flies` (drawn as the must-show draws them)."""
-    from dataclasses import asdict as fields_of
-
     from lab.bench.decisions import bench_serial
     from lab.bench.track import track_recordings
     from lab.bench.track_must_show import _scene_and_draws
@@ -112,13 +112,13 @@ def _render(job: tuple) -> list[Dwell]:
                             spacing_s=pre.dwell_s, world=world)
     out = []
     for rec in recs:
-        f = fields_of(extract(rec).features)
-        out.append(Dwell(world, snr, flies, i, [float(f[n]) for n in sorted(f)],
+        f = asdict(extract(rec).features)
+        out.append(RenderedDwell(world, snr, flies, i, [float(f[n]) for n in sorted(f)],
                          dwell_view(rec.iq, rec.config.pri_s).tolist()))
     return out
 
 
-def render(world: str, snr: float, scenes: int, dwells: int, seed: int, workers: int) -> list[Dwell]:
+def render(world: str, snr: float, scenes: int, dwells: int, seed: int, workers: int) -> list[RenderedDwell]:
     """`scenes` genuine scenes of each shipped airframe, `dwells` back-to-back dwells each."""
     from lab.bench.track_must_show import pairs
 
@@ -259,7 +259,7 @@ _PARTS = {"features": lambda d: d.features, "view": lambda d: d.view,
           "features+autocorrelation": lambda d: d.features + d.view[-VIEW_LAGS:]}
 
 
-def _layout(ds: list[Dwell], inputs: str, groups: dict[str, str] | None = None):
+def _layout(ds: list[RenderedDwell], inputs: str, groups: dict[str, str] | None = None):
     """(X, labels, scene names) of dwells."""
     X = np.nan_to_num(np.array([_PARTS[inputs](d) for d in ds], dtype=np.float64))
     y = np.array([(groups or {}).get(d.flies, d.flies) for d in ds])
@@ -282,12 +282,12 @@ def _pair_row(world: str, snr: float, inputs: str, fitted_on: str, a: str, b: st
                      round(track_eer(llr, is_a, sc, DWELL_CAP_NATS), 4))
 
 
-def _by_world_snr(dwells: list[Dwell]):
+def _by_world_snr(dwells: list[RenderedDwell]):
     key = lambda d: (d.world, d.snr_db)  # noqa: E731
     return itertools.groupby(sorted(dwells, key=lambda d: (d.world, -d.snr_db)), key=key)
 
 
-def reach(dwells: list[Dwell], inputs: str = "features+view", shares: tuple[float, ...] = (1.0,),
+def reach(dwells: list[RenderedDwell], inputs: str = "features+view", shares: tuple[float, ...] = (1.0,),
           groups: dict[str, str] | None = None, per_class: int | None = None) -> list[PairReach]:
     """Per ordered pair of (grouped) airframes: the oracle's per-dwell evidence and the tracks it
     would decide. `groups` maps airframes to a group label (e.g. two radar-confusable models to one)."""
@@ -305,7 +305,7 @@ def reach(dwells: list[Dwell], inputs: str = "features+view", shares: tuple[floa
     return out
 
 
-def transfer(dwells: list[Dwell], inputs: str, fit_world: str = "training") -> list[PairReach]:
+def transfer(dwells: list[RenderedDwell], inputs: str, fit_world: str = "training") -> list[PairReach]:
     """The same learner fitted on all of `fit_world`'s dwells at an SNR and scored on every other
     world's at that SNR: whether what it learned holds in a world it never saw (what a shipped
     bundle must do). The LLR is the log ratio of the two probabilities, uncalibrated (a calibration
@@ -366,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
     if a.cache and os.path.exists(a.cache):
         with open(a.cache) as fh:
-            dwells = [Dwell(**d) for d in json.load(fh)
+            dwells = [RenderedDwell(**d) for d in json.load(fh)
                       if d["world"] in (a.world or ["heldout"]) and d["snr_db"] in (a.snr or [10.0, 0.0])]
     else:
         dwells = [d for w in (a.world or ["heldout"]) for s in (a.snr or [10.0, 0.0])
