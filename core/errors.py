@@ -60,7 +60,7 @@ def one_line(exc: BaseException) -> str:
 
 
 #: optional dependencies (pyproject extras) by top-level module: a check needs none of them
-OPTIONAL_EXTRAS = {"sklearn": "train", "skl2onnx": "train", "onnx": "train", "matplotlib": "plot",
+OPTIONAL_EXTRAS = {"sklearn": "train", "onnx": "train", "matplotlib": "plot",
                    "torch": "cnn", "dask": "cluster", "distributed": "cluster", "locust": "dev"}
 
 

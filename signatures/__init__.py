@@ -6,7 +6,7 @@
 - Processing: `fft`, `rd` (range-Doppler), `timefreq` (spectrograms), `stats`,
   `estimators` (blade-flash rate and the other physical estimates), `features` (the feature
   vector), `views` (plots' data).
-- Classifiers: `dataset`, `training`, `classifiers`, `openset`, `cnn`, `onnx_export`,
+- Classifiers: `dataset`, `training`, `classifiers`, `openset`, `cnn`,
   `modelcard`, `inference` (the shipped bundles at check time), `evaluate`, `accuracy`.
 """
 

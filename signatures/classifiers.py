@@ -60,7 +60,7 @@ def make_member(name: str, seed: int) -> Pipeline:
 
 def _fit(model: Pipeline, X: np.ndarray, y: np.ndarray) -> Pipeline:
     """Fit; scikit-learn 1.9 deprecates SVC(probability=True) (removed in 1.11, hence the pin
-    in pyproject) but skl2onnx exports no other form of SVM probabilities yet."""
+    in pyproject): the shipped SVM arrays carry libsvm's Platt parameters (`svm_arrays`)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=FutureWarning, message=".*probab.*")
         return model.fit(X, y)
@@ -111,7 +111,7 @@ def knn_arrays(model: Pipeline, X_train: np.ndarray, y_train: np.ndarray, n_clas
 
     `X_train`, `y_train`: what the pipeline was fitted on. The reference set is the pipeline's own
     scaler applied to it (exactly what the neighbour search stores at fit time), through public API.
-    skl2onnx's kNN graph costs ~14 ms per return; the same vote in numpy costs tens of
+    An ONNX kNN graph cost ~14 ms per return; the same vote in numpy costs tens of
     microseconds (`signatures.inference.KnnArrays`), with no pickle and no scikit-learn.
     """
     scaler, knn = model.steps[0][1], model.steps[-1][1]
@@ -152,6 +152,34 @@ def forest_arrays(model: Pipeline | RandomForestClassifier, n_classes: int) -> d
             "left": np.concatenate(left).astype(np.int32), "right": np.concatenate(right).astype(np.int32),
             "value": np.concatenate(value).astype(np.float32), "roots": np.array(roots, dtype=np.int32),
             "depth": np.array(max(e.tree_.max_depth for e in forest.estimators_))}
+
+
+def svm_arrays(model: Pipeline, n_classes: int) -> dict[str, np.ndarray]:
+    """A fitted one-vs-rest RBF SVM pipeline as plain arrays (`svm.npz`): the scaler, and per binary
+    machine its support vectors, dual coefficients, intercept and Platt parameters (A, B).
+
+    Evaluated in numpy (`signatures.inference.SvmArrays`, libsvm's own probability steps), so that
+    a check whose ensemble weighs the SVM never imports onnxruntime (~100 ms of a cold start).
+    """
+    scaler, ovr = model.steps[0][1], model.steps[-1][1]
+    machines = list(ovr.estimators_)
+    if len(machines) < 2 or not all(isinstance(m, SVC) and m.kernel == "rbf" and m.probability for m in machines):
+        raise ValueError("svm_arrays needs a one-vs-rest of at least two RBF SVCs with probabilities")
+    starts = np.cumsum([0] + [len(m.support_vectors_) for m in machines])
+    return {"mean": scaler.mean_.astype(np.float64), "scale": scaler.scale_.astype(np.float64),
+            "support": np.concatenate([m.support_vectors_ for m in machines]).astype(np.float64),
+            "starts": starts.astype(np.int64), "dual": np.concatenate([m.dual_coef_[0] for m in machines]),
+            "intercept": np.array([m.intercept_[0] for m in machines]),
+            **_platt(machines),
+            "gamma": np.array([m._gamma for m in machines]), "classes": ovr.classes_.astype(np.int64),
+            "n_classes": np.array(n_classes)}
+
+
+def _platt(machines: list) -> dict[str, np.ndarray]:
+    """The machines' Platt parameters (A, B) (deprecated attributes in scikit-learn 1.9: see `_fit`)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=FutureWarning, message=".*prob[AB]_.*")
+        return {"prob_a": np.array([m.probA_[0] for m in machines]), "prob_b": np.array([m.probB_[0] for m in machines])}
 
 
 def fit_state_head(X: np.ndarray, moving: np.ndarray, seed: int) -> Pipeline:

@@ -41,6 +41,7 @@ from functools import cached_property
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from signatures import envelope
 from signatures import estimators as est
 from signatures import feature_vector as F
 from signatures import flash as best
@@ -807,6 +808,10 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         win, hop = tf.stft_params(config, n)
         cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend),
                                                          fft_backend), flash)
+        width = int(min(3, size))
+        lo = np.clip(peak_bin - g_lo - 1, 0, size - width)
+        env_ac = envelope.autocorrelation(_columns(slow, lo, width), config, body_hz)
+        cols.update(zip(F.ENVELOPE_FEATURES, env_ac.T))
         cols.update(
             flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,
             rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,

@@ -18,7 +18,7 @@ from signatures.radar import RadarConfig
 
 #: Bump when feature values change: training-set caches key on it, and
 #: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
-FEATURE_VERSION = "5"
+FEATURE_VERSION = "6"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
 PATCH_FLOOR_DB = -60.0
@@ -78,6 +78,22 @@ class Features:
     cadence_harmonic_ratio: float
     snr_db: float
     detected: float
+    # the flash envelope's autocorrelation at 2, 4, ..., 30 ms (`signatures.envelope.LAGS_S`)
+    flash_ac_2ms: float
+    flash_ac_4ms: float
+    flash_ac_6ms: float
+    flash_ac_8ms: float
+    flash_ac_10ms: float
+    flash_ac_12ms: float
+    flash_ac_14ms: float
+    flash_ac_16ms: float
+    flash_ac_18ms: float
+    flash_ac_20ms: float
+    flash_ac_22ms: float
+    flash_ac_24ms: float
+    flash_ac_26ms: float
+    flash_ac_28ms: float
+    flash_ac_30ms: float
 
     def as_array(self) -> np.ndarray:
         # the fields' values as they are (`astuple` would deep-copy each float first: ~20 us)
@@ -85,6 +101,8 @@ class Features:
 
 
 FEATURE_NAMES: tuple[str, ...] = tuple(f.name for f in fields(Features))
+#: The flash envelope's autocorrelation, one per lag of `signatures.envelope.LAGS_S`.
+ENVELOPE_FEATURES: tuple[str, ...] = tuple(n for n in FEATURE_NAMES if n.startswith("flash_ac_"))
 #: What `quick=True` computes (the rest stay 0): the paper's 11 and the gate's physics that need
 #: no slow-time estimator, no STFT and no CNN patch. Same values as the full extraction.
 QUICK_FEATURES: tuple[str, ...] = FEATURE_NAMES[:15] + ("tip_speed_mps", "tip_speed_std_mps", "tip_aliased",

@@ -29,6 +29,7 @@ import numpy as np
 
 from signatures.calibration import calibration_of
 from signatures.errors import SignaturesError
+from signatures.feature_vector import FEATURE_NAMES
 from signatures.modelcard import CARD_NAME, read_card
 from signatures.openset import OpenSet
 from signatures.profiles import NON_UAV_CLASSES, UNKNOWN
@@ -136,6 +137,66 @@ class ForestArrays:
         return self.value[node].mean(axis=1)
 
 
+class SvmArrays:
+    """One-vs-rest RBF SVM from `svm.npz` (what OneVsRestClassifier(SVC(probability=True)).predict_proba
+    computes: each machine's decision value, libsvm's Platt sigmoid and two-class coupling, the
+    machines' positive probabilities normalised to sum to 1)."""
+
+    #: libsvm's bounds on a pairwise probability and its coupling's tolerance (eps 0.005 / k, k = 2)
+    MIN_PROB, EPS, MAX_ITER = 1e-7, 0.0025, 100
+
+    def __init__(self, path: Path) -> None:
+        a = _arrays(path, mean=np.float64, scale=np.float64, support=np.float64, starts=np.int64, dual=np.float64,
+                    intercept=np.float64, prob_a=np.float64, prob_b=np.float64, gamma=np.float64,
+                    classes=np.int64, n_classes=int)
+        self.mean, self.scale, self.support, self.starts = a["mean"], a["scale"], a["support"], a["starts"]
+        self.dual, self.intercept, self.a, self.b = a["dual"], a["intercept"], a["prob_a"], a["prob_b"]
+        self.gamma, self.classes, self.n_classes = a["gamma"], a["classes"], a["n_classes"]
+        m = len(self.intercept)
+        if not (len(self.starts) == m + 1 and self.starts[0] == 0 and self.starts[-1] == len(self.support)
+                == len(self.dual) and np.all(np.diff(self.starts) > 0) and len(self.classes) == m
+                and len(self.a) == len(self.b) == len(self.gamma) == m and m >= 2
+                and self.classes.min() >= 0 and self.classes.max() < self.n_classes):
+            raise SignaturesError(f"{path}: inconsistent SVM arrays")
+        self._sv_sq = np.sum(self.support * self.support, axis=1)
+
+    def proba(self, X: np.ndarray) -> np.ndarray:
+        # the scaler as scikit-learn applies it to float32 rows (in their dtype)
+        Z = ((np.asarray(X, dtype=np.float32) - self.mean).astype(np.float32) / self.scale).astype(np.float32)
+        Z = Z.astype(np.float64)
+        d2 = np.maximum(np.sum(Z * Z, axis=1)[:, None] + self._sv_sq[None, :] - 2.0 * Z @ self.support.T, 0.0)
+        pos = np.empty((len(Z), len(self.intercept)))
+        for j, (lo, hi) in enumerate(zip(self.starts[:-1], self.starts[1:])):
+            dec = np.exp(-self.gamma[j] * d2[:, lo:hi]) @ self.dual[lo:hi] + self.intercept[j]
+            pos[:, j] = self._coupled(-dec * self.a[j] + self.b[j])
+        out = np.zeros((len(Z), self.n_classes))
+        out[:, self.classes] = pos / np.maximum(pos.sum(axis=1, keepdims=True), 1e-300)
+        return out.astype(np.float32)
+
+    @classmethod
+    def _coupled(cls, f_apb: np.ndarray) -> np.ndarray:
+        """P(positive class) of one machine from A f + B (f libsvm's decision value): libsvm's sigmoid,
+        clipped, then its pairwise coupling (`multiclass_probability`) iterated as libsvm does for k = 2."""
+        e = np.exp(-np.abs(f_apb))
+        r = np.clip(np.where(f_apb >= 0, e / (1.0 + e), 1.0 / (1.0 + e)), cls.MIN_PROB, 1.0 - cls.MIN_PROB)
+        r01, r10 = r, 1.0 - r  # r01: P(negative class, libsvm's first) over the pair
+        q = np.array([[r10 * r10, -r10 * r01], [-r10 * r01, r01 * r01]])  # (2, 2, rows)
+        p = np.full((2, len(r)), 0.5)
+        for _ in range(cls.MAX_ITER):
+            qp = np.einsum("tjn,jn->tn", q, p)
+            pqp = np.sum(p * qp, axis=0)
+            live = np.max(np.abs(qp - pqp), axis=0) >= cls.EPS
+            if not live.any():
+                break
+            for t in range(2):
+                diff = np.where(live, (-qp[t] + pqp) / q[t, t], 0.0)
+                p[t] += diff
+                pqp = (pqp + diff * (diff * q[t, t] + 2 * qp[t])) / (1 + diff) / (1 + diff)
+                qp = (qp + diff * q[t]) / (1 + diff)
+                p = p / (1 + diff)
+        return p[1]
+
+
 class Classifier:
     """A verified model bundle ready for inference."""
 
@@ -157,6 +218,10 @@ class Classifier:
         names = list(c["feature_names"])
         self.feature_names: tuple[str, ...] = tuple(names)
         self._cols = np.array([names.index(n) for n in c["class_features"]])
+        #: a bundle trained on an earlier, shorter vector reads its features from today's by name
+        #: (versions only append features; docs/features.md)
+        self._by_name = (np.array([FEATURE_NAMES.index(n) for n in names])
+                         if names != list(FEATURE_NAMES) and set(names) <= set(FEATURE_NAMES) else None)
         self._files = set(c["files"])
         self._loaded: dict[str, Any] = {}  # model files open on first use (a CLI check needs few)
         self.has_cnn = "cnn.onnx" in self._files
@@ -196,10 +261,11 @@ class Classifier:
         return tuple(sorted({b if a == model else a for a, b in pairs if model in (a, b)}))
 
     def _model(self, name: str) -> Any:
-        """kNN or forest arrays (`name.npz`) or an onnxruntime session (`name.onnx`), opened once."""
+        """kNN, forest or SVM arrays (`name.npz`) or an onnxruntime session (`name.onnx`: the CNN, and
+        the SVM of bundles written before it shipped as arrays), opened once."""
         if name not in self._loaded:
             if f"{name}.npz" in self._files:
-                arrays = KnnArrays if name == "knn" else ForestArrays
+                arrays = {"knn": KnnArrays, "svm": SvmArrays}.get(name, ForestArrays)
                 self._loaded[name] = arrays(self.folder / f"{name}.npz")
             else:
                 import onnxruntime as ort
@@ -217,14 +283,16 @@ class Classifier:
         X = np.asarray(X, dtype=np.float32)
         X = X.reshape(1, -1) if X.ndim == 1 else X
         if X.shape[1] != self.n_features:
-            raise SignaturesError(f"feature vector has {X.shape[1]} values, the model expects {self.n_features}")
+            if self._by_name is None or X.shape[1] != len(FEATURE_NAMES):
+                raise SignaturesError(f"feature vector has {X.shape[1]} values, the model expects {self.n_features}")
+            X = X[:, self._by_name]
         return np.nan_to_num(X, nan=0.0, posinf=1e6, neginf=-1e6)
 
     def member_proba(self, name: str, X: np.ndarray) -> np.ndarray:
         """Probabilities of one member model ('knn', 'rf', 'svm'), columns in `classes` order."""
         m = self._model(name)
         Xc = self._x(X)[:, self._cols]
-        if isinstance(m, (KnnArrays, ForestArrays)):
+        if isinstance(m, (KnnArrays, ForestArrays, SvmArrays)):
             return m.proba(Xc)
         return m.run(["probabilities"], {"X": Xc})[0]
 

@@ -74,7 +74,7 @@ def library_versions() -> dict[str, str]:
     import importlib.metadata as md
 
     out = {}
-    for name in ("numpy", "scikit-learn", "skl2onnx", "onnx", "onnxruntime", "torch"):
+    for name in ("numpy", "scikit-learn", "onnx", "onnxruntime", "torch"):
         try:
             out[name] = md.version(name)
         except md.PackageNotFoundError:

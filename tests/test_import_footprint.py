@@ -11,7 +11,7 @@ from pathlib import Path
 
 from core.errors import describe
 
-OPTIONAL = ("sklearn", "skl2onnx", "onnx", "matplotlib", "torch", "dask", "distributed", "locust", "lab")
+OPTIONAL = ("sklearn", "onnx", "matplotlib", "torch", "dask", "distributed", "locust", "lab")
 #: rich's help rendering (typer.rich_utils pulls these): only a command's help needs them
 HELP_ONLY = ("pygments", "markdown_it")
 #: installed and used elsewhere (the service, the registry's import, the simulator's scenes), but ~90 ms

@@ -252,7 +252,15 @@ class PairReach:
     track_eer: float
 
 
-_PARTS = {"features": lambda d: d.features, "view": lambda d: d.view,
+def _without_envelope(d: RenderedDwell) -> list[float]:
+    """The feature vector without the flash envelope's autocorrelation (what it was before that
+    was added; `RenderedDwell.features` are in sorted name order)."""
+    from signatures.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
+
+    return [v for n, v in zip(sorted(FEATURE_NAMES), d.features) if n not in ENVELOPE_FEATURES]
+
+
+_PARTS = {"features": lambda d: d.features, "features without envelope": _without_envelope, "view": lambda d: d.view,
           "features+view": lambda d: d.features + d.view, "doppler": lambda d: d.view[:VIEW_WIN],
           "envelope spectrum": lambda d: d.view[VIEW_WIN:-VIEW_LAGS],
           "envelope autocorrelation": lambda d: d.view[-VIEW_LAGS:],
@@ -365,9 +373,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"# {' '.join(['python -m lab.bench.reach', *(argv if argv is not None else sys.argv[1:])])}")
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
     if a.cache and os.path.exists(a.cache):
+        from signatures.feature_vector import FEATURE_NAMES
+
         with open(a.cache) as fh:
             dwells = [RenderedDwell(**d) for d in json.load(fh)
                       if d["world"] in (a.world or ["heldout"]) and d["snr_db"] in (a.snr or [10.0, 0.0])]
+        if any(len(d.features) != len(FEATURE_NAMES) for d in dwells):
+            ap.error(f"{a.cache} holds another feature vector than today's {len(FEATURE_NAMES)}: delete it")
     else:
         dwells = [d for w in (a.world or ["heldout"]) for s in (a.snr or [10.0, 0.0])
                   for d in render(w, s, a.scenes, a.dwells, a.seed, a.workers)]

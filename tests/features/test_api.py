@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from signatures import envelope
+from signatures import feature_vector as F
 from signatures.errors import SignaturesError
 from signatures.features import FEATURE_NAMES, PATCH_SHAPE, extract, extract_iq
 
@@ -20,7 +22,11 @@ def test_names_and_order_are_fixed():
         "flash_rate_std_hz", "rotor_rate_hz", "rotor_rate_std_hz", "rotor_count", "rotor_count_std",
         "tip_speed_mps", "tip_speed_std_mps", "blade_length_m", "blade_length_std_m", "tip_aliased",
         "flash_score", "flash_count", "flash_par_db", "doppler_occupancy", "cadence_peak_hz",
-        "cadence_harmonic_ratio", "snr_db", "detected")
+        "cadence_harmonic_ratio", "snr_db", "detected", *(f"flash_ac_{2 * k}ms" for k in range(1, 16)))
+
+
+def test_envelope_features_name_their_lags():
+    assert F.ENVELOPE_FEATURES == tuple(f"flash_ac_{round(lag * 1e3)}ms" for lag in envelope.LAGS_S)
 
 
 def test_vector_patch_and_accessors(returns):
