@@ -179,7 +179,8 @@ def _platt(machines: list) -> dict[str, np.ndarray]:
     """The machines' Platt parameters (A, B) (deprecated attributes in scikit-learn 1.9: see `_fit`)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=FutureWarning, message=".*prob[AB]_.*")
-        return {"prob_a": np.array([m.probA_[0] for m in machines]), "prob_b": np.array([m.probB_[0] for m in machines])}
+        return {"prob_a": np.array([m.probA_[0] for m in machines]),
+                "prob_b": np.array([m.probB_[0] for m in machines])}
 
 
 def fit_state_head(X: np.ndarray, moving: np.ndarray, seed: int) -> Pipeline:
