@@ -89,3 +89,14 @@ def test_the_track_eer_follows_the_random_effects_model() -> None:
     no_bias = np.where(is_a, 1.0, -1.0) + rng.standard_normal(scenes.size)
     assert track_eer(no_bias, is_a, scenes, 4.0) < 1e-6
     assert _eer_normal(1.0, 0.5, -1.0, 0.5) == pytest.approx(0.5 * math.erfc(2.0 / math.sqrt(2.0)), rel=1e-6)
+
+
+def test_the_vector_without_the_envelope_drops_exactly_its_features() -> None:
+    from lab.bench.reach import RenderedDwell, _without_envelope
+    from signatures.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
+
+    names = sorted(FEATURE_NAMES)
+    d = RenderedDwell("heldout", 10.0, "m300", 0, [float(i) for i in range(len(names))], [])
+    kept = _without_envelope(d)
+    assert len(kept) == len(FEATURE_NAMES) - len(ENVELOPE_FEATURES)
+    assert [names[int(v)] for v in kept] == [n for n in names if n not in ENVELOPE_FEATURES]
