@@ -50,28 +50,39 @@ def frames(config: RadarConfig, n_chirps: int) -> tuple[int, int]:
 def autocorrelation(cols: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
                     lags_s: tuple[float, ...] = LAGS_S) -> np.ndarray:
     """(B, len(lags_s)) float32 from the slow time `cols` (B, chirps, columns) of each row's target,
-    whose body line lies at `body_hz` (B,)."""
+    whose body line lies at `body_hz` (B,). The reference: the feature path computes the same
+    spectrogram with its batched FFTs and calls `from_spectrogram`."""
     cols = np.asarray(cols)
-    rows, n = cols.shape[0], cols.shape[1]
-    out = np.zeros((rows, len(lags_s)), dtype=np.float32)
+    n = cols.shape[1]
     win, hop = frames(config, n)
-    if rows == 0 or n < win + 2 * hop:
-        return out
-    # float64: the frames are few, and their powers then neither overflow nor round at any scale
+    if cols.shape[0] == 0 or n < win + 2 * hop:
+        return np.zeros((cols.shape[0], len(lags_s)), dtype=np.float32)
+    # float64: the frames' powers then neither overflow nor round at any scale of the input
     x = sliding_window_view(cols.astype(np.complex128, copy=False), win, axis=1)[:, ::hop]  # (B, frames, columns, win)
     spec = np.fft.fft(x * hann(win), axis=-1)
-    power = (spec.real ** 2 + spec.imag ** 2).sum(axis=2)  # (B, frames, win), unshifted
+    power = np.fft.fftshift((spec.real ** 2 + spec.imag ** 2).sum(axis=2), axes=-1)
+    return from_spectrogram(power, config, body_hz, hop, lags_s)
+
+
+def from_spectrogram(power: np.ndarray, config: RadarConfig, body_hz: np.ndarray, hop: int,
+                     lags_s: tuple[float, ...] = LAGS_S) -> np.ndarray:
+    """`autocorrelation` from the target's spectrogram: `power` (B, frames, window) summed over its
+    columns, Doppler fftshifted, frames `hop` chirps apart (`frames`)."""
+    rows, m, win = power.shape
+    out = np.zeros((rows, len(lags_s)), dtype=np.float32)
+    if rows == 0 or m < 3:
+        return out
     bin_hz = config.prf_hz / win
-    k = np.fft.fftfreq(win, 1.0 / win)[None, :]  # signed bin numbers
+    k = np.arange(win)[None, :] - win // 2  # signed bin numbers, fftshifted
     body = np.asarray(body_hz, dtype=np.float64).reshape(-1, 1) / bin_hz
     dist = np.abs((k - body + win / 2) % win - win / 2)
     keep = dist > max(1.0, BODY_MPS / (bin_hz * config.wavelength_m / 2.0))
-    off = np.einsum("bfk,bk->bf", power, keep.astype(np.float64))
+    p = power.astype(np.float64, copy=False)
+    off = np.einsum("bfk,bk->bf", p, keep.astype(np.float64))
     # off-body power below float32's resolution of the frame's total is rounding, not a flash
-    floor = np.maximum(power.sum(axis=2).mean(axis=1, keepdims=True) * RESOLUTION, _FLOOR)
+    floor = np.maximum(p.sum(axis=2).mean(axis=1, keepdims=True) * RESOLUTION, _FLOOR)
     env = np.log(np.maximum(off, floor))
     env -= env.mean(axis=1, keepdims=True)
-    m = env.shape[1]
     n_fft = 1 << int(2 * m - 1).bit_length()
     s = np.fft.rfft(env, n_fft, axis=1)
     ac = np.fft.irfft(s.real ** 2 + s.imag ** 2, n_fft, axis=1)[:, :m]

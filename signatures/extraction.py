@@ -810,7 +810,11 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
                                                          fft_backend), flash)
         width = int(min(3, size))
         lo = np.clip(peak_bin - g_lo - 1, 0, size - width)
-        env_ac = envelope.autocorrelation(_columns(slow, lo, width), config, body_hz)
+        env_win, env_hop = envelope.frames(config, n)
+        env_ac = np.zeros((live.size, len(envelope.LAGS_S)), dtype=np.float32)
+        if n >= env_win + 2 * env_hop:
+            env_spec = _spectrogram(_columns(slow, lo, width), config, env_win, env_hop, fft_backend)
+            env_ac = envelope.from_spectrogram(env_spec[0], config, body_hz, env_hop)
         cols.update(zip(F.ENVELOPE_FEATURES, env_ac.T))
         cols.update(
             flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,

@@ -159,16 +159,16 @@ class SvmArrays:
                 and self.classes.min() >= 0 and self.classes.max() < self.n_classes):
             raise SignaturesError(f"{path}: inconsistent SVM arrays")
         self._sv_sq = np.sum(self.support * self.support, axis=1)
+        self._neg_gamma = -np.repeat(self.gamma, np.diff(self.starts))  # per support vector
 
     def proba(self, X: np.ndarray) -> np.ndarray:
         # the scaler as scikit-learn applies it to float32 rows (in their dtype)
         Z = ((np.asarray(X, dtype=np.float32) - self.mean).astype(np.float32) / self.scale).astype(np.float32)
         Z = Z.astype(np.float64)
         d2 = np.maximum(np.sum(Z * Z, axis=1)[:, None] + self._sv_sq[None, :] - 2.0 * Z @ self.support.T, 0.0)
-        pos = np.empty((len(Z), len(self.intercept)))
-        for j, (lo, hi) in enumerate(zip(self.starts[:-1], self.starts[1:])):
-            dec = np.exp(-self.gamma[j] * d2[:, lo:hi]) @ self.dual[lo:hi] + self.intercept[j]
-            pos[:, j] = self._coupled(-dec * self.a[j] + self.b[j])
+        # every machine at once: its support vectors' kernel terms summed per machine
+        dec = np.add.reduceat(np.exp(d2 * self._neg_gamma) * self.dual, self.starts[:-1], axis=1) + self.intercept
+        pos = self._coupled((-dec * self.a + self.b).ravel()).reshape(dec.shape)
         out = np.zeros((len(Z), self.n_classes))
         out[:, self.classes] = pos / np.maximum(pos.sum(axis=1, keepdims=True), 1e-300)
         return out.astype(np.float32)
