@@ -67,7 +67,8 @@ def autocorrelation(cols: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
 def from_spectrogram(power: np.ndarray, config: RadarConfig, body_hz: np.ndarray, hop: int,
                      lags_s: tuple[float, ...] = LAGS_S) -> np.ndarray:
     """`autocorrelation` from the target's spectrogram: `power` (B, frames, window) summed over its
-    columns, Doppler fftshifted, frames `hop` chirps apart (`frames`)."""
+    columns, Doppler fftshifted, frames `hop` chirps apart (`frames`); fewer than 3 frames (a dwell
+    too short for the window) read 0."""
     rows, m, win = power.shape
     out = np.zeros((rows, len(lags_s)), dtype=np.float32)
     if rows == 0 or m < 3:

@@ -789,11 +789,9 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
             per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
         flash, flash_std, score = per.flash_rate_hz, per.flash_rate_std_hz, per.score
         seen, seen_std = per.rotors_seen, per.rotors_seen_std
+        width = int(min(3, size))  # the target's bin +- 1, inside the gate
+        centre_cols = _columns(slow, np.clip(peak_bin - g_lo - 1, 0, size - width), width)
         if dwell >= best.SPECTRAL_DWELL_S:  # hundreds of flashes: the envelope spectrum resolves the rate
-            cols_lo = np.maximum(0, peak_bin - g_lo - 1)
-            width = int(min(3, size))
-            centre_cols = np.stack([slow[j, :, int(min(cols_lo[j], size - width)):][:, :width]
-                                    for j in range(live.size)])
             train = best.spectral_flash_rate(centre_cols, config, body_hz)
             flash, flash_std, score = train.rate_hz, train.rate_std_hz, train.score
             seen, seen_std = train.rotors_seen, train.rotors_seen_std
@@ -808,14 +806,9 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         win, hop = tf.stft_params(config, n)
         cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend),
                                                          fft_backend), flash)
-        width = int(min(3, size))
-        lo = np.clip(peak_bin - g_lo - 1, 0, size - width)
         env_win, env_hop = envelope.frames(config, n)
-        env_ac = np.zeros((live.size, len(envelope.LAGS_S)), dtype=np.float32)
-        if n >= env_win + 2 * env_hop:
-            env_spec = _spectrogram(_columns(slow, lo, width), config, env_win, env_hop, fft_backend)
-            env_ac = envelope.from_spectrogram(env_spec[0], config, body_hz, env_hop)
-        cols.update(zip(F.ENVELOPE_FEATURES, env_ac.T))
+        env_power, _ = _spectrogram(centre_cols, config, env_win, env_hop, fft_backend)
+        cols.update(zip(F.ENVELOPE_FEATURES, envelope.from_spectrogram(env_power, config, body_hz, env_hop).T))
         cols.update(
             flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,
             rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,

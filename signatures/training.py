@@ -128,9 +128,8 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
                  cache: Path | None | bool = None, progress: bool = False) -> dict[str, Any]:
     """Build the bundle of `cfg` in folder `out` (replaced); returns its card."""
     from signatures import classifiers as clf
-    from signatures.inference import SvmArrays
     from signatures.cnn import export_cnn, torch_available, train_cnn
-    from signatures.inference import MEMBERS, Classifier
+    from signatures.inference import MEMBERS, Classifier, SvmArrays
     from signatures.openset import MODES, OpenSet, fit_openset, physics_check
     from signatures.scene import Scene
 
