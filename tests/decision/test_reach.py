@@ -100,3 +100,18 @@ def test_the_vector_without_the_envelope_drops_exactly_its_features() -> None:
     kept = _without_envelope(d)
     assert len(kept) == len(FEATURE_NAMES) - len(ENVELOPE_FEATURES)
     assert [names[int(v)] for v in kept] == [n for n in names if n not in ENVELOPE_FEATURES]
+
+
+def test_a_cache_of_another_feature_vector_is_refused_in_one_line(tmp_path, capsys) -> None:
+    import json
+
+    from lab.bench.reach import main
+
+    cache = tmp_path / "dwells.json"
+    cache.write_text(json.dumps([{"world": "heldout", "snr_db": 10.0, "flies": "m300", "scene": 0,
+                                  "features": [0.0] * 34, "view": []}]))
+    with pytest.raises(SystemExit) as exc:
+        main(["--world", "heldout", "--snr", "10", "--cache", str(cache)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "holds another feature vector" in err and "delete it" in err
