@@ -57,7 +57,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from signatures.profiles import UavProfile
+from signatures.profiles import NON_UAV_CLASSES, UavProfile
 
 __all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "ROTOR_BAND", "Bands", "Verification",
            "bands_from", "verify"]
@@ -233,7 +233,7 @@ def _group_physics(features: Mapping[str, float], members: Sequence[tuple[UavPro
 def _log_odds(probabilities: Mapping[str, float], slugs: Sequence[str]) -> float | None:
     """Log-odds of the summed probability of `slugs` against their share of a uniform prior over the
     bundle's UAV classes; None where none of them is a class, or they are every class."""
-    uav = [c for c in probabilities if c not in ("bird", "none")]
+    uav = [c for c in probabilities if c not in NON_UAV_CLASSES]
     inside = [s for s in slugs if s in probabilities]
     if not inside or len(inside) >= max(len(uav), 2):
         return None
