@@ -2,9 +2,11 @@
 
 kNN (k = 5, Euclidean), Random Forest and RBF SVM (one-vs-rest), each with its
 scaling inside a Pipeline, and a soft-voting ensemble of the three whose averaged
-probabilities are calibrated by temperature scaling on held-out validation data
-(one parameter: it fixes the over-/under-confidence of the average without
-changing its arg-max). Labels are integer codes into the card's class list, so the
+probabilities are calibrated by temperature scaling (one parameter: it fixes the
+over-/under-confidence of the average without changing its arg-max), fitted over a
+bounded range: on a set the vote classifies perfectly the maximum-likelihood
+temperature runs off to certainty (an inverse temperature of 163 was fitted once),
+and no simulator earns that. Labels are integer codes into the card's class list, so the
 exported ONNX outputs line up with it column for column.
 
 Inference never imports this module: see `signatures.inference`, which owns what both sides
@@ -16,19 +18,20 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from sklearn.calibration import CalibratedClassifierCV
-from sklearn.ensemble import RandomForestClassifier, VotingClassifier
-from sklearn.frozen import FrozenEstimator
+from sklearn.ensemble import RandomForestClassifier
 from sklearn.multiclass import OneVsRestClassifier
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
-from signatures.inference import MEMBERS
+from signatures.inference import MEMBERS, calibrate
 
-__all__ = ["calibrated_ensemble", "fit_members", "fit_state_head", "forest_arrays", "knn_arrays", "make_knn",
-           "make_member", "make_rf", "make_svm", "temperature_beta", "vote_weights"]
+__all__ = ["BETA_RANGE", "bounded_temperature", "fit_members", "fit_state_head", "forest_arrays", "knn_arrays",
+           "make_knn", "make_member", "make_rf", "make_svm", "soft_vote", "vote_weights"]
+
+#: Inverse temperatures a calibration may choose from: 0.25 (a quarter as sure) to 8 (p ** 8).
+BETA_RANGE = (0.25, 8.0)
 
 
 def make_knn() -> Pipeline:
@@ -91,19 +94,27 @@ def vote_weights(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndar
     return chosen
 
 
-def calibrated_ensemble(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndarray,
-                        weights: list[float] | None = None) -> CalibratedClassifierCV:
-    """Weighted soft vote of the fitted members, temperature-calibrated on validation data."""
-    vote = VotingClassifier([(n, FrozenEstimator(m)) for n, m in members.items()], voting="soft",
-                            weights=weights)
-    vote.fit(X_val, y_val)  # frozen members: this only records the classes
-    return CalibratedClassifierCV(FrozenEstimator(vote), method="temperature").fit(X_val, y_val)
+def soft_vote(members: dict[str, Pipeline], X: np.ndarray, weights: list[float]) -> np.ndarray:
+    """The members' weighted mean probabilities: the ensemble's vote before calibration."""
+    total = float(sum(weights))
+    return sum(w * m.predict_proba(X) for w, m in zip(weights, members.values()) if w) / total
 
 
-def temperature_beta(ensemble: CalibratedClassifierCV) -> float:
-    """The fitted inverse temperature (the only calibration parameter shipped; applied by
-    `signatures.inference.calibrate`)."""
-    return float(ensemble.calibrated_classifiers_[0].calibrators[0].beta_)
+def bounded_temperature(proba: np.ndarray, y: np.ndarray) -> float:
+    """The inverse temperature in `BETA_RANGE` minimising the log-loss of `calibrate(proba, beta)`
+    on labels `y` (a bounded scalar search on log beta; a set the vote separates perfectly stops at
+    the upper bound instead of running off to certainty)."""
+    from scipy.optimize import minimize_scalar
+
+    rows = np.arange(len(y))
+
+    def loss(log_beta: float) -> float:
+        return -float(np.mean(np.log(calibrate(proba, float(np.exp(log_beta)))[rows, y] + 1e-12)))
+
+    lo, hi = np.log(BETA_RANGE[0]), np.log(BETA_RANGE[1])
+    res = minimize_scalar(loss, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+    best = min((float(res.x), lo, hi), key=loss)  # the bounds themselves, where the optimum lies beyond
+    return float(np.exp(best))
 
 
 def knn_arrays(model: Pipeline, X_train: np.ndarray, y_train: np.ndarray, n_classes: int) -> dict[str, np.ndarray]:

@@ -13,8 +13,9 @@ Method (fixed a priori, measured in docs/benchmarks.md "Site enrolment"):
    enrolled model's site returns weigh `SITE_SHARE` of that model's total (site data dominates
    where it exists, the simulator fills the rest of the feature space);
 3. K-fold cross-validation over the site recordings (the base set always in training): the
-   out-of-fold probabilities calibrate the temperature (a bounded grid: the ill-posed
-   maximum-likelihood temperature of a perfectly separated set is avoided), give the confusion
+   out-of-fold probabilities calibrate the temperature (over a bounded range,
+   `classifiers.bounded_temperature`: the ill-posed maximum-likelihood temperature of a
+   perfectly separated set is avoided), give the confusion
    matrix, and score every recording against its own model (genuine) and against every other
    enrolled model (impostor) with the check's own 1:1 verification (`signatures.verify`);
 4. the verification threshold: the lowest LLR at which the cross-validated false-accept rate of
@@ -83,8 +84,6 @@ TRACK_DRAWS = 400
 BAND_PRIOR_WEIGHT = 10
 BAND_MIN_LOG_WIDTH = math.log(1.06)
 CV_FOLDS = 5
-#: Inverse temperatures tried on the out-of-fold probabilities (bounded: see the module docstring).
-BETAS = tuple(float(b) for b in np.geomspace(0.25, 8.0, 31))
 ENROL_FORMAT = "uav-radar-authn/site-enrolment/1"
 MAX_LABEL_ROWS = 100_000
 MAX_LABEL_BYTES = 8 << 20
@@ -274,14 +273,6 @@ def _weights(y_sim: np.ndarray, y_site: np.ndarray, n_cls: int) -> np.ndarray:
             n_sim = max(int(np.sum(y_sim == c)), 1)
             w[m] = SITE_SHARE / (1.0 - SITE_SHARE) * n_sim / m.sum()
     return w
-
-
-def _beta(p: np.ndarray, y: np.ndarray) -> float:
-    """Inverse temperature minimising the out-of-fold log-loss over the bounded grid `BETAS`."""
-    from signatures.inference import calibrate
-
-    losses = [-float(np.mean(np.log(calibrate(p, b)[np.arange(len(y)), y] + 1e-12))) for b in BETAS]
-    return BETAS[int(np.argmin(losses))]
 
 
 #: A dwell's cross-validated verification as a track uses it: (LLR, physics term present), or
@@ -545,7 +536,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
 
     say("cross-validating", 0.0)
     p_oof, fold_of = _oof(fit_fold, proba, y_site, n_folds, seed)
-    beta = _beta(p_oof, y_site)
+    beta = clf.bounded_temperature(p_oof, y_site)
     from signatures.inference import calibrate
 
     p_cal = calibrate(p_oof, beta)
@@ -644,7 +635,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                 "format": ENROL_FORMAT, "name": name, "created": created.isoformat(), "previous": previous,
                 "method": {"base": f"{n_s} simulated returns of the waveform (seed {seed})",
                            "classifier": f"random forest on base + site returns, site weight share {SITE_SHARE}",
-                           "temperature": "out-of-fold log-loss over a bounded grid (0.25..8)",
+                           "temperature": "out-of-fold log-loss, inverse temperature bounded to 0.25..8",
                            "open_set": "physical consistency with the predicted profile (as trained)",
                            "physics_bands": ("rate and rotor bands per enrolled model from the site recordings, "
                                              f"today's bands the prior ({BAND_PRIOR_WEIGHT} pseudo-recordings)"

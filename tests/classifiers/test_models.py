@@ -34,13 +34,36 @@ def test_members_follow_the_estimator_contract() -> None:
     assert clf.make_knn()[-1].n_neighbors == 5 and clf.make_knn()[-1].metric == "euclidean"
 
 
-def test_calibration_matches_sklearn() -> None:
-    X, y = _blobs(400, CENTRES, 0)
-    Xv, yv = _blobs(200, CENTRES, 2)
+def test_bounded_temperature_is_sklearns_fit_inside_its_range() -> None:
+    """Where the log-loss optimum lies inside `BETA_RANGE`, the bounded fit is scikit-learn's own
+    temperature scaling of the same vote."""
+    from sklearn.calibration import CalibratedClassifierCV
+    from sklearn.ensemble import VotingClassifier
+    from sklearn.frozen import FrozenEstimator
+
+    X, y = _blobs(400, CENTRES / 3, 0)  # overlapping classes: the fit has an optimum
+    Xv, yv = _blobs(200, CENTRES / 3, 2)
     members = clf.fit_members(X, y, seed=0)
-    ens = clf.calibrated_ensemble(members, Xv, yv, [1.0, 2.0, 1.0])
-    avg = sum(w * m.predict_proba(Xv) for w, m in zip((1, 2, 1), members.values())) / 4
-    np.testing.assert_allclose(calibrate(avg, clf.temperature_beta(ens)), ens.predict_proba(Xv), atol=1e-6)
+    weights = [1.0, 2.0, 1.0]
+    vote = VotingClassifier([(n, FrozenEstimator(m)) for n, m in members.items()], voting="soft",
+                            weights=weights).fit(Xv, yv)
+    ens = CalibratedClassifierCV(FrozenEstimator(vote), method="temperature").fit(Xv, yv)
+    sk_beta = float(ens.calibrated_classifiers_[0].calibrators[0].beta_)
+    avg = clf.soft_vote(members, Xv, weights)
+    beta = clf.bounded_temperature(avg, yv)
+    assert clf.BETA_RANGE[0] < sk_beta < clf.BETA_RANGE[1]
+    assert beta == pytest.approx(sk_beta, rel=1e-3)
+    np.testing.assert_allclose(calibrate(avg, beta), ens.predict_proba(Xv), atol=1e-3)
+
+
+def test_bounded_temperature_stops_at_its_bounds() -> None:
+    """A vote that is always right (the ill-posed fit runs off to certainty) stops at the upper
+    bound; one that is always wrong at the lower."""
+    y = np.array([0, 1, 2] * 20)
+    right = np.full((60, 3), 0.1)
+    right[np.arange(60), y] = 0.8
+    assert clf.bounded_temperature(right, y) == pytest.approx(clf.BETA_RANGE[1])
+    assert clf.bounded_temperature(right, (y + 1) % 3) == pytest.approx(clf.BETA_RANGE[0])
 
 
 def test_openset_rejects_an_unseen_cluster_and_keeps_known_ones() -> None:
