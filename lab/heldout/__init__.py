@@ -30,7 +30,7 @@ from signatures.radar import C, Preset, RadarConfig
 from signatures.recording import RadarSite, Recording
 from signatures.scene import MultiScene, Scene
 
-HELDOUT_VERSION = "1"
+HELDOUT_VERSION = "2"
 #: Chirps synthesised at a time: every shipped dwell (<= 8192) is one chunk, a long CW dwell several.
 CHUNK = 8192
 SITE = RadarSite(lat_deg=47.397, lon_deg=8.548, alt_m=430.0)

@@ -9,10 +9,16 @@ per cent, differential thrust when moving, coaxial lower rotors faster), with ra
 and diagonal pairs counter-rotating. The attitude wobbles with a pink spectrum and the yaw
 drifts. Everything is expressed per chirp as each point's offset along the line of sight
 and its distance from the body centre, from which `synthesis` takes the exact range.
+
+One scene is one airframe (`airframe_stream`): its layout, the rates it flies, its blades, body
+and tags are drawn from the scene, so the dwells of a track differ only in what a real track's
+dwells differ in (attitude, blade phases, noise).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from dataclasses import dataclass
 
@@ -140,17 +146,18 @@ def _layout(p: UavProfile, rng: np.random.Generator) -> _Layout:
 
 
 def _rotor_phases(p: UavProfile, lay: _Layout, scene: Scene, t: np.ndarray, yaw0: float,
-                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Blade-0 angle of every rotor per chirp (n, r) and each rotor's mean rate (r,)."""
+                  build: np.random.Generator, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Blade-0 angle of every rotor per chirp (n, r) and each rotor's mean rate (r,): the rates
+    flown from the airframe's stream `build`, phases and the controllers' hunting from the dwell's."""
     if scene.hovering:
-        scale = rng.uniform(0.90, 1.10)
+        scale = build.uniform(0.90, 1.10)
     else:
-        scale = rng.uniform(0.95, 1.12)
+        scale = build.uniform(0.95, 1.12)
     if scene.rotor_rate_hz is not None:  # the scene fixes the common rate flown (idle, say)
         scale = scene.rotor_rate_hz / p.rotor_rate_hz
-    spread = np.clip(rng.normal(0.0, rng.uniform(0.01, 0.03), p.rotors), -0.06, 0.06)
+    spread = np.clip(build.normal(0.0, build.uniform(0.01, 0.03), p.rotors), -0.06, 0.06)
     rates = p.rotor_rate_hz * scale * (1.0 + spread)
-    rates = np.where(lay.lower, rates * rng.uniform(1.03, 1.10), rates)  # the lower prop works in the upper's wash
+    rates = np.where(lay.lower, rates * build.uniform(1.03, 1.10), rates)  # the lower prop works in the upper's wash
     if not scene.hovering:  # pitching into the motion: front rotors slower, rear ones faster
         heading = np.array([math.cos(-yaw0), math.sin(-yaw0), 0.0]) * math.copysign(1.0, scene.radial_speed_mps)
         along = lay.hubs @ heading / max(float(np.max(np.linalg.norm(lay.hubs[:, :2], axis=1))), 1e-9)
@@ -165,7 +172,7 @@ def _rotor_phases(p: UavProfile, lay: _Layout, scene: Scene, t: np.ndarray, yaw0
 
 def _blades(p: UavProfile, lay: _Layout, theta: np.ndarray, w: np.ndarray, wavelength: float,
             rng: np.random.Generator) -> tuple[Points, int]:
-    """Blade stations and tips of every rotor."""
+    """Blade stations and tips of every rotor (`rng`: the airframe's stream)."""
     n_st = int(rng.integers(8, 13))
     L = p.blade_length_m
     rho = L * (0.15 + 0.85 * (np.arange(n_st) + 0.5) / n_st)
@@ -240,7 +247,7 @@ def _tags(scene: Scene, n_st: int, rng: np.random.Generator) -> tuple[np.ndarray
 
 def _body(p: UavProfile, lay: _Layout, rates: np.ndarray, t: np.ndarray, w: np.ndarray,
           rng: np.random.Generator) -> Points:
-    """Fuselage, spinners, vibrating motors, flexing arms and landing gear."""
+    """Fuselage, spinners, vibrating motors, flexing arms and landing gear (`rng`: the airframe's stream)."""
     D = p.propeller_distance_m
     pos, amp_db, disp_dir, disp = [], [], [], []  # displacement: a unit direction and its (n,) motion
 
@@ -274,22 +281,40 @@ def _body(p: UavProfile, lay: _Layout, rates: np.ndarray, t: np.ndarray, w: np.n
     return Points(along.astype(np.float32), norm_sq.astype(np.float32), amp.astype(np.float32))
 
 
+#: Scene fields that are not the airframe: where it is and what surrounds it.
+NOT_AIRFRAME = {"range_m", "snr_db", "clutter_db", "clutter_to_signal_db"}
+
+
+def airframe_stream(scene: Scene) -> np.random.Generator:
+    """The random stream an airframe is built from: keyed by the scene without its range and its
+    surroundings (`NOT_AIRFRAME`), so that the dwells of one track (one scene whose range moves on,
+    `lab.bench.track`) see one airframe, flown at one rate with one set of blades, as a real track
+    does, while the dwell's own seed draws what changes from dwell to dwell (attitude, blade
+    phases, noise); the same scene at another SNR is the same airframe."""
+    key = json.dumps(scene.model_dump(mode="json", exclude=NOT_AIRFRAME), sort_keys=True, separators=(",", ":"))
+    digest = hashlib.sha256(f"heldout-airframe/1:{key}".encode()).digest()
+    return np.random.default_rng(int.from_bytes(digest[:16], "big"))
+
+
 def uav_points(scene: Scene, t: np.ndarray, wavelength: float,
                rng: np.random.Generator) -> tuple[Points, AirframeTruth]:
-    """Every scatterer of the scene's UAV over the dwell; blades scaled to their power share."""
+    """Every scatterer of the scene's UAV over the dwell; blades scaled to their power share. The
+    airframe (layout, rates flown, blades, body, tags) comes from `airframe_stream(scene)`, the
+    dwell's attitude and phases from `rng`."""
     p = scene.profile
     assert p is not None
+    build = airframe_stream(scene)
     w, yaw0, rms_deg, tilt_deg = line_of_sight_in_body(scene, t, rng)
-    lay = _layout(p, rng)
-    theta, rates = _rotor_phases(p, lay, scene, t, yaw0, rng)
-    blades, n_st = _blades(p, lay, theta, w, wavelength, rng)
-    body = _body(p, lay, rates, t, w, rng)
+    lay = _layout(p, build)
+    theta, rates = _rotor_phases(p, lay, scene, t, yaw0, build, rng)
+    blades, n_st = _blades(p, lay, theta, w, wavelength, build)
+    body = _body(p, lay, rates, t, w, build)
     # blade share by RCS (incoherent): -16..-6 dB of the body unless the scene sets it
-    ratio_db = scene.blade_to_body_db if scene.blade_to_body_db is not None else float(rng.uniform(-16.0, -6.0))
+    ratio_db = scene.blade_to_body_db if scene.blade_to_body_db is not None else float(build.uniform(-16.0, -6.0))
     p_body = float(np.sum(body.amplitude[0] ** 2))
     p_blades = float(np.mean(np.sum(blades.amplitude ** 2, axis=1)))
     k = np.float32(math.sqrt(p_body / p_blades * 10 ** (ratio_db / 10)))
-    tag_factor, tag_db = _tags(scene, n_st, rng)  # drawn last: an untagged scene is unchanged
+    tag_factor, tag_db = _tags(scene, n_st, build)  # drawn last: an untagged scene is unchanged
     if tag_factor is not None:  # a tag adds RCS on top of the blade's share
         blades = Points(blades.along_los, blades.norm_sq,
                         blades.amplitude * tag_factor.reshape(-1).astype(np.float32)[None, :])
