@@ -91,7 +91,8 @@ def _recording_checker() -> Any:
         def _verify(self, feats: Any, pred: Any, claimed: Any, rec: Any, *more: Any, **kw: Any) -> Any:  # type: ignore[override]
             v = Checker._verify(feats, pred, claimed, rec, *more, **kw)
             self.seen.append({"features": {**asdict(feats.features), **feats.physics}, "label": pred.label,
-                              "known": bool(pred.known), "simulation": rec.simulation,
+                              "known": bool(pred.known), "probabilities": dict(pred.probabilities),
+                              "simulation": rec.simulation,
                               "verification": None if v is None else v.to_json()})
             return v
 
@@ -144,6 +145,7 @@ def _dwell_record(seen: dict, claimed: UavProfile, flown: UavProfile, max_tip: f
     pattern = truth.get("pattern_rates_hz") or []
     v = seen["verification"]
     return {"label": seen["label"], "known": seen["known"], "llr": None if v is None else v["llr"],
+            "probabilities": {k: round(float(p), 6) for k, p in seen.get("probabilities", {}).items()},
             "terms": _split_terms(f, claimed, v, max_tip),
             "flash_rate_hz": float(f.get("flash_rate_hz", 0.0)),
             "flash_rate_std_hz": float(f.get("flash_rate_std_hz", 0.0)),
