@@ -25,8 +25,8 @@ beta (false reject), accept at LLR >= log((1 - beta) / alpha) and reject at LLR 
   as the single-dwell policy lets the classifier reject but never accept (`radar-unverifiable`).
 
 The per-dwell decisions are reported but decide nothing: the track decision is one complete
-`is_authorized` over the track's evidence (the latest dwell's, the worst kinematic residual of
-any dwell used, every Remote ID issue seen) with a `track` context record; a policy or engine
+`is_authorized` over the track's evidence (the latest dwell's, the kinematic residual of the
+dwells used at their lower median, every Remote ID issue seen) with a `track` context record; a policy or engine
 error never accepts. One audit entry per track names every dwell used (file, SHA-256, terms)
 and the skipped ones.
 """
@@ -293,8 +293,13 @@ def _term(o: Any, sprt: Sprt) -> DwellTerm:
                      o.decision, list(o.reasons))
 
 
-def _worst(kinematics: list[Any]) -> Any:
-    """The kinematic evidence furthest outside (or nearest the edge of) its tolerance."""
+def _typical(kinematics: list[Any]) -> Any:
+    """The kinematic evidence of the track: of its dwells' residuals (each the larger of range and
+    radial velocity over its tolerance), the lower median's dwell. A declared position or velocity
+    that misses the radar's in more than half of the dwells used forbids; one dwell whose own
+    estimate went astray (a moving body's line lost at 0 dB, read at zero Doppler) does not reject
+    a track that many more dwells confirm, as the worst dwell would in every long enough track.
+    A one-dwell track is judged on its dwell."""
     def ratio(k: Any) -> float:
         r = k.residuals
         parts = [r.range_residual_m / max(r.range_tolerance_m, 1e-9)] if k.range_measured else []
@@ -302,17 +307,20 @@ def _worst(kinematics: list[Any]) -> Any:
             parts.append(r.radial_velocity_residual_mps / max(r.radial_velocity_tolerance_mps, 1e-9))
         return max(parts, default=0.0)
 
-    return max(kinematics, key=ratio) if kinematics else None
+    if not kinematics:
+        return None
+    ranked = sorted(kinematics, key=ratio)
+    return ranked[(len(ranked) - 1) // 2]
 
 
 def _track_evidence(outcomes: list[Any]) -> Any:
     """The evidence the track request is built on: the latest dwell's claim, registry and Remote
-    ID authentication; the radar of the latest dwell that saw a target; the worst kinematics of
-    any dwell; every Remote ID issue any dwell raised."""
+    ID authentication; the radar of the latest dwell that saw a target; the typical kinematics of
+    the dwells (`_typical`); every Remote ID issue any dwell raised."""
     ev = copy.copy(outcomes[-1].evidence)
     seen = [o.evidence.radar for o in outcomes if o.evidence.radar is not None and o.evidence.radar.detected]
     ev.radar = seen[-1] if seen else outcomes[-1].evidence.radar
-    ev.kinematics = _worst([o.evidence.kinematics for o in outcomes if o.evidence.kinematics is not None])
+    ev.kinematics = _typical([o.evidence.kinematics for o in outcomes if o.evidence.kinematics is not None])
     ev.remote_id_issues = list(dict.fromkeys(i for o in outcomes for i in o.evidence.remote_id_issues))
     return ev
 

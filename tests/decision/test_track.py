@@ -112,6 +112,35 @@ def test_a_position_spoof_stops_the_track_on_its_first_dwell(setup, capsys) -> N
     assert out["dwells_skipped"] == 2
 
 
+@pytest.mark.parametrize("astray,decision,reason", [
+    ((1,), "accept", "registered-active"),  # one dwell's declared position misses: the others confirm it
+    ((1, 2), "reject", "range-mismatch"),  # more than half of the dwells used miss
+])
+def test_the_track_judges_the_kinematics_of_most_of_its_dwells(setup, capsys, astray, decision, reason) -> None:
+    """The track's kinematic residual is its dwells' lower median: a declaration that misses the
+    radar in one dwell of several is not a spoof, one that misses in most is."""
+    root, db, _ = setup
+    sc = Scene(kind="uav", profile=shipped_profiles()["m300"], snr_db=20.0, range_m=400.0, radial_speed_mps=3.0)
+    folder = root / f"astray-{len(astray)}"
+    folder.mkdir()
+    from authn.scenario import Broadcast, simulate_flight
+    from signatures.radar import get_preset
+    from datetime import datetime, timedelta, timezone
+
+    t0 = datetime.now(timezone.utc)
+    for i in range(DWELLS):
+        bc = Broadcast(serial=M300, offset_along_los_m=150.0 if i in astray else 0.0)
+        rec, _ = simulate_flight(sc, get_preset("paper"), 400 + i, bc, azimuth_deg=60.0,
+                                 start_time=t0 + timedelta(seconds=i))
+        write_recording(rec, folder / f"dwell_{i:06d}.h5")
+    code, out, _ = _run(db, capsys, str(folder))
+    assert out["decision"] == decision and reason in out["reasons"] and code == (0 if decision == "accept" else 1)
+    if decision == "reject":
+        assert out["dwells_used"] == 3  # [fine, astray]: the lower median is fine; a third astray decides
+    else:
+        assert out["dwells_used"] > 2  # the astray dwell was used, and the track went on past it
+
+
 def test_a_missed_detection_is_no_evidence(setup, capsys) -> None:
     """A dwell that sees nothing (here: the target 60 dB under the noise) does not end the track:
     the genuine dwells after it decide; a track that never sees its target is rejected `no-target`
@@ -285,7 +314,7 @@ TRACK = {"accept_cn": 691, "reject_cn": -461}
     (-461, {}, ["track-claim-inconsistent"]),  # at the reject bound
     (-461, {"radar_model": "bird"}, ["track-claim-inconsistent"]),  # radar-not-a-drone stands aside
     (None, {}, ["track-inconclusive"]),  # nothing verified yet: radar-claim-unverifiable stands aside
-    (900, {"range_residual_cm": 900}, ["range-mismatch"]),  # the worst dwell's kinematics still forbid
+    (900, {"range_residual_cm": 900}, ["range-mismatch"]),  # the track's kinematics (its dwells' median) still forbid
 ])
 def test_the_default_policy_over_a_track(llr_cn, ctx, reasons) -> None:
     """Golden rows of the track forbids (tests/decision/test_policy.py has the single-dwell ones)."""
