@@ -347,12 +347,6 @@ class Checker:
         others = classifier.confusable_with(model, tracks) if model else ()
         return tuple(sorted(set(others) & self.db.registered_models())) if others else ()
 
-    def _confusable(self, classifier: Any, model: str, tracks: bool = False) -> bool | None:
-        """Whether the registered `model` is radar-confusable with another registered model (the
-        policy's `radar_confusable`); None for a bundle that is not a site bundle (the policy input
-        is then unchanged)."""
-        return _flag(self._confusable_models(classifier, model, tracks))
-
     def _group(self, others: tuple[str, ...] | None, auth: RemoteIdAuth) -> tuple:
         """The profiles a claim is verified together with: where its DRIP signature is valid (the
         signature vouches for the exact identity), the registered models radar cannot tell from its

@@ -137,7 +137,7 @@ def test_models_list_and_use_switch_the_active_bundle(site: dict, capsys) -> Non
 def test_confusable_pair_needs_a_signature(site: dict, capsys, monkeypatch) -> None:
     """A pair the card calls confusable, both registered: an unsigned claim is rejected with
     radar-confusable-unsigned; with only one of the pair registered, the rule stays silent."""
-    from authn.check import Checker
+    from authn.check import Checker, _flag
     from signatures.inference import load_classifier
 
     clf = load_classifier(path=site["models"] / "site-a")  # the instance the check will use
@@ -145,13 +145,13 @@ def test_confusable_pair_needs_a_signature(site: dict, capsys, monkeypatch) -> N
     for slug in ("m300", "m600"):
         main(["register", "--serial", SERIALS[slug], "--model", slug, "--valid-from", "2025-01-01T00:00:00Z"])
     checker = Checker()
-    assert checker._confusable(clf, "m300") is True
-    assert checker._confusable(clf, "phantom4") is False
+    assert _flag(checker._confusable_models(clf, "m300")) is True
+    assert _flag(checker._confusable_models(clf, "phantom4")) is False
     out = checker.evaluate(site["flights"] / "m300-00.h5")
     assert "radar-confusable-unsigned" in out.reasons
     assert out.evidence.policy_input()["context"]["radar_confusable"] is True
     main(["registry", "revoke", SERIALS["m600"], "--reason", "test"])
-    assert checker._confusable(clf, "m300") is False
+    assert _flag(checker._confusable_models(clf, "m300")) is False
 
 
 def _signed_m300(key, serial: str, dwells: int, seed: int = 5) -> list:
@@ -212,7 +212,7 @@ def test_a_track_check_uses_the_track_figure(site: dict, capsys, monkeypatch, tr
     """A pair confusable over single dwells: a single-dwell check rejects the unsigned claim; a
     track check asks the card's track-level pairs, so a pair separable over tracks is not
     radar-confusable there (and one confusable over tracks still is)."""
-    from authn.check import Checker
+    from authn.check import Checker, _flag
     from authn.track import Dwell, decide_track
     from lab.bench.decisions import CLAIM_SCENES
     from lab.bench.track import track_recordings
@@ -227,8 +227,8 @@ def test_a_track_check_uses_the_track_figure(site: dict, capsys, monkeypatch, tr
     for serial, slug in ((SERIALS["m300"], "m300"), ("1581BBENCH00600T", "m600")):  # both registered and active
         main(["register", "--serial", serial, "--model", slug, "--valid-from", "2025-01-01T00:00:00Z"])
     checker = Checker()
-    assert checker._confusable(clf, "m300") is True
-    assert checker._confusable(clf, "m300", tracks=True) is bool(track_pairs)
+    assert _flag(checker._confusable_models(clf, "m300")) is True
+    assert _flag(checker._confusable_models(clf, "m300", tracks=True)) is bool(track_pairs)
     scene = sample_scene(np.random.default_rng(5), shipped_profiles()["m300"], replace(CLAIM_SCENES, snr_db=20.0))
     recs = track_recordings(scene, "paper", [1, 2, 3], SERIALS["m300"], world="heldout")
     out = decide_track(checker, [Dwell.recording(r, f"d{i}") for i, r in enumerate(recs)])
