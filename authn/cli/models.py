@@ -85,9 +85,12 @@ def train(
                       nuisance=NuisanceDistribution() if randomise else None)
     console = Console(stderr=as_json)  # with --json, stdout carries only the JSON object
     per = seconds_per_return(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed))
-    total = n + n_val + cfg.n_unknown_val + len(cfg.test_snrs) * (n_test + (max(n_test // 2, 10) if n_test else 0))
+    n_cal = 0 if randomise else n_val  # the temperature's randomised validation set (training randomised: val itself)
+    total = (n + n_val + n_cal + cfg.n_unknown_val
+             + len(cfg.test_snrs) * (n_test + (max(n_test // 2, 10) if n_test else 0)))
     eta = total * per / min(workers, os.cpu_count() or 1)
     console.print(f"[bold]{wf.name}[/]: {wf.describe()}. Simulating {total} returns ({n} train, {n_val} validation"
+                  + (f", {n_cal} randomised for calibration" if n_cal else "")
                   + (f", {n_test} test per SNR" if n_test else "") + f") at {per * 1e3:.0f} ms each: about "
                   f"{eta / 60:.1f} min with {workers} workers, plus fitting (cached datasets are reused).")
     t0 = time.perf_counter()
