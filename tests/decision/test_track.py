@@ -93,20 +93,28 @@ def test_a_type_spoof_track_crosses_the_reject_bound(setup, capsys) -> None:
     assert all(d["llr"] < 0 for d in out["dwells"])
 
 
-def test_a_position_spoof_stops_the_track_on_its_first_dwell(setup, capsys) -> None:
-    root, db, _ = setup
-    sc = Scene(kind="uav", profile=shipped_profiles()["m300"], snr_db=20.0, range_m=400.0, radial_speed_mps=3.0)
-    folder = root / "position"
-    folder.mkdir()
-    from authn.scenario import Broadcast, simulate_flight
-    from signatures.radar import get_preset
+def _m300_track(folder: Path, dwells: int, seed: int, astray: tuple[int, ...]) -> Path:
+    """A genuine M300's track at 20 dB whose Remote ID declares a position 150 m beyond the truth in
+    the dwells `astray`."""
     from datetime import datetime, timedelta, timezone
 
+    from authn.scenario import Broadcast, simulate_flight
+    from signatures.radar import get_preset
+
+    sc = Scene(kind="uav", profile=shipped_profiles()["m300"], snr_db=20.0, range_m=400.0, radial_speed_mps=3.0)
+    folder.mkdir()
     t0 = datetime.now(timezone.utc)
-    for i in range(3):
-        rec, _ = simulate_flight(sc, get_preset("paper"), 300 + i, Broadcast(serial=M300, offset_along_los_m=150.0),
-                                 azimuth_deg=60.0, start_time=t0 + timedelta(seconds=i))
+    for i in range(dwells):
+        bc = Broadcast(serial=M300, offset_along_los_m=150.0 if i in astray else 0.0)
+        rec, _ = simulate_flight(sc, get_preset("paper"), seed + i, bc, azimuth_deg=60.0,
+                                 start_time=t0 + timedelta(seconds=i))
         write_recording(rec, folder / f"dwell_{i:06d}.h5")
+    return folder
+
+
+def test_a_position_spoof_stops_the_track_on_its_first_dwell(setup, capsys) -> None:
+    root, db, _ = setup
+    folder = _m300_track(root / "position", 3, 300, astray=(0, 1, 2))
     code, out, _ = _run(db, capsys, str(folder))
     assert code == 1 and "range-mismatch" in out["reasons"] and out["dwells_used"] == 1
     assert out["dwells_skipped"] == 2
@@ -120,19 +128,7 @@ def test_the_track_judges_the_kinematics_of_most_of_its_dwells(setup, capsys, as
     """The track's kinematic residual is its dwells' lower median: a declaration that misses the
     radar in one dwell of several is not a spoof, one that misses in most is."""
     root, db, _ = setup
-    sc = Scene(kind="uav", profile=shipped_profiles()["m300"], snr_db=20.0, range_m=400.0, radial_speed_mps=3.0)
-    folder = root / f"astray-{len(astray)}"
-    folder.mkdir()
-    from authn.scenario import Broadcast, simulate_flight
-    from signatures.radar import get_preset
-    from datetime import datetime, timedelta, timezone
-
-    t0 = datetime.now(timezone.utc)
-    for i in range(DWELLS):
-        bc = Broadcast(serial=M300, offset_along_los_m=150.0 if i in astray else 0.0)
-        rec, _ = simulate_flight(sc, get_preset("paper"), 400 + i, bc, azimuth_deg=60.0,
-                                 start_time=t0 + timedelta(seconds=i))
-        write_recording(rec, folder / f"dwell_{i:06d}.h5")
+    folder = _m300_track(root / f"astray-{len(astray)}", DWELLS, 400, astray)
     code, out, _ = _run(db, capsys, str(folder))
     assert out["decision"] == decision and reason in out["reasons"] and code == (0 if decision == "accept" else 1)
     if decision == "reject":
