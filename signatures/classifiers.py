@@ -87,7 +87,7 @@ def vote_weights(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndar
     for w in itertools.product(range(4), repeat=len(probs)):
         if not any(w):
             continue
-        p = sum(wi * pi for wi, pi in zip(w, probs)) / sum(w)
+        p = _weighted_mean(probs, w)
         key = (-float(np.mean(p.argmax(1) == y_val)), -float(np.mean(np.log(p[np.arange(len(y_val)), y_val] + 1e-12))))
         if best is None or key < best:
             best, chosen = key, [float(x) for x in w]
@@ -95,9 +95,13 @@ def vote_weights(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndar
 
 
 def soft_vote(members: dict[str, Pipeline], X: np.ndarray, weights: list[float]) -> np.ndarray:
-    """The members' weighted mean probabilities: the ensemble's vote before calibration."""
-    total = float(sum(weights))
-    return sum(w * m.predict_proba(X) for w, m in zip(weights, members.values()) if w) / total
+    """The members' weighted mean probabilities: the ensemble's vote before calibration (members of
+    weight 0 are not run)."""
+    return _weighted_mean([m.predict_proba(X) if w else 0.0 for w, m in zip(weights, members.values())], weights)
+
+
+def _weighted_mean(probs: list, weights) -> np.ndarray:
+    return sum(w * p for w, p in zip(weights, probs) if w) / float(sum(weights))
 
 
 def bounded_temperature(proba: np.ndarray, y: np.ndarray) -> float:
