@@ -53,8 +53,11 @@ DEFAULT_FALSE_ACCEPT = 1e-3
 DEFAULT_FALSE_REJECT = 1e-2
 #: Correlation of the verification LLRs of dwells of one airframe (intra-class correlation).
 #: Measured at most 0.07 on the training simulator (paper preset, SNR 0-20 dB, genuine and
-#: type-spoof tracks) and 0.09 on the held-out signal model (docs/tracks.md, "Dependence";
-#: `authn bench --track [--world heldout]`); 0.2 is a margin over both. Not fitted to any decision rate.
+#: type-spoof tracks); on the held-out signal model 0.07-0.09 for type spoofs and 0.37-0.50 for
+#: genuine tracks, whose one airframe, read wrongly, repeats (docs/tracks.md, "Dependence";
+#: `authn bench --track [--world heldout]`). 0.2 is a margin over the impostors' dependence, which
+#: is what the false-accept target needs; genuine dependence above it costs false rejects only.
+#: Not fitted to any decision rate.
 DWELL_CORRELATION = 0.2
 #: Most a single dwell adds to (or takes from) the track's LLR, nats: below the accept bound, so
 #: no track is accepted on one dwell alone.
