@@ -54,6 +54,7 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
         base_samples: int, log=print) -> dict:
     """Enrol at each size, check the test claims with the shipped and each site bundle."""
     from authn.check import Checker
+    from authn.enrolment import site_sample
     from authn.scenario import Broadcast
     from lab.heldout import unseen_profiles
     from signatures.profiles import shipped_profiles
@@ -66,13 +67,16 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
     slugs, unseen = list(shipped), list(unseen_profiles())
     now = datetime.now(timezone.utc)
     out: dict = {"world": world, "sizes": list(sizes), "n": n, "snrs": list(snrs), "seed": seed, "enrolments": {},
-                 "rates": {}, "eer": {}}
+                 "rates": {}, "eer": {}, "type_accuracy": {}}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
-        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log)
+        pool: list = []
+        db_url, bundles = _enrol_sizes(root, sizes, world, seed, base_samples, out, log, pool_out=pool)
         checkers = {name: Checker(db_url, model=folder) for name, folder in bundles.items()}
+        typers = _type_readers(bundles, pool, sizes, slugs, seed)
         trials: dict[tuple[str, float, str], list[tuple[str, tuple[str, ...], float]]] = defaultdict(list)
-        for snr, cat, _, claims, scene, rng in _test_claims(seed, 2, snrs, n, slugs, unseen, profiles, log):
+        typed: dict[str, list[bool]] = defaultdict(list)
+        for snr, cat, flies, claims, scene, rng in _test_claims(seed, 2, snrs, n, slugs, unseen, profiles, log):
             rec = render_claim(world, scene, pre, int(rng.integers(2**31)),
                                Broadcast(serial=bench_serial(claims)), float(rng.uniform(0.0, 360.0)), now)
             path = write_recording(rec, root / "claim.h5")
@@ -80,6 +84,11 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
                 o = checker.evaluate(path)
                 trials[(name, float(snr), cat)].append((o.decision, tuple(o.reasons),
                                                         verification_score(o.to_json()["radar"])))
+            if cat == "genuine":
+                x = site_sample(path, flies, None, rec)[0].features[None, :]
+                for name, read in typers.items():
+                    typed[f"{name}/{snr:g}"].append(read(x) == flies)
+    out["type_accuracy"] = {k: round(sum(v) / len(v), 4) for k, v in typed.items()}
     for (name, snr, cat), ts in trials.items():
         key = f"{name}/{snr:g}/{cat}"
         if cat == "genuine":
@@ -96,15 +105,38 @@ def run(sizes: tuple[int, ...], n: int, snrs: tuple[float, ...], world: str, see
     return out
 
 
+def _type_readers(bundles: dict[str, Path | None], pool: list, sizes: tuple[int, ...], slugs: list[str],
+                  seed: int) -> dict[str, object]:
+    """Name -> (feature row -> the airframe type it reads): each site bundle's ensemble (its most
+    probable of the enrolled types), and, as the baseline a site could fit without us, a plain
+    random forest on the site's own k recordings per airframe alone ('plain forest k')."""
+    from sklearn.ensemble import RandomForestClassifier
+
+    from signatures.inference import Classifier, bundle_dir
+
+    readers: dict[str, object] = {}
+    for name, folder in bundles.items():
+        clf = Classifier(folder or bundle_dir("paper"))
+        cols = [i for i, c in enumerate(clf.classes) if c in slugs]
+        readers[name] = lambda x, clf=clf, cols=cols: clf.classes[cols[int(np.argmax(clf.ensemble_proba(x)[0, cols]))]]
+    for k in sizes:
+        X = np.array([s.features for i, s in pool if i < k])
+        y = np.array([s.model for i, s in pool if i < k])
+        rf = RandomForestClassifier(n_estimators=300, random_state=seed, n_jobs=1).fit(np.nan_to_num(X), y)
+        readers[f"plain forest {k}"] = lambda x, rf=rf: str(rf.predict(np.nan_to_num(x))[0])
+    return readers
+
+
 def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base_samples: int, out: dict,
                  log, site_bands: bool = False, calibrate: bool = False,
-                 keys: dict | None = None) -> tuple[str, dict[str, Path | None]]:
+                 keys: dict | None = None, pool_out: list | None = None) -> tuple[str, dict[str, Path | None]]:
     """The bench registry and the site bundles: `max(sizes)` enrolment recordings per shipped
     airframe at 0-20 dB from the enrolment stream, the first k of each enrolled at each size k
     (with the check's sequential test: the card's track-level errors) as `authn models enrol`
     does; with `site_bands` also with site physics bands ('site-k site bands'), with `calibrate` also with
     the site's score calibration applied ('site-k calibrated'); `keys` (slug -> DRIP key): also a
-    keyed identity per slug (`register_identities`). (database URL, bundles)."""
+    keyed identity per slug (`register_identities`); `pool_out`: extended with (index within its
+    airframe, site sample) of every enrolment recording. (database URL, bundles)."""
     from authn.enrolment import site_sample
     from authn.scenario import Broadcast
     from authn.track import Sprt
@@ -130,6 +162,8 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
                                float(rng.uniform(0.0, 360.0)), now)
             path = write_recording(rec, root / "enrol" / f"{slug}-{i:03d}.h5")
             pool.append((i, site_sample(path, slug, db, rec)[0]))
+    if pool_out is not None:
+        pool_out.extend(pool)
     bundles: dict[str, Path | None] = {"shipped": None}
     # (site bands, score calibration): the default is what `authn models enrol` does (None: applied
     # where the site's cross-validated claims say it pays); --calibrate adds one with it forced on
@@ -377,6 +411,12 @@ def table(doc: dict) -> str:
             lines.append(f"| {name} | {snr:g} dB | {g['accepted']:.1%} / {g['accepted_signed_where_required']:.1%} | "
                          f"{t['rejected']:.1%} / {t['rejected_by_radar']:.1%} | {u['rejected']:.1%} | "
                          f"{doc['eer'][k + '/type_spoof']:.1%} / {doc['eer'][k + '/unseen']:.1%} |")
+    acc = doc.get("type_accuracy") or {}
+    if acc:
+        lines += ["", "| reads the type of genuine single dwells | " + " | ".join(f"{s:g} dB" for s in doc["snrs"]) + " |",
+                  "|---|" + "---|" * len(doc["snrs"])]
+        for name in dict.fromkeys(k.rsplit("/", 1)[0] for k in acc):
+            lines.append(f"| {name} | " + " | ".join(f"{acc[f'{name}/{s:g}']:.1%}" for s in doc["snrs"]) + " |")
     return "\n".join(lines)
 
 
