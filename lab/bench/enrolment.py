@@ -413,8 +413,8 @@ def table(doc: dict) -> str:
                          f"{doc['eer'][k + '/type_spoof']:.1%} / {doc['eer'][k + '/unseen']:.1%} |")
     acc = doc.get("type_accuracy") or {}
     if acc:
-        lines += ["", "| reads the type of genuine single dwells | " + " | ".join(f"{s:g} dB" for s in doc["snrs"]) + " |",
-                  "|---|" + "---|" * len(doc["snrs"])]
+        snrs = " | ".join(f"{s:g} dB" for s in doc["snrs"])
+        lines += ["", f"| reads the type of genuine single dwells | {snrs} |", "|---|" + "---|" * len(doc["snrs"])]
         for name in dict.fromkeys(k.rsplit("/", 1)[0] for k in acc):
             lines.append(f"| {name} | " + " | ".join(f"{acc[f'{name}/{s:g}']:.1%}" for s in doc["snrs"]) + " |")
     return "\n".join(lines)
