@@ -25,7 +25,9 @@ Method (fixed a priori, measured in docs/benchmarks.md "Site enrolment"):
    the applied threshold exceeds `CONFUSABLE_ERROR` (the policy then asks for a DRIP signature,
    `radar-confusable-unsigned`), of single dwells and of tracks (`track_rates`: tracks of
    `TRACK_DWELLS` drawn from a model's cross-validated dwell scores, decided by the check's own
-   sequential test, passed in as `sprt` since it lives above this layer);
+   sequential test, passed in as `sprt` since it lives above this layer), and every pair with
+   fewer than `MIN_SEPARABLE_CLAIMS` cross-validated claims: too few to show radar can separate
+   it, so fewer recordings never mean fewer signatures asked for;
 6. optionally (`physics_bands`, `models enrol --site-bands`; off by default: measured not to help
    on the held-out world, docs/enrolment.md) each enrolled model's rate and rotor bands from its
    site recordings (`site_bands`), today's `signatures.verify` bands the prior; out of fold in the
@@ -59,7 +61,8 @@ from signatures.errors import SignaturesError
 from signatures.profiles import UavProfile
 from signatures.radar import Preset
 
-__all__ = ["CALIBRATION_GAIN", "CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS", "N_SIM",
+__all__ = ["CALIBRATION_GAIN", "CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS",
+           "MIN_SEPARABLE_CLAIMS", "N_SIM",
            "SITE_SHARE", "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts",
            "default_name", "enrol", "site_bands", "previous_samples", "read_labels", "track_rates"]
 
@@ -67,6 +70,10 @@ __all__ = ["CALIBRATION_GAIN", "CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT
 MIN_RECORDINGS = 5
 #: A pair whose cross-validated pairwise false-accept rate exceeds this is radar-confusable.
 CONFUSABLE_ERROR = 0.01
+#: Fewest cross-validated claims (both directions) that can show a pair separable: with none of
+#: them accepted, the pair's false-accept rate is below 10 % at 95 % confidence (the zero-failure
+#: bound, 1 - 0.9 ** n >= 0.95); a pair with fewer is radar-confusable whatever its rate.
+MIN_SEPARABLE_CLAIMS = math.ceil(math.log(1.0 - 0.95) / math.log(1.0 - 0.10))
 #: Genuine acceptance the score calibration must add, on the site's cross-validated claims, before
 #: `authn models enrol` applies it unasked (fixed a priori: a gain the folds' noise does not make).
 CALIBRATION_GAIN = 0.05
@@ -418,13 +425,22 @@ def _pair_tracks(dwell_scores: dict[tuple[str, str], list[DwellScore]], a: str, 
             len(dwell_scores.get((b, a), []))}
 
 
+def _single_confusable(pair: dict[str, Any]) -> bool:
+    """Radar-confusable for single-dwell checks: the cross-validated false-accept rate above the
+    line, or too few claims (`MIN_SEPARABLE_CLAIMS`) to show it below."""
+    sd = pair["single_dwell"]
+    if sd["claims"] < MIN_SEPARABLE_CLAIMS:
+        return True
+    return sd["false_accept_rate"] is not None and sd["false_accept_rate"] > CONFUSABLE_ERROR
+
+
 def _track_confusable(pair: dict[str, Any]) -> bool:
     """Radar-confusable for track checks: the track-level false-accept rate above the line, or,
-    where tracks could not reach `TRACK_DWELLS` dwells (too few recordings), the single-dwell verdict."""
+    where tracks could not reach `TRACK_DWELLS` dwells (too few recordings), the single-dwell verdict.
+    Drawn tracks reuse the same recordings, so too few claims is confusable at this level too."""
     t, sd = pair.get("tracks"), pair["single_dwell"]
-    single = sd["false_accept_rate"] is not None and sd["false_accept_rate"] > CONFUSABLE_ERROR
-    if not t or t["false_accept_rate"] is None or t["dwells"] < TRACK_DWELLS:
-        return single
+    if not t or t["false_accept_rate"] is None or t["dwells"] < TRACK_DWELLS or sd["claims"] < MIN_SEPARABLE_CLAIMS:
+        return _single_confusable(pair)
     return t["false_accept_rate"] > CONFUSABLE_ERROR
 
 
@@ -575,9 +591,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                 "false_accept_rate": round(n_fa / len(fa), 6) if fa else None, "false_accepts": n_fa, "claims": len(fa),
                 "classifier_confusion_rate": round(conf / (det_counts[a] + det_counts[b]), 6)},
                 "tracks": _pair_tracks(dwell_scores, a, b, sprt, seed)})
-    confusable = [p["models"] for p in pairs
-                  if p["single_dwell"]["false_accept_rate"] is not None
-                  and p["single_dwell"]["false_accept_rate"] > CONFUSABLE_ERROR]
+    confusable = [p["models"] for p in pairs if _single_confusable(p)]
     confusable_tracks = [p["models"] for p in pairs if _track_confusable(p)]
     g = np.asarray(genuine)
     tracks_card = None if sprt is None else {
@@ -664,7 +678,8 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                     "note": "mean cross-validated LLR of genuine claims, nats: with calibrated scores what a "
                             "genuine dwell is worth (its expected LLR); a track of `tracks.dwells` needs the "
                             "accept bound times (1 + (n - 1) rho) / n per dwell"}},
-                "pairwise": pairs, "confusable_error": CONFUSABLE_ERROR, "confusable_pairs": confusable,
+                "pairwise": pairs, "confusable_error": CONFUSABLE_ERROR,
+                "min_separable_claims": MIN_SEPARABLE_CLAIMS, "confusable_pairs": confusable,
                 "confusable_pairs_tracks": confusable_tracks if sprt is not None else None,
                 "tracks": tracks_card,
                 "sources": [{"file": s.name, "sha256": s.sha256, "model": s.model} for s in samples],

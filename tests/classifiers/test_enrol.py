@@ -100,8 +100,10 @@ def test_enrol_register_check_uses_the_site_bundle(site: dict, capsys) -> None:
     assert {cal["choice"][k]["level"] for k in ("calibrated", "uncalibrated")} == {"tracks"}
     assert e["method"]["score_calibration"].startswith("none") is not cal["applied"]
     assert set(e["tracks"]["genuine_accept"]) == {"m300", "m600", "phantom4"}
-    # 5 recordings make tracks of 5 dwells, short of the 8 a site decides on: the single-dwell verdict stands
-    assert e["confusable_pairs_tracks"] == e["confusable_pairs"]
+    # 5 recordings per model give each pair about 10 claims, too few to show it separable: every pair
+    # is radar-confusable, over single dwells and over tracks (whose 5 dwells are short of 8 anyway)
+    assert e["min_separable_claims"] == 29 and all(p["single_dwell"]["claims"] < 29 for p in e["pairwise"])
+    assert e["confusable_pairs"] == e["confusable_pairs_tracks"] == [p["models"] for p in e["pairwise"]]
     assert e["threshold"]["applied"] == 0.0 and e["threshold"]["false_accept_target"] == 0.01
     assert {s["file"] for s in e["sources"]} == {str(p) for p in flights.glob("*.h5")}
     assert all(len(s["sha256"]) == 64 for s in e["sources"])
@@ -238,6 +240,23 @@ def test_a_track_check_uses_the_track_figure(site: dict, capsys, monkeypatch, tr
     assert "radar-confusable-unsigned" in single.reasons  # the single-dwell check keeps the single-dwell figure
 
 
+def test_too_few_claims_never_show_a_pair_separable() -> None:
+    """A pair the cross-validation saw no false accept in is separable only with enough claims to
+    bound its rate (under 10 % at 95 %: 29); with fewer it is radar-confusable at both levels,
+    whatever its tracks say, so that enrolling fewer recordings never asks for fewer signatures."""
+    from signatures.enrol import MIN_SEPARABLE_CLAIMS, _single_confusable, _track_confusable
+
+    assert MIN_SEPARABLE_CLAIMS == 29 and 1 - 0.9 ** 29 >= 0.95 > 1 - 0.9 ** 28
+    clean_tracks = {"false_accept_rate": 0.0, "false_accepts": 0, "claims": 800, "dwells": 8}
+    for claims, confusable in ((10, True), (28, True), (29, False), (60, False)):
+        pair = {"single_dwell": {"false_accept_rate": 0.0, "false_accepts": 0, "claims": claims},
+                "tracks": clean_tracks}
+        assert _single_confusable(pair) is confusable
+        assert _track_confusable(pair) is confusable
+    busy = {"single_dwell": {"false_accept_rate": 2 / 60, "false_accepts": 2, "claims": 60}, "tracks": clean_tracks}
+    assert _single_confusable(busy) is True and _track_confusable(busy) is False
+
+
 def test_track_errors_separate_a_pair_single_dwells_cannot() -> None:
     """Cross-validated dwell scores of a pair with 25 % single-dwell false accepts (weakly
     positive LLRs among negative ones) are accepted on no drawn 8-dwell track; the pair is then
@@ -247,7 +266,7 @@ def test_track_errors_separate_a_pair_single_dwells_cannot() -> None:
     from signatures.enrol import TRACK_DWELLS, _pair_tracks, _track_confusable, track_rates
 
     impostor = [(0.5, True)] * 5 + [(-1.5, True)] * 15
-    sd = {"false_accept_rate": 0.25, "false_accepts": 5, "claims": 20}
+    sd = {"false_accept_rate": 0.25, "false_accepts": 10, "claims": 40}
     t = _pair_tracks({("a", "b"): impostor, ("b", "a"): impostor}, "a", "b", Sprt(), seed=0)
     assert t["false_accept_rate"] == 0.0 and t["dwells"] == TRACK_DWELLS and t["claims"] > 0
     assert _track_confusable({"single_dwell": sd, "tracks": t}) is False
