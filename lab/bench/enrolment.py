@@ -131,7 +131,8 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
                  log, site_bands: bool = False, calibrate: bool = False,
                  keys: dict | None = None, pool_out: list | None = None) -> tuple[str, dict[str, Path | None]]:
     """The bench registry and the site bundles: `max(sizes)` enrolment recordings per shipped
-    airframe at 0-20 dB from the enrolment stream, the first k of each enrolled at each size k
+    airframe at 0-20 dB from the enrolment stream (a generator per recording, so that recording i
+    of an airframe is the same whatever `sizes` asks for), the first k of each enrolled at each size k
     (with the check's sequential test: the card's track-level errors) as `authn models enrol`
     does; with `site_bands` also with site physics bands ('site-k site bands'), with `calibrate` also with
     the site's score calibration applied ('site-k calibrated'); `keys` (slug -> DRIP key): also a
@@ -153,10 +154,10 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
     db_url = f"sqlite:///{root / 'bench.sqlite3'}"
     register_identities(db_url, keys)
     db = Database(db_url)
-    rng = np.random.default_rng([seed, 1])  # the enrolment stream
     pool = []
-    for slug in shipped:
+    for s_idx, slug in enumerate(shipped):
         for i in range(max(sizes)):
+            rng = np.random.default_rng([seed, 1, s_idx, i])  # the enrolment stream: one per recording
             scene = sample_scene(rng, shipped[slug], replace(CLAIM_SCENES, snr_db=(0.0, 20.0)))
             rec = render_claim(world, scene, pre, int(rng.integers(2**31)), Broadcast(serial=bench_serial(slug)),
                                float(rng.uniform(0.0, 360.0)), now)
@@ -192,7 +193,7 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
 
 def _test_claims(seed: int, stream: int, snrs: tuple[float, ...], n: int, slugs: list[str], unseen: list[str],
                  profiles: dict, log=print):
-    """The test claims of one random stream, disjoint from the enrolment stream ([seed, 1]): for each
+    """The test claims of one random stream, disjoint from the enrolment stream ([seed, 1, ...]): for each
     SNR and category, n (snr, category, flown, claimed, scene, rng), the generator drawing on; a
     progress line after each SNR and category."""
     from signatures.sampling import sample_scene
