@@ -777,6 +777,24 @@ class FlashTrain:
     rotors_seen_std: np.ndarray
 
 
+def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sum, difference) of the approaching and receding halves' power envelopes of each row of
+    long-dwell gates `slow` (B, pulses, bins), each (B, pulses): demodulated by the body Doppler,
+    the body's +-SPECTRAL_BODY_HZ dropped (`spectral_flash_rate` says why the sum and the difference)."""
+    n = slow.shape[1]
+    t = np.arange(n)
+    demod = np.exp((-2j * math.pi * body_hz * config.pri_s)[:, None] * t)
+    x = (slow * demod[:, :, None]).astype(np.complex64)
+    spec = np.fft.fft(x - x.mean(axis=1, keepdims=True), axis=1)
+    f = np.fft.fftfreq(n, d=config.pri_s)
+    keep = np.abs(f) > SPECTRAL_BODY_HZ
+    halves = []
+    for half in (f > 0, f < 0):
+        part = np.fft.ifft(spec * (keep & half)[None, :, None], axis=1)
+        halves.append((part.real ** 2 + part.imag ** 2).sum(axis=2))
+    return halves[0] + halves[1], halves[0] - halves[1]
+
+
 def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> FlashTrain:
     """The flash train of each row of long-dwell gates `slow` (B, pulses, bins): its rate (Hz),
     std and score, and the rotors seen (`_rotors_seen`).
@@ -799,17 +817,7 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     harmonic sum, less SPECTRAL_NOISE_LOG (as the period search's score, >= 1 is a periodic
     train)."""
     b_rows, n = slow.shape[0], slow.shape[1]
-    t = np.arange(n)
-    demod = np.exp((-2j * math.pi * body_hz * config.pri_s)[:, None] * t)
-    x = (slow * demod[:, :, None]).astype(np.complex64)
-    spec = np.fft.fft(x - x.mean(axis=1, keepdims=True), axis=1)
-    f = np.fft.fftfreq(n, d=config.pri_s)
-    keep = np.abs(f) > SPECTRAL_BODY_HZ
-    halves = []
-    for half in (f > 0, f < 0):
-        part = np.fft.ifft(spec * (keep & half)[None, :, None], axis=1)
-        halves.append((part.real ** 2 + part.imag ** 2).sum(axis=2))
-    total, diff = halves[0] + halves[1], halves[0] - halves[1]
+    total, diff = flash_envelope(slow, config, body_hz)
     power = _whitened(np.abs(np.fft.rfft(total - total.mean(axis=1, keepdims=True), axis=1)) ** 2)
     asym = _whitened(np.abs(np.fft.rfft(diff - diff.mean(axis=1, keepdims=True), axis=1)) ** 2)
     df = config.prf_hz / n

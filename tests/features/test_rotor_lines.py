@@ -1,0 +1,66 @@
+"""The candidate long-dwell rotor count (`lab.rotor_lines`): noise makes no rotor, each rotor that
+stands above the noise is one line, and the count does not depend on the envelope's scale."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lab.rotor_lines import visible_rotors
+
+PRF = 5000.0
+
+
+def _noise(n: int, rng: np.random.Generator) -> np.ndarray:
+    """A power envelope of complex Gaussian noise in two halves (what `flash_envelope` sums)."""
+    z = rng.standard_normal((2, n)) + 1j * rng.standard_normal((2, n))
+    return (np.abs(z) ** 2).sum(axis=0)
+
+
+def _rotors(n: int, flash_hz: float, offsets: list[float], amplitude: float, rng: np.random.Generator) -> np.ndarray:
+    """Noise plus one flash train per rotor: Gaussian flashes 6 % of a period wide, each rotor at its
+    own rate (flash_hz x (1 + offset)) and phase."""
+    t = np.arange(n) / PRF
+    out = _noise(n, rng)
+    for off in offsets:
+        phase = ((t * flash_hz * (1.0 + off)) + rng.uniform()) % 1.0
+        dist = np.minimum(phase, 1.0 - phase)
+        out += amplitude * np.exp(-0.5 * (dist / 0.06) ** 2)
+    return out
+
+
+def test_noise_alone_makes_no_rotor() -> None:
+    rng = np.random.default_rng(0)
+    for n in (4096, 50_000):
+        for flash_hz in (130.0, 330.0):
+            for _ in range(3):
+                assert visible_rotors(_noise(n, rng), flash_hz / PRF) == []
+
+
+def test_each_rotor_above_the_noise_is_one_line() -> None:
+    rng = np.random.default_rng(1)
+    offsets = [0.0, 0.004, -0.007, 0.011]
+    for k in range(1, 5):
+        lines = visible_rotors(_rotors(4096, 320.0, offsets[:k], 4.0, rng), 320.0 / PRF)
+        assert len(lines) == k
+        assert all(line.z >= lines[-1].z for line in lines)  # strongest first
+
+
+def test_a_rotor_under_the_noise_is_not_seen() -> None:
+    rng = np.random.default_rng(2)
+    assert visible_rotors(_rotors(4096, 320.0, [0.0, 0.005], 0.002, rng), 320.0 / PRF) == []
+
+
+def test_no_rate_or_too_short_a_dwell_sees_nothing() -> None:
+    rng = np.random.default_rng(3)
+    assert visible_rotors(_noise(4096, rng), 0.0) == []
+    assert visible_rotors(_noise(100, rng), 320.0 / PRF) == []
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(min_value=-60, max_value=60))
+def test_the_count_does_not_depend_on_the_envelope_scale(log2_scale: int) -> None:
+    env = _rotors(4096, 320.0, [0.0, 0.006, -0.009], 4.0, np.random.default_rng(4))
+    base = visible_rotors(env, 320.0 / PRF)
+    scaled = visible_rotors(env * 2.0 ** log2_scale, 320.0 / PRF)
+    assert [(line.slope, line.phase) for line in scaled] == [(line.slope, line.phase) for line in base]
+    assert len(base) == 3
