@@ -16,6 +16,7 @@ share (`MEMBERS`, `calibrate`).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 
 import numpy as np
 from sklearn.ensemble import RandomForestClassifier
@@ -28,7 +29,7 @@ from sklearn.svm import SVC
 from signatures.inference import MEMBERS, calibrate
 
 __all__ = ["BETA_RANGE", "bounded_temperature", "fit_members", "fit_state_head", "forest_arrays", "knn_arrays",
-           "make_knn", "make_member", "make_rf", "make_svm", "soft_vote", "vote_weights"]
+           "make_knn", "make_member", "make_rf", "make_svm", "soft_vote", "vote_weights", "weighted_vote"]
 
 #: Inverse temperatures a calibration may choose from: 0.25 (a quarter as sure) to 8 (p ** 8).
 BETA_RANGE = (0.25, 8.0)
@@ -74,20 +75,20 @@ def fit_members(X: np.ndarray, y: np.ndarray, seed: int) -> dict[str, Pipeline]:
     return {name: _fit(make_member(name, seed), X, y) for name in MEMBERS}
 
 
-def vote_weights(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndarray) -> list[float]:
-    """Integer member weights (0-3 each) with the best validation accuracy, then log-loss.
+def vote_weights(probs: Sequence[np.ndarray], y_val: np.ndarray) -> list[float]:
+    """Integer member weights (0-3 each) with the best validation accuracy, then log-loss, from
+    each member's validation probabilities (in the members' order).
 
     Equal weights let the weakest member (kNN) drag the vote below the best one.
     """
     import itertools
 
-    probs = [m.predict_proba(X_val) for m in members.values()]
     best: tuple[float, float] | None = None
     chosen = [1.0] * len(probs)
     for w in itertools.product(range(4), repeat=len(probs)):
         if not any(w):
             continue
-        p = _weighted_mean(probs, w)
+        p = weighted_vote(probs, w)
         key = (-float(np.mean(p.argmax(1) == y_val)), -float(np.mean(np.log(p[np.arange(len(y_val)), y_val] + 1e-12))))
         if best is None or key < best:
             best, chosen = key, [float(x) for x in w]
@@ -97,10 +98,11 @@ def vote_weights(members: dict[str, Pipeline], X_val: np.ndarray, y_val: np.ndar
 def soft_vote(members: dict[str, Pipeline], X: np.ndarray, weights: list[float]) -> np.ndarray:
     """The members' weighted mean probabilities: the ensemble's vote before calibration (members of
     weight 0 are not run)."""
-    return _weighted_mean([m.predict_proba(X) if w else 0.0 for w, m in zip(weights, members.values())], weights)
+    return weighted_vote([m.predict_proba(X) if w else 0.0 for w, m in zip(weights, members.values())], weights)
 
 
-def _weighted_mean(probs: list, weights) -> np.ndarray:
+def weighted_vote(probs: Sequence, weights: Sequence[float]) -> np.ndarray:
+    """The weighted mean of members' probabilities (members of weight 0 left out)."""
     return sum(w * p for w, p in zip(weights, probs) if w) / float(sum(weights))
 
 

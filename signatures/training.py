@@ -154,7 +154,8 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
     cols = [i for i, n in enumerate(train.feature_names) if n not in GEOMETRY_FEATURES + LEVEL_FEATURES]
     Xt, Xv = train.X[:, cols], val.X[:, cols]
     members = clf.fit_members(Xt, y, cfg.seed)
-    weights = clf.vote_weights(members, Xv, yv)
+    val_probs = [m.predict_proba(Xv) for m in members.values()]  # once: the weights, the SVM export, the open set
+    weights = clf.vote_weights(val_probs, yv)
     beta = clf.bounded_temperature(clf.soft_vote(members, cal.X[:, cols], weights), _codes(cal))
     uav = np.isin(train.y, [p.slug for p in cfg.profiles])
     state_head = clf.fit_state_head(train.X[uav], train.moving[uav], cfg.seed)
@@ -174,9 +175,9 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         np.savez(tmp / "rf_state.npz", **clf.forest_arrays(state_head, 2))
         np.savez(tmp / "svm.npz", **clf.svm_arrays(members["svm"], n_cls))
         files += ["knn.npz", "rf.npz", "rf_state.npz", "svm.npz"]
-        export_err = {"svm": round(float(np.max(np.abs(SvmArrays(tmp / "svm.npz").proba(Xv)
-                                                        - members["svm"].predict_proba(Xv)))), 6)}
-        pred_val = clf.soft_vote(members, Xv, weights).argmax(axis=1)
+        svm_val = val_probs[list(members).index("svm")]
+        export_err = {"svm": round(float(np.max(np.abs(SvmArrays(tmp / "svm.npz").proba(Xv) - svm_val))), 6)}
+        pred_val = clf.weighted_vote(val_probs, weights).argmax(axis=1)
         openset = fit_openset(train.X, y, n_cls, val.X, yv, pred_val, cfg.openset_quantile,
                               class_cols=np.array(cols, dtype=np.int64), physics=phys, mode=cfg.openset_mode)
         np.savez(tmp / "openset.npz", **openset.arrays())  # only the shipped mode's tests

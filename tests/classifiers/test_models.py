@@ -66,6 +66,19 @@ def test_bounded_temperature_stops_at_its_bounds() -> None:
     assert clf.bounded_temperature(right, (y + 1) % 3) == pytest.approx(clf.BETA_RANGE[0])
 
 
+def test_vote_weights_come_from_the_members_validation_probabilities() -> None:
+    """The weights are chosen from probabilities computed once: a member that is always right
+    outweighs one that is always wrong, and the weighted vote then names every label."""
+    y = np.array([0, 1, 2, 1, 0, 2, 2, 1])
+    right = np.full((y.size, 3), 0.05)
+    right[np.arange(y.size), y] = 0.9
+    wrong = np.roll(right, 1, axis=1)
+    weights = clf.vote_weights([wrong, right], y)
+    assert weights[1] > weights[0]
+    assert (clf.weighted_vote([wrong, right], weights).argmax(axis=1) == y).all()
+    assert np.allclose(clf.weighted_vote([wrong, right], [0.0, 2.0]), right)  # a member of weight 0 is left out
+
+
 def test_openset_rejects_an_unseen_cluster_and_keeps_known_ones() -> None:
     X, y = _blobs(800, CENTRES, 0)
     Xv, yv = _blobs(400, CENTRES, 3)
