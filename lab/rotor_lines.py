@@ -31,7 +31,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from lab.accuracy import CONDITIONS, Estimate, feature_estimate
+from lab.accuracy import CONDITIONS, Estimate
 from signatures.recording import Recording
 
 #: Flash periods folded into one window (row) of the phase-time image.
@@ -128,21 +128,24 @@ def visible_rotors(envelope: np.ndarray, cycles_per_pulse: float, periods: int =
     return found
 
 
-def line_estimate(rec: Recording) -> Estimate:
-    """Today's estimators, with the rotors seen replaced by `visible_rotors` on the dwell's flash
-    envelope where the recording is a detected single-channel CW dwell (the channel is the gate)."""
+def _estimates(rec: Recording) -> tuple[Estimate, Estimate]:
+    """(today's estimators, the same with the rotors seen replaced by `visible_rotors` on the
+    dwell's flash envelope where the recording is a detected single-channel CW dwell: the channel
+    is the gate), from one extraction."""
     from signatures.features import extract
     from signatures.flash import flash_envelope
 
     result = extract(rec)
     f = result.features
-    seen = float(result.physics.get("rotors_seen", 0.0))
-    if rec.domain == "cw" and f.detected > 0:
-        iq = np.asarray(rec.iq)
-        body_hz = np.array([2.0 * float(f.radial_velocity_mps) / rec.config.wavelength_m])
-        total, _ = flash_envelope(iq.reshape(1, iq.shape[0], -1), rec.config, body_hz)
-        seen = float(len(visible_rotors(total[0], float(f.flash_rate_hz) * rec.config.pri_s)))
-    return Estimate(bool(f.detected > 0), float(f.rotor_rate_hz), float(f.radial_velocity_mps), seen)
+    today = Estimate(bool(f.detected > 0), float(f.rotor_rate_hz), float(f.radial_velocity_mps),
+                     float(result.physics.get("rotors_seen", 0.0)))
+    if rec.domain != "cw" or not today.detected:
+        return today, today
+    iq = np.asarray(rec.iq)
+    body_hz = np.array([2.0 * today.radial_velocity_mps / rec.config.wavelength_m])
+    total, _ = flash_envelope(iq.reshape(1, iq.shape[0], -1), rec.config, body_hz)
+    seen = float(len(visible_rotors(total[0], float(f.flash_rate_hz) * rec.config.pri_s)))
+    return today, Estimate(today.detected, today.rotor_rate_hz, today.radial_velocity_mps, seen)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -162,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
             by: dict[int, list[tuple[float, float]]] = {}
             for i in range(a.n):  # the seeds of evaluate_condition(seed=0)
                 rec, scene, _, _, rotors = render_condition(CONDITIONS[cond], world, i)
-                today, lines = feature_estimate(rec), line_estimate(rec)
+                today, lines = _estimates(rec)
                 ok_today += abs(today.rotors_seen - rotors) <= 1
                 ok_lines += abs(lines.rotors_seen - rotors) <= 1
                 by.setdefault(min(scene.tagged_blades, 4), []).append((today.rotors_seen, lines.rotors_seen))

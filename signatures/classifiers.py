@@ -5,9 +5,8 @@ scaling inside a Pipeline, and a soft-voting ensemble of the three whose average
 probabilities are calibrated by temperature scaling (one parameter: it fixes the
 over-/under-confidence of the average without changing its arg-max), fitted over a
 bounded range: on a set the vote classifies perfectly the maximum-likelihood
-temperature runs off to certainty (an inverse temperature of 163 was fitted once),
-and no simulator earns that. Labels are integer codes into the card's class list, so the
-exported ONNX outputs line up with it column for column.
+temperature runs off to certainty, and no simulator earns that. Labels are integer
+codes into the card's class list, so the exported arrays line up with it column for column.
 
 Inference never imports this module: see `signatures.inference`, which owns what both sides
 share (`MEMBERS`, `calibrate`).

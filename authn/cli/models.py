@@ -551,10 +551,11 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
     for p in e["pairwise"]:
         sd = p["single_dwell"]
         fa = "n/a" if sd["false_accept_rate"] is None else f"{sd['false_accept_rate']:.1%}"
-        thin = sd["claims"] < e.get("min_separable_claims", 0)
-        mark = ("" if p["models"] not in e["confusable_pairs"] else
-                f"  radar-confusable (fewer than {e['min_separable_claims']} claims cannot show it separable): "
-                "unsigned claims rejected" if thin else "  radar-confusable: unsigned claims rejected")
+        mark = ""
+        if p["models"] in e["confusable_pairs"]:
+            why = (f" (fewer than {e['min_separable_claims']} claims cannot show it separable)"
+                   if sd["claims"] < e.get("min_separable_claims", 0) else "")
+            mark = f"  radar-confusable{why}: unsigned claims rejected"
         console.print(f"  {p['models'][0]} / {p['models'][1]}: type spoofs accepted {fa} "
                       f"({sd['false_accepts']} of {sd['claims']} cross-validated claims){mark}")
         tr = p.get("tracks")
