@@ -250,6 +250,7 @@ class PairReach:
     rejected: float
     median_dwells: float
     track_eer: float
+    track_dwells: int = TRACK_DWELLS
 
 
 def _without_envelope(d: RenderedDwell) -> list[float]:
@@ -275,19 +276,19 @@ def _layout(ds: list[RenderedDwell], inputs: str, groups: dict[str, str] | None 
 
 
 def _pair_row(world: str, snr: float, inputs: str, fitted_on: str, a: str, b: str, llr: np.ndarray,
-              is_a: np.ndarray, sc: np.ndarray) -> PairReach:
+              is_a: np.ndarray, sc: np.ndarray, dwells: int = TRACK_DWELLS) -> PairReach:
     from authn.track import DWELL_CAP_NATS, DWELL_CORRELATION
 
     rho_g = scene_icc(llr[is_a], sc[is_a], DWELL_CAP_NATS)
-    gen = walk_scenes(llr[is_a], sc[is_a], DWELL_CORRELATION)
-    gen_m = walk_scenes(llr[is_a], sc[is_a], min(0.95, max(0.0, rho_g)))
-    imp = walk_scenes(llr[~is_a], sc[~is_a], DWELL_CORRELATION)
+    gen = walk_scenes(llr[is_a], sc[is_a], DWELL_CORRELATION, dwells=dwells)
+    gen_m = walk_scenes(llr[is_a], sc[is_a], min(0.95, max(0.0, rho_g)), dwells=dwells)
+    imp = walk_scenes(llr[~is_a], sc[~is_a], DWELL_CORRELATION, dwells=dwells)
     capped = np.clip(llr, -DWELL_CAP_NATS, DWELL_CAP_NATS)
     return PairReach(world, snr, inputs, fitted_on, a, b, round(float(capped[is_a].mean()), 3),
                      round(float(capped[~is_a].mean()), 3), round(rho_g, 3),
                      float(np.mean([d == "accept" for d, _ in gen])), float(np.mean([d == "accept" for d, _ in gen_m])),
                      float(np.mean([d != "accept" for d, _ in imp])), float(np.median([n for _, n in gen])),
-                     round(track_eer(llr, is_a, sc, DWELL_CAP_NATS), 4))
+                     round(track_eer(llr, is_a, sc, DWELL_CAP_NATS, dwells), 4), dwells)
 
 
 def _by_world_snr(dwells: list[RenderedDwell]):
@@ -296,7 +297,8 @@ def _by_world_snr(dwells: list[RenderedDwell]):
 
 
 def reach(dwells: list[RenderedDwell], inputs: str = "features+view", shares: tuple[float, ...] = (1.0,),
-          groups: dict[str, str] | None = None, per_class: int | None = None) -> list[PairReach]:
+          groups: dict[str, str] | None = None, per_class: int | None = None,
+          track_dwells: int = TRACK_DWELLS) -> list[PairReach]:
     """Per ordered pair of (grouped) airframes: the oracle's per-dwell evidence and the tracks it
     would decide. `groups` maps airframes to a group label (e.g. two radar-confusable models to one)."""
     out = []
@@ -309,11 +311,12 @@ def reach(dwells: list[RenderedDwell], inputs: str = "features+view", shares: tu
             for a, b in itertools.permutations(classes, 2):
                 llr, is_a = pair_llr(p, classes, y, scene_ids, a, b)
                 out.append(_pair_row(world, snr, inputs, f"{per_class} dwells" if per_class else f"{share:.0%}",
-                                     a, b, llr, is_a, scenes[(y == a) | (y == b)]))
+                                     a, b, llr, is_a, scenes[(y == a) | (y == b)], track_dwells))
     return out
 
 
-def transfer(dwells: list[RenderedDwell], inputs: str, fit_world: str = "training") -> list[PairReach]:
+def transfer(dwells: list[RenderedDwell], inputs: str, fit_world: str = "training",
+             track_dwells: int = TRACK_DWELLS) -> list[PairReach]:
     """The same learner fitted on all of `fit_world`'s dwells at an SNR and scored on every other
     world's at that SNR: whether what it learned holds in a world it never saw (what a shipped
     bundle must do). The LLR is the log ratio of the two probabilities, uncalibrated (a calibration
@@ -333,18 +336,20 @@ def transfer(dwells: list[RenderedDwell], inputs: str, fit_world: str = "trainin
         for a, b in itertools.permutations(classes, 2):
             sel = (y == a) | (y == b)
             llr = _log_ratio(p[sel], classes, a, b)
-            out.append(_pair_row(world, snr, inputs, f"{fit_world} world", a, b, llr, y[sel] == a, scenes[sel]))
+            out.append(_pair_row(world, snr, inputs, f"{fit_world} world", a, b, llr, y[sel] == a, scenes[sel],
+                                 track_dwells))
     return out
 
 
 def table(rows: list[PairReach]) -> list[str]:
     lines = ["| world | SNR dB | inputs | fitted on | genuine | impostor claiming it | mean LLR genuine / impostor "
              "| ICC genuine | genuine tracks accepted (rho 0.2 / measured) | impostor tracks rejected "
-             "| median dwells | 75-dwell track EER, any rule |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| median dwells | track EER, any rule (dwells) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r.world} | {r.snr_db:g} | {r.inputs} | {r.fitted_on} | {r.genuine} | {r.impostor} | "
                      f"{r.mean_genuine:+.2f} / {r.mean_impostor:+.2f} | {r.icc_genuine:.2f} | {r.accepted:.0%} / "
-                     f"{r.accepted_rho_measured:.0%} | {r.rejected:.0%} | {r.median_dwells:g} | {r.track_eer:.1%} |")
+                     f"{r.accepted_rho_measured:.0%} | {r.rejected:.0%} | {r.median_dwells:g} | "
+                     f"{r.track_eer:.1%} ({r.track_dwells}) |")
     return lines
 
 
@@ -366,9 +371,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="also fit on the training world and score the others with these inputs (repeatable)")
     ap.add_argument("--group", action="append", default=[], metavar="A,B",
                     help="also report with these airframes as one class (repeatable)")
+    ap.add_argument("--track-dwells", type=int, default=TRACK_DWELLS,
+                    help=f"dwells per track (default {TRACK_DWELLS}: 2 s of `paper` dwells; a site decides on 8)")
     ap.add_argument("--cache", help="dwells cache (JSON): read if present, else rendered and written")
     ap.add_argument("--json", help="write the rows to this file")
     a = ap.parse_args(argv)
+    if a.track_dwells < 1:
+        ap.error(f"--track-dwells {a.track_dwells}: at least 1")
     t0 = time.perf_counter()
     print(f"# {' '.join(['python -m lab.bench.reach', *(argv if argv is not None else sys.argv[1:])])}")
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
@@ -389,14 +398,15 @@ def main(argv: list[str] | None = None) -> int:
     print(f"# {len(dwells)} dwells rendered/read in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
     oracle = a.inputs or ([] if a.transfer else ["features", "features+view"])  # --transfer alone: its rows only
     rows = [r for inputs in oracle
-            for r in reach(dwells, inputs, tuple(a.share or [1.0]))]
+            for r in reach(dwells, inputs, tuple(a.share or [1.0]), track_dwells=a.track_dwells)]
     for inputs in a.transfer:
-        rows += transfer(dwells, inputs)
+        rows += transfer(dwells, inputs, track_dwells=a.track_dwells)
     for k in a.per_class:
-        rows += reach(dwells, "features+view", (1.0,), per_class=k)
+        rows += reach(dwells, "features+view", (1.0,), per_class=k, track_dwells=a.track_dwells)
     for spec in a.group:
         members = spec.split(",")
-        rows += reach(dwells, "features+view", (1.0,), {m: "+".join(members) for m in members})
+        rows += reach(dwells, "features+view", (1.0,), {m: "+".join(members) for m in members},
+                      track_dwells=a.track_dwells)
     print("\n".join(table(rows)))
     if a.json:
         with open(a.json, "w") as fh:

@@ -89,6 +89,10 @@ def test_the_track_eer_follows_the_random_effects_model() -> None:
     no_bias = np.where(is_a, 1.0, -1.0) + rng.standard_normal(scenes.size)
     assert track_eer(no_bias, is_a, scenes, 4.0) < 1e-6
     assert _eer_normal(1.0, 0.5, -1.0, 0.5) == pytest.approx(0.5 * math.erfc(2.0 / math.sqrt(2.0)), rel=1e-6)
+    # an 8-dwell track (what a site decides on) averages less of the dwell noise away
+    want8 = 0.5 * math.erfc(1.0 / math.sqrt(0.25 + 1 / 8) / math.sqrt(2.0))
+    assert track_eer(llr, is_a, scenes, 4.0, dwells=8) == pytest.approx(want8, abs=0.015)
+    assert want8 > want + 0.02
 
 
 def test_the_vector_without_the_envelope_drops_exactly_its_features() -> None:
@@ -115,3 +119,12 @@ def test_a_cache_of_another_feature_vector_is_refused_in_one_line(tmp_path, caps
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert "holds another feature vector" in err and "delete it" in err
+
+
+def test_a_track_of_no_dwells_is_refused_in_one_line(capsys) -> None:
+    from lab.bench.reach import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--track-dwells", "0"])
+    assert exc.value.code == 2
+    assert "--track-dwells 0" in capsys.readouterr().err.strip().splitlines()[-1]

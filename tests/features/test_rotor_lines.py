@@ -64,3 +64,17 @@ def test_the_count_does_not_depend_on_the_envelope_scale(log2_scale: int) -> Non
     scaled = visible_rotors(env * 2.0 ** log2_scale, 320.0 / PRF)
     assert [(line.slope, line.phase) for line in scaled] == [(line.slope, line.phase) for line in base]
     assert len(base) == 3
+
+
+def test_the_oracle_sees_each_tagged_rotor_alone_and_restores_the_simulator() -> None:
+    """Scene 37 of cw-hover-tagged (our simulator, 10 dB) tags all four rotors: each, rendered alone
+    and folded at its true rate, stands far above the noise; the simulator is itself again after."""
+    import signatures.simulate as sim
+    from lab.accuracy import CONDITIONS
+    from lab.rotor_lines import rotors_alone
+
+    before = sim._uav_amplitudes
+    rotors = rotors_alone(CONDITIONS["cw-hover-tagged"], 37)
+    assert sim._uav_amplitudes is before
+    assert [(v, t) for v, t, _ in rotors] == [(True, True)] * 4
+    assert min(z for _, _, z in rotors) > 8.0
