@@ -130,13 +130,20 @@ def render(world: str, snr: float, scenes: int, dwells: int, seed: int, workers:
         return [d for ds in ex.map(_render, jobs, chunksize=4) for d in ds]
 
 
+def per_airframe(rows: np.ndarray, airframes: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """At most `k` of `rows` of each airframe, drawn at random (a site enrols k recordings of each)."""
+    return np.concatenate([rng.permutation(rows[airframes[rows] == a])[:k] for a in sorted(set(airframes[rows]))])
+
+
 def out_of_fold(X: np.ndarray, y: np.ndarray, groups: np.ndarray, folds: int = 5, share: float = 1.0, seed: int = 0,
-                per_class: int | None = None, first: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+                per_class: int | None = None, first: np.ndarray | None = None,
+                airframes: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
     """Out-of-fold class probabilities of gradient-boosted trees (a random forest below
     `SMALL_FIT` rows, where boosting's leaves of 20 are too coarse), scenes never split across folds;
     `share` < 1 fits each fold on that share of its training scenes (the learning curve);
     `per_class` fits it on that many training scenes of each class, one dwell each (the rows where
-    `first` is true): what a site enrolling `per_class` recordings per airframe has."""
+    `first` is true): what a site enrolling `per_class` recordings per airframe has (per entry of
+    `airframes` where classes group several airframes; default: per class)."""
     from sklearn.ensemble import HistGradientBoostingClassifier, RandomForestClassifier
     from sklearn.model_selection import GroupKFold
 
@@ -149,7 +156,7 @@ def out_of_fold(X: np.ndarray, y: np.ndarray, groups: np.ndarray, folds: int = 5
             tr = tr[np.isin(groups[tr], keep)]
         if per_class is not None:
             tr = tr[first[tr]] if first is not None else tr
-            tr = np.concatenate([rng.permutation(tr[y[tr] == c])[:per_class] for c in classes])
+            tr = per_airframe(tr, y if airframes is None else airframes, per_class, rng)
         model = (HistGradientBoostingClassifier(max_iter=300, learning_rate=0.05, l2_regularization=1.0,
                                                 random_state=seed) if tr.size >= SMALL_FIT else
                  RandomForestClassifier(500, min_samples_leaf=2, random_state=seed, n_jobs=2)).fit(X[tr], y[tr])
@@ -307,7 +314,9 @@ def reach(dwells: list[RenderedDwell], inputs: str = "features+view", shares: tu
         scene_ids = np.unique(scenes, return_inverse=True)[1]
         first = np.r_[True, scenes[1:] != scenes[:-1]]  # a scene's first dwell (they are rendered in order)
         for share in shares:
-            p, classes = out_of_fold(X, y, scene_ids, share=share, per_class=per_class, first=first)
+            airframes = np.array([sc.split("/")[0] for sc in scenes])
+            p, classes = out_of_fold(X, y, scene_ids, share=share, per_class=per_class, first=first,
+                                     airframes=airframes)
             for a, b in itertools.permutations(classes, 2):
                 llr, is_a = pair_llr(p, classes, y, scene_ids, a, b)
                 out.append(_pair_row(world, snr, inputs, f"{per_class} dwells" if per_class else f"{share:.0%}",
@@ -370,7 +379,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--transfer", action="append", default=[], choices=tuple(_PARTS),
                     help="also fit on the training world and score the others with these inputs (repeatable)")
     ap.add_argument("--group", action="append", default=[], metavar="A,B",
-                    help="also report with these airframes as one class (repeatable)")
+                    help="also report with these airframes as one class (repeatable; with --per-class, each airframe "
+                         "fitted on that many)")
     ap.add_argument("--track-dwells", type=int, default=TRACK_DWELLS,
                     help=f"dwells per track (default {TRACK_DWELLS}: 2 s of `paper` dwells; a site decides on 8)")
     ap.add_argument("--cache", help="dwells cache (JSON): read if present, else rendered and written")
@@ -405,8 +415,9 @@ def main(argv: list[str] | None = None) -> int:
         rows += reach(dwells, "features+view", (1.0,), per_class=k, track_dwells=a.track_dwells)
     for spec in a.group:
         members = spec.split(",")
-        rows += reach(dwells, "features+view", (1.0,), {m: "+".join(members) for m in members},
-                      track_dwells=a.track_dwells)
+        for k in [None, *a.per_class]:
+            rows += reach(dwells, "features+view", (1.0,), {m: "+".join(members) for m in members}, per_class=k,
+                          track_dwells=a.track_dwells)
     print("\n".join(table(rows)))
     if a.json:
         with open(a.json, "w") as fh:

@@ -128,3 +128,13 @@ def test_a_track_of_no_dwells_is_refused_in_one_line(capsys) -> None:
         main(["--track-dwells", "0"])
     assert exc.value.code == 2
     assert "--track-dwells 0" in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def test_a_site_enrols_k_recordings_of_each_airframe_even_in_a_group() -> None:
+    from lab.bench.reach import per_airframe
+
+    airframes = np.array(["m300"] * 50 + ["m600"] * 40 + ["phantom4"] * 3)
+    picked = per_airframe(np.arange(airframes.size), airframes, 30, np.random.default_rng(0))
+    counts = {a: int(np.sum(airframes[picked] == a)) for a in ("m300", "m600", "phantom4")}
+    assert counts == {"m300": 30, "m600": 30, "phantom4": 3}  # a group of two keeps 30 of each
+    assert len(set(picked.tolist())) == picked.size
