@@ -819,6 +819,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
                      axis=1).tolist()
     detected_rows = np.asarray(detected, dtype=bool).tolist()
     seen_rows, seen_std_rows = np.asarray(seen).tolist(), np.asarray(seen_std).tolist()
+    lower_bound = not quick and dwell >= best.SPECTRAL_DWELL_S  # rotors visible, not every rotor's flashes
     gates = (g_lo + 0).tolist()
     out = []
     for j, b in enumerate(live.tolist()):
@@ -829,7 +830,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         make = _patch_maker(cube.patch_row, b, config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]),
                             fft_backend)
         out.append(F.FeatureResult(detected_rows[j], feats, make, (gates[j], gates[j] + size),
-                                   physics=F.physics_estimates(seen_rows[j], seen_std_rows[j])))
+                                   physics=F.physics_estimates(seen_rows[j], seen_std_rows[j], lower_bound)))
     return out
 
 

@@ -143,9 +143,14 @@ class FeatureResult:
         return self.features.radial_velocity_mps
 
 
-def physics_estimates(rotors_seen: float, rotors_seen_std: float) -> dict[str, float]:
-    """`FeatureResult.physics` from its estimates (one place for the single and batch paths)."""
-    return {"rotors_seen": float(rotors_seen), "rotors_seen_std": float(rotors_seen_std)}
+def physics_estimates(rotors_seen: float, rotors_seen_std: float, lower_bound: bool = False) -> dict[str, float]:
+    """`FeatureResult.physics` from its estimates (one place for the single and batch paths).
+    `lower_bound`: the count is of the rotors visible above the noise (a long dwell,
+    `signatures.rotor_lines`), marked `rotors_lower_bound` = 1 for the verification."""
+    out = {"rotors_seen": float(rotors_seen), "rotors_seen_std": float(rotors_seen_std)}
+    if lower_bound:
+        out["rotors_lower_bound"] = 1.0
+    return out
 
 
 def hover_range_bin(profile: np.ndarray, peak_bin: np.ndarray, noise: np.ndarray) -> np.ndarray:

@@ -42,7 +42,8 @@ from signatures.estimators import (
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.radar import RadarConfig
-from signatures.stats import distinct, quantile
+from signatures.rotor_lines import visible_rotors
+from signatures.stats import distinct
 
 __all__ = ["MEMORY_BUDGET_BYTES", "FlashSeriesBatch", "PeriodicityBatch", "flash_series_batch",
            "periodicity_batch"]
@@ -70,12 +71,9 @@ SPECTRAL_TAG_LINE = 10.0
 #: dwells (0-20 dB, 0-40 dB clutter), tagged-blade quads 0.17-0.83 at the lowest of 30 and >= 1 in
 #: 90 % of them in our world (tests/features/test_long_dwell.py).
 SPECTRAL_NOISE_LOG = 1.2
-#: Rotors seen on a long dwell (`_rotors_seen`): windows of this many flash periods, peaks of at
-#: least this share of the highest, this percentile of the windows' counts, std floor.
-FOLD_PERIODS = 6
-FOLD_PEAK_SHARE = 0.3
-FOLD_PERCENTILE = 90.0
-FOLD_MIN_STD = 0.5
+#: A long dwell's rotors visible (`signatures.rotor_lines`) are a count: its std is one line (a
+#: residue taken for a rotor, or two rotors at one phase taken for one).
+VISIBLE_STD = 1.0
 #: Bins per block of the whitening floor (`_whitened`).
 SPECTRAL_FLOOR_BINS = 32
 #: A CW dwell whose flash train scores this much is a detection: 5x the noise dwells' highest
@@ -773,7 +771,7 @@ class FlashTrain:
     rate_hz: np.ndarray
     rate_std_hz: np.ndarray
     score: np.ndarray
-    rotors_seen: np.ndarray
+    rotors_seen: np.ndarray  # rotors visible: a lower bound (`signatures.rotor_lines`)
     rotors_seen_std: np.ndarray
 
 
@@ -797,7 +795,7 @@ def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -
 
 def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> FlashTrain:
     """The flash train of each row of long-dwell gates `slow` (B, pulses, bins): its rate (Hz),
-    std and score, and the rotors seen (`_rotors_seen`).
+    std and score, and the rotors visible (`signatures.rotor_lines.visible_rotors`: a lower bound).
 
     Why: a dwell of SPECTRAL_DWELL_S or more holds hundreds of flashes, and the period search
     keeps only its strongest events; the flash train's envelope spectrum instead resolves the
@@ -856,42 +854,8 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     live = harm[rows, best] > 0.0
     rate = np.where(live, rate, 0.0)
     std = np.where(live, np.where(turn, 2.0, 1.0) * 0.5 * df / math.sqrt(SPECTRAL_HARMONICS), 0.0)
-    seen = np.array([_rotors_seen(total[b], rate[b] * config.pri_s) for b in range(b_rows)]).reshape(b_rows, 2)
-    return FlashTrain(rate, std, np.where(live, score, 0.0), seen[:, 0], seen[:, 1])
-
-
-def _rotors_seen(envelope: np.ndarray, cycles_per_pulse: float) -> tuple[float, float]:
-    """(rotors seen, std) from one row's approaching+receding envelope at its flash rate.
-
-    Each rotor flashes once per flash period at its own phase, so the envelope folded over a
-    few periods shows one peak per rotor; rotor rates differ by a fraction of a per cent, so the
-    phases drift over the dwell and flashes that coincide in one window part in another. Count
-    the peaks of the folded profile (local maxima of at least FOLD_PEAK_SHARE of the highest,
-    over the profile's median) in windows of FOLD_PERIODS periods and keep the FOLD_PERCENTILE
-    of the counts; std: half the spread between the counts' quartiles, at least FOLD_MIN_STD."""
-    if cycles_per_pulse <= 0.0:
-        return 0.0, 0.0
-    period = 1.0 / cycles_per_pulse
-    bins = max(8, int(period))
-    win = int(FOLD_PERIODS * period)
-    n = envelope.size
-    counts = []
-    for s in range(0, n - win + 1, max(win, 1)):
-        t = np.arange(s, s + win)
-        phase = np.minimum(((t * cycles_per_pulse) % 1.0 * bins).astype(int), bins - 1)
-        profile = (np.bincount(phase, weights=envelope[s:s + win], minlength=bins)
-                   / np.maximum(np.bincount(phase, minlength=bins), 1))
-        profile = profile - float(median_last(profile))
-        top = float(profile.max())
-        if top <= 0.0:
-            counts.append(0)
-            continue
-        peaks = (profile > np.roll(profile, 1)) & (profile >= np.roll(profile, -1)) & (profile >= FOLD_PEAK_SHARE * top)
-        counts.append(int(np.count_nonzero(peaks)))
-    if not counts:
-        return 0.0, 0.0
-    q1, q3 = quantile(counts, 25.0), quantile(counts, 75.0)
-    return quantile(counts, FOLD_PERCENTILE), max(FOLD_MIN_STD, 0.5 * (q3 - q1))
+    seen = np.array([float(len(visible_rotors(total[b], rate[b] * config.pri_s))) for b in range(b_rows)])
+    return FlashTrain(rate, std, np.where(live, score, 0.0), seen, np.where(seen > 0.0, VISIBLE_STD, 0.0))
 
 
 def _line(power: np.ndarray, at: np.ndarray) -> np.ndarray:

@@ -18,7 +18,11 @@ independent terms:
     the claim's rotor count lies in `ROTOR_BAND` (rotors flashing together count once, weak
     flashes are missed), blurred by the count's own 1/sqrt(flashes) and `ROTOR_REL_FLOOR`;
     under the alternative its log is uniform over `ROTOR_ALT_LOG_SPAN`. Left out below
-    `MIN_FLASH_GROUPS` flashes.
+    `MIN_FLASH_GROUPS` flashes. A long dwell's count is of the rotors *visible* above the noise
+    (`rotors_lower_bound`, `signatures.rotor_lines`): a lower bound, so it only vetoes: the
+    factor is the chance that the claim's count (its rotors, `VISIBLE_SLACK` lines over it at
+    most) reaches what was seen, blurred as above, never more than 1 (fewer rotors visible than
+    claimed is no evidence).
   The estimator's known failure, a whole-period slip of the flash rate, keeps `SLIP_WEIGHT` of
   the claim's mass at the `SLIPS` multiples, every ratio evaluated under the same slip.
 * **classifier**: the bundle's calibrated probability of the claimed class as log-odds against
@@ -73,6 +77,9 @@ ALT_LOG_SPAN = math.log(64.0)
 #: and weak flashes go unseen; above 1: a flash split wider than the gap.
 ROTOR_BAND = (0.70, 1.10)
 ROTOR_REL_FLOOR = 0.10
+#: A visible-rotor count (a lower bound) is held against a claim from this many lines over its
+#: rotors: a residue line is one (the count's std), so the veto is half-way at two over.
+VISIBLE_SLACK = 2.0
 #: The alternative: a multirotor with 2 to 12 rotors, log-uniform.
 ROTOR_ALT_LOG_SPAN = math.log(12.0 / 2.0)
 MIN_FLASH_GROUPS = 3
@@ -181,7 +188,9 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
         if tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
             blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
-    rotors = _rotors(features, claimed, bands.rotors)
+    veto = float(features.get("rotors_lower_bound", 0.0)) >= 0.5
+    rotors = _rotors(features, claimed, (bands.rotors[0], (claimed.rotors + VISIBLE_SLACK) / claimed.rotors) if veto
+                     else bands.rotors)
     compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
     if blade is not None:  # tip speed over flash rate, over the claim's 2 pi L / N: at most 1.05
         # capped for the report: a tip estimate against a near-zero rate can exceed a float's range
@@ -197,9 +206,10 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
             q *= _band_density(y + math.log(m), lo, hi, sigma)
         if rotors is not None:  # a rate m times the true one counts the rotors 1/m times
             z, lo, hi, sigma = rotors
-            q *= _band_density(z + math.log(m), lo, hi, sigma)
+            q *= _phi((hi - z - math.log(m)) / sigma) if veto else _band_density(z + math.log(m), lo, hi, sigma)
         p += q
-    alt = 1.0 / ALT_LOG_SPAN ** (2 if blade is not None else 1) / (ROTOR_ALT_LOG_SPAN if rotors is not None else 1.0)
+    two_sided = rotors is not None and not veto
+    alt = 1.0 / ALT_LOG_SPAN ** (2 if blade is not None else 1) / (ROTOR_ALT_LOG_SPAN if two_sided else 1.0)
     return max(TERM_FLOOR, math.log(max(p, 1e-300)) - math.log(alt)), compared
 
 

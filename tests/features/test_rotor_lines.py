@@ -1,11 +1,12 @@
-"""The candidate long-dwell rotor count (`lab.rotor_lines`): noise makes no rotor, each rotor that
-stands above the noise is one line, and the count does not depend on the envelope's scale."""
+"""The long-dwell rotor count (`signatures.rotor_lines`): noise makes no rotor, each rotor that
+stands above the noise is one line, and the count does not depend on the envelope's scale; the
+extraction marks it a lower bound on long dwells only; `lab.rotor_lines`'s oracle bound."""
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lab.rotor_lines import visible_rotors
+from signatures.rotor_lines import visible_rotors
 
 PRF = 5000.0
 
@@ -78,3 +79,21 @@ def test_the_oracle_sees_each_tagged_rotor_alone_and_restores_the_simulator() ->
     assert sim._uav_amplitudes is before
     assert [(v, t) for v, t, _ in rotors] == [(True, True)] * 4
     assert min(z for _, _, z in rotors) > 8.0
+
+
+def test_a_long_dwell_marks_its_count_a_lower_bound_and_a_short_one_does_not() -> None:
+    from signatures.features import extract
+    from signatures.radar import EXTRA_PRESETS, get_preset
+    from signatures.scene import Scene
+    from signatures.simulate import simulate
+
+    from lab.accuracy import DJI_QUAD
+
+    scene = dict(profile=DJI_QUAD, range_m=300.0, radial_speed_mps=0.0, snr_db=10.0, tagged_blades=4, tag_gain_db=12.0)
+    long_rec, _ = simulate(Scene(**scene), EXTRA_PRESETS["cw-sband"], seed=3)
+    physics = extract(long_rec).physics
+    assert physics["rotors_lower_bound"] == 1.0
+    assert 1.0 <= physics["rotors_seen"] <= 5.0 and physics["rotors_seen"] == int(physics["rotors_seen"])
+    short = Scene(profile=DJI_QUAD, range_m=300.0, radial_speed_mps=0.0, snr_db=10.0)
+    short_rec, _ = simulate(short, get_preset("paper"), seed=3)
+    assert "rotors_lower_bound" not in extract(short_rec).physics

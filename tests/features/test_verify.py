@@ -75,6 +75,36 @@ def test_rotors_seen_weigh_against_airframes_whose_rates_and_tips_agree() -> Non
     assert verify(octo, P["m300"], max_tip_mps=WIDE_MAX_TIP).llr < 0
 
 
+def _visible(count: float) -> dict[str, float]:
+    """A long dwell's count of the rotors visible above the noise (`signatures.rotor_lines`)."""
+    return {"rotors_seen": count, "rotors_seen_std": 1.0, "rotors_lower_bound": 1.0}
+
+
+@pytest.mark.parametrize("slug", list(P))
+def test_fewer_rotors_visible_than_claimed_is_no_evidence_either_way(slug: str) -> None:
+    """A visible-rotor count is a lower bound: untagged or idling rotors under the noise are not
+    seen, so 2 of a claim's rotors neither help nor hurt it (the count's one-line blur costs a count
+    of all its rotors under a tenth of a nat), and no count makes the claim stronger."""
+    seen = _seen(P[slug])
+    base = verify(seen, P[slug]).llr
+    for count in range(2, P[slug].rotors + 1):
+        assert verify({**seen, **_visible(float(count))}, P[slug]).llr == pytest.approx(base, abs=0.1)
+    assert all(verify({**seen, **_visible(float(c))}, P[slug]).llr <= base + 1e-9 for c in range(2, 13))
+
+
+def test_more_rotors_visible_than_claimed_counts_against_the_claim() -> None:
+    """An octocopter flying a quad's rate shows 8 lines: a quad claim cannot make them (its 4 and a
+    residue line or two), so the claim falls well below where it stood; 5 lines cost a little."""
+    seen = _seen(P["m300"], rate_scale=1.05)
+    base = verify(seen, P["m300"]).llr
+    assert verify({**seen, **_visible(5.0)}, P["m300"]).llr > base - 0.5
+    assert verify({**seen, **_visible(8.0)}, P["m300"]).llr < base - 3.0
+    assert verify({**seen, **_visible(8.0)}, P["m300"]).llr < 0
+    # under a half-rate read each rotor's two blades are two lines: 8 lines, 4 rotors, no veto
+    half = _seen(P["m300"], flash_scale=0.5)
+    assert verify({**half, **_visible(8.0)}, P["m300"]).llr > verify({**seen, **_visible(8.0)}, P["m300"]).llr
+
+
 def test_rotors_from_too_few_flashes_abstain() -> None:
     seen = _seen(P["m300"], aliased=True)
     base = verify(seen, P["m300"]).llr
