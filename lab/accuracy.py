@@ -158,6 +158,13 @@ class Condition:
                       clutter_to_signal_db=float(rng.uniform(*self.clutter_to_signal_db)))
         return scene, pre
 
+    def draw(self, seed: int) -> tuple[Scene, Preset, int]:
+        """Seeded scene `seed` of the condition: the scene, its radar and the simulator's seed (the
+        same in every world and for every tool that renders the condition's scenes)."""
+        rng = np.random.default_rng([seed, 31])
+        scene, pre = self.scene(rng)
+        return scene, pre, int(rng.integers(2**31))
+
 
 _TAGGED = "hovering DJI-class quad, 1-8 of its 8 blades tagged (+6..+15 dB), clutter +20..+40 dB over it"
 CONDITIONS: dict[str, Condition] = {c.name: c for c in (
@@ -216,9 +223,7 @@ def render_condition(condition: Condition, world: str, seed: int) -> tuple[Recor
     of `condition` in `world`."""
     if world not in WORLDS:
         raise ValueError(f"world {world!r} is not one of {', '.join(WORLDS)}")
-    rng = np.random.default_rng([seed, 31])
-    scene, pre = condition.scene(rng)
-    sim_seed = int(rng.integers(2**31))
+    scene, pre, sim_seed = condition.draw(seed)
     rec, rate, _, speed = render_in_world(world, scene, pre, sim_seed)
     return rec, scene, rate, speed, condition.profile.rotors
 

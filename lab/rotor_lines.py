@@ -62,14 +62,12 @@ def rotors_alone(condition: Any, seed: int, false_alarm: float = FALSE_LINES) ->
     import signatures.simulate as sim
     from signatures.flash import flash_envelope
 
-    rng = np.random.default_rng([seed, 31])  # lab.accuracy.render_condition's draws
-    scene, pre = condition.scene(rng)
-    sim_seed = int(rng.integers(2**31))
-    truth = sim.render(scene, pre.config, pre.n_chirps, pre.n_samples, sim_seed).truth
+    scene, pre, sim_seed = condition.draw(seed)
     out = []
-    for i, rate in enumerate(truth.pattern_rates_hz):
+    for i in range(scene.profile.rotors):
         with _one_rotor(i) as lone:
             c = sim.render(scene, pre.config, pre.n_chirps, pre.n_samples, sim_seed)
+        truth, rate = c.truth, c.truth.pattern_rates_hz[i]  # the whole scene's truth, every render alike
         iq = c.target * np.float32(lone["scale"]) + c.noise + (0 if c.clutter is None else c.clutter)
         env, _ = flash_envelope(iq[None, :, :1], pre.config, np.zeros(1))
         image, var = phase_time(env[0], rate * pre.config.pri_s)

@@ -778,6 +778,8 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     if domain == "cw":  # no range measured: range features are 0 by definition (docs/features.md)
         for name in ("mean_range_m", "std_range_m", "range_m", "range_std_m"):
             cols[name] = np.zeros(live.size)
+    # hundreds of flashes: the envelope spectrum resolves the rate, and counts the rotors visible
+    long_dwell = not quick and dwell >= best.SPECTRAL_DWELL_S
     if quick:
         seen = seen_std = np.zeros(live.size)
         body_idx = np.full(live.size, np.nan)
@@ -791,7 +793,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         seen, seen_std = per.rotors_seen, per.rotors_seen_std
         width = int(min(3, size))  # the target's bin +- 1, inside the gate
         centre_cols = _columns(slow, np.clip(peak_bin - g_lo - 1, 0, size - width), width)
-        if dwell >= best.SPECTRAL_DWELL_S:  # hundreds of flashes: the envelope spectrum resolves the rate
+        if long_dwell:
             train = best.spectral_flash_rate(centre_cols, config, body_hz)
             flash, flash_std, score = train.rate_hz, train.rate_std_hz, train.score
             seen, seen_std = train.rotors_seen, train.rotors_seen_std
@@ -819,7 +821,6 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
                      axis=1).tolist()
     detected_rows = np.asarray(detected, dtype=bool).tolist()
     seen_rows, seen_std_rows = np.asarray(seen).tolist(), np.asarray(seen_std).tolist()
-    lower_bound = not quick and dwell >= best.SPECTRAL_DWELL_S  # rotors visible, not every rotor's flashes
     gates = (g_lo + 0).tolist()
     out = []
     for j, b in enumerate(live.tolist()):
@@ -830,7 +831,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         make = _patch_maker(cube.patch_row, b, config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]),
                             fft_backend)
         out.append(F.FeatureResult(detected_rows[j], feats, make, (gates[j], gates[j] + size),
-                                   physics=F.physics_estimates(seen_rows[j], seen_std_rows[j], lower_bound)))
+                                   physics=F.physics_estimates(seen_rows[j], seen_std_rows[j], long_dwell)))
     return out
 
 

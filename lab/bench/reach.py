@@ -309,12 +309,13 @@ def reach(dwells: list[RenderedDwell], inputs: str = "features+view", shares: tu
     """Per ordered pair of (grouped) airframes: the oracle's per-dwell evidence and the tracks it
     would decide. `groups` maps airframes to a group label (e.g. two radar-confusable models to one)."""
     out = []
-    for (world, snr), ds in _by_world_snr(dwells):
-        X, y, scenes = _layout(list(ds), inputs, groups)
+    for (world, snr), group in _by_world_snr(dwells):
+        ds = list(group)
+        X, y, scenes = _layout(ds, inputs, groups)
         scene_ids = np.unique(scenes, return_inverse=True)[1]
         first = np.r_[True, scenes[1:] != scenes[:-1]]  # a scene's first dwell (they are rendered in order)
+        airframes = np.array([d.flies for d in ds])  # one class may group several (`groups`)
         for share in shares:
-            airframes = np.array([sc.split("/")[0] for sc in scenes])
             p, classes = out_of_fold(X, y, scene_ids, share=share, per_class=per_class, first=first,
                                      airframes=airframes)
             for a, b in itertools.permutations(classes, 2):

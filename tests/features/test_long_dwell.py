@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lab.accuracy import evaluate_condition
+from lab.accuracy import evaluate_condition, feature_estimate
 from signatures import flash
 from signatures.features import extract
 from signatures.radar import EXTRA_PRESETS
@@ -38,8 +38,6 @@ pytestmark = pytest.mark.slow  # ~20 s: 160 simulated 0.82 s dwells
     ("cw-idle-tagged", "heldout", 0.95, 0.65, 0.9),
 ])
 def test_hovering_tagged_quad_on_a_cw_radar(condition, world, velocity, rate, some_rotor):
-    from lab.accuracy import feature_estimate
-
     counts: list[float] = []
 
     def recorded(rec):
