@@ -3,6 +3,7 @@ stands above the noise is one line, and the count does not depend on the envelop
 extraction marks it a lower bound on long dwells only; `lab.rotor_lines`'s oracle bound."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -97,3 +98,12 @@ def test_a_long_dwell_marks_its_count_a_lower_bound_and_a_short_one_does_not() -
     short = Scene(profile=DJI_QUAD, range_m=300.0, radial_speed_mps=0.0, snr_db=10.0)
     short_rec, _ = simulate(short, get_preset("paper"), seed=3)
     assert "rotors_lower_bound" not in extract(short_rec).physics
+
+
+def test_the_oracle_refuses_no_scenes_in_one_line(capsys) -> None:
+    from lab.rotor_lines import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--condition", "cw-hover-tagged", "--n", "0"])
+    assert exc.value.code == 2
+    assert "--n 0: at least 1" in capsys.readouterr().err.strip().splitlines()[-1]
