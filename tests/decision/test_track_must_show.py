@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from authn.track import Sprt
-from lab.bench.track_must_show import (_walk, all_profiles, pairs, separable, term_icc, term_icc_table,
-                                       term_increments, walk_terms)
+from lab.bench.track_must_show import (OUT_OF_REACH, TrackResult, _variant_llr, _walk, all_profiles,
+                                       must_show_table, pairs, separable, term_icc, term_icc_table, term_increments,
+                                       walk_terms)
 
 
 def test_the_rule_names_rate_and_rotor_separations() -> None:
@@ -33,6 +34,35 @@ def test_the_offline_walk_stops_where_the_track_test_does() -> None:
     assert _walk([(5.0, False)] * 10) == ("inconclusive", 10)  # the classifier alone never carries a claim
     assert _walk([(1.0, True)] * 75)[0] == "inconclusive"  # mean below accept_nats * rho never accepts
     assert sprt.accept_nats * sprt.correlation > 1.0
+
+
+def _track(world: str, cat: str, flies: str, claims: str, decision: str) -> TrackResult:
+    return TrackResult(world, 10.0, cat, flies, claims, [] if cat == "genuine" else ["rotors"], decision, [], 3, 75,
+                       0.0, 0.0)
+
+
+def test_pairs_shown_out_of_reach_are_reported_apart_never_dropped() -> None:
+    assert ("m600", "m300") in OUT_OF_REACH["heldout"] and "training" not in OUT_OF_REACH
+    results = [_track("heldout", "type_spoof", "m600", "m300", "accept"),
+               _track("heldout", "type_spoof", "m600", "phantom4", "reject"),
+               _track("training", "type_spoof", "m600", "m300", "reject")]
+    rows = [r for r in must_show_table(results) if "type spoof" in r]
+    held = [r for r in rows if r.startswith("| heldout")]
+    assert len(held) == 2 and "| 2 | 50.0 % |" in held[0]  # the whole row, the failing pair counted
+    assert "(pairs in reach)" in held[1] and "| 1 | 100.0 % |" in held[1]
+    assert len([r for r in rows if r.startswith("| training")]) == 1  # nothing to report apart there
+
+
+def test_the_true_rate_what_if_reads_the_flown_rate() -> None:
+    row = {"flash_rate_hz": 61.0, "flash_rate_std_hz": 0.6, "flash_score": 0.0, "tip_aliased": 1.0,
+           "rotors_seen": 0.0, "rotors_seen_std": 0.0, "claims": "phantom4", "true_rotor_rate_hz": 58.0,
+           "terms": {"classifier": -1.0}}
+    read, phys = _variant_llr(row, {}, 3.0, True)
+    assert (read, phys) == (-1.0, False)  # a flash score of 0: the rate abstains, the classifier is all
+    right, phys = _variant_llr(row, {}, 3.0, True, true_rate=True)
+    assert phys and right - (-1.0) > 1.9  # 116 Hz against the claim's 116.7 Hz: the band's full support
+    impostor, _ = _variant_llr({**row, "true_rotor_rate_hz": 40.0}, {}, None, True, true_rate=True)
+    assert impostor < -3.0  # an M300's 80 Hz against the same claim
 
 
 def _rows(phys: list[list[float | None]], clf: list[list[float]]) -> list[dict]:
