@@ -1,16 +1,19 @@
 """Issue 31's track must-show, measured: 2 s tracks of back-to-back `paper` dwells, no enrolment,
 decided by `authn.track.decide_track` (the real Checker, policy and sequential test, stopping
 early), per (airframe flown, model claimed) pair, in the held-out world and the training
-simulator; and the per-dwell diagnosis of genuine claims (docs/tracks.md, "Must show").
+simulator; and the per-dwell diagnosis of genuine claims (docs/tracks.md, "2 s tracks, no enrolment").
 
     python -m lab.bench.track_must_show --world heldout --world training --snr 10 --snr 0 --n 16
-    python -m lab.bench.track_must_show --diagnose --world heldout --snr 10 --snr 0 --n 12 --dwells 8
+    python -m lab.bench.track_must_show --diagnose --world heldout --snr 10 --snr 0 --n 12 --dwells 8 --json d.json
+    python -m lab.bench.track_must_show --what-if d.json
     python -m lab.bench.track_must_show --icc d.json [--first 5] [--rho-terms 0.3,0.4]
 
 Which pairs the physics can separate (`separable`): the claimed and the flown airframe's nominal
 blade-flash rates lie outside each other's `signatures.verify.RATE_BAND`, or their rotor counts
 differ by 2 or more. Claimed models are the shipped profiles (the bench registry's); flown ones
-the shipped and `lab.heldout.unseen_profiles()`. Nothing here trains or tunes anything.
+the shipped and `lab.heldout.unseen_profiles()`. Rows holding pairs that `lab.bench.reach` shows
+no rule separates (`OUT_OF_REACH`) are printed again without them. Nothing here trains or tunes
+anything.
 """
 
 from __future__ import annotations
