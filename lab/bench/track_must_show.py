@@ -488,6 +488,33 @@ def what_if_table(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+#: The variants `what_if_pair_table` breaks down per pair.
+PAIR_VARIANTS = ("shipped", "no classifier term", "flash rate read right (oracle)",
+                 "flash rate read right, no classifier term")
+
+
+def what_if_pair_table(rows: list[dict[str, Any]], names: tuple[str, ...] = PAIR_VARIANTS) -> list[str]:
+    """Per world, SNR and (category, flown, claimed) pair: the scenes walked as tracks under each of
+    `names` (WHAT_IF variants), as right tracks of all (accepted genuine, not accepted impostors)."""
+    variants = [v for v in WHAT_IF if v[0] in names]
+    lines = ["| world | SNR dB | flown -> claimed | " + " | ".join(v[0] for v in variants) + " |",
+             "|---|---|---|" + "---|" * len(variants)]
+    keyed: dict[tuple, dict[int, list[dict]]] = {}
+    for r in rows:
+        if "terms" in r:
+            key = (r["world"], -r["snr_db"], CATEGORIES.index(r["category"]), r["flies"], r["claims"])
+            keyed.setdefault(key, {}).setdefault(r["track"], []).append(r)
+    for (world, nsnr, c_idx, flies, claims), scenes in sorted(keyed.items()):
+        cells = []
+        for _, consts, clip, rotors, rho, true_rate in variants:
+            ends = [_walk([_variant_llr(r, consts, clip, rotors, true_rate) for r in rs], rho)[0]
+                    for rs in scenes.values()]
+            right = ends.count("accept") if c_idx == 0 else len(ends) - ends.count("accept")
+            cells.append(f"{right}/{len(ends)}")
+        lines.append(f"| {world} | {-nsnr:g} | {flies} -> {claims} | " + " | ".join(cells) + " |")
+    return lines
+
+
 #: The terms a dwell's verification LLR is the sum of (`signatures.verify`), and their sum.
 TERMS = ("physics", "classifier", "total")
 
@@ -674,7 +701,10 @@ def main(argv: list[str] | None = None) -> int:
     worlds, snrs = tuple(a.world or ("heldout",)), tuple(a.snr or (10.0, 0.0))
     if a.what_if:
         with open(a.what_if) as fh:
-            print("\n".join(what_if_table(json.load(fh))))
+            rows = json.load(fh)
+        print("\n".join(what_if_table(rows)))
+        print()
+        print("\n".join(what_if_pair_table(rows)))
         return 0
     if a.icc:
         with open(a.icc) as fh:

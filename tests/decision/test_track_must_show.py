@@ -7,7 +7,7 @@ import numpy as np
 
 from authn.track import Sprt
 from lab.bench.track_must_show import (OUT_OF_REACH, TrackResult, _variant_llr, _walk, all_profiles,
-                                       must_show_table, pairs, separable, term_icc, term_icc_table, term_increments,
+                                       must_show_table, pairs, separable, what_if_pair_table, term_icc, term_icc_table, term_increments,
                                        walk_terms)
 
 
@@ -63,6 +63,18 @@ def test_the_true_rate_what_if_reads_the_flown_rate() -> None:
     assert phys and right - (-1.0) > 1.9  # 116 Hz against the claim's 116.7 Hz: the band's full support
     impostor, _ = _variant_llr({**row, "true_rotor_rate_hz": 40.0}, {}, None, True, true_rate=True)
     assert impostor < -3.0  # an M300's 80 Hz against the same claim
+
+
+def test_the_what_if_per_pair_walks_each_scene_under_each_variant() -> None:
+    dwell = {"world": "heldout", "snr_db": 10.0, "category": "genuine", "flies": "phantom4", "claims": "phantom4",
+             "flash_rate_hz": 61.0, "flash_rate_std_hz": 0.6, "flash_score": 3.0, "tip_aliased": 1.0,
+             "rotors_seen": 0.0, "rotors_seen_std": 0.0, "true_rotor_rate_hz": 58.0, "terms": {"classifier": -1.0}}
+    rows = [{**dwell, "track": t} for t in range(2) for _ in range(12)]  # half-rate reads, a doubting classifier
+    lines = what_if_pair_table(rows)
+    assert lines[0].count("|") == 8 and len(lines) == 3
+    # at half the rate the physics term is near 0; read right it is ~1.97 nats a dwell, which the
+    # classifier's -1 holds under the accept bound's 1.38 a dwell (rho 0.2), and alone carries 12 dwells
+    assert lines[2] == "| heldout | 10 | phantom4 -> phantom4 | 0/2 | 0/2 | 0/2 | 2/2 |"
 
 
 def _rows(phys: list[list[float | None]], clf: list[list[float]]) -> list[dict]:
