@@ -7,8 +7,8 @@ import numpy as np
 
 from authn.track import Sprt
 from lab.bench.track_must_show import (OUT_OF_REACH, TrackResult, _variant_llr, _walk, all_profiles,
-                                       must_show_table, pairs, separable, what_if_pair_table, term_icc, term_icc_table, term_increments,
-                                       walk_terms)
+                                       must_show_table, pairs, separable, term_icc, term_icc_table, term_increments,
+                                       walk_terms, what_if_pair_table)
 
 
 def test_the_rule_names_rate_and_rotor_separations() -> None:
