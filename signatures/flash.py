@@ -63,9 +63,13 @@ _SIGNS = np.array([1.0, -1.0])
 SPECTRAL_DWELL_S = 0.25
 #: Harmonics of a candidate flash rate summed in the envelope spectrum.
 SPECTRAL_HARMONICS = 4
-#: A whitened line of the approaching-minus-receding envelope this many times its floor is a
-#: tagged blade's turn (`spectral_flash_rate`).
+#: A whitened envelope line this many times its floor is a line (`spectral_flash_rate`): a flash
+#: train's fundamental, its first and third harmonics at half a candidate, a tagged blade's turn.
 SPECTRAL_TAG_LINE = 10.0
+#: The best candidate was a flash train's m-th harmonic where these multiples of best / m show
+#: lines (`spectral_flash_rate`): its third (a tagged rotor's turn train: lines at f and 2 f under
+#: 3 f), then its second (lines at the first and third harmonics of the half).
+SUBHARMONIC_LINES = ((3, (1.0, 2.0)), (2, (1.0, 3.0)))
 #: Subtracted from the log peak-to-median of the (whitened) harmonic sum, so that >= 1 reads as
 #: the period search's score does: noise and clutter alone score at most 0.08 over 300 `cw-sband`
 #: dwells (0-20 dB, 0-40 dB clutter), tagged-blade quads 0.17-0.83 at the lowest of 30 and >= 1 in
@@ -807,17 +811,26 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     only where one blade reflects more (a tagged blade), and then once a turn, at F / 2.
     The sum's spectrum, whitened (`_whitened`: sway and clutter wander rise towards 0 Hz), is
     summed at SPECTRAL_HARMONICS multiples of each candidate in [FLASH_RATE_MIN_HZ,
-    FLASH_RATE_MAX_HZ] (the best halved while half of it shows the first and third harmonics:
-    then the best was the train's second); where the best candidate is itself the difference's strongest line of
-    the two (it is then a tagged rotor's turn rate, not its flash rate) the rate is doubled.
+    FLASH_RATE_MAX_HZ] that shows a line of its own (a train of short flashes has its
+    fundamental: a candidate without one is a multiple or a fraction of the train whose
+    harmonics happen to line up, 3/2 or 5/4 of it), the best divided by 3 while its third and
+    two thirds show lines, and halved while half of it shows the first and third harmonics
+    (then the best was the train's third or second harmonic). Where the best candidate
+    is the difference's stronger line of the candidate and its half, and the difference holds at
+    least the sum's power there, it is a tagged rotor's turn rate, not its flash rate, and the
+    rate is doubled: a turn line is an asymmetry, so the difference carries it at full strength,
+    while a flash train leaks into the difference only by what its approaching and receding
+    halves differ (a few per cent of the sum's line: doubling on the difference's line alone read
+    equal blades at twice their flash rate).
     The peak is refined by a parabola through the log harmonic sum; its std is the sub-bin
     peak's half width over sqrt(harmonics). Score: log of the peak over the median of the
     harmonic sum, less SPECTRAL_NOISE_LOG (as the period search's score, >= 1 is a periodic
     train)."""
     b_rows, n = slow.shape[0], slow.shape[1]
     total, diff = flash_envelope(slow, config, body_hz)
-    power = _whitened(np.abs(np.fft.rfft(total - total.mean(axis=1, keepdims=True), axis=1)) ** 2)
-    asym = _whitened(np.abs(np.fft.rfft(diff - diff.mean(axis=1, keepdims=True), axis=1)) ** 2)
+    sum_power = np.abs(np.fft.rfft(total - total.mean(axis=1, keepdims=True), axis=1)) ** 2
+    diff_power = np.abs(np.fft.rfft(diff - diff.mean(axis=1, keepdims=True), axis=1)) ** 2
+    power, asym = _whitened(sum_power), _whitened(diff_power)
     df = config.prf_hz / n
     lo = max(1, int(math.ceil(FLASH_RATE_MIN_HZ / df)))
     hi = min(power.shape[1] - 1, int(FLASH_RATE_MAX_HZ / df))
@@ -833,12 +846,15 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
         ok = idx + reach < width
         near = np.max(np.stack([power[:, idx[ok] + d] for d in range(-reach, reach + 1)]), axis=0)
         harm[:, ok] += near
-    best = np.argmax(harm, axis=1)
+    own = np.max(np.stack([power[:, np.clip(cand + d, 0, width - 1)] for d in (-1, 0, 1)]), axis=0)
+    fundamental = np.where(own > SPECTRAL_TAG_LINE, harm, 0.0)  # candidates with a line of their own
+    best = np.argmax(np.where(fundamental.max(axis=1, keepdims=True) > 0.0, fundamental, harm), axis=1)
     rows = np.arange(b_rows)
-    for _ in range(2):  # a train's first and third harmonics at half the best: the best was its second
-        half = cand[best] / 2.0
-        odd = (_line(power, half) > SPECTRAL_TAG_LINE) & (_line(power, 3.0 * half) > SPECTRAL_TAG_LINE)
-        best = np.where(odd & (half >= lo), np.clip(np.rint(half).astype(int) - lo, 0, cand.size - 1), best)
+    for _ in range(2):  # the lines a train's fundamental would make under the best: it was a harmonic
+        for m, under in SUBHARMONIC_LINES:
+            base = cand[best] / m
+            shown = np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
+            best = np.where(shown & (base >= lo), np.clip(np.rint(base).astype(int) - lo, 0, cand.size - 1), best)
     inner = (best > 0) & (best < cand.size - 1)
     bi = np.clip(best, 1, cand.size - 2)
     a, m, c = (np.log(np.maximum(harm[rows, bi + j], 1e-300)) for j in (-1, 0, 1))
@@ -846,7 +862,8 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     with np.errstate(divide="ignore", invalid="ignore"):
         step = np.where(inner & (den < 0.0), np.clip(0.5 * (a - c) / np.where(den < 0, den, -1.0), -0.5, 0.5), 0.0)
     rate = (cand[best] + step) * df
-    turn = _line(asym, rate / df) > np.maximum(_line(asym, rate / df / 2.0), SPECTRAL_TAG_LINE)
+    turn = ((_line(asym, rate / df) > np.maximum(_line(asym, rate / df / 2.0), SPECTRAL_TAG_LINE))
+            & (_line(diff_power, rate / df) >= _line(sum_power, rate / df)))
     rate = np.where(turn, 2.0 * rate, rate)
     med = median_last(harm)
     score = np.maximum(np.log(np.maximum(harm[rows, best], 1e-300) / np.maximum(med, 1e-300))

@@ -31,6 +31,8 @@ SCENES = {
     "bird": dict(kind="bird", model=None, radial_speed_mps=4.0, seed=3),
     "phantom4_wide_hover": dict(model="phantom4", preset="wide", radial_speed_mps=0.0, seed=5),  # from version 3
     "m300_cw_sband_tagged_hover": dict(preset="cw-sband", radial_speed_mps=0.0, tagged_blades=2, seed=6),  # from 5
+    # every blade tagged alike: equal blades, read at twice their flash rate before version 7
+    "m300_cw_sband_equal_tags_hover": dict(preset="cw-sband", radial_speed_mps=0.0, tagged_blades=8, seed=10),
 }
 
 #: (FEATURE_VERSION, SIMULATOR_VERSION) -> scene -> `extract(rec).as_array()` (FEATURE_NAMES order).
@@ -99,6 +101,16 @@ GOLDEN_FEATURES[("6", "2")] = {
         0.0, 0.0, 0.002663, 0.003178, 80.49, 0.3052, 40.25, 0.1526, 2.0, 0.5, 94.9, 0.7506, 0.3753, 0.003292,
         0.0, 4.483, 178.0, 17.72, 0.4351, 80.55, 0.1047, 7.079, 1.0, 0.05871, -0.2438, -0.3101, -0.2668,
         -0.07878, 0.807, 0.241, -0.23, -0.2923, -0.283, -0.1551, 0.5845, 0.4604, -0.2009, -0.2783),
+}
+
+# FEATURE_VERSION 7: a long dwell's flash rate needs a line of its own, and the turn doubling needs the
+# approaching-minus-receding envelope to hold the sum's power at the rate (equal blades read at 2x before)
+GOLDEN_FEATURES[("7", "2")] = {
+    **GOLDEN_FEATURES[("6", "2")],
+    "m300_cw_sband_equal_tags_hover": (0.0, 1.695, 0.0, 58.2, 21.19, 1122.0, 628.4, 57.51, 49.0, 0.005992, 0.718,
+        0.0, 0.0, -0.003119, 0.003235, 80.28, 0.3052, 40.14, 0.1526, 1.0, 0.0, 99.22, 0.1493, 0.3934, 0.001608,
+        0.0, 4.417, 254.0, 13.93, 0.4485, 80.55, 0.1369, 9.53, 1.0, 0.265, -0.3408, -0.4975, -0.432, 0.1424,
+        0.801, 0.3702, -0.2189, -0.4967, -0.4913, 0.006283, 0.5493, 0.5119, -0.05605, -0.4828),
 }
 
 SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
