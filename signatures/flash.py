@@ -851,8 +851,8 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     best = np.argmax(np.where(fundamental.max(axis=1, keepdims=True) > 0.0, fundamental, harm), axis=1)
     rows = np.arange(b_rows)
     for _ in range(2):  # the lines a train's fundamental would make under the best: it was a harmonic
-        for m, under in SUBHARMONIC_LINES:
-            base = cand[best] / m
+        for order, under in SUBHARMONIC_LINES:
+            base = cand[best] / order
             shown = np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
             best = np.where(shown & (base >= lo), np.clip(np.rint(base).astype(int) - lo, 0, cand.size - 1), best)
     inner = (best > 0) & (best < cand.size - 1)
