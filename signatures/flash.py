@@ -83,8 +83,15 @@ SPECTRAL_FLOOR_BINS = 32
 #: A CW dwell whose flash train scores this much is a detection: 5x the noise dwells' highest
 #: (0.08). The verification's rate term still needs the period search's own bar (score >= 1).
 SPECTRAL_DETECT_SCORE = 0.4
-#: Doppler (Hz) either side of the body line left out of the envelope: body, hub, clutter.
+#: Doppler (Hz) either side of the body line left out of the envelope at least: body, hub, clutter.
 SPECTRAL_BODY_HZ = 20.0
+#: Moving clutter (foliage, +20..+40 dB over the target) spreads the zero-Doppler line wider: the
+#: envelope leaves out, besides, everything out to where the Doppler power (both sides, smoothed over
+#: SPECTRAL_SMOOTH_HZ) falls to this many times its floor beyond SPECTRAL_BODY_HZ, within an eighth
+#: of the PRF either side (3 was chosen on the randomised world among 3 and 10: its clutter spreads
+#: 0-0.5 m/s; `clutter_width_hz`).
+CLUTTER_FLOOR_FACTOR = 3.0
+SPECTRAL_SMOOTH_HZ = 5.0
 
 
 @dataclass(frozen=True)
@@ -782,19 +789,46 @@ class FlashTrain:
 def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(sum, difference) of the approaching and receding halves' power envelopes of each row of
     long-dwell gates `slow` (B, pulses, bins), each (B, pulses): demodulated by the body Doppler,
-    the body's +-SPECTRAL_BODY_HZ dropped (`spectral_flash_rate` says why the sum and the difference)."""
+    the body's and the clutter's line dropped (`clutter_width_hz`; `spectral_flash_rate` says why
+    the sum and the difference)."""
     n = slow.shape[1]
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body_hz * config.pri_s)[:, None] * t)
     x = (slow * demod[:, :, None]).astype(np.complex64)
     spec = np.fft.fft(x - x.mean(axis=1, keepdims=True), axis=1)
     f = np.fft.fftfreq(n, d=config.pri_s)
-    keep = np.abs(f) > SPECTRAL_BODY_HZ
+    keep = np.abs(f)[None, :] > clutter_width_hz(spec, config.pri_s)[:, None]
     halves = []
     for half in (f > 0, f < 0):
-        part = np.fft.ifft(spec * (keep & half)[None, :, None], axis=1)
+        part = np.fft.ifft(spec * (keep & half[None, :])[:, :, None], axis=1)
         halves.append((part.real ** 2 + part.imag ** 2).sum(axis=2))
     return halves[0] + halves[1], halves[0] - halves[1]
+
+
+def clutter_width_hz(spec: np.ndarray, pri_s: float) -> np.ndarray:
+    """Per row of body-demodulated Doppler spectra `spec` (B, pulses, bins): how far (Hz) either side
+    of the body the body's and the clutter's line reach. The power of both sides at each |f|,
+    smoothed over SPECTRAL_SMOOTH_HZ, is followed out from SPECTRAL_BODY_HZ to where it falls to
+    CLUTTER_FLOOR_FACTOR times its median beyond SPECTRAL_BODY_HZ (the micro-Doppler's floor), at
+    most an eighth of the PRF; SPECTRAL_BODY_HZ at least. Moving clutter at +40 dB spreads over
+    tens of Hz at S-band, and a fixed band let it into the envelope as a slow wander."""
+    n = spec.shape[1]
+    df = 1.0 / (n * pri_s)
+    power = (spec.real ** 2 + spec.imag ** 2).sum(axis=2)
+    m = (n - 1) // 2
+    folded = power[:, : n // 2 + 1].astype(np.float64)
+    folded[:, 1:1 + m] += power[:, n - 1:n - 1 - m:-1]  # -f onto +f
+    k = max(1, int(round(SPECTRAL_SMOOTH_HZ / df)))
+    c = np.concatenate([np.zeros((folded.shape[0], 1)), np.cumsum(folded, axis=1)], axis=1)
+    lo_i = np.clip(np.arange(folded.shape[1]) - k // 2, 0, folded.shape[1])
+    hi_i = np.clip(lo_i + k, 0, folded.shape[1])
+    smooth = (c[:, hi_i] - c[:, lo_i]) / np.maximum(hi_i - lo_i, 1)
+    lo = min(int(math.ceil(SPECTRAL_BODY_HZ / df)), folded.shape[1] - 1)
+    hi = max(lo + 1, min(folded.shape[1], n // 8))
+    floor = median_last(smooth[:, lo:])
+    under = smooth[:, lo:hi] <= CLUTTER_FLOOR_FACTOR * floor[:, None]
+    first = np.where(under.any(axis=1), np.argmax(under, axis=1), hi - lo) + lo  # the first bin past the line
+    return np.maximum((first - 1) * df, SPECTRAL_BODY_HZ)
 
 
 def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> FlashTrain:
