@@ -30,7 +30,7 @@ from collections.abc import Iterable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from datetime import datetime, timezone
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -375,24 +375,39 @@ def diagnosis_table(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
-#: What-if variants, evaluated offline on the diagnosis dwells: (name, constants of `signatures.verify`
-#: to override, classifier clip or None to drop the classifier term, rotors term kept, track correlation rho,
-#: flash rate read right: the simulation's true blade-flash rate in place of the estimate, an oracle that
-#: bounds what a better rate estimator alone could give).
-WHAT_IF: tuple[tuple[str, dict[str, Any], float | None, bool, float, bool], ...] = (
-    ("shipped", {}, 3.0, True, 0.2, False),
-    ("classifier clip 1", {}, 1.0, True, 0.2, False),
-    ("no classifier term", {}, None, True, 0.2, False),
-    ("no rotors term", {}, 3.0, False, 0.2, False),
-    ("ROTOR_BAND 0.45-1.10", {"ROTOR_BAND": (0.45, 1.10)}, 3.0, True, 0.2, False),
-    ("REL_FLOOR 0.06", {"REL_FLOOR": 0.06}, 3.0, True, 0.2, False),
-    ("rho 0.1", {}, 3.0, True, 0.1, False),
-    ("rho 0.1, classifier clip 1", {}, 1.0, True, 0.1, False),
-    ("rho 0.1, clip 1, ROTOR_BAND 0.45, REL_FLOOR 0.06", {"ROTOR_BAND": (0.45, 1.10), "REL_FLOOR": 0.06}, 1.0, True,
-     0.1, False),
-    ("rho 0.05", {}, 3.0, True, 0.05, False),
-    ("flash rate read right (oracle)", {}, 3.0, True, 0.2, True),
-    ("flash rate read right, no classifier term", {}, None, True, 0.2, True),
+class Variant(NamedTuple):
+    """A what-if variant, evaluated offline on the diagnosis dwells: constants of `signatures.verify`
+    to override, the classifier clip (None: the classifier term dropped), the rotors term kept, the
+    track correlation rho, and the flash rate read right (the simulation's true blade-flash rate in
+    place of the estimate: an oracle that bounds what a better rate estimator alone could give)."""
+
+    name: str
+    consts: dict[str, Any]
+    clip: float | None
+    rotors: bool
+    rho: float
+    true_rate: bool = False
+
+    def walk(self, dwells: list[dict[str, Any]]) -> tuple[list[tuple[float, bool]], str]:
+        """One scene's dwells scored under the variant, and how the sequential test ends on them."""
+        vals = [_variant_llr(r, self.consts, self.clip, self.rotors, self.true_rate) for r in dwells]
+        return vals, _walk(vals, self.rho)[0]
+
+
+WHAT_IF: tuple[Variant, ...] = (
+    Variant("shipped", {}, 3.0, True, 0.2),
+    Variant("classifier clip 1", {}, 1.0, True, 0.2),
+    Variant("no classifier term", {}, None, True, 0.2),
+    Variant("no rotors term", {}, 3.0, False, 0.2),
+    Variant("ROTOR_BAND 0.45-1.10", {"ROTOR_BAND": (0.45, 1.10)}, 3.0, True, 0.2),
+    Variant("REL_FLOOR 0.06", {"REL_FLOOR": 0.06}, 3.0, True, 0.2),
+    Variant("rho 0.1", {}, 3.0, True, 0.1),
+    Variant("rho 0.1, classifier clip 1", {}, 1.0, True, 0.1),
+    Variant("rho 0.1, clip 1, ROTOR_BAND 0.45, REL_FLOOR 0.06", {"ROTOR_BAND": (0.45, 1.10), "REL_FLOOR": 0.06}, 1.0,
+            True, 0.1),
+    Variant("rho 0.05", {}, 3.0, True, 0.05),
+    Variant("flash rate read right (oracle)", {}, 3.0, True, 0.2, True),
+    Variant("flash rate read right, no classifier term", {}, None, True, 0.2, True),
 )
 
 
@@ -463,14 +478,14 @@ def what_if_table(rows: list[dict[str, Any]]) -> list[str]:
             keyed.setdefault((r["world"], -r["snr_db"]), {}).setdefault(
                 (r["category"], r["flies"], r["claims"], r["track"]), []).append(r)
     for (world, nsnr), scenes in sorted(keyed.items()):
-        for name, consts, clip, rotors, rho, true_rate in WHAT_IF:
+        for variant in WHAT_IF:
             cells = []
             walks: dict[str, list[str]] = {c: [] for c in CATEGORIES}
             dw: dict[str, list[float]] = {c: [] for c in CATEGORIES}
             for (cat, *_), rs in scenes.items():
-                vals = [_variant_llr(r, consts, clip, rotors, true_rate) for r in rs]
+                vals, end = variant.walk(rs)
                 dw[cat] += [v for v, _ in vals]
-                walks[cat].append(_walk(vals, rho)[0])
+                walks[cat].append(end)
             for cat in CATEGORIES:
                 xs = dw[cat]
                 ok = sum((x > 0) if cat == "genuine" else (x < 0) for x in xs)
@@ -484,7 +499,7 @@ def what_if_table(rows: list[dict[str, Any]]) -> list[str]:
                 else:
                     cells.append(f"{_pct((len(ws) - ws.count('accept')) / len(ws))} "
                                  f"({_pct(ws.count('inconclusive') / len(ws))})")
-            lines.append(f"| {world} | {-nsnr:g} | {name} | " + " | ".join(cells) + " |")
+            lines.append(f"| {world} | {-nsnr:g} | {variant.name} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -496,8 +511,8 @@ PAIR_VARIANTS = ("shipped", "no classifier term", "flash rate read right (oracle
 def what_if_pair_table(rows: list[dict[str, Any]], names: tuple[str, ...] = PAIR_VARIANTS) -> list[str]:
     """Per world, SNR and (category, flown, claimed) pair: the scenes walked as tracks under each of
     `names` (WHAT_IF variants), as right tracks of all (accepted genuine, not accepted impostors)."""
-    variants = [v for v in WHAT_IF if v[0] in names]
-    lines = ["| world | SNR dB | flown -> claimed | " + " | ".join(v[0] for v in variants) + " |",
+    variants = [v for v in WHAT_IF if v.name in names]
+    lines = ["| world | SNR dB | flown -> claimed | " + " | ".join(v.name for v in variants) + " |",
              "|---|---|---|" + "---|" * len(variants)]
     keyed: dict[tuple, dict[int, list[dict]]] = {}
     for r in rows:
@@ -506,9 +521,8 @@ def what_if_pair_table(rows: list[dict[str, Any]], names: tuple[str, ...] = PAIR
             keyed.setdefault(key, {}).setdefault(r["track"], []).append(r)
     for (world, nsnr, c_idx, flies, claims), scenes in sorted(keyed.items()):
         cells = []
-        for _, consts, clip, rotors, rho, true_rate in variants:
-            ends = [_walk([_variant_llr(r, consts, clip, rotors, true_rate) for r in rs], rho)[0]
-                    for rs in scenes.values()]
+        for variant in variants:
+            ends = [variant.walk(rs)[1] for rs in scenes.values()]
             right = ends.count("accept") if c_idx == 0 else len(ends) - ends.count("accept")
             cells.append(f"{right}/{len(ends)}")
         lines.append(f"| {world} | {-nsnr:g} | {flies} -> {claims} | " + " | ".join(cells) + " |")

@@ -66,6 +66,12 @@ def test_noise_and_clutter_alone_are_no_flash_train():
         assert flash.spectral_flash_rate(x, rec.config, np.zeros(1)).score[0] < flash.SPECTRAL_DETECT_SCORE
 
 
+def _flashes(t: np.ndarray, rate: float) -> np.ndarray:
+    """Gaussian flashes at `rate` (3 % of a period wide) at times `t` (s), peak 1."""
+    phase = (t * rate) % 1.0
+    return np.exp(-0.5 * (np.minimum(phase, 1 - phase) / 0.03) ** 2)
+
+
 def test_spectral_rate_is_refined_below_a_bin():
     """A pure flash train at a rate between bins: within 0.5 % of the rate (a bin is 1.2 Hz)."""
     preset = EXTRA_PRESETS["cw-sband"]
@@ -73,8 +79,7 @@ def test_spectral_rate_is_refined_below_a_bin():
     rng = np.random.default_rng(0)
     t = np.arange(n) * config.pri_s
     for rate in (97.3, 151.7, 333.3):
-        phase = (t * rate) % 1.0
-        flashes = np.exp(-0.5 * (np.minimum(phase, 1 - phase) / 0.03) ** 2)
+        flashes = _flashes(t, rate)
         doppler = np.exp(2j * math.pi * 900.0 * t) + np.exp(-2j * math.pi * 900.0 * t)
         x = (flashes * doppler + 0.05 * (rng.standard_normal(n) + 1j * rng.standard_normal(n)))[None, :, None]
         train = flash.spectral_flash_rate(x.astype(np.complex64), config, np.zeros(1))
@@ -100,8 +105,7 @@ def test_moving_clutter_is_left_out_of_the_envelope():
     config, n = preset.config, preset.n_chirps
     t = np.arange(n) * config.pri_s
     for rate in (131.3, 151.7, 333.3):
-        phase = (t * rate) % 1.0
-        flashes = np.exp(-0.5 * (np.minimum(phase, 1 - phase) / 0.03) ** 2)
+        flashes = _flashes(t, rate)
         doppler = np.exp(2j * math.pi * 900.0 * t) + np.exp(-2j * math.pi * 900.0 * t)
         x = flashes * doppler + _moving_clutter(n, config.pri_s, 10.0, 100.0)
         x = (x + 0.05 * (np.random.default_rng(0).standard_normal(n) + 1j))[None, :, None].astype(np.complex64)
@@ -140,8 +144,7 @@ def _two_sided_train(rate: float, even: tuple[float, float], odd: tuple[float, f
     n = preset.n_chirps
     t = np.arange(n) * preset.config.pri_s
     k = np.floor(t * rate + 0.5).astype(int)
-    phase = (t * rate) % 1.0
-    shape = np.exp(-0.5 * (np.minimum(phase, 1 - phase) / 0.03) ** 2)
+    shape = _flashes(t, rate)
     amp = np.where(k % 2 == 0, 1, 0)[:, None] * np.array(even) + np.where(k % 2 == 1, 1, 0)[:, None] * np.array(odd)
     x = shape * (amp[:, 0] * np.exp(2j * math.pi * 900.0 * t) + amp[:, 1] * np.exp(-2j * math.pi * 900.0 * t))
     noise = 0.05 * (np.random.default_rng(1).standard_normal(n) + 1j * np.random.default_rng(2).standard_normal(n))
