@@ -50,6 +50,10 @@ VIEW_MAX_HZ = 700.0
 #: Envelope autocorrelation sampled at this many lags over 1-30 ms (one to three flash periods).
 VIEW_LAGS = 60
 _TINY = 1e-30
+#: A class's spread is floored here (a point mass) in the normal EER.
+_TINY_SD = 1e-9
+#: Worlds a dwell is rendered in.
+RENDER_WORLDS = ("heldout", "training", "randomised")
 #: Fits on fewer rows than this use a random forest instead of boosting.
 SMALL_FIT = 600
 
@@ -108,8 +112,13 @@ def _render(job: tuple) -> list[RenderedDwell]:
     world, snr, seed, p_idx, flies, i, k = job
     pre = get_preset("paper")
     scene, az, base = _scene_and_draws(seed, 0, snr, p_idx, i, flies)
+    if world == "randomised":  # the training simulator, the scene's nuisances drawn once (a track repeats them)
+        from signatures.sampling import NuisanceDistribution, sample_nuisance
+
+        nuisance, fields = sample_nuisance(np.random.default_rng([base, 41]), NuisanceDistribution())
+        scene = scene.model_copy(update={"nuisance": nuisance, **fields})
     recs = track_recordings(scene, "paper", list(range(base, base + k)), bench_serial(flies), az,
-                            spacing_s=pre.dwell_s, world=world)
+                            spacing_s=pre.dwell_s, world="training" if world == "randomised" else world)
     out = []
     for rec in recs:
         f = asdict(extract(rec).features)
@@ -207,8 +216,10 @@ def _components(x: np.ndarray, scenes: np.ndarray) -> tuple[float, float, float]
 
 
 def _eer_normal(mu_a: float, sd_a: float, mu_b: float, sd_b: float) -> float:
-    """Equal error rate of a threshold between N(mu_a, sd_a) (above) and N(mu_b, sd_b) (below)."""
+    """Equal error rate of a threshold between N(mu_a, sd_a) (above) and N(mu_b, sd_b) (below). A
+    spread of 0 (every capped LLR at the cap) is a point mass: floored, not divided by."""
     phi = lambda z: 0.5 * math.erfc(-z / math.sqrt(2.0))  # noqa: E731
+    sd_a, sd_b = max(sd_a, _TINY_SD), max(sd_b, _TINY_SD)
     lo, hi = min(mu_a, mu_b) - 10 * max(sd_a, sd_b), max(mu_a, mu_b) + 10 * max(sd_a, sd_b)
     for _ in range(200):  # miss(t) rises and false accept(t) falls with t: bisect on their difference
         t = 0.5 * (lo + hi)
@@ -327,18 +338,20 @@ def reach(dwells: list[RenderedDwell], inputs: str = "features+view", shares: tu
 
 def transfer(dwells: list[RenderedDwell], inputs: str, fit_world: str = "training",
              track_dwells: int = TRACK_DWELLS) -> list[PairReach]:
-    """The same learner fitted on all of `fit_world`'s dwells at an SNR and scored on every other
-    world's at that SNR: whether what it learned holds in a world it never saw (what a shipped
-    bundle must do). The LLR is the log ratio of the two probabilities, uncalibrated (a calibration
-    would need the test world), so only its EER column is comparable with the oracle's."""
+    """The same learner fitted on all of `fit_world`'s dwells at an SNR (worlds joined by "+": their
+    union) and scored on every other world's at that SNR: whether what it learned holds in a world it
+    never saw (what a shipped bundle must do). The LLR is the log ratio of the two probabilities,
+    uncalibrated (a calibration would need the test world), so only its EER column is comparable with
+    the oracle's."""
     from sklearn.ensemble import HistGradientBoostingClassifier
 
     groups = {key: list(ds) for key, ds in _by_world_snr(dwells)}
+    fit = fit_world.split("+")
     out = []
     for (world, snr), ds in groups.items():
-        if world == fit_world or (fit_world, snr) not in groups:
+        if world in fit or any((w, snr) not in groups for w in fit):
             continue
-        Xf, yf, _ = _layout(groups[(fit_world, snr)], inputs)
+        Xf, yf, _ = _layout([d for w in fit for d in groups[(w, snr)]], inputs)
         X, y, scenes = _layout(ds, inputs)
         model = HistGradientBoostingClassifier(max_iter=300, learning_rate=0.05, l2_regularization=1.0,
                                                random_state=0).fit(Xf, yf)
@@ -348,6 +361,18 @@ def transfer(dwells: list[RenderedDwell], inputs: str, fit_world: str = "trainin
             llr = _log_ratio(p[sel], classes, a, b)
             out.append(_pair_row(world, snr, inputs, f"{fit_world} world", a, b, llr, y[sel] == a, scenes[sel],
                                  track_dwells))
+    return out
+
+
+def read_caches(paths: list[str], worlds: list[str], snrs: list[float]) -> list[RenderedDwell]:
+    """The dwells of `worlds` at `snrs` held by the caches at `paths` (the first cache holding a
+    (world, SNR) supplies it)."""
+    out: list[RenderedDwell] = []
+    for path in paths:
+        with open(path) as fh:
+            got = [RenderedDwell(**d) for d in json.load(fh) if d["world"] in worlds and d["snr_db"] in snrs]
+        have = {(d.world, d.snr_db) for d in out}
+        out += [d for d in got if (d.world, d.snr_db) not in have]
     return out
 
 
@@ -365,7 +390,9 @@ def table(rows: list[PairReach]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m lab.bench.reach", description=__doc__.splitlines()[0])
-    ap.add_argument("--world", action="append", choices=("heldout", "training"))
+    ap.add_argument("--world", action="append", choices=RENDER_WORLDS,
+                    help="worlds to render or read (repeatable; randomised: the training simulator with each "
+                         "scene's nuisances drawn, signal-model.md)")
     ap.add_argument("--snr", action="append", type=float)
     ap.add_argument("--scenes", type=int, default=200, help="genuine scenes per airframe, world and SNR")
     ap.add_argument("--dwells", type=int, default=5, help="back-to-back dwells per scene")
@@ -379,39 +406,44 @@ def main(argv: list[str] | None = None) -> int:
                     help="also fit on this many scenes per airframe, one dwell each (a site's enrolment size)")
     ap.add_argument("--transfer", action="append", default=[], choices=tuple(_PARTS),
                     help="also fit on the training world and score the others with these inputs (repeatable)")
+    ap.add_argument("--fit-world", action="append", default=[], metavar="W[+W]",
+                    help="the world(s) --transfer fits on (repeatable; default training; a+b: their union)")
     ap.add_argument("--group", action="append", default=[], metavar="A,B",
                     help="also report with these airframes as one class (repeatable; with --per-class, each airframe "
                          "fitted on that many)")
     ap.add_argument("--track-dwells", type=int, default=TRACK_DWELLS,
                     help=f"dwells per track (default {TRACK_DWELLS}: 2 s of `paper` dwells; a site decides on 8)")
-    ap.add_argument("--cache", help="dwells cache (JSON): read if present, else rendered and written")
+    ap.add_argument("--cache", action="append", default=[],
+                    help="dwells cache (JSON, repeatable): those present are read; the (world, SNR) they lack are "
+                         "rendered and written to the first one absent")
     ap.add_argument("--json", help="write the rows to this file")
     a = ap.parse_args(argv)
+    from signatures.feature_vector import FEATURE_NAMES
+
     if a.track_dwells < 1:
         ap.error(f"--track-dwells {a.track_dwells}: at least 1")
     t0 = time.perf_counter()
     print(f"# {' '.join(['python -m lab.bench.reach', *(argv if argv is not None else sys.argv[1:])])}")
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
-    if a.cache and os.path.exists(a.cache):
-        from signatures.feature_vector import FEATURE_NAMES
-
-        with open(a.cache) as fh:
-            dwells = [RenderedDwell(**d) for d in json.load(fh)
-                      if d["world"] in (a.world or ["heldout"]) and d["snr_db"] in (a.snr or [10.0, 0.0])]
-        if any(len(d.features) != len(FEATURE_NAMES) for d in dwells):
-            ap.error(f"{a.cache} holds another feature vector than today's {len(FEATURE_NAMES)}: delete it")
-    else:
-        dwells = [d for w in (a.world or ["heldout"]) for s in (a.snr or [10.0, 0.0])
-                  for d in render(w, s, a.scenes, a.dwells, a.seed, a.workers)]
-        if a.cache:
-            with open(a.cache, "w") as fh:
-                json.dump([asdict(d) for d in dwells], fh)
+    worlds, snrs = a.world or ["heldout"], a.snr or [10.0, 0.0]
+    dwells = read_caches([c for c in a.cache if os.path.exists(c)], worlds, snrs)
+    if any(len(d.features) != len(FEATURE_NAMES) for d in dwells):
+        ap.error(f"a cache holds another feature vector than today's {len(FEATURE_NAMES)}: delete it")
+    have = {(d.world, d.snr_db) for d in dwells}
+    rendered = [d for w in worlds for s in snrs if (w, float(s)) not in have
+                for d in render(w, s, a.scenes, a.dwells, a.seed, a.workers)]
+    new_cache = [c for c in a.cache if not os.path.exists(c)]
+    if rendered and new_cache:
+        with open(new_cache[0], "w") as fh:
+            json.dump([asdict(d) for d in rendered], fh)
+    dwells += rendered
     print(f"# {len(dwells)} dwells rendered/read in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
     oracle = a.inputs or ([] if a.transfer else ["features", "features+view"])  # --transfer alone: its rows only
     rows = [r for inputs in oracle
             for r in reach(dwells, inputs, tuple(a.share or [1.0]), track_dwells=a.track_dwells)]
     for inputs in a.transfer:
-        rows += transfer(dwells, inputs, track_dwells=a.track_dwells)
+        for fit_world in a.fit_world or ["training"]:
+            rows += transfer(dwells, inputs, fit_world, track_dwells=a.track_dwells)
     for k in a.per_class:
         rows += reach(dwells, "features+view", (1.0,), per_class=k, track_dwells=a.track_dwells)
     for spec in a.group:

@@ -138,3 +138,66 @@ def test_a_site_enrols_k_recordings_of_each_airframe_even_in_a_group() -> None:
     counts = {a: int(np.sum(airframes[picked] == a)) for a in ("m300", "m600", "phantom4")}
     assert counts == {"m300": 30, "m600": 30, "phantom4": 3}  # a group of two keeps 30 of each
     assert len(set(picked.tolist())) == picked.size
+
+
+def _dwells(world: str, snr: float, shift: float, n: int = 40, seed: int = 0):
+    """Dwells of two airframes whose first feature separates them by 2 + `shift` one way or the other."""
+    from lab.bench.reach import RenderedDwell
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        flies = ("m300", "phantom4")[i % 2]
+        x = (1.0 if flies == "m300" else -1.0) + shift + 0.3 * rng.standard_normal(3)
+        out.append(RenderedDwell(world, snr, flies, i // 4, x.tolist(), []))
+    return out
+
+
+def test_caches_are_read_in_order_the_first_holding_a_world_supplies_it(tmp_path) -> None:
+    import json
+    from dataclasses import asdict
+
+    from lab.bench.reach import read_caches
+
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps([asdict(d) for d in _dwells("heldout", 10.0, 0.0, 8)]))
+    b.write_text(json.dumps([asdict(d) for d in _dwells("heldout", 10.0, 5.0, 6) + _dwells("randomised", 10.0, 0.0, 4)
+                             + _dwells("randomised", 0.0, 0.0, 2)]))
+    got = read_caches([str(a), str(b)], ["heldout", "randomised"], [10.0])
+    assert [(d.world, d.snr_db) for d in got] == [("heldout", 10.0)] * 8 + [("randomised", 10.0)] * 4
+    assert all(d.features[0] < 3.0 for d in got)  # b's shifted heldout dwells are not mixed in
+
+
+def test_transfer_fits_on_a_union_of_worlds_and_scores_only_the_others(monkeypatch) -> None:
+    import lab.bench.reach as reach
+
+    monkeypatch.setattr(reach, "_layout", lambda ds, inputs, groups=None: (
+        np.array([d.features for d in ds]), np.array([d.flies for d in ds]), np.array([d.scene for d in ds])))
+    dwells = _dwells("training", 10.0, 0.0) + _dwells("randomised", 10.0, 0.0, seed=1) + _dwells("heldout", 10.0, 0.0,
+                                                                                                  seed=2)
+    rows = reach.transfer(dwells, "features", "training+randomised", track_dwells=8)
+    assert {r.world for r in rows} == {"heldout"} and {r.fitted_on for r in rows} == {"training+randomised world"}
+    assert len(rows) == 2 and all(r.track_eer < 0.05 for r in rows)  # the worlds agree: it transfers
+    assert reach.transfer(dwells, "features", "training+bogus") == []  # a world it lacks: nothing to fit
+
+
+def test_a_randomised_scene_draws_its_nuisances_once_for_all_its_dwells(monkeypatch) -> None:
+    import lab.bench.reach as reach
+    import lab.bench.track as track
+
+    seen = []
+    monkeypatch.setattr(track, "track_recordings", lambda scene, *a, world, **k: seen.append((scene, world)) or [])
+    reach._render(("randomised", 10.0, 11, 0, "m300", 3, 5))
+    reach._render(("randomised", 10.0, 11, 0, "m300", 3, 5))
+    reach._render(("training", 10.0, 11, 0, "m300", 3, 5))
+    (r1, w1), (r2, _), (plain, w3) = seen
+    assert w1 == w3 == "training" and r1.nuisance is not None and plain.nuisance is None
+    assert r1 == r2  # the same scene draws the same nuisances (seeded by the scene)
+    assert r1.profile == plain.profile and r1.range_m == plain.range_m  # the must-show's scene, randomised
+
+
+def test_the_normal_eer_of_point_masses_is_finite() -> None:
+    from lab.bench.reach import _eer_normal
+
+    assert _eer_normal(4.0, 0.0, -4.0, 0.0) == pytest.approx(0.0, abs=1e-12)  # every LLR at the cap
+    assert _eer_normal(1.0, 0.0, 1.0, 0.0) == pytest.approx(0.5, abs=1e-6)  # the same point: chance
