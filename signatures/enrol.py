@@ -242,7 +242,8 @@ def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -
     """Each model's physics bands re-estimated from its site recordings (`_band`, today's
     `signatures.verify` bands the prior): the flash rate over the nominal (estimates the rate
     term would use) and the rotors seen over the rotor count (counts the rotor term would use)."""
-    from signatures.verify import MAX_REL_STD, MIN_FLASH_GROUPS, MIN_FLASH_SCORE, RATE_BAND, ROTOR_BAND
+    from signatures.verify import (MAX_REL_STD, MIN_FLASH_GROUPS, MIN_FLASH_SCORE, RATE_BAND, ROTOR_BAND,
+                                   rotors_are_lower_bound)
 
     out: dict[str, dict[str, Any]] = {}
     for m in sorted({s.model for s in samples}):
@@ -256,8 +257,8 @@ def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -
             if f > 0 and s.physics.get("flash_score", 0.0) >= MIN_FLASH_SCORE and sd / f <= MAX_REL_STD:
                 rate.append(math.log(f) - math.log(prof.blade_flash_rate_hz))
             seen, ssd = s.physics.get("rotors_seen", 0.0), s.physics.get("rotors_seen_std", 0.0)
-            lower_bound = s.physics.get("rotors_lower_bound", 0.0) >= 0.5  # rotors visible: no band to fit
-            if seen > 0 and ssd > 0 and ssd / seen <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9 and not lower_bound:
+            visible = rotors_are_lower_bound(s.physics)  # rotors visible, a lower bound: no band to fit
+            if seen > 0 and ssd > 0 and ssd / seen <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9 and not visible:
                 rot.append(math.log(seen) - math.log(prof.rotors))
         out[m] = {"rate": [round(v, 6) for v in _band(rate, RATE_BAND)],
                   "rotors": [round(v, 6) for v in _band(rot, ROTOR_BAND)], "n_rate": len(rate), "n_rotors": len(rot)}

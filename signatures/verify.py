@@ -64,7 +64,7 @@ from typing import Any
 from signatures.profiles import NON_UAV_CLASSES, UavProfile
 
 __all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "ROTOR_BAND", "Bands", "Verification",
-           "bands_from", "verify"]
+           "bands_from", "rotors_are_lower_bound", "verify"]
 
 #: Flown rotor rate over the profile's nominal rate (hover to climb, payload, battery sag).
 RATE_BAND = (0.80, 1.20)
@@ -155,6 +155,12 @@ class Verification:
         return doc
 
 
+def rotors_are_lower_bound(estimates: Mapping[str, float]) -> bool:
+    """Whether `estimates` (features, or a `FeatureResult.physics`) count the rotors *visible* above
+    the noise (a long dwell's `rotors_lower_bound`), which only vetoes, rather than those seen."""
+    return float(estimates.get("rotors_lower_bound", 0.0)) >= 0.5
+
+
 def _phi(x: float) -> float:
     return 0.5 * math.erfc(-x / math.sqrt(2.0))
 
@@ -188,7 +194,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
         if tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
             blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
-    veto = float(features.get("rotors_lower_bound", 0.0)) >= 0.5
+    veto = rotors_are_lower_bound(features)
     rotors = _rotors(features, claimed, (bands.rotors[0], (claimed.rotors + VISIBLE_SLACK) / claimed.rotors) if veto
                      else bands.rotors)
     compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
