@@ -163,7 +163,9 @@ def track_files(paths: Sequence[Path]) -> list[Path]:
     """The dwells of `--track`: one directory (its .h5/.hdf5/.npz files by name, as `authn import`
     numbers them) or the files in the order given. No dwell at all is bad input."""
     if len(paths) == 1 and paths[0].is_dir():
-        found = sorted(f for f in paths[0].iterdir() if f.suffix.lower() in (".h5", ".hdf5", ".npz"))
+        from signatures.recording import recordings_in
+
+        found = recordings_in(paths[0])
         if not found:
             raise AuthnError(f"{paths[0]}: no .h5/.npz files in this directory: a track needs at least one dwell")
         return found

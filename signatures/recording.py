@@ -694,6 +694,17 @@ def _sniff(path: Path, max_file_bytes: int) -> bytes:
     return head
 
 
+#: What a recorded-return file may be called: the suffix names the container (docs/format.md).
+RECORDING_SUFFIXES = (".h5", ".hdf5", ".npz")
+
+
+def recordings_in(directory: Path, recursive: bool = False) -> list[Path]:
+    """The recorded-return files of `directory` (`RECORDING_SUFFIXES`; `recursive`: of its subfolders
+    too), sorted by path: the time order `authn import` gives its numbered dwells."""
+    found = directory.rglob("*") if recursive else directory.iterdir()
+    return sorted(f for f in found if f.suffix.lower() in RECORDING_SUFFIXES and f.is_file())
+
+
 def read_recording(path: str | Path, max_cells: int = MAX_IQ_CELLS, *,
                    max_bytes: int = MAX_IQ_BYTES, max_file_bytes: int = MAX_FILE_BYTES) -> Recording:
     """Read and validate a recorded return (.h5/.hdf5 or .npz; sniffed by content).

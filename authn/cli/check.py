@@ -29,7 +29,9 @@ def _files(paths: list[Path]) -> list[Path]:
     out: list[Path] = []
     for p in paths:
         if p.is_dir():
-            found = sorted(f for f in p.iterdir() if f.suffix.lower() in (".h5", ".hdf5", ".npz"))
+            from signatures.recording import recordings_in
+
+            found = recordings_in(p)
             if not found:
                 raise AuthnError(f"{p}: no .h5/.npz files in this directory")
             out.extend(found)

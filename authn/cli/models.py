@@ -361,17 +361,15 @@ def _print(report: dict) -> None:
 
 # --- site enrolment ------------------------------------------------------------------------
 
-_RECORDING_SUFFIXES = (".h5", ".hdf5", ".npz")
-
-
 def _recording_files(paths: list[Path]) -> list[Path]:
     """The recordings named: files as given, directories' .h5/.hdf5/.npz files (recursively, sorted)."""
     from signatures.enrol import EnrolError
+    from signatures.recording import recordings_in
 
     out: list[Path] = []
     for p in paths:
         if p.is_dir():
-            out += sorted(f for f in p.rglob("*") if f.is_file() and f.suffix.lower() in _RECORDING_SUFFIXES)
+            out += recordings_in(p, recursive=True)
         elif p.is_file():
             out.append(p)
         else:

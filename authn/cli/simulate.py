@@ -239,17 +239,14 @@ def simulate(
     typer.echo(f"wrote {count} returns to {out}/")
 
 
-#: What a recorded-return file may be called: the suffix picks the container (docs/format.md).
-OUT_SUFFIXES = (".h5", ".hdf5", ".npz")
-
-
 def _check_out(out: Path, count: int) -> None:
     """--out: a .h5/.hdf5/.npz file for one scene, a directory (no suffix) for --count N."""
     from signatures.errors import SignaturesError
+    from signatures.recording import RECORDING_SUFFIXES
 
     suffix = out.suffix.lower()
-    if count > 1 and suffix in OUT_SUFFIXES:
+    if count > 1 and suffix in RECORDING_SUFFIXES:
         raise SignaturesError(f"--out: with --count {count}, give a directory, not the file name {out}")
-    if count == 1 and suffix and suffix not in OUT_SUFFIXES and not out.is_dir():
+    if count == 1 and suffix and suffix not in RECORDING_SUFFIXES and not out.is_dir():
         raise SignaturesError(f"--out {out}: a recorded return is written as .h5 (HDF5) or .npz, "
                               f"not {out.suffix}; a directory of returns: --count N")

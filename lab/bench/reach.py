@@ -19,8 +19,9 @@ of the oracle's LLRs is measured beside it.
 `--inputs` names the oracle's inputs, parts of the view among them (the ablation); `--cache` keeps the
 rendered dwells for the next run; `--transfer INPUTS` fits on the training world (or `--fit-world`:
 another, or a union such as training+randomised, the training simulator with each scene's nuisances
-drawn) and scores the other worlds (what a shipped bundle must do). The track EER column is what any rule on a track's mean LLR could
-reach under a random-effects model of the dwells (`track_eer`), beside what the check's test does.
+drawn) and scores the other worlds (what a shipped bundle must do). The track EER column is what any
+rule on a track's mean LLR could reach under a random-effects model of the dwells (`track_eer`),
+beside what the check's test does.
 
 Scenes are drawn as `lab.bench.track_must_show` draws them (another seed: no scene of the must-show is
 fitted on); nothing here ships or tunes anything that ships.

@@ -19,14 +19,10 @@ from core.checked import Invalid
 from core.parsing import parse_iso_time
 from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
-from signatures.recording import (EARLIEST_START, MAX_FUTURE_SKEW, MAX_IQ_CELLS, RadarSite, Recording,
-                                  write_recording)
+from signatures.recording import (EARLIEST_START, MAX_FUTURE_SKEW, MAX_IQ_CELLS, RECORDING_SUFFIXES, RadarSite,
+                                  Recording, write_recording)
 
 __all__ = ["Capture", "Dwell", "analytic_half_rate", "radar_config", "write_dwells"]
-
-#: Suffixes that make `--out` a file (one dwell); anything else is a directory.
-FILE_SUFFIXES = (".h5", ".hdf5", ".npz")
-
 
 @dataclass(frozen=True)
 class Capture:
@@ -101,7 +97,7 @@ def write_dwells(dwells: Iterable[Dwell], n_dwells: int, capture: Capture, out: 
     """Write each dwell as a recorded return at the capture's site and time (no Remote ID;
     `attach` may add it: `authn import --rid-capture`); `--out` is the file when there is one
     dwell and it has a recording suffix (.h5, .hdf5, .npz), else a directory of `<label>.h5`."""
-    as_file = out.suffix.lower() in FILE_SUFFIXES
+    as_file = out.suffix.lower() in RECORDING_SUFFIXES
     if as_file and n_dwells != 1:
         raise SignaturesError(f"--out: {n_dwells} dwells result; give a directory, not the file name {out}")
     paths: list[Path] = []
