@@ -123,6 +123,52 @@ def accuracy(
         ("median flash error", lambda r: f"{r.flash_median_err:.1%}")))
 
 
+@features_app.command("score")
+def score_recordings(
+    truth: Path = typer.Argument(..., help="Truth CSV: file,rotor_rate_hz,radial_velocity_mps,rotors,note (docs/"
+                                           "estimators.md); `file` a recording or a directory of dwells."),
+    as_json: bool = typer.Option(False, "--json", help="One JSON object: the rows and every dwell's estimates."),
+) -> None:
+    """Score the estimators on your own recordings against truth measured another way.
+
+    Per row of the truth file (a recording, or a directory of dwells that `authn import` wrote
+    for one capture) and over all rows: share detected, |v - truth| < 1 m/s, the mechanical
+    rotor rate within 3 %, rotors seen within +-1, the median rotor-rate error, and how often the
+    rate read is twice or half the truth (the rule of `authn features accuracy --condition`). An
+    empty cell is not known and not scored (n/a).
+
+    Example: authn features score truth.csv
+
+    Example: authn features score truth.csv --json > scores.json
+    """
+    from rich.progress import Progress
+
+    from lab.recordings import as_json as scores_json
+    from lab.recordings import read_truth
+    from lab.recordings import score_recordings as run
+
+    rows = read_truth(truth)
+    with Progress(transient=True, disable=as_json) as progress:
+        task = progress.add_task("scoring recordings", total=sum(len(r.files) for r in rows))
+        per_row, dwells = run(rows, advance=lambda: progress.advance(task))
+    if as_json:
+        typer.echo(json.dumps(scores_json(per_row, dwells)))
+        return
+
+    def pct(x: float | None) -> str:
+        return "n/a" if x is None else f"{x:.0%}"
+
+    typer.echo("| file | dwells | detected | abs(v - truth) < 1 m/s | rotor rate +-3 % | rotors seen +-1 | "
+               "median rotor-rate error | rate at 2x truth | rate at 0.5x truth |")
+    typer.echo("|" + "---|" * 9)
+    from core.textsafe import printable
+
+    for name, s in per_row:
+        err = "n/a" if s.rotor_median_err is None else f"{s.rotor_median_err:.1%}"
+        typer.echo(f"| {printable(name)} | {s.n} | {pct(s.detected)} | {pct(s.velocity_ok)} | {pct(s.rotor_ok)} | "
+                   f"{pct(s.rotors_ok)} | {err} | {pct(s.at_double)} | {pct(s.at_half)} |")
+
+
 def _print_rows(rows: list, as_json: bool, columns: tuple) -> None:
     """The rows as JSON (`as_dict`) or as a Markdown table of `columns` ((title, cell of a row))."""
     if as_json:
