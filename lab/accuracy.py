@@ -73,10 +73,9 @@ def render_in_world(world: str, scene: Scene, preset, seed: int):
     from signatures.simulate import simulate
 
     if world == "randomised":
-        from signatures.sampling import NuisanceDistribution, sample_nuisance
+        from signatures.sampling import randomised
 
-        nuisance, fields = sample_nuisance(np.random.default_rng(seed), NuisanceDistribution())
-        scene = scene.model_copy(update={"nuisance": nuisance, **fields})
+        scene = randomised(scene, np.random.default_rng(seed))
     rec, truth = simulate(scene, preset, seed=seed)
     accel = scene.nuisance.radial_accel_mps2 if scene.nuisance else 0.0  # the Doppler line: mid-dwell speed
     return rec, truth.rotor_rate_hz, truth.range_m, truth.radial_speed_mps + accel * preset.dwell_s / 2.0
@@ -218,7 +217,7 @@ class Scores:
     rotors_ok: float | None  # rotors seen within ROTORS_SEEN_TOLERANCE of the rotor count
     rotor_median_err: float | None  # median |relative rotor-rate error|
     at_double: float | None  # rotor rate within tolerance of 2x the truth (the blade-flash rate read as the rotor's)
-    at_half: float | None  # within tolerance of 0.5x the truth (one flash per two turns)
+    at_half: float | None  # within tolerance of 0.5x the truth (one blade's flash a turn taken for two blades')
 
 
 def score(pairs: list[tuple[Estimate, Truth]]) -> Scores:

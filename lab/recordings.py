@@ -46,7 +46,6 @@ ROTORS_SPAN = (1, 32)
 class TruthRow:
     """One row of the truth file: the recordings it names and what is known of them."""
 
-    line: int
     name: str  # the `file` cell as written
     files: tuple[Path, ...]
     truth: Truth
@@ -127,7 +126,7 @@ def read_truth(path: Path) -> list[TruthRow]:
         name = (row.get("file") or "").strip()
         if not name:
             raise BadInput(f"{path}:{line}: the file cell is empty")
-        rows.append(TruthRow(line, name, _files(name, line, path), _truth(row, line, path)))
+        rows.append(TruthRow(name, _files(name, line, path), _truth(row, line, path)))
     if not rows:
         raise BadInput(f"{path}: no rows: one per recording (or directory of dwells) to score")
     return rows

@@ -146,6 +146,13 @@ def sample_nuisance(rng: np.random.Generator, dist: NuisanceDistribution) -> tup
     return nz, scene_fields
 
 
+def randomised(scene: Scene, rng: np.random.Generator, dist: NuisanceDistribution | None = None) -> Scene:
+    """`scene` with one draw of `dist` (default: `NuisanceDistribution()`) applied: what the
+    randomised world renders of a scene drawn without nuisances."""
+    nuisance, fields = sample_nuisance(rng, dist or NuisanceDistribution())
+    return scene.model_copy(update={"nuisance": nuisance, **fields})
+
+
 def sample_scene(rng: np.random.Generator, target: Target, dist: SceneDistribution,
                  position: Position | None = None) -> Scene:
     """One random scene of `target` drawn from `dist` with `rng` (advances `rng`).

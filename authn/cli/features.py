@@ -143,6 +143,7 @@ def score_recordings(
     """
     from rich.progress import Progress
 
+    from core.textsafe import printable
     from lab.recordings import as_json as scores_json
     from lab.recordings import read_truth
     from lab.recordings import score_recordings as run
@@ -161,8 +162,6 @@ def score_recordings(
     typer.echo("| file | dwells | detected | abs(v - truth) < 1 m/s | rotor rate +-3 % | rotors seen +-1 | "
                "median rotor-rate error | rate at 2x truth | rate at 0.5x truth |")
     typer.echo("|" + "---|" * 9)
-    from core.textsafe import printable
-
     for name, s in per_row:
         err = "n/a" if s.rotor_median_err is None else f"{s.rotor_median_err:.1%}"
         typer.echo(f"| {printable(name)} | {s.n} | {pct(s.detected)} | {pct(s.velocity_ok)} | {pct(s.rotor_ok)} | "

@@ -115,10 +115,9 @@ def _render(job: tuple) -> list[RenderedDwell]:
     pre = get_preset("paper")
     scene, az, base = _scene_and_draws(seed, 0, snr, p_idx, i, flies)
     if world == "randomised":  # the training simulator, the scene's nuisances drawn once (a track repeats them)
-        from signatures.sampling import NuisanceDistribution, sample_nuisance
+        from signatures.sampling import randomised
 
-        nuisance, fields = sample_nuisance(np.random.default_rng([base, 41]), NuisanceDistribution())
-        scene = scene.model_copy(update={"nuisance": nuisance, **fields})
+        scene = randomised(scene, np.random.default_rng([base, 41]))
     recs = track_recordings(scene, "paper", list(range(base, base + k)), bench_serial(flies), az,
                             spacing_s=pre.dwell_s, world="training" if world == "randomised" else world)
     out = []
@@ -424,6 +423,10 @@ def main(argv: list[str] | None = None) -> int:
 
     if a.track_dwells < 1:
         ap.error(f"--track-dwells {a.track_dwells}: at least 1")
+    for spec in a.fit_world:
+        unknown = [w for w in spec.split("+") if w not in (a.world or ["heldout"])]
+        if unknown:
+            ap.error(f"--fit-world {spec}: {', '.join(unknown)} is not among the --world given")
     t0 = time.perf_counter()
     print(f"# {' '.join(['python -m lab.bench.reach', *(argv if argv is not None else sys.argv[1:])])}")
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")

@@ -201,3 +201,13 @@ def test_the_normal_eer_of_point_masses_is_finite() -> None:
 
     assert _eer_normal(4.0, 0.0, -4.0, 0.0) == pytest.approx(0.0, abs=1e-12)  # every LLR at the cap
     assert _eer_normal(1.0, 0.0, 1.0, 0.0) == pytest.approx(0.5, abs=1e-6)  # the same point: chance
+
+
+def test_a_fit_world_not_rendered_is_refused_in_one_line(capsys) -> None:
+    from lab.bench.reach import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--world", "heldout", "--world", "training", "--transfer", "features",
+              "--fit-world", "training+randomised"])
+    assert exc.value.code == 2
+    assert "--fit-world training+randomised: randomised" in capsys.readouterr().err.strip().splitlines()[-1]
