@@ -242,7 +242,7 @@ def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -
     """Each model's physics bands re-estimated from its site recordings (`_band`, today's
     `signatures.verify` bands the prior): the flash rate over the nominal (estimates the rate
     term would use) and the rotors seen over the rotor count (counts the rotor term would use)."""
-    from signatures.verify import (MAX_REL_STD, MIN_FLASH_GROUPS, MIN_FLASH_SCORE, RATE_BAND, ROTOR_BAND,
+    from signatures.verify import (MAX_REL_STD, MIN_FLASH_GROUPS, RATE_BAND, ROTOR_BAND, min_flash_score,
                                    rotors_are_lower_bound)
 
     out: dict[str, dict[str, Any]] = {}
@@ -254,7 +254,7 @@ def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -
             if s.model != m or not s.detected:
                 continue
             f, sd = s.physics.get("flash_rate_hz", 0.0), s.physics.get("flash_rate_std_hz", 0.0)
-            if f > 0 and s.physics.get("flash_score", 0.0) >= MIN_FLASH_SCORE and sd / f <= MAX_REL_STD:
+            if f > 0 and s.physics.get("flash_score", 0.0) >= min_flash_score(s.physics) and sd / f <= MAX_REL_STD:
                 rate.append(math.log(f) - math.log(prof.blade_flash_rate_hz))
             seen, ssd = s.physics.get("rotors_seen", 0.0), s.physics.get("rotors_seen_std", 0.0)
             visible = rotors_are_lower_bound(s.physics)  # rotors visible, a lower bound: no band to fit

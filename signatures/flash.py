@@ -81,7 +81,7 @@ VISIBLE_STD = 1.0
 #: Bins per block of the whitening floor (`_whitened`).
 SPECTRAL_FLOOR_BINS = 32
 #: A CW dwell whose flash train scores this much is a detection: 5x the noise dwells' highest
-#: (0.08). The verification's rate term still needs the period search's own bar (score >= 1).
+#: (0.08). The verification reads a long dwell's rate from the same bar (`verify.MIN_SPECTRAL_SCORE`).
 SPECTRAL_DETECT_SCORE = 0.4
 #: Doppler (Hz) either side of the body line left out of the envelope at least: body, hub, clutter.
 SPECTRAL_BODY_HZ = 20.0

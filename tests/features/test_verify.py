@@ -151,6 +151,21 @@ def test_an_unreliable_rate_abstains() -> None:
     assert verify({**_seen(P["m300"]), "flash_rate_hz": 0.0}, P["m300"]).terms == {}
 
 
+def test_a_long_dwells_rate_is_read_from_the_score_that_detects_it() -> None:
+    """A long dwell's envelope-spectrum rate (marked by its visible-rotor count) is a train from the
+    CW detection's score, where the period search's needs 1: at 0.5 the long dwell's is read and
+    verifies, the short dwell's abstains; under the detection's score both abstain."""
+    from signatures.flash import SPECTRAL_DETECT_SCORE
+    from signatures.verify import MIN_FLASH_SCORE, MIN_SPECTRAL_SCORE, min_flash_score
+
+    assert MIN_SPECTRAL_SCORE == SPECTRAL_DETECT_SCORE < MIN_FLASH_SCORE
+    long_dwell = {**_seen(P["m300"]), **_visible(4.0)}
+    assert min_flash_score(long_dwell) == MIN_SPECTRAL_SCORE and min_flash_score(_seen(P["m300"])) == MIN_FLASH_SCORE
+    assert verify({**long_dwell, "flash_score": 0.5}, P["m300"]).terms["physics"] > 1.0
+    assert verify({**_seen(P["m300"]), "flash_score": 0.5}, P["m300"]).physics_abstained
+    assert verify({**long_dwell, "flash_score": 0.3}, P["m300"]).physics_abstained
+
+
 finite = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
 
 
