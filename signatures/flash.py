@@ -91,6 +91,16 @@ SPECTRAL_BODY_HZ = 20.0
 #: of the PRF either side (3 was chosen on the randomised world among 3 and 10: its clutter spreads
 #: 0-0.5 m/s; `clutter_width_hz`).
 CLUTTER_FLOOR_FACTOR = 3.0
+#: Share of a long dwell tapered (half at each end, a Tukey window) before its Doppler spectrum
+#: (`flash_envelope`): the mean subtraction removes static clutter exactly, but clutter that moves,
+#: or that an off-zero body demodulation moves (+20..+40 dB over the target), is not periodic in the
+#: record, and a rectangular window's sidelobes carried it across the whole band, where no cut could
+#: take it out (0.1 m/s of foliage read the clutter 489 Hz wide and drowned the flash line). The
+#: rotors are counted on the untapered rest. Randomised world, 0.82 s hover / idle, 80 scenes: rate
+#: within 3 % 69 / 61 -> 67 / 72, rotors within +-1 20 / 20 -> 31 / 32 (0.1 and 0.5 within 2 scenes
+#: of that); the shortest keeps the most dwell for the count (training, 10 s hover / idle, 160
+#: scenes: 150 / 146 untapered, 144 / 148 at 0.1, 150 / 150 at 0.05).
+ENVELOPE_TAPER = 0.05
 SPECTRAL_SMOOTH_HZ = 5.0
 
 
@@ -789,13 +799,13 @@ class FlashTrain:
 def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(sum, difference) of the approaching and receding halves' power envelopes of each row of
     long-dwell gates `slow` (B, pulses, bins), each (B, pulses): demodulated by the body Doppler,
-    the body's and the clutter's line dropped (`clutter_width_hz`; `spectral_flash_rate` says why
-    the sum and the difference)."""
+    its ends tapered (`ENVELOPE_TAPER`), the body's and the clutter's line dropped
+    (`clutter_width_hz`; `spectral_flash_rate` says why the sum and the difference)."""
     n = slow.shape[1]
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body_hz * config.pri_s)[:, None] * t)
     x = (slow * demod[:, :, None]).astype(np.complex64)
-    spec = np.fft.fft(x - x.mean(axis=1, keepdims=True), axis=1)
+    spec = np.fft.fft((x - x.mean(axis=1, keepdims=True)) * tukey(n, ENVELOPE_TAPER)[None, :, None], axis=1)
     f = np.fft.fftfreq(n, d=config.pri_s)
     keep = np.abs(f)[None, :] > clutter_width_hz(spec, config.pri_s)[:, None]
     halves = []
@@ -803,6 +813,23 @@ def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -
         part = np.fft.ifft(spec * (keep & half[None, :])[:, :, None], axis=1)
         halves.append((part.real ** 2 + part.imag ** 2).sum(axis=2))
     return halves[0] + halves[1], halves[0] - halves[1]
+
+
+def taper_length(n: int, share: float) -> int:
+    """Points tapered at each end of n by a Tukey window over `share` of them (`tukey`)."""
+    return int(share * (n - 1) / 2.0)
+
+
+def tukey(n: int, share: float) -> np.ndarray:
+    """A Tukey window of n points (float32): cosine tapers over `share` of them, half at each end,
+    1 between (numpy only: the check path does not import scipy)."""
+    w = np.ones(n, dtype=np.float32)
+    edge = taper_length(n, share)
+    if edge >= 1:
+        ramp = 0.5 * (1.0 - np.cos(np.pi * np.arange(edge) / edge))
+        w[:edge] = ramp
+        w[n - edge:] = ramp[::-1]
+    return w
 
 
 def clutter_width_hz(spec: np.ndarray, pri_s: float) -> np.ndarray:
@@ -887,7 +914,10 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     for _ in range(2):  # the lines a train's fundamental would make under the best: it was a harmonic
         for order, under in SUBHARMONIC_LINES:
             base = cand[best] / order
-            shown = np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
+            # a train's fundamental is about its strongest line (a single-peaked flash's harmonics
+            # fall off): lines under the best but far weaker than it are the sampling's, not a train's
+            shown = (np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
+                     & (_line(power, base) * SPECTRAL_TAG_LINE >= _line(power, cand[best].astype(float))))
             best = np.where(shown & (base >= lo), np.clip(np.rint(base).astype(int) - lo, 0, cand.size - 1), best)
     inner = (best > 0) & (best < cand.size - 1)
     bi = np.clip(best, 1, cand.size - 2)
@@ -905,7 +935,9 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     live = harm[rows, best] > 0.0
     rate = np.where(live, rate, 0.0)
     std = np.where(live, np.where(turn, 2.0, 1.0) * 0.5 * df / math.sqrt(SPECTRAL_HARMONICS), 0.0)
-    seen = np.array([float(len(visible_rotors(total[b], rate[b] * config.pri_s))) for b in range(b_rows)])
+    edge = taper_length(n, ENVELOPE_TAPER)  # the rotors are counted where the envelope is not tapered
+    seen = np.array([float(len(visible_rotors(total[b, edge:n - edge], rate[b] * config.pri_s)))
+                     for b in range(b_rows)])
     return FlashTrain(rate, std, np.where(live, score, 0.0), seen, np.where(seen > 0.0, VISIBLE_STD, 0.0))
 
 
