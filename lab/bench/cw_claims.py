@@ -1,4 +1,4 @@
-"""A CW radar's identity claims end to end, on our CW worlds (docs/benchmarks.md, "A CW radar's claims").
+"""A CW radar's identity claims end to end, on our CW worlds (docs/policies.md, "A CW radar's claims, measured").
 
 The real-radar scenario: a DJI-class quadcopter (`lab.accuracy.DJI_QUAD`, a profile no classifier
 knows) registered from its physics, a bundle trained for the radar's waveform (`authn models train
