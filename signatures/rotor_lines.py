@@ -138,6 +138,7 @@ def visible_rotors(envelope: np.ndarray, cycles_per_pulse: float, periods: int =
         return []
     j = np.arange(rows)
     work = image.copy()
+    noise_var = float(np.mean(var))  # a bin mean's variance, for `clear_z`
     found: list[Line] = []
     half = None
     for _ in range(MAX_LINES):
@@ -154,18 +155,21 @@ def visible_rotors(envelope: np.ndarray, cycles_per_pulse: float, periods: int =
             while half < bins // 8 and min(aligned[half], aligned[-half]) > 0.5 * aligned[0]:
                 half += 1
         width = min(2 * half, bins // 4)  # the flash and its skirts: what is left of a line is no new line
-        own, windows = clear_z(work, float(np.mean(var)), s0, int(p0), found, half)  # before its subtraction
+        z = float(sums[si, p0])
+        residue = any(abs(s0 - f.slope) * rows < bins  # drifts apart by less than a period over the dwell
+                      and (z < RESIDUE_SHARE * f.z  # and is a sliver of it, or stays in its skirts
+                           or np.mean(np.abs((p0 - f.phase + (s0 - f.slope) * j + bins / 2) % bins - bins / 2)
+                                      <= width) >= 0.5) for f in found)
+        counted = False
+        if not residue:  # flashes of its own where it is clear of the counted (summed before its subtraction)
+            own, windows = clear_z(work, noise_var, s0, int(p0), found, half)
+            counted = windows >= MIN_CLEAR_WINDOWS and own >= z_clear
         offs = np.arange(-width, width + 1)
         at_line = (centre[:, None] + offs[None, :]) % bins
         shape = aligned[offs]
         amp = np.maximum(work[j[:, None], at_line] @ shape / max(float(shape @ shape), 1e-300), 0.0)
         work[j[:, None], at_line] -= amp[:, None] * shape[None, :]
         work -= work.mean(axis=1, keepdims=True)  # each row's mean held the line's power: re-centre
-        z = float(sums[si, p0])
-        residue = any(abs(s0 - f.slope) * rows < bins  # drifts apart by less than a period over the dwell
-                      and (z < RESIDUE_SHARE * f.z  # and is a sliver of it, or stays in its skirts
-                           or np.mean(np.abs((p0 - f.phase + (s0 - f.slope) * j + bins / 2) % bins - bins / 2)
-                                      <= width) >= 0.5) for f in found)
-        if not residue and windows >= MIN_CLEAR_WINDOWS and own >= z_clear:  # flashes of its own where it is clear
+        if counted:
             found.append(Line(s0, int(p0), z))
     return found
