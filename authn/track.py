@@ -4,10 +4,11 @@
 the single-dwell stages (`Checker.decide`, one dwell at a time) and combine their verification
 log-likelihood ratios by Wald's sequential probability ratio test: after each dwell the
 accumulated evidence is put to the Cedar policy, which accepts once it reaches the accept bound
-and rejects once it falls to the reject bound (or on any other forbid: a kinematic mismatch, an
-implausible Remote ID, a registry fact). A dwell that sees nothing (`no-target`) is no evidence:
-the track goes on while no dwell has seen its target. The dwells after the deciding one are not read beyond
-their headers (the track is validated whole first: one waveform, one claim, time order).
+and rejects once it falls to the reject bound (or on any other forbid: a kinematic mismatch in most
+of at least `KINEMATIC_DWELLS` dwells, an implausible Remote ID, a registry fact). A dwell that sees
+nothing (`no-target`) is no evidence: the track goes on while no dwell has seen its target. The
+dwells after the deciding one are not read beyond their headers (the track is validated whole
+first: one waveform, one claim, time order).
 
 Bounds (Wald): with target error rates alpha (false accept: an impostor's track accepted) and
 beta (false reject), accept at LLR >= log((1 - beta) / alpha) and reject at LLR <= log(beta /
@@ -44,8 +45,8 @@ from typing import Any
 
 from core.errors import AuthnError, EXIT_BAD_INPUT, describe, exit_code_for
 
-__all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION", "Dwell", "Sprt",
-           "TrackOutcome", "check_track", "decide_track", "track_files"]
+__all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION", "KINEMATIC_DWELLS",
+           "Dwell", "Sprt", "TrackOutcome", "check_track", "decide_track", "track_files"]
 
 #: Target rate of accepting an impostor's track (alpha): Wald's accept bound log((1-b)/a) = 6.9 nats.
 DEFAULT_FALSE_ACCEPT = 1e-3
@@ -68,6 +69,13 @@ INCONCLUSIVE = "track-inconclusive"
 #: dwell that saw nothing (a missed detection is no evidence; a track whose dwells never see the
 #: target ends rejected `no-target`).
 GOES_ON = frozenset({INCONCLUSIVE, "no-target"})
+#: Kinematic forbids, which a later dwell can lift: the track judges its dwells' residuals at their
+#: lower median (`_typical`), so one dwell whose body line went astray is outvoted by the next two.
+KINEMATIC = frozenset({"range-mismatch", "velocity-mismatch"})
+#: A kinematic forbid ends a track once this many dwells have been judged (then most of them miss),
+#: or at the track's last dwell; before that the track goes on, as a first dwell read wrongly would
+#: otherwise reject a track whose later dwells confirm it.
+KINEMATIC_DWELLS = 3
 _CN = 100.0  # centinats: Cedar compares integers
 
 
@@ -389,7 +397,9 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
         t1 = time.perf_counter()
         result = checker.policy.decide(claim, request["principal"], request["resource"], request["context"])
         timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
-        if not (result.decision == "reject" and set(result.reasons) <= GOES_ON):
+        judged = sum(1 for o in outcomes if o.evidence.kinematics is not None)
+        liftable = GOES_ON | KINEMATIC if judged < KINEMATIC_DWELLS and len(outcomes) < len(dwells) else GOES_ON
+        if not (result.decision == "reject" and set(result.reasons) <= liftable):
             break  # accepted, or a forbid more dwells cannot lift
     if result is None or request is None:  # unreachable: _validate refuses an empty track
         raise AuthnError("a track needs at least one dwell")

@@ -141,9 +141,11 @@ class Condition:
     rotor_rate_hz: tuple[float, float] = (143.0, 179.0)
     tagged_blades: tuple[int, int] = (1, 8)
     tag_gain_db: tuple[float, float] = (6.0, 15.0)
-    clutter_to_signal_db: tuple[float, float] = (20.0, 40.0)
+    clutter_to_signal_db: tuple[float, float] | None = (20.0, 40.0)  # None: the simulator's own clutter
     snr_db: tuple[float, float] = (0.0, 10.0)
     range_m: tuple[float, float] = (100.0, 1000.0)
+    #: std of each rotor's rate about the common one (`Scene.rotor_rate_jitter`), drawn per scene
+    rotor_rate_jitter: tuple[float, float] = (0.005, 0.005)
 
     def scene(self, rng: np.random.Generator) -> tuple[Scene, Preset]:
         """One scene of the condition and the radar that sees it (its carrier drawn)."""
@@ -154,7 +156,13 @@ class Condition:
                       snr_db=float(rng.uniform(*self.snr_db)), rotor_rate_hz=float(rng.uniform(*self.rotor_rate_hz)),
                       tagged_blades=int(rng.integers(self.tagged_blades[0], self.tagged_blades[1] + 1)),
                       tag_gain_db=float(rng.uniform(*self.tag_gain_db)),
-                      clutter_to_signal_db=float(rng.uniform(*self.clutter_to_signal_db)))
+                      clutter_to_signal_db=None if self.clutter_to_signal_db is None else
+                      float(rng.uniform(*self.clutter_to_signal_db)))
+        lo, hi = self.rotor_rate_jitter
+        if hi > lo:  # drawn only where it varies: the other conditions' scenes stay as they were
+            scene = scene.model_copy(update={"rotor_rate_jitter": float(rng.uniform(lo, hi))})
+        elif lo != Scene.model_fields["rotor_rate_jitter"].default:
+            scene = scene.model_copy(update={"rotor_rate_jitter": lo})
         return scene, pre
 
     def draw(self, seed: int) -> tuple[Scene, Preset, int]:
@@ -166,6 +174,9 @@ class Condition:
 
 
 _TAGGED = "hovering DJI-class quad, 1-8 of its 8 blades tagged (+6..+15 dB), clutter +20..+40 dB over it"
+_PHANTOM4 = shipped_profiles()["phantom4"]
+_PAPER = dict(preset="paper", n_pulses=600, carriers_hz=(77e9,), profile=_PHANTOM4, tagged_blades=(0, 0),
+              clutter_to_signal_db=None, rotor_rate_hz=(0.9 * _PHANTOM4.rotor_rate_hz, 1.1 * _PHANTOM4.rotor_rate_hz))
 CONDITIONS: dict[str, Condition] = {c.name: c for c in (
     Condition("cw-hover-tagged", f"CW 3.3-3.4 GHz, PRI 200 us, 0.82 s (4096 pulses); {_TAGGED}; rotors 143-179 Hz"),
     Condition("cw-hover-tagged-10s", "as cw-hover-tagged over 10 s (50000 pulses)", n_pulses=50000),
@@ -174,6 +185,10 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in (
               n_pulses=50000),
     Condition("cw-hover-equal", "as cw-hover-tagged without tags (equal blades): the control",
               tagged_blades=(0, 0)),
+    Condition("paper-hover", "paper (77 GHz, 26 ms); hovering Phantom 4 at 0.9-1.1x its rate, equal blades, "
+              "rotors 0.5 % apart (std): the control", **_PAPER),
+    Condition("paper-hover-spread", "as paper-hover, each rotor's rate 2-4 % (std) off the common one, as a "
+              "real quad's are (a rotor-rate spread, max - min, of 4-15 %)", rotor_rate_jitter=(0.02, 0.04), **_PAPER),
 )}
 
 

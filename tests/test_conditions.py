@@ -232,3 +232,23 @@ def test_condition_scenes_are_reproducible_and_in_band() -> None:
     assert [s for s, _ in a] == [s for s, _ in b]
     assert all(63.0 <= s.rotor_rate_hz <= 71.0 and 1 <= s.tagged_blades <= 8 and s.hovering for s, _ in a)
     assert {p.config.carrier_hz for _, p in a} <= {3.30e9, 3.35e9, 3.40e9}
+
+
+def test_the_paper_spread_condition_spreads_the_rotors_and_nothing_else() -> None:
+    """paper-hover-spread is paper-hover with each rotor's rate drawn 2-4 % (std) off the common one:
+    the training simulator flies its rotors that far apart (truth), the control's 0.5 %."""
+    spread, control = CONDITIONS["paper-hover-spread"], CONDITIONS["paper-hover"]
+
+    def rates_apart(cond, seed: int) -> float:
+        scene, pre, sim_seed = cond.draw(seed)
+        _, truth = simulate(scene, pre, seed=sim_seed)
+        r = np.asarray(truth.rotor_rates_hz)
+        return float((r.max() - r.min()) / r.mean())
+
+    for seed in range(6):
+        (s, ps, _), (c, pc, _) = spread.draw(seed), control.draw(seed)
+        assert 0.02 <= s.rotor_rate_jitter <= 0.04 and c.rotor_rate_jitter == 0.005
+        assert s.model_copy(update={"rotor_rate_jitter": 0.005}) == c and ps == pc
+        assert ps.name == "paper" and s.hovering and s.tagged_blades == 0 and s.profile.slug == "phantom4"
+    assert np.median([rates_apart(spread, i) for i in range(12)]) > 3 * np.median([rates_apart(control, i)
+                                                                                   for i in range(12)])

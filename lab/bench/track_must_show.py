@@ -155,6 +155,7 @@ def _dwell_record(seen: dict, claimed: UavProfile, flown: UavProfile, max_tip: f
             "flash_score": float(f.get("flash_score", 0.0)), "rotors_seen": float(f.get("rotors_seen", 0.0)),
             "rotors_seen_std": float(f.get("rotors_seen_std", 0.0)), "tip_aliased": float(f.get("tip_aliased", 0.0)),
             "true_flash_rate_hz": float(np.mean(pattern)) if pattern else None,
+            "true_rate_spread": float((max(pattern) - min(pattern)) / np.mean(pattern)) if pattern else None,
             "true_rotor_rate_hz": truth.get("rotor_rate_hz"), "nominal_flash_rate_hz": claimed.blade_flash_rate_hz,
             "flown_nominal_flash_rate_hz": flown.blade_flash_rate_hz, "claimed_rotors": claimed.rotors,
             "flown_rotors": flown.rotors}
@@ -372,6 +373,32 @@ def diagnosis_table(rows: list[dict[str, Any]]) -> list[str]:
             f"{_mean([r['terms']['physics'] for r in phys if r['terms']['physics'] is not None])} | "
             f"{_mean(llrs)} ({100 * sum(x < 0 for x in llrs) / max(len(llrs), 1):.0f} %) | "
             f"{', '.join(f'{k} {v}' for k, v in sorted(labels.items(), key=lambda kv: -kv[1])[:4])} |")
+    return lines
+
+
+#: Bounds of the `spread_table` columns: the flown rotors' pattern rates, (max - min) / mean.
+SPREAD_BINS = (0.04, 0.08)
+
+
+def spread_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Per world and SNR: the flash rate read within 5 % of the truth, by how far the flown rotors'
+    own rates spread (`true_rate_spread`). The period search matches one period to within
+    `signatures.estimators.TOL_FRACTION` in `paper`; a rotor that turns a few per cent off the
+    others flashes off that period."""
+    lo, hi = SPREAD_BINS
+    names = (f"< {100 * lo:g} %", f"{100 * lo:g}-{100 * hi:g} %", f">= {100 * hi:g} %")
+    lines = ["| world | SNR dB | " + " | ".join(f"rotor rates spread {n}: dwells, f within 5 %" for n in names) + " |",
+             "|---|---|---|---|---|"]
+    groups: dict[tuple, list[list[bool]]] = {}
+    for r in rows:
+        if "terms" not in r or r.get("true_rate_spread") is None or not r["true_flash_rate_hz"]:
+            continue
+        col = 0 if r["true_rate_spread"] < lo else 1 if r["true_rate_spread"] < hi else 2
+        ok = r["terms"]["rate"] is not None and abs(r["flash_rate_hz"] / r["true_flash_rate_hz"] - 1) <= 0.05
+        groups.setdefault((r["world"], -r["snr_db"]), [[], [], []])[col].append(ok)
+    for (world, nsnr), cols in sorted(groups.items()):
+        cells = [f"{len(c)}, {_pct(sum(c) / len(c))}" if c else "0, n/a" for c in cols]
+        lines.append(f"| {world} | {-nsnr:g} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -736,6 +763,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = run_diagnosis(a.preset, worlds, snrs, a.n, a.dwells, a.seed, a.workers,
                              tuple(a.category or ("genuine",)))
         print("\n".join(diagnosis_table(rows)))
+        print()
+        print("\n".join(spread_table(rows)))
         if a.json:
             with open(a.json, "w") as fh:
                 json.dump(rows, fh)

@@ -16,7 +16,7 @@ import pytest
 
 from authn.cli import main
 from authn.demo import register_examples
-from authn.track import DWELL_CAP_NATS, Sprt
+from authn.track import DWELL_CAP_NATS, KINEMATIC_DWELLS, Sprt
 from lab.bench.track import icc, track_recordings
 from signatures.profiles import shipped_profiles
 from signatures.recording import read_header, read_recording, write_recording
@@ -112,15 +112,24 @@ def _m300_track(folder: Path, dwells: int, seed: int, astray: tuple[int, ...]) -
     return folder
 
 
-def test_a_position_spoof_stops_the_track_on_its_first_dwell(setup, capsys) -> None:
+def test_a_position_spoof_stops_the_track_once_most_of_three_dwells_miss(setup, capsys) -> None:
     root, db, _ = setup
-    folder = _m300_track(root / "position", 3, 300, astray=(0, 1, 2))
+    folder = _m300_track(root / "position", KINEMATIC_DWELLS + 1, 300, astray=tuple(range(KINEMATIC_DWELLS + 1)))
+    code, out, _ = _run(db, capsys, str(folder))
+    assert code == 1 and "range-mismatch" in out["reasons"] and out["dwells_used"] == KINEMATIC_DWELLS
+    assert out["dwells_skipped"] == 1
+
+
+def test_a_one_dwell_track_is_judged_on_its_dwell(setup, capsys) -> None:
+    """No later dwell can lift the forbid: the track's last dwell decides."""
+    root, db, _ = setup
+    folder = _m300_track(root / "position-one", 1, 350, astray=(0,))
     code, out, _ = _run(db, capsys, str(folder))
     assert code == 1 and "range-mismatch" in out["reasons"] and out["dwells_used"] == 1
-    assert out["dwells_skipped"] == 2
 
 
 @pytest.mark.parametrize("astray,decision,reason", [
+    ((0,), "accept", "registered-active"),  # the first dwell misses: the next ones outvote it
     ((1,), "accept", "registered-active"),  # one dwell's declared position misses: the others confirm it
     ((1, 2), "reject", "range-mismatch"),  # more than half of the dwells used miss
 ])
@@ -128,13 +137,14 @@ def test_the_track_judges_the_kinematics_of_most_of_its_dwells(setup, capsys, as
     """The track's kinematic residual is its dwells' lower median: a declaration that misses the
     radar in one dwell of several is not a spoof, one that misses in most is."""
     root, db, _ = setup
-    folder = _m300_track(root / f"astray-{len(astray)}", DWELLS, 400, astray)
+    folder = _m300_track(root / f"astray-{'-'.join(map(str, astray))}", DWELLS, 400, astray)
     code, out, _ = _run(db, capsys, str(folder))
     assert out["decision"] == decision and reason in out["reasons"] and code == (0 if decision == "accept" else 1)
     if decision == "reject":
         assert out["dwells_used"] == 3  # [fine, astray]: the lower median is fine; a third astray decides
     else:
-        assert out["dwells_used"] > 2  # the astray dwell was used, and the track went on past it
+        assert out["dwells_used"] > max(astray) + 1  # the astray dwell was used, and the track went on past it
+        assert astray[0] in [i for i, d in enumerate(out["dwells"]) if "range-mismatch" in d["dwell_reasons"]]
 
 
 def test_a_missed_detection_is_no_evidence(setup, capsys) -> None:

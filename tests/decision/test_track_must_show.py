@@ -7,8 +7,8 @@ import numpy as np
 
 from authn.track import Sprt
 from lab.bench.track_must_show import (OUT_OF_REACH, TrackResult, _variant_llr, _walk, all_profiles,
-                                       must_show_table, pairs, separable, term_icc, term_icc_table, term_increments,
-                                       walk_terms, what_if_pair_table)
+                                       must_show_table, pairs, separable, spread_table, term_icc, term_icc_table,
+                                       term_increments, walk_terms, what_if_pair_table)
 
 
 def test_the_rule_names_rate_and_rotor_separations() -> None:
@@ -51,6 +51,17 @@ def test_pairs_shown_out_of_reach_are_reported_apart_never_dropped() -> None:
     assert len(held) == 2 and "| 2 | 50.0 % |" in held[0]  # the whole row, the failing pair counted
     assert "(pairs in reach)" in held[1] and "| 1 | 100.0 % |" in held[1]
     assert len([r for r in rows if r.startswith("| training")]) == 1  # nothing to report apart there
+
+
+def test_the_spread_table_bins_dwells_by_the_rotors_rate_spread() -> None:
+    def dwell(spread: float, read: float | None) -> dict:
+        return {"world": "heldout", "snr_db": 10.0, "true_rate_spread": spread, "true_flash_rate_hz": 100.0,
+                "flash_rate_hz": read or 0.0, "terms": {"rate": None if read is None else 1.0}}
+
+    rows = [dwell(0.01, 101.0), dwell(0.03, 60.0), dwell(0.05, 104.0), dwell(0.09, None), dwell(0.12, 99.0),
+            {"world": "heldout", "snr_db": 10.0, "decision": "reject"}]  # a dwell the radar saw nothing in
+    line = spread_table(rows)[-1]
+    assert line == "| heldout | 10 | 2, 50.0 % | 1, 100.0 % | 2, 50.0 % |"  # an abstained rate is not right
 
 
 def test_the_true_rate_what_if_reads_the_flown_rate() -> None:
