@@ -188,7 +188,7 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in (
     Condition("paper-hover", "paper (77 GHz, 26 ms); hovering Phantom 4 at 0.9-1.1x its rate, equal blades, "
               "rotors 0.5 % apart (std): the control", **_PAPER),
     Condition("paper-hover-spread", "as paper-hover, each rotor's rate 2-4 % (std) off the common one, as a "
-              "real quad's are (a rotor-rate spread, max - min, of 4-15 %)", rotor_rate_jitter=(0.02, 0.04), **_PAPER),
+              "real quad's are (max - min: 2.5-11 %, median 6.5 %)", rotor_rate_jitter=(0.02, 0.04), **_PAPER),
 )}
 
 
