@@ -321,6 +321,14 @@ def pair_table(results: list[TrackResult]) -> list[str]:
     return lines
 
 
+def _rate_right(r: dict[str, Any]) -> bool:
+    """A diagnosis dwell's flash rate within `lab.accuracy.RATE_TOLERANCE` of its simulation's truth."""
+    from lab.accuracy import RATE_TOLERANCE
+
+    true = r["true_flash_rate_hz"]
+    return bool(true) and abs(r["flash_rate_hz"] / true - 1) <= RATE_TOLERANCE
+
+
 def _mean(xs: list[float]) -> str:
     return "n/a" if not xs else f"{statistics.fmean(xs):+.2f}"
 
@@ -346,8 +354,7 @@ def diagnosis_table(rows: list[dict[str, Any]]) -> list[str]:
         ratio = [r["flash_rate_hz"] / r["nominal_flash_rate_hz"] for r in phys]
         inband = sum(RATE_BAND[0] <= x <= RATE_BAND[1] for x in ratio)
         slip = sum(0.4 <= x <= 0.6 for x in ratio), sum(1.6 <= x <= 2.4 for x in ratio)
-        true_ok = [r for r in phys
-                   if r["true_flash_rate_hz"] and abs(r["flash_rate_hz"] / r["true_flash_rate_hz"] - 1) <= 0.05]
+        true_ok = [r for r in phys if _rate_right(r)]
         true_nom = [r["true_flash_rate_hz"] / r["flown_nominal_flash_rate_hz"] for r in det if r["true_flash_rate_hz"]]
         seen = [r["rotors_seen"] / r["claimed_rotors"] for r in det if r["rotors_seen"] > 0]
         rot_ok = sum(ROTOR_BAND[0] <= x <= ROTOR_BAND[1] for x in seen)
@@ -394,7 +401,7 @@ def spread_table(rows: list[dict[str, Any]]) -> list[str]:
         if "terms" not in r or r.get("true_rate_spread") is None or not r["true_flash_rate_hz"]:
             continue
         col = 0 if r["true_rate_spread"] < lo else 1 if r["true_rate_spread"] < hi else 2
-        ok = r["terms"]["rate"] is not None and abs(r["flash_rate_hz"] / r["true_flash_rate_hz"] - 1) <= 0.05
+        ok = r["terms"]["rate"] is not None and _rate_right(r)
         groups.setdefault((r["world"], -r["snr_db"]), [[], [], []])[col].append(ok)
     for (world, nsnr), cols in sorted(groups.items()):
         cells = [f"{len(c)}, {_pct(sum(c) / len(c))}" if c else "0, n/a" for c in cols]
