@@ -190,17 +190,19 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     windows = slow.shape[2] if slow.ndim == 4 else 1
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body * config.pri_s)[:, None] * t).astype(np.complex64)
-    z0 = slow.reshape(g, n, windows * n_bins) * demod[:, :, None]
+    x = slow.reshape(g, n, windows * n_bins)
     length = max(3, int(round(est.highpass_s(config.wavelength_m) / config.pri_s)) | 1)
     if n > length:
-        z = _highpass(z0, length)
+        clutter = est.clutter_pass(body, config.pri_s, length)
+        z = _highpass(_clutter_pass(x, length, clutter) * demod[:, :, None], length)
         e1 = _sum_last(_power(z))
         # the reference compares with a Python float: in e1's dtype (NEP 50)
         strong = e1 > _noise_level(e1).astype(e1.dtype)[:, None]
         strong[:, 1:] |= strong[:, :-1].copy()
         strong[:, :-1] |= strong[:, 1:].copy()
-        z = _highpass(z0, length, ~strong)
+        z = _highpass(_clutter_pass(x, length, clutter, ~strong) * demod[:, :, None], length, ~strong)
     else:
+        z0 = x * demod[:, :, None]
         z = z0 - z0.mean(axis=1, keepdims=True)
     filters = est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)
     m = (n // dec) * dec
@@ -229,6 +231,15 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     per_bin[:] = eb
     threshold[:] = level
     return y, peak
+
+
+def _clutter_pass(x: np.ndarray, length: int, rows: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
+    """x with the rows where `rows` is True high-passed in the radar's frame (`estimators.clutter_pass`)."""
+    if not rows.any():
+        return x
+    out = x.copy()
+    out[rows] = _highpass(x[rows], length, None if keep is None else keep[rows])
+    return out
 
 
 def _power(z: np.ndarray) -> np.ndarray:

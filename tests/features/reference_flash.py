@@ -19,7 +19,7 @@ from signatures.estimators import (
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.estimators import (Estimate, FlashSeries, _binomial_llr, _matched_intervals, _peak_positions,
-                                   flash_groups, flashes_within_one_sample, highpass_s, matched_filters,
+                                   clutter_pass, flash_groups, flashes_within_one_sample, highpass_s, matched_filters,
                                    rotors_seen)
 from signatures.radar import RadarConfig
 from signatures.stats import median
@@ -40,18 +40,21 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     n_bins = slow.shape[-1]
     t = np.arange(n)
     demod = np.exp(-2j * math.pi * body_hz * config.pri_s * t).astype(np.complex64)
-    z0 = slow.reshape(n, windows * n_bins) * demod[:, None]
+    x = slow.reshape(n, windows * n_bins)
     length = max(3, int(round(highpass_s(config.wavelength_m) / config.pri_s)) | 1)
     if n > length:
-        # two passes: the second moving average leaves out the flashes the first one
-        # found (+-1 chirp), so a strong flash leaves no -19 dB echo around itself
-        z = _highpass(z0, length)
+        # the moving average in the radar's frame (clutter; `clutter_pass`), then in the body's
+        # (body, hubs); two passes: the second moving averages leave out the flashes the first found (+-1
+        # chirp), so a strong flash leaves no -19 dB echo around itself
+        clutter = bool(clutter_pass(np.array([body_hz]), config.pri_s, length)[0])
+        z = _highpass((_highpass(x, length) if clutter else x) * demod[:, None], length)
         e1 = (z.real ** 2 + z.imag ** 2).sum(axis=1)
         strong = e1 > _noise_level(e1)
         strong[1:] |= strong[:-1].copy()
         strong[:-1] |= strong[1:].copy()
-        z = _highpass(z0, length, ~strong)
+        z = _highpass((_highpass(x, length, ~strong) if clutter else x) * demod[:, None], length, ~strong)
     else:
+        z0 = x * demod[:, None]
         z = z0 - z0.mean(axis=0, keepdims=True)
     filters = matched_filters(n_bins, n_fft).conj().astype(z.dtype)
     if slow.ndim == 3:  # each chirp: the window whose best position holds the most energy
