@@ -190,19 +190,18 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     windows = slow.shape[2] if slow.ndim == 4 else 1
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body * config.pri_s)[:, None] * t).astype(np.complex64)
-    x = slow.reshape(g, n, windows * n_bins)
+    z0 = slow.reshape(g, n, windows * n_bins) * demod[:, :, None]
     length = max(3, int(round(est.highpass_s(config.wavelength_m) / config.pri_s)) | 1)
     if n > length:
         clutter = est.clutter_pass(body, config.pri_s, length)
-        z = _highpass(_clutter_pass(x, length, clutter) * demod[:, :, None], length)
+        z = _clutter_pass(_highpass(z0, length), demod, length, clutter)
         e1 = _sum_last(_power(z))
         # the reference compares with a Python float: in e1's dtype (NEP 50)
         strong = e1 > _noise_level(e1).astype(e1.dtype)[:, None]
         strong[:, 1:] |= strong[:, :-1].copy()
         strong[:, :-1] |= strong[:, 1:].copy()
-        z = _highpass(_clutter_pass(x, length, clutter, ~strong) * demod[:, :, None], length, ~strong)
+        z = _clutter_pass(_highpass(z0, length, ~strong), demod, length, clutter, ~strong)
     else:
-        z0 = x * demod[:, :, None]
         z = z0 - z0.mean(axis=1, keepdims=True)
     filters = est.matched_filters(n_bins, n_fft).conj().astype(z.dtype)
     m = (n // dec) * dec
@@ -233,13 +232,16 @@ def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft:
     return y, peak
 
 
-def _clutter_pass(x: np.ndarray, length: int, rows: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
-    """x with the rows where `rows` is True high-passed in the radar's frame (`estimators.clutter_pass`)."""
+def _clutter_pass(z: np.ndarray, demod: np.ndarray, length: int, rows: np.ndarray,
+                  keep: np.ndarray | None = None) -> np.ndarray:
+    """Body-demodulated series z (rows, chirps, bins) with the rows where `rows` is True high-passed
+    in the radar's frame too (`estimators.clutter_pass`). After the body's pass: a strong body line
+    seen through the gaps of `keep` would leak into the radar frame's average at every flash."""
     if not rows.any():
-        return x
-    out = x.copy()
-    out[rows] = _highpass(x[rows], length, None if keep is None else keep[rows])
-    return out
+        return z
+    d = demod[rows][:, :, None]
+    z[rows] = _highpass(z[rows] * d.conj(), length, None if keep is None else keep[rows]) * d
+    return z
 
 
 def _power(z: np.ndarray) -> np.ndarray:

@@ -40,21 +40,24 @@ def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
     n_bins = slow.shape[-1]
     t = np.arange(n)
     demod = np.exp(-2j * math.pi * body_hz * config.pri_s * t).astype(np.complex64)
-    x = slow.reshape(n, windows * n_bins)
+    z0 = slow.reshape(n, windows * n_bins) * demod[:, None]
     length = max(3, int(round(highpass_s(config.wavelength_m) / config.pri_s)) | 1)
     if n > length:
-        # the moving average in the radar's frame (clutter; `clutter_pass`), then in the body's
-        # (body, hubs); two passes: the second moving averages leave out the flashes the first found (+-1
-        # chirp), so a strong flash leaves no -19 dB echo around itself
+        # the moving average in the body's frame (body, hubs), then in the radar's (clutter;
+        # `clutter_pass`); two passes: the second moving averages leave out the flashes the first
+        # found (+-1 chirp), so a strong flash leaves no -19 dB echo around itself
         clutter = bool(clutter_pass(np.array([body_hz]), config.pri_s, length)[0])
-        z = _highpass((_highpass(x, length) if clutter else x) * demod[:, None], length)
+        z = _highpass(z0, length)
+        if clutter:
+            z = _highpass(z * demod.conj()[:, None], length) * demod[:, None]
         e1 = (z.real ** 2 + z.imag ** 2).sum(axis=1)
         strong = e1 > _noise_level(e1)
         strong[1:] |= strong[:-1].copy()
         strong[:-1] |= strong[1:].copy()
-        z = _highpass((_highpass(x, length, ~strong) if clutter else x) * demod[:, None], length, ~strong)
+        z = _highpass(z0, length, ~strong)
+        if clutter:
+            z = _highpass(z * demod.conj()[:, None], length, ~strong) * demod[:, None]
     else:
-        z0 = x * demod[:, None]
         z = z0 - z0.mean(axis=0, keepdims=True)
     filters = matched_filters(n_bins, n_fft).conj().astype(z.dtype)
     if slow.ndim == 3:  # each chirp: the window whose best position holds the most energy
