@@ -34,11 +34,12 @@ def test_shipped_bundle_classifies_fresh_returns(preset: str) -> None:
 @pytest.mark.parametrize("preset", ["paper", "wide"])
 def test_shipped_ensemble_never_imports_onnxruntime(preset: str) -> None:
     """kNN, forests and the SVM are numpy arrays: a check whose ensemble is sure (no CNN) never
-    imports onnxruntime (~100 ms of a cold start), even where its card weighs the SVM (both do)."""
+    imports onnxruntime (~100 ms of a cold start), whichever members its card weighs (at least one
+    shipped card weighs the SVM)."""
     import subprocess
     import sys
 
-    assert load_classifier(preset).weights[2] > 0.0
+    assert any(load_classifier(p).weights[2] > 0.0 for p in ("paper", "wide"))
     code = ("import sys, numpy as np; from signatures.inference import load_classifier; "
             f"c = load_classifier({preset!r}); c.predict(np.zeros(c.n_features)); "
             "assert 'onnxruntime' not in sys.modules, 'onnxruntime imported'")
