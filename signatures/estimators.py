@@ -7,8 +7,8 @@ flashes at 2 f_rot (2 blades assumed, as the shipped profiles have). The flash i
 in slow time whatever the Doppler does, so timing survives blade-tip aliasing.
 
 Pipeline: demodulate the target bins by the body Doppler, subtract a short
-moving average (removes body, hubs and clutter: everything slow; clutter in the radar's frame,
-`clutter_pass`), pass the bins
+moving average (removes body, hubs and clutter: everything slow; then again in the radar's
+frame for a moving target's clutter line, `clutter_pass`), pass the bins
 through whitened matched filters for a point scatterer at fractional range
 positions (a broadside blade sits at its hub's range) and keep the best
 position's energy -> flash-energy series e[n]; keep what stands out of the noise;
@@ -73,7 +73,7 @@ SERIES_RATE_HZ = 25_000.0
 #: High-pass length (s): longer than a flash, shorter than hub / body Doppler cycles (the
 #: floor of `highpass_s`, which grows with the flash lobe at longer wavelengths).
 HIGHPASS_S = 0.4e-3
-#: The high-pass runs in the radar's frame too (the clutter's line, at zero Doppler) before the
+#: The high-pass runs in the radar's frame too (the clutter's line, at zero Doppler) after the
 #: body's, unless the body's line lies within this share of PRF / length of zero: the body's
 #: pass then takes the clutter's line down by 20 dB or more (a running mean's response there is
 #: 0.9), and one pass serves both (a hovering target, a CW body read at zero Doppler).
@@ -324,7 +324,7 @@ def highpass_s(wavelength_m: float) -> float:
 
 def clutter_pass(body_hz: np.ndarray, pri_s: float, length: int) -> np.ndarray:
     """Per body Doppler (Hz): does the flash series high-pass the radar's frame (the clutter's
-    line) before the body's? The body's line, aliased into +-PRF / 2, lies CLUTTER_PASS_SHARE x PRF /
+    line) after the body's? The body's line, aliased into +-PRF / 2, lies CLUTTER_PASS_SHARE x PRF /
     `length` or more from zero. Without it, swaying clutter (vegetation) left by the slow-time
     mean's removal stays in the series of a moving target as a floor that buries its flashes."""
     cycles = np.asarray(body_hz, dtype=np.float64) * pri_s
