@@ -331,6 +331,43 @@ def clutter_pass(body_hz: np.ndarray, pri_s: float, length: int) -> np.ndarray:
     return np.abs(cycles - np.round(cycles)) * length >= CLUTTER_PASS_SHARE
 
 
+def window_sums(z: np.ndarray, half: int, axis: int = 0) -> np.ndarray:
+    """Sums of z over the centred windows t - half .. t + half along `axis`, clipped at the ends
+    (the flash series' moving averages). Interior windows add power-of-two partial sums, so a
+    window's rounding scales with its own samples (log2 of the length additions), where a
+    running-sum difference carries the rounding of everything before it: with clutter 100 dB over
+    a flash that was the flash. The clipped ends are short running sums. ~3x faster than cumsum."""
+    n, length = z.shape[axis], 2 * half + 1
+    def at(a: np.ndarray, s: slice) -> np.ndarray:
+        return a[(slice(None),) * (axis % a.ndim) + (s,)]
+    if half == 0:
+        return z.copy()
+    if n < length:  # every window clipped: a running-sum difference
+        c = np.concatenate([np.zeros_like(at(z, slice(0, 1))), np.cumsum(z, axis=axis)], axis=axis)
+        t = np.arange(n)
+        return np.take(c, np.minimum(t + half + 1, n), axis=axis) - np.take(c, np.maximum(t - half, 0), axis=axis)
+    out = np.empty_like(z)
+    parts, width, p = [], 1, z  # p: sums of `width` consecutive samples
+    while width <= length:
+        if length & width:
+            parts.append((p, width))
+        if 2 * width <= length:
+            p = at(p, slice(None, -width)) + at(p, slice(width, None))
+        width *= 2
+    m = n - length + 1  # interior windows
+    acc, (first, off) = at(out, slice(half, half + m)), parts[-1]
+    if len(parts) == 1:
+        np.copyto(acc, at(first, slice(0, m)))
+    for i, (p, w) in enumerate(reversed(parts[:-1])):  # widest first: the same floats as a chain of +
+        np.add(at(first, slice(0, m)) if i == 0 else acc, at(p, slice(off, off + m)), out=acc)
+        off += w
+    head = np.cumsum(at(z, slice(0, 2 * half)), axis=axis)
+    at(out, slice(0, half))[...] = at(head, slice(half, 2 * half))
+    tail = np.cumsum(np.flip(at(z, slice(n - 2 * half, n)), axis=axis), axis=axis)
+    at(out, slice(n - half, n))[...] = np.flip(at(tail, slice(half, 2 * half)), axis=axis)
+    return out
+
+
 def flashes_within_one_sample(rate_hz: float, decimation: int, wavelength_m: float) -> bool:
     """Does a flash (`flash_lobe_s`) fit within one PRI of a series at `rate_hz` decimated by
     `decimation` (the coherent checks' premise)?"""

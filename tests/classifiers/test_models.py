@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from sklearn.base import clone
 
 from signatures import classifiers as clf
@@ -166,3 +168,22 @@ def test_openset_ships_only_its_mode_and_every_physics_parameter() -> None:
     assert OpenSet.from_arrays(tuned).physics.min_rel_tol == 0.5 != PhysicsCheck().min_rel_tol
     both = OpenSet.from_arrays(model.arrays(("physics", "distance")))
     np.testing.assert_array_equal(both.unknown(X, y, "distance"), model.unknown(X, y, "distance"))
+
+
+@settings(max_examples=200, deadline=None)
+@given(rows=st.integers(1, 6), n=st.integers(1, 900), k=st.integers(1, 7), levels=st.integers(1, 50),
+       nan_share=st.sampled_from([0.0, 0.0, 0.01, 0.5]), seed=st.integers(0, 2**32 - 1))
+def test_k_smallest_selects_what_a_full_partition_selects(rows, n, k, levels, nan_share, seed) -> None:
+    """The block-minimum bound never drops a neighbour: the same k values per row as argpartition,
+    with heavy ties (few levels) and NaN distances (which argpartition puts last)."""
+    from signatures.inference import k_smallest
+
+    k = min(k, n)
+    rng = np.random.default_rng(seed)
+    d = rng.integers(0, levels, size=(rows, n)).astype(np.float64)
+    d += rng.normal(scale=1e-3, size=(rows, n)) * (levels > 40)
+    d[rng.random((rows, n)) < nan_share] = np.nan
+    got = k_smallest(d, k)
+    assert got.shape == (rows, k) and all(len(set(r)) == k for r in got.tolist())
+    want = np.partition(d, k - 1, axis=1)[:, :k]
+    np.testing.assert_array_equal(np.sort(np.take_along_axis(d, got, axis=1), axis=1), np.sort(want, axis=1))

@@ -20,7 +20,7 @@ from signatures.estimators import (
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.estimators import (Estimate, FlashSeries, _binomial_llr, _matched_intervals, _peak_positions,
                                    clutter_pass, flash_groups, flashes_within_one_sample, highpass_s, matched_filters,
-                                   rotors_seen)
+                                   rotors_seen, window_sums)
 from signatures.radar import RadarConfig
 from signatures.stats import median
 
@@ -92,22 +92,20 @@ def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.
     fewer than half the window is kept, the average runs over a 4x longer window."""
     n = z.shape[0]
     t = np.arange(n)
-    zk = z if keep is None else np.where(keep[:, None], z, 0)
-    c = np.empty((n + 1, z.shape[1]), z.dtype)
-    c[0] = 0
-    np.cumsum(zk, axis=0, out=c[1:])
     half = length // 2
+    zk = z if keep is None else np.where(keep[:, None], z, 0)
+    sums = window_sums(zk, half)
     lo, hi = np.maximum(t - half, 0), np.minimum(t + half + 1, n)
     if keep is None:
-        return z - (c[hi] - c[lo]) / (hi - lo)[:, None].astype(np.float32)
+        return z - sums / (hi - lo)[:, None].astype(np.float32)
     ck = np.concatenate([[0], np.cumsum(keep)])
     cnt = ck[hi] - ck[lo]
     thin = cnt < max(2, length // 2)
     if thin.any():
         lo2, hi2 = np.maximum(t - 2 * length, 0), np.minimum(t + 2 * length + 1, n)
-        lo, hi = np.where(thin, lo2, lo), np.where(thin, hi2, hi)
-        cnt = ck[hi] - ck[lo]
-    return z - (c[hi] - c[lo]) / np.maximum(cnt, 1)[:, None].astype(np.float32)
+        sums = np.where(thin[:, None], window_sums(zk, 2 * length), sums)
+        cnt = np.where(thin, ck[hi2] - ck[lo2], cnt)
+    return z - sums / np.maximum(cnt, 1)[:, None].astype(np.float32)
 
 
 @dataclass(frozen=True)
