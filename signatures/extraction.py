@@ -1049,7 +1049,10 @@ def _cadence(spec: tuple[np.ndarray, np.ndarray], fft_backend: str) -> tuple[np.
 
 
 def _cadence_features(cad: tuple[np.ndarray, np.ndarray], flash_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """`features._cadence_features` per row."""
+    """Per row: the cadence spectrum's peak frequency above FLASH_RATE_MIN_HZ, and the share of its
+    magnitude within one bin of a harmonic of the flash rate. The comb is laid at the flash rate as
+    the feature vector reports it (float32): a rounding-level difference in the estimate (the same
+    return at another scale) must not move a bin across the comb's edge."""
     spec, f = cad
     rows = spec.shape[0]
     use = f >= est.FLASH_RATE_MIN_HZ
@@ -1061,7 +1064,7 @@ def _cadence_features(cad: tuple[np.ndarray, np.ndarray], flash_hz: np.ndarray) 
     if f.size < 2:
         return peak, np.zeros(rows)
     step = float(f[1] - f[0])
-    fl = np.where(flash_hz > 0, flash_hz, 1.0)[:, None]
+    fl = np.where(flash_hz > 0, np.asarray(flash_hz, np.float32).astype(np.float64), 1.0)[:, None]
     harm = np.abs(f / fl - np.round(f / fl)) * fl <= step
     on = np.where(use & harm, spec, np.float32(0.0)).sum(axis=1).astype(np.float64)
     return peak, np.where(flash_hz > 0, on / total, 0.0)

@@ -9,7 +9,7 @@ reference") applied to `slow[b]` and `body_hz[b]` to the bit (tests/features/tes
 the same float operations on the same values in the same order, so that no discrete decision (an
 event, a lag, a halving, a rotor group) depends on the batch. How:
 
-* flash series: the reference's expressions with a batch axis in front (cumulative sums,
+* flash series: the reference's expressions with a batch axis in front (window sums,
   reductions and the matched-filter product along the same axes; the product stacked, so
   BLAS sees the reference's per-row shape); rows in cache-sized chunks (CHUNK_BYTES);
 * flash events: the greedy sinc-skirt suppression is a loop over the candidates' rank
