@@ -239,8 +239,15 @@ def _clutter_pass(z: np.ndarray, demod: np.ndarray, length: int, rows: np.ndarra
     seen through the gaps of `keep` would leak into the radar frame's average at every flash."""
     if not rows.any():
         return z
-    d = demod[rows][:, :, None]
-    z[rows] = _highpass(z[rows] * d.conj(), length, None if keep is None else keep[rows]) * d
+    every = bool(rows.all())  # then in place, without a gather and a scatter
+    d = (demod if every else demod[rows])[:, :, None]
+    w = z if every else z[rows]
+    w *= d.conj()
+    w = _highpass(w, length, None if keep is None else (keep if every else keep[rows]))
+    w *= d
+    if every:
+        return w
+    z[rows] = w
     return z
 
 
