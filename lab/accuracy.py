@@ -146,6 +146,8 @@ class Condition:
     range_m: tuple[float, float] = (100.0, 1000.0)
     #: std of each rotor's rate about the common one (`Scene.rotor_rate_jitter`), drawn per scene
     rotor_rate_jitter: tuple[float, float] = (0.005, 0.005)
+    #: radial speed (m/s), drawn per scene with a random sign where it varies (0: hovering)
+    speed_mps: tuple[float, float] = (0.0, 0.0)
 
     def scene(self, rng: np.random.Generator) -> tuple[Scene, Preset]:
         """One scene of the condition and the radar that sees it (its carrier drawn)."""
@@ -163,6 +165,9 @@ class Condition:
             scene = scene.model_copy(update={"rotor_rate_jitter": float(rng.uniform(lo, hi))})
         elif lo != Scene.model_fields["rotor_rate_jitter"].default:
             scene = scene.model_copy(update={"rotor_rate_jitter": lo})
+        if self.speed_mps[1] > 0:  # drawn last and only here: the hovering conditions' scenes stay as they were
+            speed = float(rng.uniform(*self.speed_mps)) * (1.0 if rng.random() < 0.5 else -1.0)
+            scene = scene.model_copy(update={"radial_speed_mps": speed})
         return scene, pre
 
     def draw(self, seed: int) -> tuple[Scene, Preset, int]:
@@ -185,6 +190,8 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in (
               n_pulses=50000),
     Condition("cw-hover-equal", "as cw-hover-tagged without tags (equal blades): the control",
               tagged_blades=(0, 0)),
+    Condition("cw-moving-tagged", "as cw-hover-tagged, flying 2-12 m/s towards or away from the radar "
+              "(the clutter's line then lies off the body's)", speed_mps=(2.0, 12.0)),
     Condition("paper-hover", "paper (77 GHz, 26 ms); hovering Phantom 4 at 0.9-1.1x its rate, equal blades, "
               "rotors 0.5 % apart (std): the control", **_PAPER),
     Condition("paper-hover-spread", "as paper-hover, each rotor's rate 2-4 % (std) off the common one, as a "
@@ -268,7 +275,7 @@ class ConditionRow:
     world: str
     n: int
     detected: float
-    velocity_ok: float  # |v| < HOVER_SPEED_MPS (truth: hovering, 0)
+    velocity_ok: float  # |v - truth| < HOVER_SPEED_MPS
     rotor_ok: float  # rotor rate within CONDITION_RATE_TOLERANCE of the mean mechanical rate flown
     rotors_ok: float  # rotors seen within ROTORS_SEEN_TOLERANCE of the rotor count
     rotor_median_err: float  # median |relative rotor-rate error|

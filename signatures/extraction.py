@@ -715,12 +715,16 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     contrast = d_max / np.maximum(d_med, _TINY)
     # a CW channel has no other range bins to tell clutter from a body at zero Doppler: without a
     # narrow moving line, the body is the one clutter suppression removed there
+    peak = np.argmax(d, axis=1)
     if domain == "cw":  # ... and a line that the micro-Doppler is not symmetric about is a rotor's
-        hovering = suppress & ((contrast < n / F.MOVING_LINE_BINS)
-                               | (_symmetry(d, np.full(live.size, centre)) >= _symmetry(d, np.argmax(d, axis=1))))
+        off, flying = _off_clutter_line(d, d_med, centre, config.pri_s)
+        flying &= suppress
+        peak = np.where(flying, off, peak)
+        hovering = suppress & ~flying & ((contrast < n / F.MOVING_LINE_BINS)
+                                         | (_symmetry(d, np.full(live.size, centre)) >= _symmetry(d, peak)))
     else:
         hovering = suppress & (stationary > d_max) & (contrast < n / F.MOVING_LINE_BINS)
-    body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering)
+    body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering, peak)
     body_hz = (body_idx - centre) * dop_bin_hz
     velocity = body_hz * lam / 2.0
     vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
@@ -835,6 +839,27 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     return out
 
 
+def _off_clutter_line(d: np.ndarray, d_med: np.ndarray, centre: int, pri_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """CW rows of Doppler power `d` (fftshifted, zero at `centre`): the strongest bin outside the
+    zero-Doppler line (its reach by `flash.line_width_hz`), and whether that is a flying body's
+    line: it stands out as a moving line does (peak over median at least n / MOVING_LINE_BINS) and
+    has no mirror image about zero (MIRROR_DB over the strongest of the 5 bins there). Swaying
+    clutter (vegetation) 20-40 dB over a target spreads over tens of Hz about zero, outshines the
+    body's line and is itself symmetric about zero, and a CW channel has no range cells to tell it
+    apart: the strongest bin, or the profile's symmetry, read a flying target as hovering. A
+    hovering rotor's lines come in mirror pairs (a blade's Doppler swings both ways in a turn)."""
+    rows, n = d.shape
+    r = np.arange(rows)
+    reach = best.line_width_hz(np.fft.ifftshift(d, axes=1).astype(np.float64), pri_s) * n * pri_s
+    outside = np.abs(np.arange(n) - centre)[None, :] > np.ceil(reach)[:, None]
+    off = np.argmax(np.where(outside, d, 0), axis=1)
+    line = d[r, off].astype(np.float64)
+    mirror = (2 * centre - off) % n
+    image = np.max(np.stack([d[r, (mirror + j) % n] for j in range(-2, 3)]), axis=0).astype(np.float64)
+    stands_out = line >= d_med * (n / F.MOVING_LINE_BINS)
+    return off, stands_out & (line >= image * 10.0 ** (F.MIRROR_DB / 10.0))
+
+
 def _symmetry(d: np.ndarray, at: np.ndarray) -> np.ndarray:
     """How symmetric each row's Doppler profile is about bin `at[row]`: the correlation of the log
     profile at +f and -f over BODY_BINS < f <= n / 4 (advancing and retreating blades mirror each
@@ -901,10 +926,12 @@ def _unsuppressed(mu: np.ndarray, dop: np.ndarray, power: np.ndarray, g_lo: np.n
 
 
 def _body_line(d: np.ndarray, d_raw: np.ndarray, d_med: np.ndarray, centre: int,
-               hovering: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """`features._body_line` per row: fractional Doppler index of the body line, its std in bins."""
+               hovering: np.ndarray, peak: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per row: the fractional Doppler index of the body line and its std in bins. The line is at
+    `peak` (the strongest bin, or a CW row's line off the clutter's); a hovering row's, and one
+    within BODY_BINS of zero Doppler, is read from the spectrum before clutter suppression."""
     rows, n = d.shape
-    k = np.argmax(d, axis=1)
+    k = peak
     use_raw = hovering | (np.abs(k - centre) <= F.BODY_BINS)
     lo, hi = max(0, centre - F.BODY_BINS), min(n, centre + F.BODY_BINS + 1)
     k = np.where(use_raw, lo + np.argmax(d_raw[:, lo:hi], axis=1), k)

@@ -818,14 +818,25 @@ def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -
     """(sum, difference) of the approaching and receding halves' power envelopes of each row of
     long-dwell gates `slow` (B, pulses, bins), each (B, pulses): demodulated by the body Doppler,
     its ends tapered (`ENVELOPE_TAPER`), the body's and the clutter's line dropped
-    (`clutter_width_hz`; `spectral_flash_rate` says why the sum and the difference)."""
+    (`clutter_width_hz`; `spectral_flash_rate` says why the sum and the difference). A flying
+    body's clutter line lies at minus its Doppler here, apart from the body's: it is dropped too,
+    as far as it reaches in the radar's frame; swaying clutter 20-40 dB over the flashes buried
+    their train there (`authn features accuracy --condition cw-moving-tagged`)."""
     n = slow.shape[1]
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body_hz * config.pri_s)[:, None] * t)
     x = (slow * demod[:, :, None]).astype(np.complex64)
     spec = np.fft.fft((x - x.mean(axis=1, keepdims=True)) * tukey(n, ENVELOPE_TAPER)[None, :, None], axis=1)
     f = np.fft.fftfreq(n, d=config.pri_s)
-    keep = np.abs(f)[None, :] > clutter_width_hz(spec, config.pri_s)[:, None]
+    power = (spec.real ** 2 + spec.imag ** 2).sum(axis=2)
+    width = line_width_hz(power, config.pri_s)
+    keep = np.abs(f)[None, :] > width[:, None]
+    prf = 1.0 / config.pri_s
+    body = (np.asarray(body_hz, dtype=np.float64) + prf / 2) % prf - prf / 2  # aliased into +-PRF / 2
+    apart = np.flatnonzero(np.abs(body) > width)
+    for b in apart:  # the radar's frame: bin j there is bin j - body / df here
+        reach = line_width_hz(np.roll(power[b:b + 1], int(round(body[b] * n * config.pri_s)), axis=1), config.pri_s)
+        keep[b] &= np.abs((f + body[b] + prf / 2) % prf - prf / 2) > reach[0]
     halves = []
     for half in (f > 0, f < 0):
         part = np.fft.ifft(spec * (keep & half[None, :])[:, :, None], axis=1)
@@ -852,14 +863,20 @@ def tukey(n: int, share: float) -> np.ndarray:
 
 def clutter_width_hz(spec: np.ndarray, pri_s: float) -> np.ndarray:
     """Per row of body-demodulated Doppler spectra `spec` (B, pulses, bins): how far (Hz) either side
-    of the body the body's and the clutter's line reach. The power of both sides at each |f|,
-    smoothed over SPECTRAL_SMOOTH_HZ, is followed out from SPECTRAL_BODY_HZ to where it falls to
-    CLUTTER_FLOOR_FACTOR times its median beyond SPECTRAL_BODY_HZ (the micro-Doppler's floor), at
-    most an eighth of the PRF; SPECTRAL_BODY_HZ at least. Moving clutter at +40 dB spreads over
-    tens of Hz at S-band, and a fixed band let it into the envelope as a slow wander."""
-    n = spec.shape[1]
+    of the body the body's and the clutter's line reach (`line_width_hz` of their power). Moving
+    clutter at +40 dB spreads over tens of Hz at S-band, and a fixed band let it into the envelope
+    as a slow wander."""
+    return line_width_hz((spec.real ** 2 + spec.imag ** 2).sum(axis=2), pri_s)
+
+
+def line_width_hz(power: np.ndarray, pri_s: float) -> np.ndarray:
+    """Per row of Doppler power spectra (B, pulses) in FFT order: how far (Hz) either side of zero
+    the line there reaches. The power of both sides at each |f|, smoothed over SPECTRAL_SMOOTH_HZ,
+    is followed out from SPECTRAL_BODY_HZ to where it falls to CLUTTER_FLOOR_FACTOR times its
+    median beyond SPECTRAL_BODY_HZ (the micro-Doppler's floor), at most an eighth of the PRF;
+    SPECTRAL_BODY_HZ at least."""
+    n = power.shape[1]
     df = 1.0 / (n * pri_s)
-    power = (spec.real ** 2 + spec.imag ** 2).sum(axis=2)
     m = (n - 1) // 2
     folded = power[:, : n // 2 + 1].astype(np.float64)
     folded[:, 1:1 + m] += power[:, n - 1:n - 1 - m:-1]  # -f onto +f

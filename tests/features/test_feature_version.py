@@ -33,6 +33,8 @@ SCENES = {
     "m300_cw_sband_tagged_hover": dict(preset="cw-sband", radial_speed_mps=0.0, tagged_blades=2, seed=6),  # from 5
     # every blade tagged alike: equal blades, read at twice their flash rate before version 7
     "m300_cw_sband_equal_tags_hover": dict(preset="cw-sband", radial_speed_mps=0.0, tagged_blades=8, seed=10),
+    # flying: its clutter's line, at minus the body's Doppler, left out of the flash envelope from version 10
+    "m300_cw_sband_tagged_moving": dict(preset="cw-sband", radial_speed_mps=6.0, tagged_blades=2, seed=11),
 }
 
 #: (FEATURE_VERSION, SIMULATOR_VERSION) -> scene -> `extract(rec).as_array()` (FEATURE_NAMES order).
@@ -139,6 +141,14 @@ GOLDEN_FEATURES[("9", "2")] = {
         0.004051, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.137, 1.77, 0.0, 0.0, 0.0, 0.0, 1.0, 27.78, 0.09167, 1506.0, 0.0,
         27.25, 1.0, 0.7663, 0.3905, -0.02663, -0.3447, -0.5138, -0.4793, -0.3122, -0.1279, 0.01789, 0.07368, 0.0646,
         0.0, 0.0, 0.0, 0.0),
+}
+GOLDEN_FEATURES[("10", "2")] = {
+    **GOLDEN_FEATURES[("9", "2")],
+    "m300_cw_sband_tagged_moving": (
+        0.0, 5.82, 0.0, 30.49, 32.86, 1133.0, 652.5, 71.18, 8.0, 0.7364, 0.3704, 0.0, 0.0, 5.998, 0.003134, 79.84,
+        0.3052, 39.92, 0.1526, 1.0, 0.0, 91.16, 0.8336, 0.3634, 0.003602, 0.0, 3.754, 189.0, 16.52, 0.2866, 39.65,
+        0.09494, 10.84, 1.0, 0.2181, -0.2941, -0.4836, -0.3869, 0.1156, 0.7023, 0.3348, -0.157, -0.4571, -0.4158,
+        -0.01781, 0.4514, 0.4976, 0.005378, -0.4135),
 }
 
 SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
