@@ -116,7 +116,7 @@ def k_smallest(d: np.ndarray, k: int) -> np.ndarray:
     if n_blocks < 2 * k:
         return np.argpartition(d, k - 1, axis=1)[:, :k]
     blocks = d[:, :n_blocks * block].reshape(n_rows, n_blocks, block)
-    mins = blocks.min(axis=2)
+    mins = np.fmin.reduce(blocks, axis=2)  # NaN-blind: a block's NaN must not hide its smallest value
     bound = np.partition(mins, k - 1, axis=1)[:, k - 1]
     rb, bb = np.nonzero(mins <= bound[:, None])
     r, j = np.nonzero(blocks[rb, bb] <= bound[rb, None])

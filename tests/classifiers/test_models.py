@@ -187,3 +187,11 @@ def test_k_smallest_selects_what_a_full_partition_selects(rows, n, k, levels, na
     assert got.shape == (rows, k) and all(len(set(r)) == k for r in got.tolist())
     want = np.partition(d, k - 1, axis=1)[:, :k]
     np.testing.assert_array_equal(np.sort(np.take_along_axis(d, got, axis=1), axis=1), np.sort(want, axis=1))
+
+
+def test_k_smallest_sees_past_a_nan_in_a_block() -> None:
+    from signatures.inference import k_smallest
+
+    d = np.arange(400, dtype=float)[None, :] + 100.0
+    d[0, 3], d[0, 5] = 0.5, np.nan  # the first block holds the smallest value and a NaN
+    assert sorted(d[0, k_smallest(d, 3)[0]].tolist()) == [0.5, 100.0, 101.0]
