@@ -89,7 +89,7 @@ SPECTRAL_BODY_HZ = 20.0
 #: envelope leaves out, besides, everything out to where the Doppler power (both sides, smoothed over
 #: SPECTRAL_SMOOTH_HZ) falls to this many times its floor beyond SPECTRAL_BODY_HZ, within an eighth
 #: of the PRF either side (3 was chosen on the randomised world among 3 and 10: its clutter spreads
-#: 0-0.5 m/s; `clutter_width_hz`).
+#: 0-0.5 m/s; `line_width_hz`).
 CLUTTER_FLOOR_FACTOR = 3.0
 #: Share of a long dwell tapered (half at each end, a Tukey window) before its Doppler spectrum
 #: (`flash_envelope`): the mean subtraction removes static clutter exactly, but clutter that moves,
@@ -818,10 +818,12 @@ def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -
     """(sum, difference) of the approaching and receding halves' power envelopes of each row of
     long-dwell gates `slow` (B, pulses, bins), each (B, pulses): demodulated by the body Doppler,
     its ends tapered (`ENVELOPE_TAPER`), the body's and the clutter's line dropped
-    (`clutter_width_hz`; `spectral_flash_rate` says why the sum and the difference). A flying
-    body's clutter line lies at minus its Doppler here, apart from the body's: it is dropped too,
-    as far as it reaches in the radar's frame; swaying clutter 20-40 dB over the flashes buried
-    their train there (`authn features accuracy --condition cw-moving-tagged`)."""
+    (`line_width_hz`; `spectral_flash_rate` says why the sum and the difference). Moving clutter
+    at +40 dB spreads over tens of Hz at S-band, and a fixed band let it into the envelope as a
+    slow wander. A flying body's clutter line lies at minus its Doppler here, apart from the
+    body's: it is dropped too, as far as it reaches in the radar's frame; swaying clutter 20-40 dB
+    over the flashes buried their train there (`authn features accuracy --condition
+    cw-moving-tagged`)."""
     n = slow.shape[1]
     t = np.arange(n)
     demod = np.exp((-2j * math.pi * body_hz * config.pri_s)[:, None] * t)
@@ -859,14 +861,6 @@ def tukey(n: int, share: float) -> np.ndarray:
         w[:edge] = ramp
         w[n - edge:] = ramp[::-1]
     return w
-
-
-def clutter_width_hz(spec: np.ndarray, pri_s: float) -> np.ndarray:
-    """Per row of body-demodulated Doppler spectra `spec` (B, pulses, bins): how far (Hz) either side
-    of the body the body's and the clutter's line reach (`line_width_hz` of their power). Moving
-    clutter at +40 dB spreads over tens of Hz at S-band, and a fixed band let it into the envelope
-    as a slow wander."""
-    return line_width_hz((spec.real ** 2 + spec.imag ** 2).sum(axis=2), pri_s)
 
 
 def line_width_hz(power: np.ndarray, pri_s: float) -> np.ndarray:

@@ -91,6 +91,11 @@ def test_spectral_rate_is_refined_below_a_bin():
         assert train.score[0] >= flash.SPECTRAL_DETECT_SCORE and 0 < train.rate_std_hz[0] < 1.0
 
 
+def _line_width(spec: np.ndarray, pri_s: float) -> np.ndarray:
+    """`flash.line_width_hz` of Doppler spectra (B, pulses, bins) summed over their bins."""
+    return flash.line_width_hz((spec.real ** 2 + spec.imag ** 2).sum(axis=2), pri_s)
+
+
 def _moving_clutter(n: int, pri_s: float, spread_hz: float, amplitude: float, seed: int = 3) -> np.ndarray:
     """Clutter at zero Doppler with a Gaussian Doppler spread (foliage in the wind): white noise
     shaped in the Doppler domain, scaled to an rms `amplitude`."""
@@ -114,7 +119,7 @@ def test_moving_clutter_is_left_out_of_the_envelope():
         x = flashes * doppler + _moving_clutter(n, config.pri_s, 10.0, 100.0)
         x = (x + 0.05 * (np.random.default_rng(0).standard_normal(n) + 1j))[None, :, None].astype(np.complex64)
         spec = np.fft.fft(x - x.mean(axis=1, keepdims=True), axis=1)
-        assert 30.0 <= flash.clutter_width_hz(spec, config.pri_s)[0] <= 120.0
+        assert 30.0 <= _line_width(spec, config.pri_s)[0] <= 120.0
         train = flash.spectral_flash_rate(x, config, np.zeros(1))
         assert abs(train.rate_hz[0] - rate) <= 0.005 * rate, (rate, train.rate_hz[0])
 
@@ -157,7 +162,7 @@ def test_clutter_off_the_demodulation_does_not_leak_across_the_band():
         demod = cluttered * np.exp(-2j * math.pi * 0.3 * t)[None, :, None]
         spec = np.fft.fft((demod - demod.mean(axis=1, keepdims=True))
                           * flash.tukey(n, flash.ENVELOPE_TAPER)[None, :, None], axis=1)
-        assert flash.clutter_width_hz(spec, config.pri_s)[0] <= 100.0  # untapered: 624 Hz (the cap)
+        assert _line_width(spec, config.pri_s)[0] <= 100.0  # untapered: 624 Hz (the cap)
         train = flash.spectral_flash_rate(cluttered, config, body)
         alone = flash.spectral_flash_rate(clean, config, body)
         assert abs(train.rate_hz[0] - rate) <= 0.005 * rate and train.score[0] >= flash.SPECTRAL_DETECT_SCORE
@@ -182,7 +187,7 @@ def test_the_clutter_width_follows_the_spread_and_ignores_the_scale(spread_hz, l
     noise = rng.standard_normal(n) + 1j * rng.standard_normal(n)
     clutter = _moving_clutter(n, config.pri_s, max(spread_hz, 1e-3), 100.0 if spread_hz > 0 else 0.0)
     x = (noise + clutter)[None, :, None]
-    width = [flash.clutter_width_hz(np.fft.fft(y - y.mean(axis=1, keepdims=True), axis=1), config.pri_s)[0]
+    width = [_line_width(np.fft.fft(y - y.mean(axis=1, keepdims=True), axis=1), config.pri_s)[0]
              for y in (x, x * 10.0 ** log10_scale)]
     assert width[1] == pytest.approx(width[0])
     assert flash.SPECTRAL_BODY_HZ <= width[0] <= config.prf_hz / 8
