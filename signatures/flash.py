@@ -836,9 +836,11 @@ def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -
     prf = 1.0 / config.pri_s
     body = (np.asarray(body_hz, dtype=np.float64) + prf / 2) % prf - prf / 2  # aliased into +-PRF / 2
     apart = np.flatnonzero(np.abs(body) > width)
-    for b in apart:  # the radar's frame: bin j there is bin j - body / df here
-        reach = line_width_hz(np.roll(power[b:b + 1], int(round(body[b] * n * config.pri_s)), axis=1), config.pri_s)
-        keep[b] &= np.abs((f + body[b] + prf / 2) % prf - prf / 2) > reach[0]
+    if apart.size:  # the radar's frame: bin j there is bin j - body / df here
+        shift = np.rint(body[apart] * n * config.pri_s).astype(int)
+        radar = power[apart[:, None], (np.arange(n)[None, :] - shift[:, None]) % n]
+        reach = line_width_hz(radar, config.pri_s)
+        keep[apart] &= np.abs((f[None, :] + body[apart, None] + prf / 2) % prf - prf / 2) > reach[:, None]
     halves = []
     for half in (f > 0, f < 0):
         part = np.fft.ifft(spec * (keep & half[None, :])[:, :, None], axis=1)

@@ -113,8 +113,8 @@ def k_smallest(d: np.ndarray, k: int) -> np.ndarray:
     n_rows, n = d.shape
     block = max(16, math.isqrt(n))
     n_blocks = n // block
-    if n_blocks < 2 * k:
-        return np.argpartition(d, k - 1, axis=1)[:, :k]
+    if n_blocks < 2 * k:  # too few blocks to bound anything
+        return _k_smallest_full(d, k)
     blocks = d[:, :n_blocks * block].reshape(n_rows, n_blocks, block)
     mins = np.fmin.reduce(blocks, axis=2)  # NaN-blind: a block's NaN must not hide its smallest value
     bound = np.partition(mins, k - 1, axis=1)[:, k - 1]
@@ -124,10 +124,15 @@ def k_smallest(d: np.ndarray, k: int) -> np.ndarray:
     tr, tc = np.nonzero(d[:, n_blocks * block:] <= bound[:, None])  # the last, partial block
     r, c = np.concatenate([r, tr]), np.concatenate([c, tc + n_blocks * block])
     if np.any(np.bincount(r, minlength=n_rows) < k):  # NaN distances: no bound holds
-        return np.argpartition(d, k - 1, axis=1)[:, :k]
+        return _k_smallest_full(d, k)
     order = np.lexsort((c, d[r, c], r))  # by row, then value, then index
     r, c = r[order], c[order]
     return c[np.searchsorted(r, np.arange(n_rows))[:, None] + np.arange(k)]
+
+
+def _k_smallest_full(d: np.ndarray, k: int) -> np.ndarray:
+    """`k_smallest` by a full selection over every column."""
+    return np.argpartition(d, k - 1, axis=1)[:, :k]
 
 
 class ForestArrays:
