@@ -4,7 +4,10 @@ A change's cost on the batch path is a ratio of two medians, and on a shared mac
 measured in the same minutes means anything. This checks out BASE into a temporary git worktree,
 starts one worker process per tree (each importing only its own tree's code, from its own
 `benchmarks/batch_stages.py`: the same returns, `extract_many` and `Classifier.predict_many` as
-`authn bench --batch` times), then alternates single timed rounds between them.
+`authn bench --batch` times), then alternates single timed rounds between them. Each worker runs
+under its own tree's `authn` process settings (`authn.process.tune`, where the tree has them), as
+that tree's `authn bench --batch` does; for a like-for-like ratio of the code alone, give both
+trees glibc's thresholds from the environment (docs/benchmarks.md, "Batch mode").
 
     python benchmarks/batch_ab.py 431a2c6 --preset paper --batch 256 --rounds 25
 
@@ -35,6 +38,12 @@ import numpy as np
 import batch_stages as bs
 import signatures
 assert signatures.__file__.startswith(root), signatures.__file__
+try:  # the tree's `authn` process settings, where it has them
+    from authn.process import tune
+except ImportError:
+    pass
+else:
+    tune()
 recs, gates = bs._returns(preset, batch)
 clf = bs.load_classifier(preset)
 def one():

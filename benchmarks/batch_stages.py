@@ -13,6 +13,10 @@ same run (`lab.bench.perf.fft_floor`, as `authn bench --batch`; docs/benchmarks.
   matrix product over the batch (where the waveform has sub-chirp windows), the gate's Doppler FFT
   and its STFT. What is left of a target ratio after these is all the estimators may cost.
 
+It runs under the `authn` process's settings (`authn.process.tune`: the GC and glibc's memory
+thresholds), as `authn bench --batch` does; the header line counts the minor page faults (fresh
+memory's first touches) per return.
+
     python benchmarks/batch_stages.py --preset paper --batch 256
     python benchmarks/batch_stages.py --preset wide --batch 64 --json
 """
@@ -28,6 +32,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from authn.process import tune
 from lab.bench import perf
 from lab.bench.batch import _median_ms, returns
 from signatures import flash as be
@@ -52,8 +57,16 @@ def _returns(preset: str, batch: int) -> tuple[list, list]:
     return [recs[i] for i in rows], [gates[i] for i in rows]
 
 
-def stages(preset: str, batch: int, rounds: int) -> dict[str, float]:
-    """Median ms per return of each stage (and 'classifier', 'total') over `rounds` batches."""
+def _minor_faults() -> int:
+    """Pages this process has faulted in so far (fresh memory's first touches)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+
+
+def stages(preset: str, batch: int, rounds: int) -> tuple[dict[str, float], float]:
+    """Median ms per return of each stage (and 'classifier', 'total') over `rounds` batches, and
+    the mean minor page faults per return ('page faults')."""
     clf = load_classifier(preset)
     recs, gates = _returns(preset, batch)
     spent: dict[str, float] = {}
@@ -74,6 +87,8 @@ def stages(preset: str, batch: int, rounds: int) -> dict[str, float]:
     try:
         per_round: list[dict[str, float]] = []
         for r in range(rounds + 1):  # the first round warms workspaces and models
+            if r == 1:
+                faults = _minor_faults()
             spent.clear()
             t0 = time.perf_counter()
             features = np.stack([f.as_array() for f in bf.extract_many(recs, gates)])
@@ -82,13 +97,14 @@ def stages(preset: str, batch: int, rounds: int) -> dict[str, float]:
             t2 = time.perf_counter()
             if r:
                 per_round.append(dict(spent, classifier=t2 - t1, total=t2 - t0))
+        faults = (_minor_faults() - faults) / (rounds * batch)
     finally:
         for mod, name, fn in originals:
             setattr(mod, name, fn)
     out = {k: statistics.median(p.get(k, 0.0) for p in per_round) * 1e3 / batch for k in per_round[0]}
     inner = ("flash_series_batch", "periodicity_batch", "_spectrogram", "_cadence")  # called by _slow_stage
     out["rest of the slow stage"] = out["_slow_stage"] - sum(out.get(k, 0.0) for k in inner)
-    return out
+    return out, faults
 
 
 def transforms(preset: str, batch: int, rounds: int) -> dict[str, float]:
@@ -139,14 +155,17 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.batch < 1 or args.rounds < 1:
         ap.error("--batch and --rounds must be >= 1")
+    tune()
     floor = perf.fft_floor(args.preset, repeats=20)["fft_ms"]
-    result = {"preset": args.preset, "batch": args.batch, "fft_floor_ms": floor,
-              "stages_ms": stages(args.preset, args.batch, args.rounds),
+    staged, faults = stages(args.preset, args.batch, args.rounds)
+    result = {"preset": args.preset, "batch": args.batch, "fft_floor_ms": floor, "stages_ms": staged,
+              "page_faults_per_return": faults,
               "transforms_ms": transforms(args.preset, args.batch, args.rounds)}
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
-    print(f"{args.preset}, batch {args.batch}, FFT floor {floor:.3f} ms per return")
+    print(f"{args.preset}, batch {args.batch}, FFT floor {floor:.3f} ms per return, "
+          f"{faults:.1f} page faults per return")
     for title, table in (("stage", result["stages_ms"]), ("transform alone", result["transforms_ms"])):
         print(f"\n| {title} | ms per return | x floor |\n|---|---|---|")
         for name, ms in table.items():

@@ -10,7 +10,6 @@ commands that need them, never at module level, so `authn --help` and a single
 from __future__ import annotations
 
 import functools
-import gc
 import os
 import sys
 
@@ -25,6 +24,7 @@ from authn.cli import (audit, bench, check, db, demo, features, importer, inspec
 from authn.cli.output import json_error, json_requested
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
+from authn.process import tune
 from core.errors import AuthnException, describe, exit_code_for
 from core.textsafe import printable
 
@@ -231,14 +231,7 @@ def _raise_interrupted(signum: int, _frame: object) -> None:
     raise interrupted(signum)
 
 
-#: The CLI process's first-generation GC threshold (CPython's default: 700). Importing what a
-#: check needs allocates ~80 000 container objects, none of them garbage: at 700 that ran ~40 ms
-#: of collections (a tenth of a cold check) that freed nothing. Long jobs (batches, `serve`)
-#: still collect, every 100 000 net allocations.
-GC_THRESHOLD0 = 100_000
-
-
 def run() -> None:
-    """Console-script entry point."""
-    gc.set_threshold(GC_THRESHOLD0, *gc.get_threshold()[1:])
+    """Console-script entry point: the process's settings (`authn.process.tune`), then the command."""
+    tune()
     sys.exit(main())

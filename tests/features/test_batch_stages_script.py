@@ -17,7 +17,8 @@ def bs(benchmark_script):
 
 def test_stages_add_up_and_the_batch_path_is_restored(bs):
     before = {name: getattr(mod, name) for mod, name in bs.STAGES}
-    ms = bs.stages("paper", 8, 1)
+    ms, faults = bs.stages("paper", 8, 1)
+    assert faults >= 0.0
     assert {name for _, name in bs.STAGES} <= ms.keys()
     assert all(v >= 0.0 for k, v in ms.items() if k != "rest of the slow stage")
     top = ms["_cube_stage"] + ms["_subchirp_bins"] + ms["_slow_stage"] + ms["classifier"]
