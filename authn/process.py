@@ -1,9 +1,9 @@
 """How an `authn` process runs: settings that belong to the application, not to the library.
 
 `signatures` and the other packages leave process-wide state alone; the console entry point
-(`authn.cli.run`, which `authn serve` and the cluster's workers run under too) applies `tune()`
-once, before any command. Scripts that time the CLI's work (benchmarks/batch_stages.py) apply
-it too, so they time what a user's `authn` process does.
+(`authn.cli.run`) applies `tune()` once, before any command, and `authn serve --workers`
+applies it in each spawned worker (`authn.service.workers`). Scripts that time the CLI's work
+(benchmarks/batch_stages.py) apply it too, so they time what a user's `authn` process does.
 """
 
 from __future__ import annotations

@@ -39,6 +39,7 @@ import time
 from typing import Any
 
 from core.errors import SystemFault
+from authn.process import tune
 from authn.service.connections import ConnectionLimits
 
 #: a worker that dies sooner than this after its start is not restarted: the server stops
@@ -119,6 +120,7 @@ def _raise_fd_limit() -> None:
 def _worker(host: str, port: int, config: dict[str, Any], limits: ConnectionLimits, parent: int) -> None:
     _die_with_parent(parent)
     _raise_fd_limit()
+    tune()  # a spawned interpreter: the `authn` process's settings again
     import uvicorn
 
     from authn.service.connections import GuardedH11Protocol, configure

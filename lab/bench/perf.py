@@ -147,6 +147,9 @@ def import_costs(repeats: int = 3) -> dict[str, float]:
 def _worker(args: tuple[str, list[str]]) -> int:
     db, paths = args
     from authn.check import Checker
+    from authn.process import tune
+
+    tune()  # a spawned interpreter stands for an `authn` process
 
     checker = Checker(db)
     for p in paths:
