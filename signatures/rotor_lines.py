@@ -37,7 +37,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-__all__ = ["FALSE_LINES", "Line", "clear_z", "phase_time", "visible_rotors"]
+__all__ = ["FALSE_LINES", "Line", "clear_z", "phase_time", "searched_slopes", "visible_rotors"]
 
 #: Flash periods folded into one window (row) of the phase-time image.
 PERIODS = 4
@@ -111,6 +111,15 @@ def clear_z(image: np.ndarray, noise_var: float, slope: float, phase: int, count
     return float(image[j[clear], centre].sum() / math.sqrt(noise_var * n)), n
 
 
+def searched_slopes(rows: int, bins: int, periods: int = PERIODS, max_drift: float = MAX_DRIFT) -> np.ndarray:
+    """The line slopes (phase bins per window) `visible_rotors` searches in a (rows x bins) image:
+    rate offsets within +-`max_drift`, half a bin over the dwell apart. With the phases, the tests
+    its Bonferroni threshold counts."""
+    step = 0.5 / rows
+    reach = max_drift * periods * bins
+    return np.arange(-reach, reach + step / 2, step)
+
+
 def visible_rotors(envelope: np.ndarray, cycles_per_pulse: float, periods: int = PERIODS,
                    max_drift: float = MAX_DRIFT, false_lines: float = FALSE_LINES) -> list[Line]:
     """The rotors whose flashes stand above the noise in a long dwell's flash envelope (module
@@ -121,9 +130,7 @@ def visible_rotors(envelope: np.ndarray, cycles_per_pulse: float, periods: int =
     rows, bins = image.shape
     if rows < 8:
         return []
-    step = 0.5 / rows  # half a bin over the dwell
-    reach = max_drift * periods * bins
-    slopes = np.arange(-reach, reach + step / 2, step)
+    slopes = searched_slopes(rows, bins, periods, max_drift)
     z0 = NormalDist().inv_cdf(1.0 - false_lines / (slopes.size * bins))
     z_clear = NormalDist().inv_cdf(1.0 - false_lines)  # the line is located: one test, no search over slopes
     length = PAD * (1 << int(math.ceil(math.log2(rows))))

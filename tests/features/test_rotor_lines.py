@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures.rotor_lines import visible_rotors
+from signatures.rotor_lines import searched_slopes, visible_rotors
 
 PRF = 5000.0
 
@@ -128,6 +128,21 @@ def test_the_oracle_sees_each_tagged_rotor_alone_and_restores_the_simulator() ->
     assert sim._uav_amplitudes is before
     assert [(v, t) for v, t, _ in rotors] == [(True, True)] * 4
     assert min(z for _, _, z in rotors) > 8.0
+
+
+def test_the_searching_oracle_pays_the_counts_threshold() -> None:
+    """`search=True`: the same z per rotor against the count's Bonferroni threshold over its
+    searched rate offsets too (`searched_slopes`). Scene 1 of cw-hover-tagged: a rotor at z 3.98
+    clears the phase bins' threshold alone, not the search's (~4.9 for that image)."""
+    from lab.accuracy import CONDITIONS
+    from lab.rotor_lines import rotors_alone
+
+    plain = rotors_alone(CONDITIONS["cw-hover-tagged"], 1)
+    searched = rotors_alone(CONDITIONS["cw-hover-tagged"], 1, search=True)
+    assert [z for _, _, z in plain] == [z for _, _, z in searched]
+    assert [v for v, _, _ in plain] == [True] * 4
+    assert [v for v, _, _ in searched] == [True, True, True, False]
+    assert searched_slopes(31, 33).size > 400  # rows x bins of a 0.82 s tagged hover: ~490 rate offsets
 
 
 def test_a_long_dwell_marks_its_count_a_lower_bound_and_a_short_one_does_not() -> None:
