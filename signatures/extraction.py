@@ -722,14 +722,17 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     # narrow moving line, the body is the one clutter suppression removed there
     peak = np.argmax(d, axis=1)
     if domain == "cw":  # ... and a line that the micro-Doppler is not symmetric about is a rotor's
-        off, flying = _off_clutter_line(d, d_med, centre, config.pri_s)
-        flying &= suppress
+        off, stands_out, unmirrored, reach = _off_clutter_line(d, d_med, centre, config.pri_s)
+        drifting, drift_idx = _drifting_line(slow, off, reach, unmirrored & ~stands_out & suppress)
+        flying = suppress & unmirrored & (stands_out | drifting)
         peak = np.where(flying, off, peak)
         hovering = suppress & ~flying & ((contrast < n / F.MOVING_LINE_BINS)
                                          | (_symmetry(d, np.full(live.size, centre)) >= _symmetry(d, peak)))
     else:
         hovering = suppress & (stationary > d_max) & (contrast < n / F.MOVING_LINE_BINS)
     body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering, peak)
+    if domain == "cw":  # an accelerating body's line, followed over sub-dwells: its mid-dwell Doppler
+        body_idx = np.where(drifting & ~stands_out, drift_idx, body_idx)
     body_hz = (body_idx - centre) * dop_bin_hz
     velocity = body_hz * lam / 2.0
     vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
@@ -862,7 +865,43 @@ def _off_clutter_line(d: np.ndarray, d_med: np.ndarray, centre: int, pri_s: floa
     mirror = (2 * centre - off) % n
     image = np.max(np.stack([d[r, (mirror + j) % n] for j in range(-2, 3)]), axis=0).astype(np.float64)
     stands_out = line >= d_med * (n / F.MOVING_LINE_BINS)
-    return off, stands_out & (line >= image * 10.0 ** (F.MIRROR_DB / 10.0))
+    return off, stands_out, line >= image * 10.0 ** (F.MIRROR_DB / 10.0), reach
+
+
+def _drifting_line(slow: np.ndarray, off: np.ndarray, reach: np.ndarray,
+                   rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per CW row of gate slow time `slow` (rows, n, bins; the Doppler profile's `off` its candidate
+    line, fftshifted bins): for the `rows` asked, is it a body line smeared by acceleration, and where
+    is it at mid-dwell (fractional full-dwell bin)? A body accelerating at a few m/s^2 sweeps its line
+    over tens of Hz in 0.8 s, under a single bin's stand-out, where a rotor's line (a harmonic of its
+    rate) stays put. In each of SUB_DWELLS sub-dwells the line is sought within DRIFT_SUB_BINS of the
+    candidate; it is a body's where it stands out there (peak over median at least the sub-dwell's
+    length / MOVING_LINE_BINS) in most sub-dwells; its mid-dwell bin is the mean of their peaks."""
+    n_rows, n = slow.shape[:2]
+    drifting = np.zeros(n_rows, bool)
+    at = off.astype(np.float64)
+    m = n // F.SUB_DWELLS
+    idx = np.flatnonzero(rows)
+    if idx.size == 0 or m < 4 * F.DRIFT_SUB_BINS:
+        return drifting, at
+    part = slow[idx, :m * F.SUB_DWELLS].reshape(idx.size, F.SUB_DWELLS, m, -1)
+    spec = np.fft.fftshift(np.fft.fft(part * rd.hann(m)[:, None].astype(np.float32), axis=2), axes=2)
+    p = _power(spec).sum(axis=3).astype(np.float64)  # (rows, sub-dwells, m)
+    med = np.maximum(np.median(p, axis=2), _TINY)
+    centre_sub = (off[idx] - n // 2) * m / n + m // 2  # the candidate in sub-dwell bins
+    window = np.rint(centre_sub)[:, None] + np.arange(-F.DRIFT_SUB_BINS, F.DRIFT_SUB_BINS + 1)[None, :]
+    cols = window.astype(int) % m
+    near = np.take_along_axis(p, np.broadcast_to(cols[:, None, :], p.shape[:2] + cols.shape[1:]), axis=2)
+    reach_sub = np.ceil(reach[idx] * m / n) + 1  # the zero-Doppler line's reach, in sub-dwell bins
+    near = np.where((np.abs(window - m // 2) > reach_sub[:, None])[:, None, :], near, 0.0)
+    k = np.argmax(near, axis=2)
+    peak = np.take_along_axis(near, k[:, :, None], axis=2)[:, :, 0]
+    clear = peak >= med * (m / F.MOVING_LINE_BINS)
+    drifting[idx] = clear.sum(axis=1) >= F.SUB_DWELLS - F.DRIFT_MISSES
+    pos = np.take_along_axis(window, k, axis=1)  # sub-dwell bins
+    mean_pos = np.sum(np.where(clear, pos, 0.0), axis=1) / np.maximum(clear.sum(axis=1), 1)
+    at[idx] = np.where(drifting[idx], (mean_pos - m // 2) * n / m + n // 2, at[idx])
+    return drifting, at
 
 
 def _symmetry(d: np.ndarray, at: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ from signatures.radar import RadarConfig
 
 #: Bump when feature values change: training-set caches key on it, and
 #: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
-FEATURE_VERSION = "10"
+FEATURE_VERSION = "11"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
 PATCH_FLOOR_DB = -60.0
@@ -27,6 +27,11 @@ MOVING_LINE_BINS = 6  # a moving body line's peak-to-median exceeds n_chirps / t
 #: A CW body line off zero Doppler has no mirror image this much (dB) as strong about zero; a hovering
 #: rotor's lines come in pairs (simulated: flying >= 21 dB, hovering <= 9 dB)
 MIRROR_DB = 15.0
+#: An accelerating CW body's line is followed over this many sub-dwells (extraction._drifting_line),
+#: within this many of their Doppler bins of the whole dwell's candidate (8 x 9.8 Hz at 5 kHz / 512).
+SUB_DWELLS = 8
+DRIFT_SUB_BINS = 8
+DRIFT_MISSES = 1
 #: A hovering target's range: the centroid of the clutter-suppressed range profile (above its
 #: median) over the peak bin +- this many bins (`hover_range_bin`).
 HOVER_CENTROID_BINS = 3

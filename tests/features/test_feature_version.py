@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from signatures.features import FEATURE_NAMES, FEATURE_VERSION, extract
+from signatures.scene import Nuisance
 from signatures.simulate import SIMULATOR_VERSION
 from tests.features.conftest import sim
 
@@ -35,6 +36,10 @@ SCENES = {
     "m300_cw_sband_equal_tags_hover": dict(preset="cw-sband", radial_speed_mps=0.0, tagged_blades=8, seed=10),
     # flying: its clutter's line, at minus the body's Doppler, left out of the flash envelope from version 10
     "m300_cw_sband_tagged_moving": dict(preset="cw-sband", radial_speed_mps=6.0, tagged_blades=2, seed=11),
+    # accelerating at 0 dB over swaying clutter: read hovering (0 m/s) until version 11 followed its line
+    "m300_cw_sband_tagged_accelerating": dict(preset="cw-sband", radial_speed_mps=6.0, tagged_blades=2, seed=13,
+                                              snr_db=0.0, clutter_to_signal_db=30.0,
+                                              nuisance=Nuisance(radial_accel_mps2=-2.5, clutter_spread_mps=0.3)),
 }
 
 #: (FEATURE_VERSION, SIMULATOR_VERSION) -> scene -> `extract(rec).as_array()` (FEATURE_NAMES order).
@@ -149,6 +154,17 @@ GOLDEN_FEATURES[("10", "2")] = {
         0.3052, 39.92, 0.1526, 1.0, 0.0, 91.16, 0.8336, 0.3634, 0.003602, 0.0, 3.754, 189.0, 16.52, 0.2866, 39.65,
         0.09494, 10.84, 1.0, 0.2181, -0.2941, -0.4836, -0.3869, 0.1156, 0.7023, 0.3348, -0.157, -0.4571, -0.4158,
         -0.01781, 0.4514, 0.4976, 0.005378, -0.4135),
+}
+
+# FEATURE_VERSION 11: an accelerating CW body's line is followed over sub-dwells (extraction._drifting_line);
+# every earlier scene unchanged
+GOLDEN_FEATURES[("11", "2")] = {
+    **GOLDEN_FEATURES[("10", "2")],
+    "m300_cw_sband_tagged_accelerating": (
+        0.0, -0.02395, 0.0, 3.699, 27.59, 114.3, 75.97, 91.23, 2.0, 0.001026, 0.3467, 0.0, 0.0, 4.99, 0.006013,
+        80.04, 0.3052, 40.02, 0.1526, 1.0, 0.0, 4.242, 2.801, 0.01687, 0.01114, 0.0, 0.8123, 102.0, 23.65, 0.03101,
+        34.7, 0.03281, 27.32, 1.0, 0.97, 0.9134, 0.8363, 0.7503, 0.6603, 0.5704, 0.4837, 0.402, 0.3277, 0.2583,
+        0.1964, 0.1402, 0.08995, 0.04346, 0.002309),
 }
 
 SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
