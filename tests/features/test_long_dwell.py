@@ -168,6 +168,9 @@ def test_an_accelerating_body_is_followed_over_sub_dwells():
                 got = extract_iq(x[:, None].astype(np.complex64), config, domain="cw").features.radial_velocity_mps
                 right += abs(got - v[n // 2]) < 1.0
     assert right >= 30
+    for scale in (1e-30, 1e30):  # the cube is put on unit scale first: the same line at any scale
+        scaled = extract_iq((x * scale)[:, None].astype(np.complex64), config, domain="cw").features
+        assert scaled.radial_velocity_mps == pytest.approx(got, rel=1e-6)
 
 
 def test_clutter_off_the_demodulation_does_not_leak_across_the_band():
