@@ -732,7 +732,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         hovering = suppress & (stationary > d_max) & (contrast < n / F.MOVING_LINE_BINS)
     body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering, peak)
     if domain == "cw":  # an accelerating body's line, followed over sub-dwells: its mid-dwell Doppler
-        body_idx = np.where(drifting & ~stands_out, drift_idx, body_idx)
+        body_idx = np.where(drifting, drift_idx, body_idx)
     body_hz = (body_idx - centre) * dop_bin_hz
     velocity = body_hz * lam / 2.0
     vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
@@ -875,8 +875,9 @@ def _drifting_line(slow: np.ndarray, off: np.ndarray, reach: np.ndarray,
     is it at mid-dwell (fractional full-dwell bin)? A body accelerating at a few m/s^2 sweeps its line
     over tens of Hz in 0.8 s, under a single bin's stand-out, where a rotor's line (a harmonic of its
     rate) stays put. In each of SUB_DWELLS sub-dwells the line is sought within DRIFT_SUB_BINS of the
-    candidate; it is a body's where it stands out there (peak over median at least the sub-dwell's
-    length / MOVING_LINE_BINS) in most sub-dwells; its mid-dwell bin is the mean of their peaks."""
+    candidate, outside the zero-Doppler line's `reach` (full-dwell bins); it is a body's where it
+    stands out there (peak over median at least the sub-dwell's length / MOVING_LINE_BINS) in all
+    but DRIFT_MISSES of them; its mid-dwell bin is the mean of their peaks."""
     n_rows, n = slow.shape[:2]
     drifting = np.zeros(n_rows, bool)
     at = off.astype(np.float64)
