@@ -888,7 +888,7 @@ def _drifting_line(slow: np.ndarray, off: np.ndarray, reach: np.ndarray,
     part = slow[idx, :m * F.SUB_DWELLS].reshape(idx.size, F.SUB_DWELLS, m, -1)
     spec = np.fft.fftshift(np.fft.fft(part * rd.hann(m)[:, None].astype(np.float32), axis=2), axes=2)
     p = _power(spec).sum(axis=3).astype(np.float64)  # (rows, sub-dwells, m)
-    med = np.maximum(np.median(p, axis=2), _TINY)
+    med = np.maximum(median_last(p), _TINY)
     centre_sub = (off[idx] - n // 2) * m / n + m // 2  # the candidate in sub-dwell bins
     window = np.rint(centre_sub)[:, None] + np.arange(-F.DRIFT_SUB_BINS, F.DRIFT_SUB_BINS + 1)[None, :]
     cols = window.astype(int) % m
