@@ -198,7 +198,12 @@ def test_600_idle_connections_do_not_starve_checks(sqlite_db, keys, keys_dir, re
             except httpx.TransportError as exc:
                 statuses.append(type(exc).__name__)
             took.append(time.monotonic() - t0)
-        loads = [_readyz(srv).json()["load"] for _ in range(6)]
+        loads, lost = [], 0
+        for _ in range(6):
+            try:
+                loads.append(_readyz(srv).json()["load"])
+            except httpx.TransportError:  # a client slower than TRIM_DELAY_S to send its head may be
+                lost += 1  # trimmed with the flood (connections.py); the checks above allow one in 20
     finally:
         flood.stdin.close()
         flood_out = flood.stdout.read()
@@ -208,7 +213,7 @@ def test_600_idle_connections_do_not_starve_checks(sqlite_db, keys, keys_dir, re
     p99 = float(np.percentile(took, 99))
     print(f"idle flood: {statuses.count(200)}/20 answered 200, p50 {np.median(took) * 1e3:.0f} ms, "
           f"p99 {p99 * 1e3:.0f} ms; flood {final}")
-    assert statuses.count(200) >= 19, statuses
+    assert statuses.count(200) >= 19 and lost <= 1, (statuses, lost)
     assert p99 < 1.0, took
     assert final["closed_by_server"] > FLOOD and final["open"] >= FLOOD * 0.9, final  # the flood did go on
     # each worker holds about 64 of the ~300 sockets it was offered (more for TRIM_DELAY_S after a burst)
