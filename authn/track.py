@@ -108,8 +108,9 @@ class Sprt:
     def increment(self, llr: float, physics: bool = True) -> float:
         """One dwell's contribution: its LLR capped at +-`cap_nats`; without a physics term (the
         classifier alone) only what counts against the claim (the default policy's
-        `radar-unverifiable`: the classifier never carries a claim)."""
-        capped = max(-self.cap_nats, min(self.cap_nats, llr))
+        `radar-unverifiable`: the classifier never carries a claim). An LLR that is not a number
+        counts fully against the claim (fail closed: `min` and `max` would make it +cap)."""
+        capped = -self.cap_nats if math.isnan(llr) else max(-self.cap_nats, min(self.cap_nats, llr))
         return capped if physics else min(0.0, capped)
 
     def track_llr(self, increments: Sequence[float]) -> float:

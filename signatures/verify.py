@@ -300,6 +300,8 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
     if physics is not None:
         terms["physics"], compared = physics
     odds = _log_odds(probabilities, [p.slug for p, _ in members]) if probabilities else None
+    if odds is not None and math.isnan(odds):  # a classifier that gave no number: fail closed, as far
+        odds = -math.inf  # against the claim as its term goes (clipping would turn NaN into +clip)
     if odds is not None:
         terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP if known else 0.0, odds))
     group = tuple(p.slug for p, _ in members) if len(members) > 1 else ()

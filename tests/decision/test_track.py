@@ -268,6 +268,9 @@ def test_sprt_bounds_discount_and_cap() -> None:
     assert s.increment(9.0) == 4.0 and s.increment(-9.0) == -4.0 and s.increment(1.5) == 1.5
     # the classifier alone (no physics term) only ever counts against the claim
     assert s.increment(2.0, physics=False) == 0.0 and s.increment(-9.0, physics=False) == -4.0
+    # an LLR that is not a number counts fully against (fail closed), with or without physics
+    assert s.increment(math.nan) == -4.0 and s.increment(math.nan, physics=False) == -4.0
+    assert s.walk([(math.nan, True)] * 2) == ("reject", 2)
     # n equicorrelated dwells count as n / (1 + (n - 1) rho)
     assert math.isclose(s.track_llr([4.0, 4.0, 4.0]), 12.0 / 1.4)
     assert s.track_llr([]) == 0.0 and Sprt(correlation=0.0).track_llr([1.0, 2.0]) == 3.0

@@ -126,6 +126,18 @@ def test_the_classifier_term_is_bounded_and_only_for_its_own_classes() -> None:
     assert verify({}, P["m300"], uniform).terms["classifier"] == pytest.approx(0.0, abs=1e-9)
 
 
+@pytest.mark.parametrize("claim", ["m300", "m600"])
+def test_a_classifier_that_gives_no_number_counts_against_the_claim(claim: str) -> None:
+    """Fail closed: a NaN probability (a broken bundle) takes the classifier term to -clip, calibrated
+    or not, where clipping NaN would have made it +clip."""
+    from signatures.calibration import CLASSIFIER_CLIP as CALIBRATION_CLIP, Calibration
+
+    probs = {"m600": math.nan, "m300": math.nan, "phantom4": 0.0, "bird": 0.0, "none": 0.0}
+    assert verify({}, P[claim], probs).terms == {"classifier": -CLASSIFIER_CLIP}
+    cal = verify({}, P[claim], probs, calibration=Calibration(coef=(1.0, 0.0, 1.0), intercept=0.0))
+    assert cal.terms["classifier"] == -CALIBRATION_CLIP and cal.llr < 0  # the calibration's own clip
+
+
 def test_outside_the_open_set_the_classifier_only_counts_against_the_claim() -> None:
     """An airframe no enrolled profile explains (open set: unknown): the closed-set classifier's
     confidence in the claimed class is no evidence for it, its doubt still counts."""
