@@ -7,6 +7,7 @@ is named in one place. Cedar wants integers, hence the centimetre and basis-poin
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
@@ -340,7 +341,9 @@ class Evidence:
             ctx["radar_confusable"] = self.radar_confusable
         if radar is not None and radar.verification is not None:
             if radar.verification.terms:
-                ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, radar.verification.llr * 100.0))))
+                llr = radar.verification.llr  # NaN would clamp to +1e6: fail closed instead
+                llr = -1e4 if math.isnan(llr) else llr
+                ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, llr * 100.0))))
             # no rotor evidence: the classifier alone may count against the claim, never carry it
             ctx["physics_abstained"] = radar.verification.physics_abstained
         if radar is not None and radar.association is not None and radar.association.in_view is not None:

@@ -10,7 +10,8 @@ probabilities for a real genuine M300 dwell. Real verification, real evidence, r
 
 from __future__ import annotations
 
-from dataclasses import asdict
+import math
+from dataclasses import asdict, replace
 from datetime import datetime, timezone
 
 import pytest
@@ -64,10 +65,13 @@ def dwells():
     return _unresolved_rotors(), _m300(1)
 
 
-def _decide(rec, feats, pred) -> tuple[object, object]:
+def _decide(rec, feats, pred, llr: float | None = None) -> tuple[object, object]:
+    """(verification, policy result) of one dwell claiming an M300; `llr` replaces the verification's."""
     profile = shipped_profiles()["m300"]
     v = verify({**asdict(feats.features), **feats.physics}, profile, pred.probabilities,
                rec.config.unambiguous_velocity_mps, known=pred.known)
+    if llr is not None:
+        v = replace(v, llr=llr)
     since = datetime(2025, 1, 1, tzinfo=timezone.utc)
     facts = RegistryFacts(IdentityFacts("1581F000", "serial", "m300", "active", since, None))
     radar = RadarEvidence(gated=True, model=pred.label, confidence=pred.confidence, known=pred.known,
@@ -89,6 +93,16 @@ def test_the_classifier_alone_does_not_carry_a_claim(dwells) -> None:
     v, result = _decide(genuine, *_radar(genuine))
     assert not v.physics_abstained and v.terms["physics"] > 0
     assert (result.decision, result.reasons) == ("accept", ["registered-active"])
+
+
+def test_an_llr_that_is_not_a_number_is_rejected(dwells) -> None:
+    """Fail closed: a verification LLR of NaN reaches the policy as the most negative LLR (clamping
+    it would have made it the most positive), so the genuine dwell that was accepted is rejected."""
+    _, genuine = dwells
+    feats, pred = _radar(genuine)
+    assert _decide(genuine, feats, pred)[1].decision == "accept"
+    v, result = _decide(genuine, feats, pred, llr=math.nan)
+    assert math.isnan(v.llr) and result.decision == "reject"
 
 
 def test_a_check_reports_the_abstention_to_the_policy(dwells, tmp_path) -> None:
