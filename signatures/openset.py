@@ -261,7 +261,9 @@ class OpenSet:
         return out
 
     def distance_unknown(self, X: np.ndarray, pred: np.ndarray) -> np.ndarray:
-        return self.scores(X, pred) > self.thresholds_[np.asarray(pred, dtype=int)]
+        """True where the return lies beyond its class's distance threshold, or has no distance (NaN:
+        fail closed, `unknown`)."""
+        return ~(self.scores(X, pred) <= self.thresholds_[np.asarray(pred, dtype=int)])
 
     def physics_unknown(self, X: np.ndarray, pred: np.ndarray) -> np.ndarray:
         if self.physics is None:

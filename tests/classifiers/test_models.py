@@ -89,6 +89,8 @@ def test_openset_rejects_an_unseen_cluster_and_keeps_known_ones() -> None:
     assert model.unknown(Xk, yk).mean() < 0.05
     Xu, _ = _blobs(200, np.array([[1.5, 1.5, 0, 3.0]]), 5)  # between classes, off every manifold
     assert model.unknown(Xu, np.zeros(200, dtype=int)).mean() > 0.9
+    Xk[:5, 0] = np.nan  # a return with no distance is not `known` (fail closed)
+    assert model.unknown(Xk[:5], yk[:5]).all()
 
 
 def test_cascade_threshold_prefers_not_running_the_cnn_when_it_does_not_help() -> None:
