@@ -100,6 +100,8 @@ MIN_FLASH_SCORE = 1.0
 #: right in 20 -> 20), and the period search's bar of 1 then left right rates unused.
 MIN_SPECTRAL_SCORE = 0.4
 CLASSIFIER_CLIP = 3.0
+#: A class probability sum may exceed 1 by this much (float rounding of a softmax) and still be one.
+PROBABILITY_SLACK = 1e-6
 #: An estimate whose stated std exceeds this share of its value abstains.
 MAX_REL_STD = 1.0
 TERM_FLOOR = -8.0
@@ -193,7 +195,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
     if not (f > 0 and F > 0 and float(features.get("flash_score", 0.0)) >= min_flash_score(features)):
         return None
     f_rel = float(features.get("flash_rate_std_hz", 0.0)) / f
-    if not f_rel <= MAX_REL_STD:  # an estimate less certain than itself says nothing (NaN too)
+    if not 0.0 <= f_rel <= MAX_REL_STD:  # an estimate less certain than itself says nothing (NaN, < 0 too)
         return None
     x = math.log(f) - math.log(F)  # logs apart: f / F underflows for a subnormal f
     rate = (math.log(bands.rate[0]), math.log(bands.rate[1]), math.hypot(f_rel, REL_FLOOR))
@@ -203,7 +205,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
     if tip > 0 and tips_fit and float(features.get("tip_aliased", 0.0)) < 0.5:
         tip_rel = float(features.get("tip_speed_std_mps", 0.0)) / tip
         y = math.log(tip) - math.log(f) - math.log(claimed.tip_speed_mps / F)  # over 2 pi L / N
-        if tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
+        if 0.0 <= tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
             blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
     veto = rotors_are_lower_bound(features)
@@ -240,7 +242,7 @@ def _rotors(features: Mapping[str, float], claimed: UavProfile,
     if not (seen > 0.0 and std > 0.0):
         return None
     rel = std / seen  # a count's relative std, 1 / sqrt(flashes counted)
-    if not rel <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9:  # NaN too
+    if not 0.0 <= rel <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9:  # NaN and < 0 too
         return None
     z = math.log(seen) - math.log(claimed.rotors)
     return z, math.log(band[0]), math.log(band[1]), math.hypot(rel, ROTOR_REL_FLOOR)
@@ -260,13 +262,18 @@ def _group_physics(features: Mapping[str, float], members: Sequence[tuple[UavPro
 
 def _log_odds(probabilities: Mapping[str, float], slugs: Sequence[str]) -> float | None:
     """Log-odds of the summed probability of `slugs` against their share of a uniform prior over the
-    bundle's UAV classes; None where none of them is a class, or they are every class."""
+    bundle's UAV classes; None where none of them is a class, or they are every class; -inf (fail
+    closed: as far against the claim as the term goes) where the sum is no probability (NaN,
+    infinite, negative or over 1), which clipping would otherwise turn into support."""
     uav = [c for c in probabilities if c not in NON_UAV_CLASSES]
     inside = [s for s in slugs if s in probabilities]
     if not inside or len(inside) >= max(len(uav), 2):
         return None
     prior = len(inside) / max(len(uav), 2)
-    p = min(max(sum(float(probabilities[s]) for s in inside), 1e-6), 1.0 - 1e-6)
+    total = sum(float(probabilities[s]) for s in inside)
+    if not 0.0 <= total <= 1.0 + PROBABILITY_SLACK:
+        return -math.inf
+    p = min(max(total, 1e-6), 1.0 - 1e-6)
     return math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
 
 
@@ -300,8 +307,6 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
     if physics is not None:
         terms["physics"], compared = physics
     odds = _log_odds(probabilities, [p.slug for p, _ in members]) if probabilities else None
-    if odds is not None and math.isnan(odds):  # a classifier that gave no number: fail closed, as far
-        odds = -math.inf  # against the claim as its term goes (clipping would turn NaN into +clip)
     if odds is not None:
         terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP if known else 0.0, odds))
     group = tuple(p.slug for p, _ in members) if len(members) > 1 else ()

@@ -193,6 +193,23 @@ def test_any_estimate_gives_a_finite_bounded_score(f, f_std, tip, tip_std, score
     assert TERM_FLOOR - CLASSIFIER_CLIP <= v.llr <= 10.0
 
 
+ESTIMATES = ("flash_rate_hz", "flash_rate_std_hz", "tip_speed_mps", "tip_speed_std_mps", "flash_score", "tip_aliased",
+             "rotors_seen", "rotors_seen_std", "rotors_lower_bound")
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.lists(st.floats(), min_size=len(ESTIMATES), max_size=len(ESTIMATES)), p=st.floats(),
+       slug=st.sampled_from(sorted(P)), known=st.booleans())
+def test_no_input_makes_the_score_nan_or_lets_garbage_support_the_claim(values, p, slug, known) -> None:
+    """Any estimates (NaN, infinities, negatives) and any classifier output: the LLR is a bounded
+    number, and a probability that is no probability counts as far against the claim as it can."""
+    v = verify(dict(zip(ESTIMATES, values)), P[slug], {slug: p, "other": 0.0}, max_tip_mps=WIDE_MAX_TIP, known=known)
+    assert not math.isnan(v.llr) and TERM_FLOOR - CLASSIFIER_CLIP <= v.llr <= 10.0
+    assert all(not math.isnan(t) for t in v.terms.values())
+    if not 0.0 <= p <= 1.0:
+        assert v.terms["classifier"] == -CLASSIFIER_CLIP
+
+
 @settings(max_examples=100, deadline=None)
 @given(scale=st.floats(0.82, 1.18), cos_el=st.floats(0.5, 1.0), slug=st.sampled_from(sorted(P)))
 def test_the_physics_of_a_genuine_return_never_contradicts_its_claim(scale: float, cos_el: float, slug: str) -> None:
