@@ -341,8 +341,8 @@ class Evidence:
             ctx["radar_confusable"] = self.radar_confusable
         if radar is not None and radar.verification is not None:
             if radar.verification.terms:
-                llr = radar.verification.llr  # NaN would clamp to +1e6: fail closed instead
-                llr = -1e4 if math.isnan(llr) else llr
+                llr = radar.verification.llr  # NaN would clamp to +1e6: fail closed, at -1e6
+                llr = -math.inf if math.isnan(llr) else llr
                 ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, llr * 100.0))))
             # no rotor evidence: the classifier alone may count against the claim, never carry it
             ctx["physics_abstained"] = radar.verification.physics_abstained
