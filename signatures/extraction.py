@@ -847,9 +847,11 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     return out
 
 
-def _off_clutter_line(d: np.ndarray, d_med: np.ndarray, centre: int, pri_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """CW rows of Doppler power `d` (fftshifted, zero at `centre`): the strongest bin outside the
-    zero-Doppler line (its reach by `flash.line_width_hz`), and whether that is a flying body's
+def _off_clutter_line(d: np.ndarray, d_med: np.ndarray, centre: int,
+                      pri_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """CW rows of Doppler power `d` (fftshifted, zero at `centre`): (the strongest bin outside the
+    zero-Doppler line, whether it stands out, whether it is unmirrored, the line's reach in bins by
+    `flash.line_width_hz`); together they say whether that bin is a flying body's
     line: it stands out as a moving line does (peak over median at least n / MOVING_LINE_BINS) and
     has no mirror image about zero (MIRROR_DB over the strongest of the 5 bins there). Swaying
     clutter (vegetation) 20-40 dB over a target spreads over tens of Hz about zero, outshines the
