@@ -71,7 +71,8 @@ class Outcome:
                 "policy_sha256": self.policy_sha256, "model_card_sha256": self.model_card_sha256,
                 "file_sha256": self.file_sha256, "remote_id_auth": report["remote_id_auth"],
                 "policy_errors": list(self.policy_errors), "audit_id": self.audit_id,
-                **({} if self.non_cooperative is None else {"non_cooperative": list(self.non_cooperative)})}
+                **({} if self.non_cooperative is None else {"non_cooperative": list(self.non_cooperative)}),
+                **({"to_decide": self.evidence.to_decide()} if self.decision == "inconclusive" else {})}
 
     def audit_payload(self) -> dict[str, Any]:
         """The audit entry's payload: the JSON without timings and audit id, with the exact
@@ -165,6 +166,8 @@ class _Pending:
     association: Any = None  # how the claim's target was chosen (`authn.association.Association`)
     #: a signed claim of a radar-confusable model: the registered models it is verified together with
     group: tuple = ()
+    #: the other models registered at the site: the alternatives the claim must win against
+    alternatives: tuple = ()
 
 
 def _flag(confusable: tuple[str, ...] | None) -> bool | None:
@@ -256,19 +259,20 @@ class RidCapture:
         return dreplace(rec, remote_id=rows, remote_id_time_s=np.asarray(b.heard_s, dtype=np.float64),
                         remote_id_source="capture")
 
-    def claims(self, rec: Any, serial: str | None) -> list[tuple[Any, str | None]]:
-        """(the return with one drone's messages, the serial to claim) for each drone heard in
-        the dwell's window; with `serial`, that drone only (no Remote ID at all when it was not
-        heard: rejected with no-remote-id). Nothing heard at all in the window is bad input."""
+    def claims(self, rec: Any, serial: str | None) -> list[tuple[Any, str | None, Any]]:
+        """(the return with one drone's messages, the serial to claim, the drone heard:
+        `remoteid.capture.Broadcaster`) for each drone heard in the dwell's window; with `serial`,
+        that drone only (no Remote ID at all when it was not heard, and no drone: rejected with
+        no-remote-id). Nothing heard at all in the window is bad input."""
         from dataclasses import replace as dreplace
 
         found = self.heard(rec)
         if serial is None:
-            return [(self.with_messages(rec, b), None) for b in found]
+            return [(self.with_messages(rec, b), None, b) for b in found]
         match = [b for b in found if b.uas_id == serial]
         if not match:
-            return [(dreplace(rec, remote_id=None, remote_id_time_s=None, remote_id_source=None), serial)]
-        return [(self.with_messages(rec, match[0]), serial)]
+            return [(dreplace(rec, remote_id=None, remote_id_time_s=None, remote_id_source=None), serial, None)]
+        return [(self.with_messages(rec, match[0]), serial, match[0])]
 
     def attach(self, rec: Any, serial: str | None = None) -> Any:
         """The return with the messages of the one drone heard in its window (`authn import
@@ -284,6 +288,9 @@ class RidCapture:
         if len(found) > 1:
             raise AuthnError(f"{self.name}: {len(found)} drones heard in the dwell's window ({ids}); "
                              "name one with --rid-serial")
+        if found[0].conflict:  # the file could not keep which transmitter sent what
+            raise AuthnError(f"{self.name}: {found[0].uas_id}: conflicting transmitters in the dwell's window ("
+                             + "; ".join(f"{t} sent {', '.join(u)}" for t, u in found[0].conflict) + ")")
         return self.with_messages(rec, found[0])
 
 
@@ -301,7 +308,8 @@ class Checker:
     first radar use); checks many files."""
 
     def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None,
-                 trusted_registries: dict[bytes, bytes] | None = None, model: str | Path | None = None) -> None:
+                 trusted_registries: dict[bytes, bytes] | None = None, model: str | Path | None = None,
+                 sprt: Any = None) -> None:
         import h5py  # noqa: F401  every check opens an HDF5 file: load the library at start-up
 
         from registry.dbapi import Database
@@ -312,6 +320,9 @@ class Checker:
         self.db = Database(db_url)
         self._read = read_recording
         self.model = model  # a bundle folder that must serve every file (`--model`); None: by waveform
+        #: the sequential test the radar's evidence is put to, one dwell or many (`authn.track.Sprt`;
+        #: None: its default error targets)
+        self.sprt = sprt
         if model is not None:
             from signatures.inference import load_classifier
 
@@ -320,11 +331,13 @@ class Checker:
     # --- stages -------------------------------------------------------------------
 
     @staticmethod
-    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any, classifier: Any = None, group: tuple = ()) -> Any:
+    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any, classifier: Any = None, group: tuple = (),
+                alternatives: tuple = ()) -> Any:
         """1:1 verification of the return against the registered model's profile (None: no profile),
         with the claimed model's site bands and the site's score calibration where a site bundle
         has them; against the claim and `group` together (a signed claim of a radar-confusable
-        model, `_group`) where `group` names models."""
+        model, `_group`) where `group` names models; against each of `alternatives` (the other
+        registered models, with their site bands) and the background."""
         if claimed is None:
             return None
         from dataclasses import asdict
@@ -335,14 +348,15 @@ class Checker:
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
                       rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands_from(card_bands, claimed.slug),
                       calibration=getattr(classifier, "score_calibration", None),
-                      also=[(p, bands_from(card_bands, p.slug)) for p in group])
+                      also=[(p, bands_from(card_bands, p.slug)) for p in group],
+                      alternatives=[(p, bands_from(card_bands, p.slug)) for p in alternatives])
 
     def _confusable_models(self, classifier: Any, model: str, tracks: bool = False) -> tuple[str, ...] | None:
-        """The models registered (active) at this site that a site bundle's enrolment card says
-        radar cannot tell from the registered `model` (its single-dwell pairs, or its track pairs when
-        `tracks`); None for a bundle that is not a site bundle. One query, only when the card lists
-        a pair with `model`."""
-        if not getattr(classifier, "site", False):
+        """The models registered (active) at this site that the bundle's card says radar cannot tell
+        from the registered `model`: a site card's single-dwell pairs (or its track pairs when
+        `tracks`), a shipped card's measured separation; None for a card that says neither. One
+        query, only when the card lists a pair with `model`."""
+        if not getattr(classifier, "site", False) and not getattr(classifier, "separation", None):
             return None
         others = classifier.confusable_with(model, tracks) if model else ()
         return tuple(sorted(set(others) & self.db.registered_models())) if others else ()
@@ -357,12 +371,15 @@ class Checker:
         return tuple(p for p in (self.db.profile(m) for m in others) if p is not None)
 
     def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer,
-               captured: bool = False, track: bool = False) -> Outcome | _Pending:
+               captured: bool = False, track: bool = False, heard: Any = None) -> Outcome | _Pending:
         """Everything before the radar: the claim, the registry, DRIP, and the policy with the radar
         not run. An Outcome when that already decides; otherwise what the radar stages need.
-        `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`)."""
+        `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`), the
+        messages of `heard` (its `remoteid.capture.Broadcaster`, None when nothing was heard)."""
         with timer.stage("remote_id"):
             claim = read_claim(rec, serial, capture=captured)
+            if heard is not None:  # which transmitters sent it, and whether they conflict
+                claim = replace(claim, transmitters=heard.senders, conflict=heard.conflict)
         with timer.stage("registry"):
             facts = RegistryFacts.of(self.db.identity(claim.serial))
         mid = rec.mid_time
@@ -371,7 +388,7 @@ class Checker:
         if auth.status == "valid":  # kinematics from signed Location messages only
             claim = claim.signed_only(auth.covered, rec.start_time, mid)
         evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth,
-                            range_measured=rec.domain != "cw")
+                            range_measured=rec.domain != "cw", sprt=self.sprt)
         with timer.stage("policy_registry"):
             result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
                                                          evidence.context())
@@ -383,9 +400,11 @@ class Checker:
         evidence.preset = classifier.preset
         with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
             claimed = self.db.profile(facts.model) if facts.model else None
+            alternatives = tuple(p for p in self.db.registered_profiles() if p.slug != facts.model)
             single = self._confusable_models(classifier, facts.model)
             over_tracks = self._confusable_models(classifier, facts.model, tracks=True)
             evidence.radar_confusable, evidence.radar_confusable_track = _flag(single), _flag(over_tracks)
+            evidence.separation = classifier.separation_of(facts.model) if facts.model else {}
             group = self._group(over_tracks if track else single, auth)
         expected = None  # at the first chirp, the time the radar's range estimate refers to
         if claim.state is not None:
@@ -396,7 +415,7 @@ class Checker:
         with timer.stage("associate"):  # the claim's own target: position, then velocity (CW: none, docs/format.md)
             assoc = associate(rec, expected, claim.state)
         return _Pending(rec, claim, auth, mid, evidence, classifier, claimed, expected, assoc.gate, file, digest,
-                        timer, assoc, group)
+                        timer, assoc, group, alternatives)
 
     def _finish(self, p: _Pending, feats: Any, pred: Any) -> Outcome:
         """The radar evidence from the features and the class, kinematics, the full policy decision."""
@@ -408,7 +427,8 @@ class Checker:
                             range_m=None if cw else round(float(feats.range_m), 3),
                             radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
                             operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest,
-                            verification=self._verify(feats, pred, p.claimed, rec, p.classifier, p.group))
+                            verification=self._verify(feats, pred, p.claimed, rec, p.classifier, p.group,
+                                                      p.alternatives))
         kin = None
         if p.expected is not None and radar.detected:
             with p.timer.stage("kinematics"):  # CW: the range part is computed on the expected range, never shown
@@ -476,8 +496,8 @@ class Checker:
                 else:  # one claim per drone heard: each its own decision (and audit entry)
                     with timer.stage("rid_capture"):
                         claims = item.rid_capture.claims(rec, item.serial)
-                    fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True)
-                              for j, (r, s) in enumerate(claims)]
+                    fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True, heard=b)
+                              for j, (r, s, b) in enumerate(claims)]
                     with timer.stage("non_cooperative"):
                         targets[i] = self._targets(rec)
                     shared = {k: v for k, v in timer.ms.items() if k in ("read", "rid_capture")}

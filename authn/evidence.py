@@ -7,7 +7,6 @@ is named in one place. Cedar wants integers, hence the centimetre and basis-poin
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
@@ -27,6 +26,8 @@ _SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
 _MAX_CEDAR_CM = 2**53
 #: What the JSON says where a CW recording (docs/format.md, `domain`) left the range unmeasured
 RANGE_NOT_MEASURED = "not measured: CW recording"
+#: What the claim's JSON says where no Remote ID Location declared a position (`claim.position`)
+POSITION_NOT_CHECKED = "not checked: no Remote ID position"
 
 
 @dataclass(frozen=True)
@@ -46,9 +47,31 @@ class Claim:
     heard_s: tuple[float, ...] = ()
     #: the check was given a capture: a claim with no Remote ID in it is rejected (`no-remote-id`)
     capture: bool = False
+    #: a capture's transmitters (Wi-Fi source addresses, BLE addresses) that sent this claim's messages
+    transmitters: tuple[str, ...] = ()
+    #: conflicting transmitters (`remoteid.capture.Broadcaster.conflict`): each with the UAS IDs it sent
+    conflict: tuple[tuple[str, tuple[str, ...]], ...] = ()
+
+    @property
+    def rests_on_remote_id(self) -> bool:
+        """The claimed identity is the Remote ID's (no --serial), or a capture's messages name it: then
+        a Location must say where the drone is (`remote-id-no-location`)."""
+        return self.source == "remote_id" or (self.capture and self.n_messages > 0)
 
     def to_json(self) -> dict[str, Any]:
-        return {"serial": self.serial, "source": self.source, "remote_id_serial": self.rid_serial}
+        doc: dict[str, Any] = {"serial": self.serial, "source": self.source, "remote_id_serial": self.rid_serial}
+        if self.state is None:  # nothing to compare with the radar: the position is not checked
+            doc["position"] = POSITION_NOT_CHECKED
+        return doc
+
+    def capture_json(self) -> dict[str, Any]:
+        """A capture's claim: the transmitters it was heard from, and their conflict if any."""
+        if not self.capture:
+            return {}
+        doc: dict[str, Any] = {"transmitters": list(self.transmitters)}
+        if self.conflict:
+            doc["conflict"] = [{"transmitter": t, "serials": list(ids)} for t, ids in self.conflict]
+        return doc
 
     def signed_only(self, covered: tuple[int, ...], reference: datetime, mid: datetime) -> "Claim":
         """The same claim with the declared state taken only from Location messages that a
@@ -316,6 +339,56 @@ class Evidence:
     #: (`authn.track`, docs/enrolment.md); None for any other bundle
     radar_confusable_track: bool | None = None
 
+    #: the sequential test the radar's evidence is put to (`authn.track.Sprt`; None: its defaults)
+    sprt: Any = None
+    #: the bundle card's measured separation of the claimed model from each alternative: the mean
+    #: per-dwell increment of a genuine claim against it (`Classifier.separation`); {}: not measured
+    separation: dict[str, float] | None = None
+
+    def test(self) -> Any:
+        """The sequential test of this check (`authn.track.Sprt`)."""
+        if self.sprt is None:
+            from authn.track import Sprt
+
+            return Sprt()
+        return self.sprt
+
+    def increments(self) -> list[dict[str, float]]:
+        """This dwell's increments per alternative (`Sprt.increments`: capped; where the physics
+        term abstained, only what counts against the claim); [] where nothing was verified. An
+        LLR that is no number counts fully against the claim."""
+        v = self.radar.verification if self.radar is not None else None
+        if v is None or not v.terms:
+            return []
+        from signatures.verify import UNKNOWN
+
+        return [self.test().increments(v.against or {UNKNOWN: v.llr}, not v.physics_abstained)]
+
+    def to_decide(self, increments: list[dict[str, float]] | None = None) -> dict[str, Any]:
+        """What would decide an inconclusive claim: about how many more dwells (from the card's
+        measured separation of the claim from its closest alternative, else this evidence's own mean
+        increment against it), and whether a valid DRIP signature would (the radar favours the claim:
+        the policy then accepts). `increments`: a track's, per dwell (default: this dwell's)."""
+        sprt = self.test()
+        incs = self.increments() if increments is None else increments
+        record = sprt.record(incs)
+        llr = record["llr_cn"] / 100.0
+        keys = {k for d in incs for k in d}
+        closest = min(keys, key=lambda k: sum(d.get(k, min(d.values())) for d in incs)) if keys else None
+        measured = (self.separation or {}).get(closest) if closest else None
+        own = sum(d.get(closest, min(d.values())) for d in incs) / len(incs) if closest else None
+        step = measured if measured is not None else own
+        more = sprt.dwells_to_decide(step, llr, len(incs)) if step is not None else None
+        doc: dict[str, Any] = {"llr_nats": round(llr, 4), "accept_nats": round(record["accept_cn"] / 100.0, 2),
+                               "reject_nats": round(record["reject_cn"] / 100.0, 2), "dwells": len(incs),
+                               "closest": closest,
+                               "separation_nats_per_dwell": None if step is None else round(step, 4),
+                               "separation_from": None if step is None else ("card" if measured is not None
+                                                                            else "these dwells"),
+                               "more_dwells": more,
+                               "signature": bool(incs) and llr > 0 and self.auth.status != "valid"}
+        return doc
+
     # --- the Cedar request -----------------------------------------------------------
     def principal(self) -> dict[str, Any]:
         return self.registry.principal()
@@ -337,15 +410,14 @@ class Evidence:
             "remote_id_auth": self.auth.status, "range_measured": self.range_measured}
         if self.claim.capture:  # only with --rid-capture: the request of any other check is unchanged
             ctx["remote_id_expected"] = True
+        if self.claim.conflict:  # only where a capture's transmitters conflict (remote-id-conflict)
+            ctx["remote_id_conflict"] = True
+        if self.claim.rests_on_remote_id and self.claim.state is None:  # only then (remote-id-no-location)
+            ctx["remote_id_no_location"] = True
         if self.radar_confusable is not None:  # only with a site bundle (authn models enrol)
             ctx["radar_confusable"] = self.radar_confusable
-        if radar is not None and radar.verification is not None:
-            if radar.verification.terms:
-                llr = radar.verification.llr  # NaN would clamp to +1e6: fail closed, at -1e6
-                llr = -math.inf if math.isnan(llr) else llr
-                ctx["verification_llr_cn"] = int(round(max(-1e6, min(1e6, llr * 100.0))))
-            # no rotor evidence: the classifier alone may count against the claim, never carry it
-            ctx["physics_abstained"] = radar.verification.physics_abstained
+        if radar is not None and radar.detected:  # one dwell is a track of one: the same record, one rule
+            ctx["track"] = self.test().record(self.increments())
         if radar is not None and radar.association is not None and radar.association.in_view is not None:
             ctx["targets_in_view"] = radar.association.in_view  # no-radar-target against no-target
         if self.kinematics is not None:
@@ -365,11 +437,13 @@ class Evidence:
                 "radar": None if self.radar is None else self._radar_json(self.radar),
                 "kinematics": None if self.kinematics is None else self.kinematics.to_json(),
                 "remote_id": {"messages": self.claim.n_messages, "ua_type": self.claim.ua_type,
-                              "issues": list(self.remote_id_issues)},
+                              "issues": list(self.remote_id_issues), **self.claim.capture_json()},
                 "remote_id_auth": self.auth.to_json()}
 
     def _radar_json(self, radar: RadarEvidence) -> dict[str, Any]:
         doc = radar.to_json()
+        if self.separation:  # the card's measured separation of the claim from each alternative
+            doc["separation_nats_per_dwell"] = {k: round(v, 3) for k, v in sorted(self.separation.items())}
         if not self.range_measured:
             doc["range_evidence"] = RANGE_NOT_MEASURED
         return doc

@@ -42,8 +42,8 @@ def draw(rec: Any, decision: dict[str, Any], path: Path) -> Path:
     radar, kin = decision.get("radar") or {}, decision.get("kinematics") or {}
     fig, (ax_rd, ax_sp, ax_cv) = plt.subplots(1, 3, figsize=SIZE_IN)
     verdict = f"{decision['decision'].upper()} {decision['claim']['serial']}: {', '.join(decision['reasons'])}"
-    fig.suptitle(f"{Path(decision['file']).name}: {verdict}", color="green" if decision["decision"] == "accept"
-                 else "firebrick")
+    fig.suptitle(f"{Path(decision['file']).name}: {verdict}",
+                 color={"accept": "green", "inconclusive": "darkorange"}.get(decision["decision"], "firebrick"))
 
     if rec.domain == "cw":  # no range axis: the Doppler intensity against the declared velocity
         ax_rd.plot(v.rd_map.velocity_mps, _db(v.doppler_profile), lw=0.8)

@@ -6,7 +6,8 @@ the policies that determined the decision.
 
 Skipping the radar: at load, every `forbid` policy whose conditions read no `context`
 attribute the radar can change (only `PRE_RADAR_CONTEXT`: the claim's source, whether
-Remote ID is present, its DRIP authentication) is found from the policy AST. When one of
+Remote ID is present, its DRIP authentication, whether it declares a position, conflicting
+transmitters) is found from the policy AST. When one of
 those is satisfied before the radar runs, the deny holds whatever evidence the radar
 could add (forbid overrides permit), so the decision over the registry and Remote ID
 evidence is final. This needs one ordinary
@@ -31,7 +32,8 @@ ACTION = {"type": "Action", "id": "authenticate"}
 SITE_ID = "site"
 #: Context attributes known before the radar runs (a forbid reading only these can end a
 #: check early). `remote_id_issues` is not one: the radar adds `not-rotorcraft`.
-PRE_RADAR_CONTEXT = frozenset({"claim_source", "remote_id_present", "remote_id_auth"})
+PRE_RADAR_CONTEXT = frozenset({"claim_source", "remote_id_present", "remote_id_auth", "remote_id_no_location",
+                               "remote_id_conflict"})
 #: Reason reported when a policy's condition raised an evaluation error (the claim is rejected).
 POLICY_ERROR = "policy-error"
 
@@ -40,9 +42,16 @@ class PolicyError(AuthnError):
     """A policy file that cannot be read, parsed or validated against the schema."""
 
 
+#: The decision where every forbid that fired says `@outcome("inconclusive")`: the evidence has not
+#: decided (never an accept; docs/policies.md).
+INCONCLUSIVE = "inconclusive"
+#: What a forbid's `@outcome` annotation may say (absent: "reject").
+OUTCOMES = frozenset({"reject", INCONCLUSIVE})
+
+
 @dataclass(frozen=True)
 class PolicyResult:
-    decision: str  # "accept" | "reject"
+    decision: str  # "accept" | "reject" | "inconclusive"
     reasons: list[str]
     errors: list[str] = field(default_factory=list)
 
@@ -66,6 +75,7 @@ class PolicyEngine:
     schema: Any
     effects: dict[str, str]  # policy id (parser's) -> "permit" | "forbid"
     context_free_forbids: frozenset[str]  # forbids that read no context the radar can change
+    inconclusive_forbids: frozenset[str] = frozenset()  # forbids annotated @outcome("inconclusive")
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> "PolicyEngine":
@@ -95,9 +105,16 @@ class PolicyEngine:
         effects = {pid: body["effect"] for pid, body in static.items()}
         context_free = frozenset(pid for pid, body in static.items()
                                  if body["effect"] == "forbid" and _context_read(body) <= PRE_RADAR_CONTEXT)
+        outcomes = {pid: (body.get("annotations") or {}).get("outcome", "reject") for pid, body in static.items()}
+        for pid, outcome in outcomes.items():
+            if outcome not in OUTCOMES or (outcome != "reject" and effects[pid] != "forbid"):
+                name = (static[pid].get("annotations") or {}).get("id", pid)
+                raise PolicyError(f"{source}: policy {name}: @outcome({outcome!r}) is not one of "
+                                  f"{sorted(OUTCOMES)} on a forbid")
         digest = hashlib.sha256(text.encode()).hexdigest()
         return cls(text=text, sha256=digest, source=source, policy_set=policy_set, schema=schema,
-                   effects=effects, context_free_forbids=context_free)
+                   effects=effects, context_free_forbids=context_free,
+                   inconclusive_forbids=frozenset(p for p, o in outcomes.items() if o == INCONCLUSIVE))
 
     # --- requests -----------------------------------------------------------------
 
@@ -147,7 +164,13 @@ class PolicyEngine:
             return failed
         if result.allowed:
             return PolicyResult("accept", self._reasons(result.diagnostics, "permit"))
-        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid") or ["default-deny"])
+        return PolicyResult(self._denied(result.diagnostics),
+                            self._reasons(result.diagnostics, "forbid") or ["default-deny"])
+
+    def _denied(self, diag: Any) -> str:
+        """A denial's decision: `inconclusive` where every forbid that fired says so, else reject."""
+        fired = {r for r in diag.reasons if self.effects.get(r) == "forbid"}
+        return INCONCLUSIVE if fired and fired <= self.inconclusive_forbids else "reject"
 
     def decide_without_evidence(self, serial: str, principal: dict[str, Any], resource: dict[str, Any],
                                 context: dict[str, Any]) -> PolicyResult | None:
@@ -158,7 +181,8 @@ class PolicyEngine:
         failed = self._rejected_on_error(result)
         if failed is not None:
             return failed
-        if result.allowed or not set(result.diagnostics.reasons) & self.context_free_forbids:
+        final = self.context_free_forbids - self.inconclusive_forbids
+        if result.allowed or not set(result.diagnostics.reasons) & final:
             return None
         return PolicyResult("reject", self._reasons(result.diagnostics, "forbid"))
 

@@ -22,8 +22,14 @@ beta (false reject), accept at LLR >= log((1 - beta) / alpha) and reject at LLR 
   scene with different simulator seeds against dwells of different scenes;
 * a cap: no single dwell counts for more than `DWELL_CAP_NATS` either way, so one freak dwell
   (a clipped rate estimate, a classifier at its clip) cannot cross a bound alone;
-* a dwell whose physics term abstained (the classifier alone) counts only against the claim,
-  as the single-dwell policy lets the classifier reject but never accept (`radar-unverifiable`).
+* a dwell whose physics term abstained (the classifier alone) counts only against the claim: the
+  classifier may count against a claim, never carry it.
+
+A single check is a track of one dwell: the same test, bounds, cap and policy rules decide it
+(`Evidence.context` sends the same `track` record), so one dwell alone, capped below both default
+bounds, is `inconclusive` unless a signature or another forbid decides. Each dwell's LLR is the least
+over the alternatives registered at the site (`signatures.verify`); over a track the increments are
+summed per alternative and the least sum counts (`Sprt.track_llr`).
 
 The per-dwell decisions are reported but decide nothing: the track decision is one complete
 `is_authorized` over the track's evidence (the latest dwell's, the kinematic residual of the
@@ -37,13 +43,14 @@ from __future__ import annotations
 import copy
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 from core.errors import AuthnError, EXIT_BAD_INPUT, describe, exit_code_for
+from signatures.verify import UNKNOWN
 
 __all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION", "KINEMATIC_DWELLS",
            "Dwell", "Sprt", "TrackOutcome", "check_track", "decide_track", "track_files"]
@@ -63,8 +70,11 @@ DWELL_CORRELATION = 0.2
 #: Most a single dwell adds to (or takes from) the track's LLR, nats: below the accept bound, so
 #: no track is accepted on one dwell alone.
 DWELL_CAP_NATS = 4.0
-#: The one reason that lets a track go on to its next dwell (no bound crossed yet).
-INCONCLUSIVE = "track-inconclusive"
+#: The one reason that lets a track go on to its next dwell (no bound crossed yet); a track (or a
+#: single check) that ends with it is `inconclusive`.
+INCONCLUSIVE = "radar-inconclusive"
+#: `Sprt.dwells_to_decide` looks this far ahead.
+MAX_DWELLS_TO_DECIDE = 1000
 #: Reasons a track goes on with: no bound crossed yet, and, while no dwell has seen the target, a
 #: dwell that saw nothing (a missed detection is no evidence; a track whose dwells never see the
 #: target ends rejected `no-target`).
@@ -108,27 +118,67 @@ class Sprt:
     def increment(self, llr: float, physics: bool = True) -> float:
         """One dwell's contribution: its LLR capped at +-`cap_nats`; without a physics term (the
         classifier alone) only what counts against the claim (the default policy's
-        `radar-unverifiable`: the classifier never carries a claim). An LLR that is not a number
+        the classifier never carries a claim). An LLR that is not a number
         counts fully against the claim (fail closed: `min` and `max` would make it +cap)."""
         capped = -self.cap_nats if math.isnan(llr) else max(-self.cap_nats, min(self.cap_nats, llr))
         return capped if physics else min(0.0, capped)
 
-    def track_llr(self, increments: Sequence[float]) -> float:
-        """n_eff times the mean increment: sum / (1 + (n - 1) rho) (module docstring)."""
-        n = len(increments)
-        return 0.0 if n == 0 else sum(increments) / (1.0 + (n - 1) * self.correlation)
+    def increments(self, against: Mapping[str, float], physics: bool = True) -> dict[str, float]:
+        """One dwell's increments against each alternative (`Verification.against`: alternative ->
+        LLR of the claim against it), each as `increment` makes it."""
+        return {k: self.increment(v, physics) for k, v in against.items()}
 
-    def walk(self, dwells: Sequence[tuple[float, bool]]) -> tuple[str, int]:
-        """The sequential test alone over dwells given as (LLR, physics term present), in order:
-        ("accept" | "reject" | "inconclusive", dwells used). What the default policy's track rules
-        decide on the request `decide_track` builds (the track LLR in centinats against the same
-        rounded bounds), with no other forbid: the site enrolment's track-level pairwise errors
-        (`signatures.enrol`, cross-validated dwell LLRs) are computed with it."""
-        accept_cn, reject_cn = math.ceil(self.accept_nats * _CN), math.floor(self.reject_nats * _CN)
-        increments: list[float] = []
+    def track_llr(self, increments: Sequence[float | Mapping[str, float]]) -> float:
+        """n_eff times the mean increment: sum / (1 + (n - 1) rho) (module docstring). Increments
+        given per alternative (`increments`) are summed per alternative over the dwells and the
+        least sum counts: the claim must win against every alternative, each on all its dwells.
+        A dwell that lacks an alternative counts its least increment for it."""
+        n = len(increments)
+        if n == 0:
+            return 0.0
+        per = [d if isinstance(d, Mapping) else {UNKNOWN: float(d)} for d in increments]
+        keys = {k for d in per for k in d}
+        total = min(sum(d.get(k, min(d.values())) for d in per) for k in keys)
+        return total / (1.0 + (n - 1) * self.correlation)
+
+    def bounds_cn(self) -> tuple[int, int]:
+        """(accept, reject) bounds in centinats as the policy reads them: rounded away from 0."""
+        return math.ceil(self.accept_nats * _CN), math.floor(self.reject_nats * _CN)
+
+    def record(self, increments: Sequence[float | Mapping[str, float]]) -> dict[str, int]:
+        """The `track` record of the Cedar context (docs/policies.md): the LLR over the dwells that
+        verified anything and the bounds, in centinats; a single check is a track of one dwell."""
+        accept_cn, reject_cn = self.bounds_cn()
+        llr_cn = int(round(max(-1e6, min(1e6, self.track_llr(increments) * _CN))))
+        return {"llr_cn": llr_cn, "accept_cn": accept_cn, "reject_cn": reject_cn, "dwells": len(increments)}
+
+    def dwells_to_decide(self, separation_nats: float, llr_nats: float = 0.0, used: int = 0) -> int | None:
+        """About how many more dwells, each adding `separation_nats` (the expected per-dwell LLR,
+        capped), take a track at `llr_nats` after `used` dwells to a bound; None where they never
+        do (the discount makes n_eff level off at 1 / rho, so a separation below bound * rho never
+        reaches it)."""
+        step = max(-self.cap_nats, min(self.cap_nats, separation_nats))
+        if not step:  # NaN too
+            return None
+        total = llr_nats * (1.0 + max(used - 1, 0) * self.correlation)  # the undiscounted sum so far
+        for extra in range(1, MAX_DWELLS_TO_DECIDE + 1):
+            llr = (total + extra * step) / (1.0 + (used + extra - 1) * self.correlation)
+            if (llr >= self.accept_nats) if step > 0 else (llr <= self.reject_nats):
+                return extra
+        return None
+
+    def walk(self, dwells: Sequence[tuple[float | Mapping[str, float], bool]]) -> tuple[str, int]:
+        """The sequential test alone over dwells given as (LLR, or LLR per alternative; physics term
+        present), in order: ("accept" | "reject" | "inconclusive", dwells used). What the default
+        policy's radar rules decide on the request `decide_track` builds (the track LLR in
+        centinats against the same rounded bounds), with no other forbid: the site enrolment's
+        track-level pairwise errors (`signatures.enrol`, cross-validated dwell LLRs) are computed
+        with it."""
+        accept_cn, reject_cn = self.bounds_cn()
+        increments: list[Mapping[str, float]] = []
         for llr, physics in dwells:
-            increments.append(self.increment(llr, physics))
-            llr_cn = round(max(-1e6, min(1e6, self.track_llr(increments) * _CN)))
+            increments.append(self.increments(llr if isinstance(llr, Mapping) else {UNKNOWN: llr}, physics))
+            llr_cn = self.record(increments)["llr_cn"]
             if llr_cn >= accept_cn:
                 return "accept", len(increments)
             if llr_cn <= reject_cn:
@@ -242,6 +292,8 @@ class DwellTerm:
     kinematics: dict[str, Any] | None
     decision: str
     reasons: list[str]
+    #: the increment against each alternative (`Sprt.increments`); None: nothing verified
+    against: dict[str, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {"file": self.file, "file_sha256": self.file_sha256, "dwell_start": self.dwell_start,
@@ -285,7 +337,9 @@ class TrackOutcome:
                 "kinematics": report["kinematics"], "remote_id": report["remote_id"],
                 "remote_id_auth": report["remote_id_auth"], "policy_sha256": self.policy_sha256,
                 "policy_errors": list(self.policy_errors), "timings_ms": dict(self.timings_ms),
-                "audit_id": self.audit_id}
+                "audit_id": self.audit_id,
+                **({"to_decide": self.evidence.to_decide([d.against for d in self.dwells if d.against is not None])}
+                   if self.decision == "inconclusive" else {})}
 
     def audit_payload(self) -> dict[str, Any]:
         doc = self.to_json()
@@ -300,11 +354,11 @@ def _term(o: Any, sprt: Sprt) -> DwellTerm:
     v = radar.verification if radar is not None else None
     llr = v.llr if v is not None and v.terms else None
     kin = o.evidence.kinematics
+    per = None if llr is None else sprt.increments(v.against or {UNKNOWN: llr}, "physics" in v.terms)
     return DwellTerm(o.file, o.file_sha256, o.evidence.report()["dwell_start"],
-                     None if radar is None else radar.model, llr,
-                     None if llr is None else sprt.increment(llr, "physics" in v.terms),
+                     None if radar is None else radar.model, llr, None if per is None else min(per.values()),
                      dict(v.terms) if v is not None else {}, None if kin is None else kin.to_json(),
-                     o.decision, list(o.reasons))
+                     o.decision, list(o.reasons), per)
 
 
 def _typical(kinematics: list[Any]) -> Any:
@@ -327,7 +381,7 @@ def _typical(kinematics: list[Any]) -> Any:
     return ranked[(len(ranked) - 1) // 2]
 
 
-def _track_evidence(outcomes: list[Any]) -> Any:
+def _track_evidence(outcomes: list[Any], sprt: Sprt | None = None) -> Any:
     """The evidence the track request is built on: the latest dwell's claim, registry and Remote
     ID authentication; the radar of the latest dwell that saw a target; the typical kinematics of
     the dwells (`_typical`); every Remote ID issue any dwell raised."""
@@ -336,22 +390,17 @@ def _track_evidence(outcomes: list[Any]) -> Any:
     ev.radar = seen[-1] if seen else outcomes[-1].evidence.radar
     ev.kinematics = _typical([o.evidence.kinematics for o in outcomes if o.evidence.kinematics is not None])
     ev.remote_id_issues = list(dict.fromkeys(i for o in outcomes for i in o.evidence.remote_id_issues))
+    ev.sprt = sprt or ev.sprt
     return ev
 
 
-def _request(ev: Any, sprt: Sprt, llr: float, used: int) -> dict[str, Any]:
-    """The Cedar request of the track: the evidence's, with the track LLR in place of a single
-    dwell's verification LLR (absent while no dwell verified anything) and the `track` record."""
+def _request(ev: Any, sprt: Sprt, increments: Sequence[Mapping[str, float]]) -> dict[str, Any]:
+    """The Cedar request of the track: the evidence's, with the `track` record over its dwells in
+    place of a single dwell's (the same record a single check sends: one rule, docs/policies.md)."""
     ctx = ev.context()
-    ctx.pop("verification_llr_cn", None)
-    ctx.pop("physics_abstained", None)  # a dwell without physics only ever counts against (Sprt.increment)
-    if ev.radar_confusable_track is not None:  # a site bundle: confusable by its card's track-level errors
+    if ev.radar_confusable_track is not None:  # confusable by the track-level separation
         ctx["radar_confusable"] = ev.radar_confusable_track
-    llr_cn = int(round(max(-1e6, min(1e6, llr * _CN))))
-    if used:
-        ctx["verification_llr_cn"] = llr_cn
-    ctx["track"] = {"llr_cn": llr_cn, "accept_cn": int(math.ceil(sprt.accept_nats * _CN)),
-                    "reject_cn": int(math.floor(sprt.reject_nats * _CN)), "dwells": used}
+    ctx["track"] = sprt.record(increments)
     return {"serial": ev.claim.serial, "principal": ev.principal(), "resource": ev.resource(), "context": ctx}
 
 
@@ -368,7 +417,7 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
     timings = {"validate": round((time.perf_counter() - t0) * 1e3, 3)}
     outcomes: list[Any] = []
     terms: list[DwellTerm] = []
-    increments: list[float] = []
+    increments: list[dict[str, float]] = []
     result = request = None
     for d in dwells:
         batch = checker.decide([CheckInput(d.name, claim if serial is not None else None, d.load, track=True)])
@@ -391,22 +440,22 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
 
             result = PolicyResult(o.decision, list(o.reasons), list(o.policy_errors))
             break
-        if terms[-1].increment is not None:
-            increments.append(terms[-1].increment)
-        ev = _track_evidence(outcomes)
-        request = _request(ev, sprt, sprt.track_llr(increments), len(increments))
+        if terms[-1].against is not None:
+            increments.append(terms[-1].against)
+        ev = _track_evidence(outcomes, sprt)
+        request = _request(ev, sprt, increments)
         t1 = time.perf_counter()
         result = checker.policy.decide(claim, request["principal"], request["resource"], request["context"])
         timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
         judged = sum(1 for o in outcomes if o.evidence.kinematics is not None)
         liftable = GOES_ON | KINEMATIC if judged < KINEMATIC_DWELLS and len(outcomes) < len(dwells) else GOES_ON
-        if not (result.decision == "reject" and set(result.reasons) <= liftable):
+        if result.decision == "accept" or not set(result.reasons) <= liftable:
             break  # accepted, or a forbid more dwells cannot lift
     if result is None or request is None:  # unreachable: _validate refuses an empty track
         raise AuthnError("a track needs at least one dwell")
     radar_used = sum(1 for o in outcomes if o.evidence.radar is not None)
     return TrackOutcome(decision=result.decision, reasons=list(result.reasons),
-                        evidence=_track_evidence(outcomes) if radar_used else outcomes[-1].evidence,
+                        evidence=_track_evidence(outcomes, sprt) if radar_used else outcomes[-1].evidence,
                         policy_input=request, sprt=sprt, llr=sprt.track_llr(increments), dwells=terms,
                         dwells_used=radar_used, skipped=[d.name for d in dwells[len(outcomes):]],
                         policy_sha256=checker.policy.sha256, policy_errors=list(result.errors), timings_ms=timings)

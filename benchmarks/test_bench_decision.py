@@ -23,7 +23,8 @@ SITE = dict(time_s=1_767_268_800, preset="paper")
 CONTEXT = dict(claim_source="remote_id", radar_run=True, target_detected=True, radar_model="m300",
                radar_known=True, radar_confidence_bp=9700, has_kinematics=True, range_residual_cm=120,
                range_tolerance_cm=850, velocity_residual_cmps=40, velocity_tolerance_cmps=170,
-               remote_id_present=True, remote_id_issues=[], remote_id_auth="absent", verification_llr_cn=250)
+               remote_id_present=True, remote_id_issues=[], remote_id_auth="absent",
+               track={"llr_cn": 700, "accept_cn": 690, "reject_cn": -461, "dwells": 1})
 
 
 @pytest.fixture(scope="module")

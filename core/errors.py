@@ -1,24 +1,37 @@
 """The product's errors and their exit codes, in one place.
 
-0 accept, 1 reject, 2 bad input (the caller's fault), 3 system error (database, locks,
-models, policy engine, log key). Every error the product raises on purpose derives from
-`AuthnException` and carries its exit code; the CLI maps exceptions to exit codes only
-through `exit_code_for`. This module imports nothing but the leaf `core.textsafe`, so the
-radar (`signatures`) and registry layers derive their own roots from it without importing
-the decision layer. The one line an error becomes has its control characters escaped
-(`core.textsafe.printable`): a serial or file name with an ESC in it never reaches the
-terminal raw.
-Rejections are not errors: they are decisions, with the policy ids as reasons.
+0 accept, 1 reject, 2 bad input (the caller's fault), 3 system error (database, locks, models,
+policy engine, log key), 4 inconclusive (the evidence decided neither way: not an accept).
+Every error the product raises on purpose derives from `AuthnException` and carries its exit
+code; the CLI maps exceptions to exit codes only through `exit_code_for`. This module imports
+nothing but the leaf `core.textsafe`, so the radar (`signatures`) and registry layers derive
+their own roots from it without importing the decision layer. The one line an error becomes has
+its control characters escaped (`core.textsafe.printable`): a serial or file name with an ESC
+in it never reaches the terminal raw. Rejections are not errors: they are decisions, with the
+policy ids as reasons.
 """
 
 from __future__ import annotations
 
 from core.textsafe import printable
 
-__all__ = ["EXIT_ACCEPT", "EXIT_REJECT", "EXIT_BAD_INPUT", "EXIT_SYSTEM", "AuthnException", "BadInput",
+__all__ = ["EXIT_ACCEPT", "EXIT_REJECT", "EXIT_BAD_INPUT", "EXIT_SYSTEM", "EXIT_INCONCLUSIVE", "AuthnException",
+           "BadInput",
            "SystemFault", "Interrupted", "AuthnError", "describe", "exit_code_for", "one_line"]
 
-EXIT_ACCEPT, EXIT_REJECT, EXIT_BAD_INPUT, EXIT_SYSTEM = 0, 1, 2, 3
+EXIT_ACCEPT, EXIT_REJECT, EXIT_BAD_INPUT, EXIT_SYSTEM, EXIT_INCONCLUSIVE = 0, 1, 2, 3, 4
+#: Many results' one exit code is the worst: system error, bad input, reject, inconclusive, accept.
+_SEVERITY = (EXIT_ACCEPT, EXIT_INCONCLUSIVE, EXIT_REJECT, EXIT_BAD_INPUT, EXIT_SYSTEM)
+
+
+def exit_code_of(decision: str) -> int:
+    """A decision's exit code: 0 accept, 4 inconclusive, 1 reject (and anything else)."""
+    return {"accept": EXIT_ACCEPT, "inconclusive": EXIT_INCONCLUSIVE}.get(decision, EXIT_REJECT)
+
+
+def worst(codes: "list[int]") -> int:
+    """The exit code of many results (`_SEVERITY`); 0 for none."""
+    return max(codes, key=lambda c: _SEVERITY.index(c) if c in _SEVERITY else len(_SEVERITY), default=EXIT_ACCEPT)
 
 
 class AuthnException(Exception):

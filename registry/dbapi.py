@@ -224,6 +224,16 @@ class Database:
         return {str(r[0]) for r in self.fetch("SELECT model_slug FROM identities WHERE status = :s GROUP BY model_slug",
                                               {"s": "active"})}
 
+    def registered_profiles(self) -> list[UavProfile]:
+        """The profiles of the models of the active identities, in one query: the alternatives a
+        claim is verified against (`signatures.verify`, `authn.check`)."""
+        rows = self.fetch("SELECT slug, name, rotors, arms, blades_per_rotor, blade_length_m, rotor_rate_hz, "
+                          "propeller_distance_m FROM model_profiles WHERE slug IN "
+                          "(SELECT model_slug FROM identities WHERE status = :s) ORDER BY slug", {"s": "active"})
+        return [UavProfile(slug=slug, name=name, rotors=rotors, arms=arms, blades_per_rotor=blades,
+                           blade_length_m=length, rotor_rate_hz=rate, propeller_distance_m=dist)
+                for slug, name, rotors, arms, blades, length, rate, dist in rows]
+
     def profile(self, slug: str) -> UavProfile | None:
         """The registered model's physical parameters (what 1:1 verification checks against);
         read only when the radar runs, so a registry-only rejection costs one query."""

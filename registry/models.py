@@ -135,7 +135,7 @@ class AuditLog(Base):
     created_at: Mapped[datetime] = mapped_column(UtcDateTime)
     kind: Mapped[str] = mapped_column(String(16))
     serial: Mapped[str | None] = mapped_column(Text)
-    decision: Mapped[str | None] = mapped_column(String(8))
+    decision: Mapped[str | None] = mapped_column(String(16))
     payload: Mapped[str] = mapped_column(Text)
     prev_hash: Mapped[str] = mapped_column(CHAR(64))
     entry_hash: Mapped[str] = mapped_column(CHAR(64), unique=True)
@@ -143,7 +143,7 @@ class AuditLog(Base):
 
     __table_args__ = (
         CheckConstraint("kind IN ('decision', 'error', 'registry')", name="kind_enum"),
-        CheckConstraint("decision IS NULL OR decision IN ('accept', 'reject')", name="decision_enum"),
+        CheckConstraint("decision IS NULL OR decision IN ('accept', 'reject', 'inconclusive')", name="decision_enum"),
     )
 
 

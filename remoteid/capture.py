@@ -384,6 +384,9 @@ class Broadcaster:
     senders: tuple[str, ...]
     rows: tuple[bytes, ...]  # 25-byte messages, in capture order
     heard_s: tuple[float, ...]  # when each was heard, seconds after the dwell's start
+    #: conflicting transmitters (this UAS ID sent by two of them, or by one that sent another UAS ID
+    #: of the same ID type too): each of its transmitters with every UAS ID it sent; () when none
+    conflict: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
 
 def window(start: datetime, end: datetime, skew_s: float = DEFAULT_SKEW_S) -> tuple[datetime, datetime]:
@@ -401,36 +404,60 @@ def broadcasters(captured: list[CapturedMessage], start: datetime, end: datetime
     A payload belongs to the UAS ID of a Basic ID in the same pack, else to the one its
     transmitter (Wi-Fi source address, BLE AdvA) sent anywhere in `captured` (what was read:
     `window` below). A transmitter that sent no Basic ID there cannot be attributed: its
-    messages are counted, not guessed."""
+    messages are counted, not guessed. Nor can one that sent two UAS IDs of one ID type (two
+    drones behind one address; one drone may send a Basic ID per ID type): only its Basic IDs
+    are attributed, each to its own UAS ID, and its other messages (Locations) are counted. A
+    UAS ID sent by two transmitters, or by such a one, carries `conflict`."""
     from remoteid.codec import split_raw
     from remoteid.messages import BasicId, MessagePack
 
-    def basic_ids(c: CapturedMessage) -> list[str]:
+    def basic_ids(c: CapturedMessage) -> list[BasicId]:
         msgs = c.message.messages if isinstance(c.message, MessagePack) else [c.message]
-        return [m.uas_id.strip() for m in msgs if isinstance(m, BasicId) and m.uas_id and m.uas_id.strip()]
+        return [m for m in msgs if isinstance(m, BasicId) and m.uas_id and m.uas_id.strip()]
 
     by_sender: dict[str, str] = {}
+    sent: dict[str, dict[int, set[str]]] = {}  # transmitter -> ID type -> the UAS IDs it sent
     for c in captured:
         ids = basic_ids(c)
         if ids and c.sender is not None:
-            by_sender.setdefault(c.sender, ids[0])
+            by_sender.setdefault(c.sender, ids[0].uas_id.strip())
+            for m in ids:
+                sent.setdefault(c.sender, {}).setdefault(m.id_type, set()).add(m.uas_id.strip())
+    ambiguous = {s for s, types in sent.items() if any(len(ids) > 1 for ids in types.values())}
     lo, hi = window(start, end, skew_s)
     groups: dict[str, tuple[set[str], list[bytes], list[float]]] = {}
     unattributed = 0
+
+    def add(uas: str, sender: str | None, rows: list[bytes], t: float) -> None:
+        senders, kept, heard = groups.setdefault(uas, (set(), [], []))
+        if sender:
+            senders.add(sender)
+        kept.extend(rows)
+        heard.extend([t] * len(rows))
+
     for c in captured:
         if c.captured_at is None or not lo <= c.captured_at <= hi:
             continue
-        ids = basic_ids(c)
-        uas = ids[0] if ids else by_sender.get(c.sender or "")
+        t = (c.captured_at - start).total_seconds()
         singles = split_raw(c.raw) if c.raw else []
+        if c.sender in ambiguous:  # each Basic ID names its own drone; nothing else can be attributed
+            for m, row in zip(c.message.messages if isinstance(c.message, MessagePack) else [c.message], singles):
+                if isinstance(m, BasicId) and m.uas_id and m.uas_id.strip():
+                    add(m.uas_id.strip(), c.sender, [row], t)
+                else:
+                    unattributed += 1
+            continue
+        ids = basic_ids(c)
+        uas = ids[0].uas_id.strip() if ids else by_sender.get(c.sender or "")
         if uas is None:
             unattributed += len(singles)
             continue
-        senders, rows, heard = groups.setdefault(uas, (set(), [], []))
-        if c.sender:
-            senders.add(c.sender)
-        t = (c.captured_at - start).total_seconds()
-        rows.extend(singles)
-        heard.extend([t] * len(singles))
-    return [Broadcaster(uas_id=u, senders=tuple(sorted(s)), rows=tuple(r), heard_s=tuple(h))
+        add(uas, c.sender, singles, t)
+
+    def conflict(senders: set[str]) -> tuple[tuple[str, tuple[str, ...]], ...]:
+        if len(senders) < 2 and not senders & ambiguous:
+            return ()
+        return tuple((s, tuple(sorted(set().union(*sent.get(s, {}).values())))) for s in sorted(senders))
+
+    return [Broadcaster(uas_id=u, senders=tuple(sorted(s)), rows=tuple(r), heard_s=tuple(h), conflict=conflict(s))
             for u, (s, r, h) in groups.items()], unattributed

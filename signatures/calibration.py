@@ -16,9 +16,12 @@ other enrolled model (type spoof). `fit` maps a dwell's raw terms
 to a calibrated log-likelihood ratio by logistic regression of genuine against type spoof: the
 two classes weighted equally (so the intercept carries no prior: the output is an LLR), L2
 regularised (`L2`), the slopes constrained to >= 0 (more physical or classifier support never
-lowers the score). Where the physics term abstained the calibrated score keeps no physics term,
-so `Verification.physics_abstained` still holds: the policy's `radar-unverifiable` and the track's
-`Sprt.increment(physics=False)` still let it count only against the claim.
+lowers the score) and the intercept to <= 0: a calibration never supports a claim by itself. With
+no evidence (physics and classifier both 0, or a return the open set calls unknown, whose classifier
+term is capped at 0) the calibrated LLR is at most 0; a card fitted before this constraint has its
+intercept clipped at 0 where it is applied. Where the physics term abstained the calibrated score keeps no physics term,
+so `Verification.physics_abstained` still holds: `Sprt.increment(physics=False)` still lets it count
+only against the claim.
 
 The coefficients live in the site card (`enrolment.calibration`, JSON); `verify` applies them only
 when the active bundle's card says `applied` (`authn models enrol --calibrate`). Every other
@@ -85,7 +88,7 @@ class Calibration:
         if raw.classifier_odds is not None:
             out["classifier"] = self.coef[2] * c
         if out:
-            out["offset"] = self.intercept
+            out["offset"] = min(self.intercept, 0.0)  # never support by itself (module docstring)
         return out
 
     def llr(self, raw: RawTerms) -> float:
@@ -145,7 +148,7 @@ def fit(raws: Sequence[RawTerms], genuine: Sequence[bool], applied: bool = True)
         return val, grad
 
     res = minimize(loss, np.zeros(len(FEATURES) + 1), jac=True, method="L-BFGS-B",
-                   bounds=[(0.0, None)] * len(FEATURES) + [(None, None)])
+                   bounds=[(0.0, None)] * len(FEATURES) + [(None, 0.0)])
     theta = res.x
     return Calibration(coef=tuple(float(v) for v in theta[:-1]), intercept=float(theta[-1]),  # type: ignore[arg-type]
                        applied=applied, fitted_on={"genuine": n_g, "type_spoof": n_i})

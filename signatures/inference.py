@@ -284,13 +284,27 @@ class Classifier:
         self.physics_bands: dict[str, Any] | None = (enrolment or {}).get("bands")
         #: the site's score calibration where its card applies one (`signatures.calibration`)
         self.score_calibration = calibration_of(self)
+        #: a shipped card's measured separation of each pair of shipped profiles (`lab.bench.single_dwell`):
+        #: (claimed, alternative) -> (genuine nats per dwell, radar cannot separate them within a track)
+        self.separation: dict[tuple[str, str], tuple[float, bool]] = {
+            (str(p["claimed"]), str(p["against"])): (float(p["genuine_nats_per_dwell"]), bool(p["confusable"]))
+            for p in (c.get("separation") or {}).get("pairs", [])}
 
     def confusable_with(self, model: str, tracks: bool = False) -> tuple[str, ...]:
-        """The enrolled models this site bundle cannot tell `model` apart from (its card's
-        cross-validated pairwise error above the threshold: of single dwells, or of tracks when
-        `tracks`); () for any other bundle."""
-        pairs = self.confusable_track_pairs if tracks else self.confusable_pairs
+        """The models this bundle cannot tell `model` apart from: a site bundle's enrolled models
+        whose cross-validated pairwise error is above the threshold (of single dwells, or of tracks
+        when `tracks`); a shipped bundle's profiles that no track of its measured separation
+        decides (one dwell never decides at the default error rates: the same pairs); () else."""
+        if self.site:
+            pairs = self.confusable_track_pairs if tracks else self.confusable_pairs
+        else:
+            pairs = tuple(pair for pair, (_, confusable) in self.separation.items() if confusable)
         return tuple(sorted({b if a == model else a for a, b in pairs if model in (a, b)}))
+
+    def separation_of(self, model: str) -> dict[str, float]:
+        """The card's measured mean per-dwell increment of a genuine `model` claim against each
+        alternative ({}: not measured)."""
+        return {b: nats for (a, b), (nats, _) in self.separation.items() if a == model}
 
     def _model(self, name: str) -> Any:
         """kNN, forest or SVM arrays (`name.npz`) or an onnxruntime session (`name.onnx`: the CNN, and

@@ -49,6 +49,15 @@ A site bundle may also carry a score calibration (`signatures.calibration`, fitt
 enrolment's cross-validated terms, applied with `authn models enrol --calibrate`): the LLR is then
 the calibrated terms' sum; where the physics term abstains it stays absent all the same.
 
+**Against the alternatives that matter.** The terms above score the claim against a background (some
+other multirotor): a rate two registered models share supports either. So the claim is also scored
+against each other model registered at the site (`alternatives`): the physics terms' difference (both
+against the same background: their likelihood ratio, ~0 where the bands overlap) plus the classifier's
+pairwise log-odds (clipped, capped at 0 where the open set calls the return unknown; absent for a model
+the bundle does not know, which its physics bands alone tell apart). The LLR is the least of these and
+the background's: the claim must win against every alternative, the closest one named
+(`Verification.closest`). A group's members are not alternatives to it.
+
 A term abstains (is left out) when its estimate is unreliable; the physics term is floored at
 `TERM_FLOOR`. The Cedar policy thresholds the
 sum. numpy and math only: this runs on the inference path.
@@ -63,7 +72,8 @@ from typing import Any
 
 from signatures.profiles import NON_UAV_CLASSES, UavProfile
 
-__all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "ROTOR_BAND", "Bands", "Verification",
+__all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "RATE_BAND", "ROTOR_BAND", "UNKNOWN", "Bands",
+           "Verification",
            "bands_from", "min_flash_score", "rotors_are_lower_bound", "verify"]
 
 #: Flown rotor rate over the profile's nominal rate (hover to climb, payload, battery sag).
@@ -105,6 +115,8 @@ PROBABILITY_SLACK = 1e-6
 #: An estimate whose stated std exceeds this share of its value abstains.
 MAX_REL_STD = 1.0
 TERM_FLOOR = -8.0
+#: The alternative every claim is scored against: an airframe no registered profile describes.
+UNKNOWN = "unknown"
 #: A reported ratio's log is capped here (e**700 is still a finite float).
 MAX_REPORTED_LOG = 700.0
 
@@ -134,7 +146,7 @@ def bands_from(card_bands: Mapping[str, Any] | None, model: str) -> Bands | None
 class Verification:
     """The verification of one return against one claimed airframe."""
 
-    llr: float  # sum of the terms, nats: > 0 favours the claim
+    llr: float  # nats, the least of `against`: > 0 favours the claim over every alternative
     terms: dict[str, float] = field(default_factory=dict)  # the terms that did not abstain
     #: what the physics term compared: measured against claimed, for the operator
     compared: dict[str, dict[str, float]] = field(default_factory=dict)
@@ -144,12 +156,22 @@ class Verification:
     uncalibrated: dict[str, float] = field(default_factory=dict)
     #: verified against a group of radar-confusable models: the group's slugs, the claim's first
     verified_as: tuple[str, ...] = ()
+    #: the claim's LLR against each alternative: `UNKNOWN` (the background: some other multirotor)
+    #: and each other model registered at the site; `llr` is the least of them
+    against: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def closest(self) -> str | None:
+        """The alternative the claim is least separated from (None: nothing was verified)."""
+        if not (self.against and self.terms):
+            return None
+        return min(self.against, key=lambda k: -math.inf if math.isnan(self.against[k]) else self.against[k])
 
     @property
     def physics_abstained(self) -> bool:
         """No physics term: the rotors gave no usable rate estimate. The classifier's term alone
         is then all the score holds, and the policy does not let it carry a claim
-        (`radar-unverifiable`, docs/policies.md)."""
+        (its increment counts only against the claim: `authn.track.Sprt.increment`)."""
         return "physics" not in self.terms
 
     def to_json(self) -> dict[str, object]:
@@ -160,6 +182,9 @@ class Verification:
             doc["uncalibrated"] = {k: round(v, 4) for k, v in self.uncalibrated.items()}
         if self.verified_as:
             doc["verified_as"] = list(self.verified_as)
+        if len(self.against) > 1:
+            doc["against"] = {k: round(v, 4) for k, v in self.against.items()}
+            doc["closest"] = self.closest
         return doc
 
 
@@ -277,10 +302,29 @@ def _log_odds(probabilities: Mapping[str, float], slugs: Sequence[str]) -> float
     return math.log(p / (1.0 - p)) - math.log(prior / (1.0 - prior))
 
 
+def _pairwise(physics: float | None, other: tuple[float, dict] | None, probabilities: Mapping[str, float] | None,
+              claim: Sequence[str], alternative: str, known: bool) -> float:
+    """The claim against one registered alternative: the physics terms' difference (both scored
+    against the same background, so it is their likelihood ratio: ~0 where they share a band) plus
+    the classifier's pairwise log-odds, clipped at +-`CLASSIFIER_CLIP` and capped at 0 where the
+    open set calls the return unknown; 0 where the classifier does not know both (a user's own
+    airframe is told apart by its physics bands alone). A pairwise log-odds that is no number
+    counts at its negative clip (fail closed)."""
+    llr = 0.0 if physics is None or other is None else physics - other[0]
+    if probabilities and alternative in probabilities and any(c in probabilities for c in claim):
+        p_c = sum(float(probabilities.get(c, 0.0)) for c in claim)
+        p_a = float(probabilities[alternative])
+        odds = math.log(max(p_c, 1e-6)) - math.log(max(p_a, 1e-6)) if p_c >= 0 and p_a >= 0 else -math.inf
+        odds = -math.inf if math.isnan(odds) else odds
+        llr += max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP if known else 0.0, odds))
+    return llr
+
+
 def verify(features: Mapping[str, float], claimed: UavProfile,
            probabilities: Mapping[str, float] | None = None, max_tip_mps: float | None = None,
            known: bool = True, bands: Bands | None = None, calibration: Any = None,
-           also: Sequence[tuple[UavProfile, Bands | None]] = ()) -> Verification:
+           also: Sequence[tuple[UavProfile, Bands | None]] = (),
+           alternatives: Sequence[tuple[UavProfile, Bands | None]] = ()) -> Verification:
     """Score a return's physical estimates (feature name -> value, `signatures.features`) and
     the classifier's probabilities (class -> p, optional) against the claimed profile.
 
@@ -293,11 +337,15 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
     `bands`: the claimed model's site-estimated bands (None: `RATE_BAND`, `ROTOR_BAND`).
 
     `calibration`: a site's score calibration (`signatures.calibration.Calibration`, fitted on its
-    enrolment's cross-validated terms): the LLR is then its calibrated terms' sum, the terms above
-    kept as `uncalibrated`; a physics term that abstained stays absent. None: the terms above.
+    enrolment's cross-validated terms): the LLR against the background is then its calibrated terms'
+    sum, the terms above kept as `uncalibrated`; a physics term that abstained stays absent.
 
     `also`: the models (with their site bands, None: the defaults) the claim is verified together
-    with, as one group (module docstring); (): the claimed model alone."""
+    with, as one group (module docstring); (): the claimed model alone.
+
+    `alternatives`: the other models registered at the site (with their site bands): the LLR is the
+    least of the claim's LLR against the background (`UNKNOWN`) and against each of them
+    (`Verification.against`). A model of the claim's group is not an alternative."""
     from signatures.calibration import RawTerms
 
     terms: dict[str, float] = {}
@@ -306,13 +354,24 @@ def verify(features: Mapping[str, float], claimed: UavProfile,
     physics = _group_physics(features, members, max_tip_mps)
     if physics is not None:
         terms["physics"], compared = physics
-    odds = _log_odds(probabilities, [p.slug for p, _ in members]) if probabilities else None
+    slugs = [p.slug for p, _ in members]
+    odds = _log_odds(probabilities, slugs) if probabilities else None
     if odds is not None:
         terms["classifier"] = max(-CLASSIFIER_CLIP, min(CLASSIFIER_CLIP if known else 0.0, odds))
-    group = tuple(p.slug for p, _ in members) if len(members) > 1 else ()
+    group = tuple(slugs) if len(members) > 1 else ()
     raw = RawTerms(None if physics is None else physics[0], odds, known)
+    uncalibrated: dict[str, float] = {}
     if calibration is not None:
-        cal = calibration.terms(raw)
-        return Verification(llr=sum(cal.values()), terms=cal, compared=compared, raw=raw, uncalibrated=terms,
-                            verified_as=group)
-    return Verification(llr=sum(terms.values()), terms=terms, compared=compared, raw=raw, verified_as=group)
+        terms, uncalibrated = calibration.terms(raw), terms
+    background = sum(terms.values())
+    against = {UNKNOWN: background}
+    if terms:  # nothing verified: no alternative either
+        p_c = None if physics is None else physics[0]
+        for alt, alt_bands in alternatives:
+            if alt.slug in slugs or alt.slug in against:
+                continue
+            other = None if p_c is None else _physics(features, alt, max_tip_mps, alt_bands or DEFAULT_BANDS)
+            against[alt.slug] = _pairwise(p_c, other, probabilities, slugs, alt.slug, known)
+    llr = math.nan if any(math.isnan(x) for x in against.values()) else min(against.values())  # fail closed
+    return Verification(llr=llr, terms=terms, compared=compared, raw=raw, uncalibrated=uncalibrated,
+                        verified_as=group, against=against)

@@ -67,8 +67,8 @@ def list_cmd(
     from core.errors import AuthnError
     from registry.dbapi import Database
 
-    if decision not in (None, "accept", "reject", "error", "registry"):
-        raise AuthnError(f"--decision: must be accept, reject, error or registry, got {decision!r}")
+    if decision not in (None, "accept", "reject", "inconclusive", "error", "registry"):
+        raise AuthnError(f"--decision: must be accept, reject, inconclusive, error or registry, got {decision!r}")
     state: CliState = ctx.obj
     kind = decision if decision in ("error", "registry") else None
     entries = list_entries(Database(state.db_url), since=_since(since),

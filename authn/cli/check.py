@@ -12,6 +12,7 @@ from pathlib import Path
 
 import typer
 
+from authn.cli.output import DECISION_COLOURS
 from authn.cli.signals import handled, interrupted
 
 #: Files decided and recorded together (`Checker.check`: their radar stages batched, one audit
@@ -90,7 +91,7 @@ def _print_outcome(o) -> None:
 
     ev = o.evidence
     console = Console()
-    colour = "green" if o.decision == "accept" else "red"
+    colour = DECISION_COLOURS.get(o.decision, "red")
     console.print(Text.assemble((o.decision.upper(), f"bold {colour}"),
                                 printable(f" {ev.claim.serial} ({ev.claim.source}) - {', '.join(o.reasons)}")))
     t = Table(show_header=False, box=None, pad_edge=False)
@@ -129,10 +130,33 @@ def _print_outcome(o) -> None:
     if o.non_cooperative:  # with --rid-capture: radar targets no broadcast explains
         t.add_row("non-cooperative",
                   ", ".join(f"{x['range_m']:.1f} m ({x['snr_db']:.0f} dB)" for x in o.non_cooperative))
+    v = r.verification if r is not None else None
+    if v is not None and v.terms:
+        t.add_row("verification", cell(f"LLR {v.llr:+.2f} nats against {v.closest}"
+                                       + (f" (of {', '.join(sorted(v.against))})" if len(v.against) > 1 else "")))
+    if o.decision == "inconclusive":
+        t.add_row("to decide", cell(to_decide_line(ev.to_decide())))
     if o.skipped:
         t.add_row("skipped", cell(", ".join(o.skipped)))
     t.add_row("time", f"{sum(o.timings_ms.values()):.1f} ms  audit #{o.audit_id}")
     console.print(t)
+
+
+def to_decide_line(d: dict) -> str:
+    """An inconclusive decision's `to_decide` (`Evidence.to_decide`) in words."""
+    if not d["dwells"]:
+        return "nothing verified the claim: a dwell whose rotors the radar reads, or a valid DRIP signature"
+    parts = [f"LLR {d['llr_nats']:+.2f} nats after {d['dwells']} dwell(s), against {d['closest']} "
+             f"(accept >= {d['accept_nats']:.2f}, refute <= {d['reject_nats']:.2f})"]
+    if d["more_dwells"] is not None:
+        parts.append(f"about {d['more_dwells']} more dwell(s) would decide it "
+                     f"({d['separation_nats_per_dwell']:+.2f} nats per dwell, from {d['separation_from']})")
+    else:
+        parts.append("more dwells would not decide it (the radar cannot separate the claim from "
+                     f"{d['closest']})")
+    if d["signature"]:
+        parts.append("a valid DRIP signature would")
+    return "; ".join(parts)
 
 
 def check(
@@ -164,20 +188,23 @@ def check(
                                                       "test, stopping at the first dwell that decides "
                                                       "(docs/tracks.md)."),
     false_accept: float = typer.Option(1e-3, "--false-accept",
-                                       help="--track: target rate of accepting an impostor's track (Wald's alpha)."),
+                                       help="Target rate of accepting an impostor (Wald's alpha): one dwell is "
+                                            "a track of one, decided by the same test."),
     false_reject: float = typer.Option(1e-2, "--false-reject",
-                                       help="--track: target rate of rejecting a genuine track (Wald's beta)."),
+                                       help="Target rate of rejecting a genuine claim (Wald's beta)."),
 ) -> None:
     """Is the drone the radar sees really the registered UAV it claims to be?
 
     Exit code 0 accept, 1 reject, 2 bad input, 3 system error (database, policy
-    engine, models); errors are one line on stderr and every failed check is
+    engine, models), 4 inconclusive (the radar's evidence reached neither bound
+    of the sequential test: never an accept; the output says what would decide
+    it); errors are one line on stderr and every failed check is
     still recorded in the audit log. A decision is printed only after its audit
     entry committed. With several files or a directory, checks them in one
     process (models load once) with a progress bar: each file's decision or
     error is audited as the batch goes (a bad or crashing file does not stop
     it; SIGINT/SIGTERM stop it after committing what was decided), and the
-    exit code is the worst one (3 > 2 > 1 > 0).
+    exit code is the worst one (3 > 2 > 1 > 4 > 0).
 
     Example: authn check flight.h5 --serial 1581BDEM00000002 --json
 
@@ -191,9 +218,12 @@ def check(
         from authn.uakeys import load_trusted_registries
 
         trusted = load_trusted_registries(trust_registry) if trust_registry else None
-        checker = Checker(state.db_url, policy, trusted, model=model)
+        from authn.track import Sprt
+
+        sprt = Sprt(false_accept, false_reject)
+        checker = Checker(state.db_url, policy, trusted, model=model, sprt=sprt)
         if track:  # one target's dwells, one decision (authn.track)
-            paths, sprt = _track_setup(files, claims, cluster, rid_capture, plot, false_accept, false_reject)
+            paths = _track_setup(files, claims, cluster, rid_capture, plot)
             from authn.cli.track import run_track
 
             track_started = True  # from here the track records its own failure (authn.track.check_track)
@@ -233,16 +263,16 @@ def check(
     _batch(checker, paths, mapping, serial, as_json, capture_of, figures)
 
 
-def _track_setup(files: list[Path], claims, cluster, rid_capture, plot, false_accept: float, false_reject: float):
-    """The dwells of `--track` and its test; the options a track does not take are bad input."""
-    from authn.track import Sprt, track_files
+def _track_setup(files: list[Path], claims, cluster, rid_capture, plot):
+    """The dwells of `--track`; the options a track does not take are bad input."""
+    from authn.track import track_files
     from core.errors import AuthnError
 
     extra = [n for n, v in (("--claims", claims), ("--cluster", cluster), ("--rid-capture", rid_capture),
                             ("--plot", plot)) if v is not None]
     if extra:
         raise AuthnError(f"--track takes one claim over its dwells: {', '.join(extra)} cannot be used with it")
-    return track_files(files), Sprt(false_accept, false_reject)
+    return track_files(files)
 
 
 class _Figures:
@@ -281,7 +311,7 @@ def _record_failure(db_url, failures) -> None:
 
 def _single(checker, path: Path, serial: str | None, as_json: bool, capture=None, figures=None) -> None:
     from authn.check import CheckInput, Failure
-    from core.errors import EXIT_BAD_INPUT
+    from core.errors import EXIT_BAD_INPUT, exit_code_of, worst
 
     items = checker.check([CheckInput.file(path, serial, capture)]).items  # recorded, or it raised
     outcome = items[0]
@@ -297,12 +327,12 @@ def _single(checker, path: Path, serial: str | None, as_json: bool, capture=None
         else:
             for o in items:
                 _print_outcome(o)
-        raise typer.Exit(0 if all(o.decision == "accept" for o in items) else 1)
+        raise typer.Exit(worst([exit_code_of(o.decision) for o in items]))
     if as_json:
         typer.echo(json.dumps(outcome.to_json(), indent=2))
     else:
         _print_outcome(outcome)
-    raise typer.Exit(0 if outcome.decision == "accept" else 1)
+    raise typer.Exit(exit_code_of(outcome.decision))
 
 
 @contextmanager
@@ -325,7 +355,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     from rich.progress import Progress
 
     from authn.check import CheckInput, Failure
-    from core.errors import EXIT_SYSTEM, SystemFault
+    from core.errors import SystemFault, exit_code_of, worst
 
     results: list = []
     out = sys.stdout
@@ -369,9 +399,8 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     if stop:
         raise SystemFault(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
                           "returns; every printed result is in the audit log")
-    codes = [f.exit_code for f in failures] + [0 if o.decision == "accept" else 1
-                                               for o in results if not isinstance(o, Failure)]
-    raise typer.Exit(max(codes, default=0) if EXIT_SYSTEM not in codes else EXIT_SYSTEM)
+    codes = [f.exit_code for f in failures] + [exit_code_of(o.decision) for o in results if not isinstance(o, Failure)]
+    raise typer.Exit(worst(codes))
 
 
 def _print_summary(results: list, total: int) -> None:
@@ -385,7 +414,8 @@ def _print_summary(results: list, total: int) -> None:
     outcomes = [r for r in results if not isinstance(r, Failure)]
     failures = [r for r in results if isinstance(r, Failure)]
     table = Table(title=f"{total} returns: {sum(o.decision == 'accept' for o in outcomes)} accepted, "
-                        f"{sum(o.decision == 'reject' for o in outcomes)} rejected, {len(failures)} errors")
+                        f"{sum(o.decision == 'reject' for o in outcomes)} rejected, "
+                        f"{sum(o.decision == 'inconclusive' for o in outcomes)} inconclusive, {len(failures)} errors")
     for col in ("file", "serial", "decision"):  # identifiers: never split
         table.add_column(col, no_wrap=True)
     table.add_column("reasons", overflow="fold")
@@ -396,7 +426,7 @@ def _print_summary(results: list, total: int) -> None:
             table.add_row(cell(Path(r.file).name), cell(r.serial), "[yellow]error[/]", cell(r.error), "", "")
             continue
         radar = r.radar.model if r.radar else "skipped"
-        colour = "green" if r.decision == "accept" else "red"
+        colour = DECISION_COLOURS.get(r.decision, "red")
         table.add_row(cell(Path(r.file).name), cell(r.serial), f"[{colour}]{r.decision}[/]",
                       cell(", ".join(r.reasons)), cell(radar), f"{sum(r.timings_ms.values()):.1f}")
     print_table(table, Console())  # piped: one tab-separated line per return

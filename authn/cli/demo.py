@@ -8,6 +8,8 @@ from pathlib import Path
 
 import typer
 
+from authn.cli.output import DECISION_COLOURS
+
 
 def demo(
     ctx: typer.Context,
@@ -64,7 +66,7 @@ def demo(
     for (sc, _path), o in zip(scenes, outcomes):
         ok = o.decision == sc.expected
         all_ok &= ok
-        colour = "green" if o.decision == "accept" else "red"
+        colour = DECISION_COLOURS.get(o.decision, "red")
         radar = "skipped" if o.radar is None else f"{o.radar.model} {o.radar.confidence or 0:.0%}"
         reg = o.evidence.registry
         table.add_row(str(o.audit_id), sc.name, reg.model or reg.status, radar,

@@ -180,7 +180,9 @@ def _print_test(console, card: dict) -> None:
 def list_models(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON array with each bundle's exact waveform."),
 ) -> None:
-    """Shipped and user model bundles: name, waveform, airframes, validation accuracy.
+    """Shipped and user model bundles: name, waveform, airframes, validation accuracy, the
+    pairs of shipped profiles radar cannot separate (--json: every pair's measured separation
+    per dwell and dwells to decide).
 
     With --json, each bundle's waveform carries the exact parameter values a file must match
     (within 1e-6 relative): the radar-configuration document `--radar-config` reads; but for the
@@ -214,13 +216,15 @@ def list_models(
     t.add_column("waveform", overflow="fold")
     t.add_column("airframes", overflow="fold")  # a comma-separated list: wraps between names
     t.add_column("val acc", justify="right", no_wrap=True)
+    t.add_column("radar cannot separate", overflow="fold")
     for d in docs:
         wave = "unreadable card"
         if d["waveform"]:
             lo, hi = d["carrier_band_hz"]
             wave = f"{d['waveform']['description']}; carrier {lo / 1e9:.4g}-{hi / 1e9:.4g} GHz"
         acc = "" if d["validation_accuracy"] is None else f"{d['validation_accuracy']:.3f}"
-        t.add_row("*" if d["active"] else "", d["name"], d["kind"], wave, ", ".join(d["airframes"]), acc)
+        t.add_row("*" if d["active"] else "", d["name"], d["kind"], wave, ", ".join(d["airframes"]), acc,
+                  ", ".join(d.get("radar_confusable", [])) if "separation" in d else "")
     print_table(t)
 
 
@@ -259,6 +263,11 @@ def _bundle_json(name: str, kind: str, folder: Path, card) -> dict:
         doc["carrier_band_hz"] = list(carrier_band_hz(wf))
         doc["airframes"] = [c for c in card["classes"] if c not in NON_UAV_CLASSES]
         doc["validation_accuracy"] = float(card["metrics"]["validation"]["ensemble"]["accuracy"])
+        sep = card.get("separation")
+        if isinstance(sep, dict):  # a shipped card's measured pairs (docs/classifiers.md "Separation")
+            doc["separation"] = sep
+            doc["radar_confusable"] = sorted({"/".join(sorted((p["claimed"], p["against"])))
+                                              for p in sep.get("pairs", []) if p.get("confusable")})
     except (SignaturesError, KeyError, TypeError, ValueError) as exc:
         doc["error"] = "unreadable card" + (f" ({exc})" if isinstance(exc, SignaturesError) else "")
     return doc

@@ -13,7 +13,10 @@ import json
 import sys
 from typing import Any
 
-__all__ = ["is_terminal", "json_error", "json_requested", "plain_cell", "print_table"]
+__all__ = ["DECISION_COLOURS", "is_terminal", "json_error", "json_requested", "plain_cell", "print_table"]
+
+#: How a decision is coloured on a terminal: inconclusive is no accept, and no refutation either.
+DECISION_COLOURS = {"accept": "green", "inconclusive": "yellow", "reject": "red"}
 
 
 def is_terminal() -> bool:

@@ -1,7 +1,7 @@
 """`authn check --track`: one decision over a target's dwells (authn.track, docs/tracks.md).
 
 The track is decided and its one audit entry committed (`authn.track.check_track`) before
-anything is printed; exit 0 accept, 1 reject, 2 bad input (an empty directory, mixed waveforms
+anything is printed; exit 0 accept, 1 reject, 4 inconclusive, 2 bad input (an empty directory, mixed waveforms
 or claims, dwells out of time order, an unreadable dwell), 3 system error."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import typer
 def run_track(checker, paths: list[Path], serial: str | None, sprt, as_json: bool) -> int:
     """Decide and record the track of `paths`; print it; return the exit code."""
     from authn.track import Dwell, check_track
-    from core.errors import EXIT_BAD_INPUT, describe, exit_code_for
+    from core.errors import EXIT_BAD_INPUT, describe, exit_code_for, exit_code_of
 
     try:
         out = check_track(checker, [Dwell.file(p) for p in paths], serial, sprt)
@@ -28,7 +28,7 @@ def run_track(checker, paths: list[Path], serial: str | None, sprt, as_json: boo
         typer.echo(json.dumps(out.to_json(), indent=2))
     else:
         _print(out)
-    return 0 if out.decision == "accept" else 1
+    return exit_code_of(out.decision)
 
 
 def _print(out) -> None:

@@ -78,13 +78,16 @@ class Summary:
 
     @property
     def exit_code(self) -> int:
-        """The worst one, as in batch mode (3 > 2 > 1 > 0)."""
-        return max(self.codes, default=0)
+        """The worst one, as in batch mode (3 > 2 > 1 > 4 > 0)."""
+        from core.errors import worst
+
+        return worst(self.codes)
 
     def line(self) -> str:
-        accepted, rejected = self.codes.count(0), self.codes.count(1)
-        errors = len(self.codes) - accepted - rejected
-        return (f"{self.total} returns: {accepted} accepted, {rejected} rejected, {errors} errors in "
+        accepted, rejected, unsure = self.codes.count(0), self.codes.count(1), self.codes.count(4)
+        errors = len(self.codes) - accepted - rejected - unsure
+        return (f"{self.total} returns: {accepted} accepted, {rejected} rejected, {unsure} inconclusive, "
+                f"{errors} errors in "
                 f"{self.seconds:.1f} s ({self.throughput:.1f} returns/s on {self.workers} workers, "
                 f"{self.partitions} partitions" + (f", {self.replayed} found committed on re-run" if self.replayed
                                                    else "") + ")")

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from authn.check import CheckInput, Checker, Failure, Outcome
-from core.errors import EXIT_BAD_INPUT, EXIT_SYSTEM
+from core.errors import EXIT_BAD_INPUT, EXIT_SYSTEM, exit_code_of
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ def checker_for(args: CheckerArgs) -> Checker:
 def _item(o: Outcome | Failure) -> tuple[dict[str, Any], int]:
     if isinstance(o, Failure):
         return o.to_json(), o.exit_code
-    return o.to_json(), 0 if o.decision == "accept" else 1
+    return o.to_json(), exit_code_of(o.decision)
 
 
 def _from_entry(entry: Any) -> tuple[dict[str, Any], int]:
@@ -91,7 +91,7 @@ def _from_entry(entry: Any) -> tuple[dict[str, Any], int]:
         return _item(Failure(p["file"], entry.serial, p["error"], code))
     p.pop("policy_input", None)
     doc = {**p, "timings_ms": {}, "audit_id": entry.seq}
-    return doc, 0 if entry.decision == "accept" else 1
+    return doc, exit_code_of(entry.decision)
 
 
 def check_partition(args: CheckerArgs, part: Partition) -> PartitionResult:

@@ -30,7 +30,7 @@ def _entry_json(e: Any) -> dict[str, Any]:
 @router.get("/audit", tags=["audit"], responses=_AUTH)
 async def audit_list(request: Request, after: Annotated[int, Query(ge=0, le=2**62)] = 0,
                      limit: Annotated[int, Query(ge=1, le=500)] = 100,
-                     decision: Literal["accept", "reject"] | None = None,
+                     decision: Literal["accept", "reject", "inconclusive"] | None = None,
                      serial: Annotated[str | None, Query(max_length=64)] = None,
                      _caller: Caller = Depends(require("read_audit"))) -> dict[str, Any]:
     """Entries with seq > `after`, oldest first; `next_after` pages on (null at the end)."""

@@ -40,6 +40,12 @@ DRIP_CATEGORIES = ("drip_genuine", "drip_unsigned", "drip_forged", "drip_replaye
 CATEGORIES = ("genuine", "type_spoof", "position_spoof", "unregistered", "revoked", *DRIP_CATEGORIES)
 ACCEPTED = ("genuine", "drip_genuine")
 EXPECTED = {c: "accept" if c in ACCEPTED else "reject" for c in CATEGORIES}
+
+
+def is_right(expected: str, decision: str) -> bool:
+    """A claim that must be accepted is right when accepted; one that must not, when not accepted
+    (rejected, or inconclusive: neither lets it through)."""
+    return decision == "accept" if expected == "accept" else decision != "accept"
 #: the reason each DRIP rejection must carry (the policy's @id)
 DRIP_REASONS = {"drip_unsigned": "remote-id-auth-required", "drip_forged": "remote-id-auth-invalid",
                 "drip_replayed": "remote-id-auth-expired"}
@@ -167,9 +173,9 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                     times.append((time.perf_counter() - t0) * 1e3)
                     auth.append(out.timings_ms["remote_id_auth"])
                     missing += cat in DRIP_REASONS and DRIP_REASONS[cat] not in out.reasons
-                    correct += out.decision == EXPECTED[cat]
+                    correct += is_right(EXPECTED[cat], out.decision)
                     skipped += out.radar is None
-                    if out.decision != EXPECTED[cat]:
+                    if not is_right(EXPECTED[cat], out.decision):
                         wrong[",".join(out.reasons)] += 1
                         pairs[f"{flies}->{claims}"] += 1
                     if progress:

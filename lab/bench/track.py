@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from authn.scenario import Broadcast, simulate_flight
-from lab.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
+from lab.bench.decisions import CLAIM_SCENES, bench_serial, is_right, register_identities
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import Recording
@@ -256,8 +256,8 @@ def summarise_tracks(trials: list[TrackTrial]) -> list[dict[str, Any]]:
         want = "accept" if cat == "genuine" else "reject"
         used = [t.dwells_used for t in ts]
         rows.append({"preset": preset, "world": world, "snr_db": snr, "category": cat, "tracks": len(ts),
-                     "right": round(sum(t.decision == want for t in ts) / len(ts), 4),
-                     "inconclusive": round(sum("track-inconclusive" in t.reasons for t in ts) / len(ts), 4),
+                     "right": round(sum(is_right(want, t.decision) for t in ts) / len(ts), 4),
+                     "inconclusive": round(sum(t.decision == "inconclusive" for t in ts) / len(ts), 4),
                      "median_dwells": statistics.median(used), "mean_dwells": round(statistics.fmean(used), 3),
                      "max_dwells": ts[0].dwells})
     return rows

@@ -34,7 +34,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from lab.bench.decisions import CLAIM_SCENES, bench_serial
+from lab.bench.decisions import CLAIM_SCENES, bench_serial, is_right
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import get_preset
 from signatures.sampling import sample_scene
@@ -288,14 +288,14 @@ def must_show_table(results: list[TrackResult]) -> list[str]:
             continue
         cat = CATEGORIES[c_idx]
         want = "accept" if cat == "genuine" else "reject"
-        right = sum(r.decision == want for r in rs) / len(rs)
+        right = sum(is_right(want, r.decision) for r in rs) / len(rs)
         target = TARGETS.get((cat, -nsnr))
         met = "" if target is None else (" **met**" if right >= target else " not met")
         used = [r.dwells_used for r in rs]
         label = cat.replace('_', ' ') + (" (pairs in reach)" if reach_only else "")
         lines.append(f"| {world} | {-nsnr:g} | {label} | {len({(r.flies, r.claims) for r in rs})} | "
                      f"{len(rs)} | {_pct(right)} | {'' if target is None else _pct(target)}{met} | "
-                     f"{_pct(sum('track-inconclusive' in r.reasons for r in rs) / len(rs))} | "
+                     f"{_pct(sum(r.decision == 'inconclusive' for r in rs) / len(rs))} | "
                      f"{statistics.median(used):g} | {statistics.fmean(used):.1f} |")
     return lines
 
@@ -310,12 +310,12 @@ def pair_table(results: list[TrackResult]) -> list[str]:
         want = "accept" if CATEGORIES[c_idx] == "genuine" else "reject"
         wrong: dict[str, int] = {}
         for r in rs:
-            if r.decision != want:
+            if not is_right(want, r.decision):
                 key = ",".join(r.reasons) or r.decision
                 wrong[key] = wrong.get(key, 0) + 1
         why = "(genuine)" if c_idx == 0 else (" + ".join(rs[0].separable) or "**not separable**")
         lines.append(f"| {world} | {-nsnr:g} | {flies} -> {claims} | {why} | {len(rs)} | "
-                     f"{_pct(sum(r.decision == want for r in rs) / len(rs))} | "
+                     f"{_pct(sum(is_right(want, r.decision) for r in rs) / len(rs))} | "
                      f"{statistics.median(r.dwells_used for r in rs):g} | "
                      f"{'; '.join(f'{k} {v}' for k, v in sorted(wrong.items()))} |")
     return lines

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lab.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
+from lab.bench.decisions import CLAIM_SCENES, bench_serial, is_right, register_identities
 from lab.bench.verification import eer, rotor_evidence, verification_score
 from authn.scenario import Broadcast, remote_id_rows, simulate_flight
 from signatures.profiles import UavProfile, shipped_profiles
@@ -70,7 +70,7 @@ class Trial:
 
     @property
     def correct(self) -> bool:
-        return self.decision == WORLD_EXPECTED[self.category]
+        return is_right(WORLD_EXPECTED[self.category], self.decision)
 
 
 def render_claim(world: str, scene: Scene, preset: Preset, seed: int, broadcast: Broadcast, azimuth_deg: float,

@@ -34,6 +34,38 @@ def create_append_only(op: Any, table: str, *elements: Any) -> None:
     make_append_only(op, table)
 
 
+def replace_in_table(op: Any, table: str, changes: list[tuple[str, str]], constraint: str | None = None) -> None:
+    """Rewrite an append-only table's definition: on SQLite the table is rebuilt from its DDL with each
+    (old, new) text replaced (its rows copied, its indexes and triggers made again; refused where an
+    old text is not in the DDL); on PostgreSQL `constraint` (a CHECK, named) is dropped and added
+    with the last change's new text (column changes are the caller's ALTER)."""
+    import sqlalchemy as sa
+
+    bind = op.get_bind()
+    if bind.dialect.name == "postgresql":
+        if constraint is not None:
+            op.execute(f"ALTER TABLE {table} DROP CONSTRAINT {constraint}")
+            op.execute(f"ALTER TABLE {table} ADD CONSTRAINT {constraint} CHECK ({changes[-1][1]})")
+        return
+    if bind.dialect.name != "sqlite":
+        return
+    (ddl,) = bind.execute(sa.text("SELECT sql FROM sqlite_master WHERE type = 'table' AND name = :t"),
+                          {"t": table}).one()
+    for old, new in changes:
+        if old not in ddl:
+            raise RuntimeError(f"{table}'s definition lacks {old!r}; refusing to rebuild the table")
+        ddl = ddl.replace(old, new)
+    indexes = [r[0] for r in bind.execute(sa.text(
+        "SELECT sql FROM sqlite_master WHERE type = 'index' AND tbl_name = :t AND sql IS NOT NULL"), {"t": table})]
+    op.execute(ddl.replace(table, f"{table}_rebuilt", 1))
+    op.execute(f"INSERT INTO {table}_rebuilt SELECT * FROM {table}")
+    op.execute(f"DROP TABLE {table}")  # its triggers go with it; DROP fires no DELETE trigger
+    op.execute(f"ALTER TABLE {table}_rebuilt RENAME TO {table}")
+    for sql in indexes:
+        op.execute(sql)
+    make_append_only(op, table)
+
+
 def drop_append_only(op: Any, table: str) -> None:
     """Drop an append-only table: its triggers go with it, its PostgreSQL trigger function not."""
     op.drop_table(table)

@@ -165,3 +165,23 @@ def test_an_unknown_calibrate_value_is_bad_input(capsys) -> None:
     assert main(["models", "enrol", "nowhere", "--calibrate", "maybe"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--calibrate 'maybe': one of auto, on, off" in err
+
+
+def test_a_calibration_never_supports_a_claim_by_itself() -> None:
+    """A site whose genuine dwells carry little evidence (physics ~ +0.2, the classifier calls them
+    unknown) against impostors the physics refutes: an unconstrained fit puts the support in its
+    intercept, which any return the classifier calls unknown would then get. The fit keeps the
+    intercept <= 0, and a card fitted before (intercept +4.4) is clipped where it is applied."""
+    rng = np.random.default_rng(11)
+    n = 400
+    y = rng.random(n) < 0.5
+    phys = np.where(y, rng.normal(0.2, 0.15, n), rng.normal(-3.0, 1.5, n))
+    raws = [RawTerms(float(p), 2.5, known=False) for p in phys]  # the classifier's odds capped at 0: unknown
+    cal = fit(raws, list(map(bool, y)))
+    assert cal.intercept <= 0.0
+    impostors_unknown = [RawTerms(0.0, float(o), known=False) for o in (-1.0, 0.0, 2.0, 8.0)] + [RawTerms(0.0, None)]
+    assert all(cal.llr(r) <= 0.0 for r in impostors_unknown)
+    old = Calibration(coef=cal.coef, intercept=4.4)  # the held-out site's: +4.4 nats from nothing
+    assert all(old.llr(r) <= 0.0 for r in impostors_unknown)
+    v = verify({**FEATS, "flash_rate_hz": 0.6 * FEATS["flash_rate_hz"]}, M300, PROBS, known=False, calibration=old)
+    assert v.terms["offset"] == 0.0 and v.llr <= v.terms["physics"]

@@ -1,11 +1,13 @@
-"""No acceptance on the classifier alone (`radar-unverifiable`, docs/policies.md).
+"""No acceptance on the classifier alone (docs/policies.md).
 
 Where the physics term abstains (no usable blade-flash rate: signatures/verify.py), the classifier
-may count against a claim but never carries it. In the simulated worlds the shipped classifier
-never favours a claim whose rotors went unseen (it calls such returns birds), so the dwell where
-it would is built from real parts: the features of a real dwell whose rotors are not resolvable
-(blades 30 dB under the body at 5 dB SNR: no flash scores 1) and the shipped classifier's own
-probabilities for a real genuine M300 dwell. Real verification, real evidence, real Cedar.
+may count against a claim but never carries it: the sequential test counts such a dwell only against
+the claim (`authn.track.Sprt.increment`), for one dwell as for a track, signed or not. In the
+simulated worlds the shipped classifier never favours a claim whose rotors went unseen (it calls
+such returns birds), so the dwell where it would is built from real parts: the features of a real
+dwell whose rotors are not resolvable (blades 30 dB under the body at 5 dB SNR: no flash scores 1)
+and the shipped classifier's own probabilities for a real genuine M300 dwell. Real verification,
+real evidence, real Cedar.
 """
 
 from __future__ import annotations
@@ -18,9 +20,10 @@ import pytest
 
 from authn.check import Checker
 from authn.demo import register_examples
-from authn.evidence import Evidence, RadarEvidence, RegistryFacts, read_claim
+from authn.evidence import Evidence, RadarEvidence, RegistryFacts, RemoteIdAuth, read_claim
 from authn.policy import PolicyEngine
 from authn.scenario import Broadcast, simulate_flight
+from authn.track import DWELL_CAP_NATS, Sprt
 from registry.dbapi import IdentityFacts
 from signatures.features import extract
 from signatures.inference import classifier_for
@@ -65,55 +68,70 @@ def dwells():
     return _unresolved_rotors(), _m300(1)
 
 
-def _decide(rec, feats, pred, llr: float | None = None) -> tuple[object, object]:
-    """(verification, policy result) of one dwell claiming an M300; `llr` replaces the verification's."""
+def _decide(rec, feats, pred, llr: float | None = None, auth: str = "absent",
+            sprt: Sprt | None = None) -> tuple[object, object]:
+    """(verification, policy result) of one dwell claiming an M300; `llr` replaces the verification's
+    (against every alternative); `auth`: the Remote ID's DRIP status; `sprt`: the error targets."""
     profile = shipped_profiles()["m300"]
     v = verify({**asdict(feats.features), **feats.physics}, profile, pred.probabilities,
                rec.config.unambiguous_velocity_mps, known=pred.known)
     if llr is not None:
-        v = replace(v, llr=llr)
+        v = replace(v, llr=llr, against={k: llr for k in v.against})
     since = datetime(2025, 1, 1, tzinfo=timezone.utc)
     facts = RegistryFacts(IdentityFacts("1581F000", "serial", "m300", "active", since, None))
     radar = RadarEvidence(gated=True, model=pred.label, confidence=pred.confidence, known=pred.known,
                           range_m=float(feats.range_m), radial_velocity_mps=float(feats.radial_velocity_mps),
                           verification=v)
-    ev = Evidence(read_claim(rec, None), facts, int(rec.start_time.timestamp()), [], preset="paper", radar=radar)
+    ev = Evidence(read_claim(rec, None), facts, int(rec.start_time.timestamp()), [], preset="paper", radar=radar,
+                  auth=RemoteIdAuth(auth), sprt=sprt)
     return v, PolicyEngine.load().decide(M300, ev.principal(), ev.resource(), ev.context())
+
+
+#: Error targets loose enough for one dwell to decide (3.89 / -3.89 nats, below the 4-nat cap).
+LOOSE = Sprt(0.02, 0.02)
 
 
 def test_the_classifier_alone_does_not_carry_a_claim(dwells) -> None:
     weak, genuine = dwells
     feats, pred = _radar(weak, probabilities_of=genuine)  # unresolved rotors, a classifier sure of the claim
-    v, result = _decide(weak, feats, pred)
+    v, result = _decide(weak, feats, pred, sprt=LOOSE)
     # the shipped bundle's support for the claim, whatever its temperature makes of it: positive, over 1 nat
     assert v.physics_abstained and set(v.terms) == {"classifier"} and v.terms["classifier"] > 1.0
-    assert v.llr == v.terms["classifier"]
-    assert (result.decision, result.reasons) == ("reject", ["radar-unverifiable"])
-    # the same classifier with the rotors seen: physics verifies, the claim is accepted
-    v, result = _decide(genuine, *_radar(genuine))
+    assert v.against["unknown"] == v.terms["classifier"]
+    # not even at targets one dwell can meet, nor with a valid signature: it counts 0 for the claim
+    assert (result.decision, result.reasons) == ("inconclusive", ["radar-inconclusive"])
+    assert _decide(weak, feats, pred, auth="valid")[1].decision == "inconclusive"
+    # the same classifier with the rotors seen: physics verifies, one dwell decides at the loose targets
+    v, result = _decide(genuine, *_radar(genuine), sprt=LOOSE)
     assert not v.physics_abstained and v.terms["physics"] > 0
-    assert (result.decision, result.reasons) == ("accept", ["registered-active"])
+    assert v.llr >= LOOSE.accept_nats and (result.decision, result.reasons) == ("accept", ["registered-active"])
 
 
-def test_an_llr_that_is_not_a_number_is_rejected(dwells) -> None:
-    """Fail closed: a verification LLR of NaN reaches the policy as the most negative LLR (clamping
-    it would have made it the most positive), so the genuine dwell that was accepted is rejected."""
+def test_an_llr_that_is_not_a_number_is_not_accepted(dwells) -> None:
+    """Fail closed: a verification LLR of NaN counts as far against the claim as a dwell may (clamping
+    it would have made it the most positive), so the genuine dwell that was accepted is not, signed or
+    not; at targets one dwell can refute, it is rejected."""
     _, genuine = dwells
     feats, pred = _radar(genuine)
-    assert _decide(genuine, feats, pred)[1].decision == "accept"
-    v, result = _decide(genuine, feats, pred, llr=math.nan)
+    assert _decide(genuine, feats, pred, sprt=LOOSE)[1].decision == "accept"
+    v, result = _decide(genuine, feats, pred, llr=math.nan, sprt=LOOSE)
     assert math.isnan(v.llr) and result.decision == "reject"
+    for auth in ("absent", "valid"):
+        v, result = _decide(genuine, feats, pred, llr=math.nan, auth=auth)
+        assert result.decision == "inconclusive"
 
 
-def test_a_check_reports_the_abstention_to_the_policy(dwells, tmp_path) -> None:
-    """The check itself: the unresolved dwell's request says physics abstained, and it is rejected
-    (here the classifier counts against the claim as well); the genuine one's says it did not."""
+def test_a_check_counts_an_abstention_only_against_the_claim(dwells, tmp_path) -> None:
+    """The check itself: the unresolved dwell's request carries a test record that cannot favour the
+    claim; the genuine one's favours it (one dwell, capped, stays below the default accept bound)."""
     weak, genuine = dwells
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     register_examples(db)
     checker = Checker(db)
     out = checker.evaluate_recording(weak)
-    assert out.evidence.context()["physics_abstained"] is True and out.decision == "reject"
+    record = out.evidence.context()["track"]
+    assert record["llr_cn"] <= 0 and out.decision != "accept"
     assert "physics" not in out.to_json()["radar"]["verification"]["terms"]
     ok = checker.evaluate_recording(genuine)
-    assert ok.evidence.context()["physics_abstained"] is False and ok.decision == "accept"
+    record = ok.evidence.context()["track"]
+    assert 0 < record["llr_cn"] <= DWELL_CAP_NATS * 100 < record["accept_cn"] and ok.decision == "inconclusive"

@@ -87,7 +87,7 @@ def test_a_genuine_track_is_accepted_at_the_bound_and_the_rest_skipped(setup, ca
 def test_a_type_spoof_track_crosses_the_reject_bound(setup, capsys) -> None:
     _, db, tracks = setup
     code, out, _ = _run(db, capsys, str(tracks["type"]))
-    assert code == 1 and out["reasons"] == ["track-claim-inconsistent"]
+    assert code == 1 and out["reasons"] == ["radar-claim-inconsistent"]
     assert out["llr"] <= out["sprt"]["reject_nats"] and out["dwells_used"] < DWELLS
     # the single-dwell verdicts are reported, the track's is the policy's over the combined LLR
     assert all(d["llr"] < 0 for d in out["dwells"])
@@ -315,23 +315,21 @@ def test_bench_track_rows(capsys) -> None:
 TRACK = {"accept_cn": 691, "reject_cn": -461}
 
 
-@pytest.mark.parametrize("llr_cn,ctx,reasons", [
-    (691, {}, ["registered-active"]),  # at the accept bound
-    (690, {}, ["track-inconclusive"]),
-    (0, {}, ["track-inconclusive"]),  # a single dwell's 0-nat threshold does not apply over a track
-    (-460, {}, ["track-inconclusive"]),
-    (-461, {}, ["track-claim-inconsistent"]),  # at the reject bound
-    (-461, {"radar_model": "bird"}, ["track-claim-inconsistent"]),  # radar-not-a-drone stands aside
-    (None, {}, ["track-inconclusive"]),  # nothing verified yet: radar-claim-unverifiable stands aside
-    (900, {"range_residual_cm": 900}, ["range-mismatch"]),  # the track's kinematics (its dwells' median) still forbid
+@pytest.mark.parametrize("llr_cn,ctx,decision,reasons", [
+    (691, {}, "accept", ["registered-active"]),  # at the accept bound
+    (690, {}, "inconclusive", ["radar-inconclusive"]),
+    (0, {}, "inconclusive", ["radar-inconclusive"]),
+    (-460, {}, "inconclusive", ["radar-inconclusive"]),
+    (-461, {}, "reject", ["radar-claim-inconsistent"]),  # at the reject bound
+    (-461, {"radar_model": "bird"}, "reject", ["radar-claim-inconsistent", "radar-not-a-drone"]),
+    (None, {}, "inconclusive", ["radar-inconclusive"]),  # nothing verified yet
+    (900, {"range_residual_cm": 900}, "reject", ["range-mismatch"]),  # the track's kinematics (its dwells' median)
 ])
-def test_the_default_policy_over_a_track(llr_cn, ctx, reasons) -> None:
-    """Golden rows of the track forbids (tests/decision/test_policy.py has the single-dwell ones)."""
+def test_the_default_policy_over_a_track(llr_cn, ctx, decision, reasons) -> None:
+    """The rows of tests/decision/test_policy.py over a track of three dwells: one rule."""
     from authn.policy import PolicyEngine
 
-    context = {**GOOD, **ctx, "track": {**TRACK, "llr_cn": 0 if llr_cn is None else llr_cn, "dwells": 3}}
-    context.pop("verification_llr_cn")
-    if llr_cn is not None:
-        context["verification_llr_cn"] = llr_cn
+    context = {**GOOD, **ctx, "track": {**TRACK, "llr_cn": 0 if llr_cn is None else llr_cn,
+                                        "dwells": 0 if llr_cn is None else 3}}
     result = PolicyEngine.load().decide(M300, ACTIVE, SITE, context)
-    assert result.reasons == reasons and result.decision == ("accept" if reasons == ["registered-active"] else "reject")
+    assert (result.decision, result.reasons) == (decision, reasons)

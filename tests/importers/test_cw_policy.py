@@ -16,7 +16,7 @@ from tests.decision.test_policy import ACTIVE, GOOD, SITE
     (dict(range_measured=False, target_detected=False), "reject", ["no-target"]),
     (dict(range_measured=True), "accept", ["registered-active"]),
     ({}, "accept", ["registered-active"]),  # an audit entry from before range_measured
-    (dict(range_measured=False, verification_llr_cn=-300), "reject",
+    (dict(range_measured=False, track={"llr_cn": -500, "accept_cn": 690, "reject_cn": -461, "dwells": 2}), "reject",
      ["radar-claim-inconsistent", "range-not-measured"]),
 ])
 def test_missing_range_is_not_a_pass(extra: dict, decision: str, reasons: list[str]) -> None:

@@ -110,6 +110,22 @@ def merge_pcaps(a: Path, b: Path, dst: Path) -> Path:
     return dst
 
 
+def beacons(dst: Path, frames: list[tuple[datetime, bytes, bytes]]) -> Path:
+    """A pcap (802.11, link type 105) of Wi-Fi beacons, one per (capture time, transmitter address,
+    Open Drone ID payload: a single message or a pack), each in its own vendor IE."""
+    from remoteid.capture import ODID_OUI_TYPE
+
+    out = b"\xd4\xc3\xb2\xa1" + struct.pack("<HHiIII", 2, 4, 0, 0, 65535, 105)
+    for n, (at, sender, payload) in enumerate(frames):
+        ie = ODID_OUI_TYPE + bytes([n % 256]) + payload
+        frame = b"\x80\x00" + bytes(2) + b"\xff" * 6 + sender + sender + bytes(2) + bytes(12) + \
+            bytes([221, len(ie)]) + ie
+        t = round(at.timestamp() * 1e6)
+        out += struct.pack("<IIII", t // 1_000_000, t % 1_000_000, len(frame), len(frame)) + frame
+    dst.write_bytes(out)
+    return dst
+
+
 def start_at(c: CapturedMessage) -> datetime:
     """A dwell starting when the capture heard `c` (its Location is the one nearest mid-dwell)."""
     return c.captured_at - timedelta(seconds=0.0)

@@ -28,7 +28,9 @@ def capture_world(sqlite_db, tmp_path_factory):
     two = write_recording(radar_return(site, [a, b], c.captured_at), root / "two.h5")
     b_only = rewrite(BEACON, root / "b.pcap", shift_m=40.0, az_deg=az, uas_id=SECOND,
                      sender=bytes.fromhex("02aabbccddee"))
-    return {"two": two, "both": merge_pcaps(BEACON, b_only, root / "both.pcap")}
+    far = rewrite(BEACON, root / "far.pcap", shift_m=40.0, az_deg=az, sender=bytes.fromhex("02aabbccddee"), dt_s=0.2)
+    return {"two": two, "both": merge_pcaps(BEACON, b_only, root / "both.pcap"),
+            "impostor": merge_pcaps(BEACON, far, root / "impostor.pcap")}  # A's serial from a second transmitter
 
 
 def _files(ret, capture):
@@ -51,6 +53,16 @@ def test_capture_field_with_serial_answers_one_object(server, keys, capture_worl
     with server.client(keys.operator) as c:
         resp = c.post("/v1/checks", files=_files(capture_world["two"], capture_world["both"]), data={"serial": SECOND})
     assert resp.status_code == 200 and resp.json()["claim"]["serial"] == SECOND
+
+
+def test_a_serial_from_two_transmitters_is_a_conflict(server, keys, capture_world) -> None:
+    with server.client(keys.operator) as c:
+        resp = c.post("/v1/checks", files=_files(capture_world["two"], capture_world["impostor"]))
+    assert resp.status_code == 200, resp.text
+    out = resp.json()
+    assert out["claim"]["serial"] == SERIAL and out["decision"] != "accept" and "remote-id-conflict" in out["reasons"]
+    assert out["remote_id"]["transmitters"] == ["02:aa:bb:cc:dd:ee", "84:cc:a8:60:43:24"]
+    assert [t["transmitter"] for t in out["remote_id"]["conflict"]] == out["remote_id"]["transmitters"]
 
 
 def test_truncated_capture_is_400(server, keys, capture_world, tmp_path) -> None:

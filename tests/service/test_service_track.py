@@ -41,7 +41,7 @@ def test_a_track_is_decided_and_recorded_once(server, keys, tracks) -> None:
         entry = c.get(f"/v1/audit/{g['audit_id']}")
     assert g["decision"] == "accept" and g["track"] and 1 < g["dwells_used"] < DWELLS
     assert g["skipped_files"] == [p.name for p in tracks["genuine"][g["dwells_used"]:]]
-    assert s["decision"] == "reject" and s["reasons"] == ["track-claim-inconsistent"]
+    assert s["decision"] == "reject" and s["reasons"] == ["radar-claim-inconsistent"]
     assert entry.status_code == 200
     recorded = entry.json()["payload"]
     assert [d["file_sha256"] for d in recorded["dwells"]] == [d["file_sha256"] for d in g["dwells"]]

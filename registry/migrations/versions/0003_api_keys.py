@@ -12,7 +12,7 @@ Revision 0003 (after 0002), 2026-11-23.
 import sqlalchemy as sa
 from alembic import op
 
-from registry.migrations.triggers import make_append_only
+from registry.migrations.triggers import replace_in_table
 from registry.models import UtcDateTime
 
 revision = "0003"
@@ -24,25 +24,7 @@ _NEW_KINDS = "kind IN ('decision', 'error', 'registry')"
 
 
 def _audit_kinds(old: str, new: str) -> None:
-    bind = op.get_bind()
-    if bind.dialect.name == "postgresql":
-        op.execute("ALTER TABLE audit_log DROP CONSTRAINT ck_audit_log_kind_enum")
-        op.execute(f"ALTER TABLE audit_log ADD CONSTRAINT ck_audit_log_kind_enum CHECK ({new})")
-        return
-    if bind.dialect.name != "sqlite":
-        return
-    (ddl,) = bind.execute(sa.text("SELECT sql FROM sqlite_master WHERE type = 'table' AND name = 'audit_log'")).one()
-    if old not in ddl:
-        raise RuntimeError(f"audit_log's kind CHECK is not {old!r}; refusing to rebuild the table")
-    indexes = [r[0] for r in bind.execute(sa.text(
-        "SELECT sql FROM sqlite_master WHERE type = 'index' AND tbl_name = 'audit_log' AND sql IS NOT NULL"))]
-    op.execute(ddl.replace(old, new).replace("audit_log", "audit_log_rebuilt", 1))
-    op.execute("INSERT INTO audit_log_rebuilt SELECT * FROM audit_log")
-    op.execute("DROP TABLE audit_log")  # its triggers go with it; DROP fires no DELETE trigger
-    op.execute("ALTER TABLE audit_log_rebuilt RENAME TO audit_log")
-    for sql in indexes:
-        op.execute(sql)
-    make_append_only(op, "audit_log")
+    replace_in_table(op, "audit_log", [(old, new)], "ck_audit_log_kind_enum")
 
 
 def upgrade() -> None:
