@@ -157,9 +157,9 @@ class Sprt:
         capped), take a track at `llr_nats` after `used` dwells to a bound; None where they never
         do (the discount makes n_eff level off at 1 / rho, so a separation below bound * rho never
         reaches it)."""
-        step = max(-self.cap_nats, min(self.cap_nats, separation_nats))
-        if not step:  # NaN too
+        if math.isnan(separation_nats) or math.isnan(llr_nats) or not separation_nats:
             return None
+        step = max(-self.cap_nats, min(self.cap_nats, separation_nats))
         total = llr_nats * (1.0 + max(used - 1, 0) * self.correlation)  # the undiscounted sum so far
         for extra in range(1, MAX_DWELLS_TO_DECIDE + 1):
             llr = (total + extra * step) / (1.0 + (used + extra - 1) * self.correlation)

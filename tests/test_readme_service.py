@@ -54,7 +54,7 @@ def test_readme_service_block_runs(tmp_path: Path) -> None:
     home.mkdir()
     work.mkdir()
     env = fresh_env(home)
-    for line in walkthrough_lines():  # up to the genuine return and its accepted check
+    for line in walkthrough_lines():  # up to the genuine return and its check
         proc = subprocess.run(["bash", "-c", line], cwd=work, env=env, capture_output=True, text=True, timeout=120)
         assert proc.returncode == 0, (line, proc.stderr)
         if line.startswith("authn check genuine.h5"):
@@ -71,5 +71,8 @@ def test_readme_service_block_runs(tmp_path: Path) -> None:
     shown = f"--- exit {proc.returncode}\n--- stdout\n{out}\n--- stderr\n{err}"
     assert proc.returncode == 0 and "Traceback" not in err, shown
     answer = json.loads(out.strip().splitlines()[-1])
-    assert answer["decision"] == "accept" and answer["reasons"] == ["registered-active"], shown
+    # the walk-through's check of it, over HTTP: one unsigned dwell of a radar-confusable pair
+    assert answer["decision"] == "inconclusive", shown
+    assert answer["reasons"] == ["radar-confusable-unsigned", "radar-inconclusive"], shown
+    assert answer["to_decide"]["signature"] is True, shown
     assert answer["claim"]["serial"] == "1581BDEM00000042", shown

@@ -3,8 +3,8 @@
 Extracts the ```bash walkthrough block from README.md and runs each command line with
 `bash -c` in an empty temporary directory with a fresh HOME (no AUTHN_* or XDG_*
 variables, so the registry, the audit log and its key are created from nothing). Every
-line must exit 0 (a rejected check is written `authn check F || true`), print no
-traceback, and a check commented ACCEPT or REJECT must print that decision.
+line must exit 0 (a rejected or inconclusive check is written `authn check F || true`), print
+no traceback, and a check commented ACCEPT, REJECT or INCONCLUSIVE must print that decision.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ def test_readme_walkthrough_runs_in_order(tmp_path):
         assert proc.returncode == 0, shown
         assert not any("Traceback" in ln for ln in proc.stderr.splitlines()), shown
         comment = line.partition("#")[2]
-        for decision in ("ACCEPT", "REJECT"):
+        for decision in ("ACCEPT", "REJECT", "INCONCLUSIVE"):
             if line.startswith("authn check ") and decision in comment:
                 assert proc.stdout.lstrip().startswith(decision), shown
                 reason = comment.partition(":")[2].split()

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from authn.cli.output import DECISION_COLOURS
+from authn.cli.output import DECISION_COLOURS, to_decide_line
 from authn.cli.signals import handled, interrupted
 
 #: Files decided and recorded together (`Checker.check`: their radar stages batched, one audit
@@ -141,22 +141,6 @@ def _print_outcome(o) -> None:
     t.add_row("time", f"{sum(o.timings_ms.values()):.1f} ms  audit #{o.audit_id}")
     console.print(t)
 
-
-def to_decide_line(d: dict) -> str:
-    """An inconclusive decision's `to_decide` (`Evidence.to_decide`) in words."""
-    if not d["dwells"]:
-        return "nothing verified the claim: a dwell whose rotors the radar reads, or a valid DRIP signature"
-    parts = [f"LLR {d['llr_nats']:+.2f} nats after {d['dwells']} dwell(s), against {d['closest']} "
-             f"(accept >= {d['accept_nats']:.2f}, refute <= {d['reject_nats']:.2f})"]
-    if d["more_dwells"] is not None:
-        parts.append(f"about {d['more_dwells']} more dwell(s) would decide it "
-                     f"({d['separation_nats_per_dwell']:+.2f} nats per dwell, from {d['separation_from']})")
-    else:
-        parts.append("more dwells would not decide it (the radar cannot separate the claim from "
-                     f"{d['closest']})")
-    if d["signature"]:
-        parts.append("a valid DRIP signature would")
-    return "; ".join(parts)
 
 
 def check(

@@ -13,7 +13,8 @@ import json
 import sys
 from typing import Any
 
-__all__ = ["DECISION_COLOURS", "is_terminal", "json_error", "json_requested", "plain_cell", "print_table"]
+__all__ = ["DECISION_COLOURS", "is_terminal", "json_error", "json_requested", "plain_cell", "print_table",
+           "to_decide_line"]
 
 #: How a decision is coloured on a terminal: inconclusive is no accept, and no refutation either.
 DECISION_COLOURS = {"accept": "green", "inconclusive": "yellow", "reject": "red"}
@@ -66,3 +67,20 @@ def json_requested(argv: list[str]) -> bool:
 def json_error(message: str, exit_code: int) -> None:
     """The one JSON error object, on stdout (where a `--json` reader looks)."""
     print(json.dumps({"error": message, "exit_code": exit_code}))
+
+
+def to_decide_line(d: dict) -> str:
+    """An inconclusive decision's `to_decide` (`Evidence.to_decide`) in words."""
+    if not d["dwells"]:
+        return "nothing verified the claim: a dwell whose rotors the radar reads, or a valid DRIP signature"
+    parts = [f"LLR {d['llr_nats']:+.2f} nats after {d['dwells']} dwell(s), against {d['closest']} "
+             f"(accept >= {d['accept_nats']:.2f}, refute <= {d['reject_nats']:.2f})"]
+    if d["more_dwells"] is not None:
+        parts.append(f"about {d['more_dwells']} more dwell(s) would decide it "
+                     f"({d['separation_nats_per_dwell']:+.2f} nats per dwell, from {d['separation_from']})")
+    else:
+        parts.append("more dwells would not decide it (the radar cannot separate the claim from "
+                     f"{d['closest']})")
+    if d["signature"]:
+        parts.append("a valid DRIP signature would")
+    return "; ".join(parts)

@@ -135,6 +135,12 @@ def simulate(
     clutter_to_signal: float | None = typer.Option(None, "--clutter-to-signal",
                                                    help="Static clutter over the target's power, dB (instead "
                                                         "of --clutter)."),
+    track: int = typer.Option(0, "--track", min=0, max=100_000,
+                               help="Write N dwells of one target into the --out directory, --interval-s apart, "
+                                    "its range moving with --speed: a track `authn check --track` takes."),
+    interval_s: float | None = typer.Option(None, "--interval-s", min=1e-6, max=3600.0,
+                                            help="--track: seconds between dwell starts (default: the dwell's "
+                                                 "length, back to back)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object naming the files written."),
 ) -> None:
     """Simulate the radar return of one scene and write it as a recorded-return file.
@@ -149,6 +155,9 @@ def simulate(
 
     Example (S-band CW, 10 s, hovering, tagged): authn simulate --model phantom4 --range 300 --preset cw-sband \\
       --chirps 50000 --rotor-rate 160 --tagged-blades 2 --clutter-to-signal 30 --out cw.h5
+
+    Example (a track of 8 dwells): authn simulate --model m300 --range 500 --rid-serial 1581BDEM00000042 \\
+      --track 8 --out track/
     """
     from pydantic import ValidationError  # the Scene is a pydantic model (not on a check's path)
 
@@ -161,6 +170,10 @@ def simulate(
 
     from authn.evidence import _SERIAL
 
+    if track and count > 1:
+        raise SignaturesError("--track and --count: one or the other (a track is one target's dwells)")
+    if track and out.suffix:
+        raise SignaturesError(f"--out: with --track, give a directory (dwell_000000.h5, ...), not {out}")
     _check_out(out, count)
     if rid_serial is not None and not _SERIAL.fullmatch(rid_serial):  # what `check --serial` accepts
         raise SignaturesError(f"--rid-serial: {rid_serial!r} is not a UAS ID (1-64 printable ASCII characters, "
@@ -197,9 +210,20 @@ def simulate(
     elif any(v is not None for v in (rid_lat, rid_lon, rid_alt)) or rid_offset or signing is not None:
         raise SignaturesError("--rid-lat/--rid-lon/--rid-alt/--rid-offset/--sign-key need --rid-serial")
 
+    from datetime import timedelta
+
+    step_s = (interval_s if interval_s is not None else pre.dwell_s) if track else 0.0
+
     def run_simulation(i: int):
+        moved = scene
+        if track:  # dwell i: step_s later, its range moved by the radial speed
+            r = range_m + speed * i * step_s
+            if not 0 < r <= pre.max_range_m:
+                raise SignaturesError(f"--track: dwell {i} would be at {r:g} m, outside (0, {pre.max_range_m:g}] m")
+            moved = scene.model_copy(update={"range_m": r})
         try:
-            rec, truth = simulate_flight(scene, pre, seed + i, broadcast, azimuth, range_offset, start)
+            rec, truth = simulate_flight(moved, pre, seed + i, broadcast, azimuth, range_offset,
+                                         start + timedelta(seconds=i * step_s))
             return as_recorded(rec, pre.domain), truth
         except (ValidationError, Invalid) as exc:
             loc, msg, _ = first_error(exc)
@@ -213,7 +237,7 @@ def simulate(
         typer.echo(json.dumps({"model": scene.label, "waveform": pre.name, "domain": pre.domain,
                                "shape": [rec.n_chirps, rec.n_samples], "files": files}, indent=2))
 
-    if count == 1 and out.suffix:
+    if count == 1 and not track and out.suffix:
         rec, truth = run_simulation(0)
         write_recording(rec, out)
         if as_json:
@@ -226,17 +250,19 @@ def simulate(
 
     out.mkdir(parents=True, exist_ok=True)
     files = []
+    n, stem = (track, "dwell") if track else (count, "scene")
     with Progress(transient=True, disable=as_json) as progress:
-        task = progress.add_task(f"simulating {count} x {scene.label}", total=count)
-        for i in range(count):
+        task = progress.add_task(f"simulating {n} x {scene.label}", total=n)
+        for i in range(n):
             rec, truth = run_simulation(i)
-            path = write_recording(rec, out / f"scene_{i:06d}.h5")
+            path = write_recording(rec, out / f"{stem}_{i:06d}.h5")
             files.append(written(path, rec, truth))
             progress.advance(task)
     if as_json:
         report(files, rec)
         return
-    typer.echo(f"wrote {count} returns to {out}/")
+    typer.echo(f"wrote {n} {'dwells of one track' if track else 'returns'} to {out}/"
+               + (f" ({step_s:g} s apart)" if track else ""))
 
 
 def _check_out(out: Path, count: int) -> None:

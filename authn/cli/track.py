@@ -49,4 +49,8 @@ def _print(out) -> None:
         typer.echo(printable(f"  dwell    {Path(d.file).name}: {d.radar_model or 'radar skipped'}, {llr}{kin}"))
     if out.skipped:
         typer.echo(printable(f"  skipped  {', '.join(Path(f).name for f in out.skipped)}"))
+    if out.decision == "inconclusive":
+        from authn.cli.output import to_decide_line
+
+        typer.echo(printable(f"  decide   {to_decide_line(out.to_json()['to_decide'])}"))
     typer.echo(f"  time     {sum(out.timings_ms.values()):.1f} ms  audit #{out.audit_id}")

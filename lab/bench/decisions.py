@@ -104,6 +104,7 @@ class Row:
     auth_ms: list[float] = field(default_factory=list)  # each check's remote_id_auth stage (DRIP verification)
     reason_missing: int = 0  # DRIP rejections without their category's reason (`DRIP_REASONS`)
     wrong_pairs: dict[str, int] = field(default_factory=dict)  # "flown->claimed" of the wrong decisions
+    inconclusive: int = 0  # decisions the evidence left undecided (never an accept)
 
     @property
     def median_auth_ms(self) -> float:
@@ -146,7 +147,7 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
             pre = get_preset(preset)
             rng = np.random.default_rng([seed, len(preset)])
             for cat in CATEGORIES:
-                correct = skipped = missing = 0
+                correct = skipped = missing = unsure = 0
                 times, auth = [], []
                 wrong: dict[str, int] = defaultdict(int)
                 pairs: dict[str, int] = defaultdict(int)
@@ -175,13 +176,14 @@ def run_decisions(presets: tuple[str, ...], n: int, seed: int, snr_range: tuple[
                     missing += cat in DRIP_REASONS and DRIP_REASONS[cat] not in out.reasons
                     correct += is_right(EXPECTED[cat], out.decision)
                     skipped += out.radar is None
+                    unsure += out.decision == "inconclusive"
                     if not is_right(EXPECTED[cat], out.decision):
                         wrong[",".join(out.reasons)] += 1
                         pairs[f"{flies}->{claims}"] += 1
                     if progress:
                         progress(1)
                 rows.append(Row(preset, cat, n, correct, skipped, statistics.median(times), dict(wrong), auth,
-                                missing, dict(pairs)))
+                                missing, dict(pairs), unsure))
     return rows
 
 
@@ -270,6 +272,7 @@ def summarise(rows: list[Row]) -> dict[str, dict[str, dict[str, float]]]:
     out: dict[str, dict[str, dict[str, float]]] = defaultdict(dict)
     for r in rows:
         out[r.preset][r.category] = {"n": r.n, "correct_rate": r.rate, "radar_skipped_rate": r.radar_skipped / r.n,
+                                     "inconclusive_rate": r.inconclusive / r.n,
                                      "median_check_ms": round(r.median_ms, 2), "wrong_reasons": r.wrong_reasons,
                                      "wrong_pairs": r.wrong_pairs,
                                      "median_remote_id_auth_ms": round(r.median_auth_ms, 4)}

@@ -183,6 +183,7 @@ def summarise_worlds(trials: list[Trial]) -> dict[str, object]:
         seen, right_if_seen = evidence[(preset, snr, cat, world)]
         doc[preset][f"{snr:g}"][cat][world] = {
             "n": len(g), "correct_rate": sum(t.correct for t in g) / len(g), "wrong_reasons": dict(wrong),
+            "inconclusive_rate": sum(t.decision == "inconclusive" for t in g) / len(g),
             "rotor_evidence_rate": seen, "correct_rate_with_rotor_evidence": right_if_seen,
             "wrong_pairs": dict(Counter(f"{t.flies}->{t.claims}" for t in g if not t.correct)),
             "radar_models": dict(Counter(t.radar_model or "not-run" for t in g)),
