@@ -350,3 +350,21 @@ def test_the_default_policy_over_a_track(llr_cn, ctx, decision, reasons) -> None
                                         "dwells": 0 if llr_cn is None else 3}}
     result = PolicyEngine.load().decide(M300, ACTIVE, SITE, context)
     assert (result.decision, result.reasons) == (decision, reasons)
+
+
+def test_simulate_writes_a_track_that_check_takes(setup, tmp_path, capsys) -> None:
+    """`authn simulate --track N --interval-s T`: N dwells of one target, T apart in time and its range
+    moved by its speed, which `check --track` decides; a file name or --count with it is bad input."""
+    _, db, _ = setup
+    folder = tmp_path / "sim"
+    assert main(["simulate", "--model", "phantom4", "--range", "300", "--speed", "2", "--rid-serial", PHANTOM4,
+                 "--track", "4", "--interval-s", "0.5", "--out", str(folder)]) == 0
+    files = sorted(folder.iterdir())
+    assert [f.name for f in files] == [f"dwell_{i:06d}.h5" for i in range(4)]
+    heads = [read_header(f) for f in files]
+    gaps = [(b.start_time - a.start_time).total_seconds() for a, b in zip(heads, heads[1:])]
+    assert gaps == pytest.approx([0.5] * 3, abs=1e-6)
+    code, out, err = _run(db, capsys, str(folder))
+    assert code == 0 and out["decision"] == "accept" and out["dwells_used"] >= 2, (err, out.get("reasons"))
+    for bad in (["--out", str(tmp_path / "one.h5")], ["--count", "3", "--out", str(tmp_path / "many")]):
+        assert main(["simulate", "--model", "m300", "--range", "300", "--track", "2", *bad]) == 2
