@@ -365,18 +365,25 @@ class Evidence:
         return [self.test().increments(v.against or {UNKNOWN: v.llr}, not v.physics_abstained)]
 
     def to_decide(self, increments: list[dict[str, float]] | None = None) -> dict[str, Any]:
-        """What would decide an inconclusive claim: about how many more dwells (from the card's
-        measured separation of the claim from its closest alternative, else this evidence's own mean
-        increment against it), and whether a valid DRIP signature would (the radar favours the claim:
-        the policy then accepts). `increments`: a track's, per dwell (default: this dwell's)."""
+        """What would decide an inconclusive claim: about how many more dwells, and whether a valid
+        DRIP signature would (the radar favours the claim: the policy then accepts). Where the radar
+        favours the claim the dwells come from the card's measured separation of a genuine claim from
+        its closest alternative (else this evidence's own mean increment); where it is against the
+        claim, from this evidence's own mean increment toward the reject bound. `increments`: a
+        track's, per dwell (default: this dwell's)."""
         sprt = self.test()
         incs = self.increments() if increments is None else increments
         record = sprt.record(incs)
         llr = record["llr_cn"] / 100.0
+        v = self.radar.verification if self.radar is not None else None
+        raw = v.against if v is not None else {}
         keys = {k for d in incs for k in d}
-        closest = min(keys, key=lambda k: sum(d.get(k, min(d.values())) for d in incs)) if keys else None
-        measured = (self.separation or {}).get(closest) if closest else None
+        # the least capped sum; among ties the least uncapped LLR (the verification's own `closest`)
+        closest = min(keys, key=lambda k: (sum(d.get(k, min(d.values())) for d in incs),
+                                           raw.get(k, 0.0))) if keys else None
         own = sum(d.get(closest, min(d.values())) for d in incs) / len(incs) if closest else None
+        # evidence for the claim goes on at a genuine claim's measured pace; evidence against, at its own
+        measured = (self.separation or {}).get(closest) if closest and llr > 0 else None
         step = measured if measured is not None else own
         more = sprt.dwells_to_decide(step, llr, len(incs)) if step is not None else None
         doc: dict[str, Any] = {"llr_nats": round(llr, 4), "accept_nats": round(record["accept_cn"] / 100.0, 2),

@@ -79,6 +79,11 @@ MAX_DWELLS_TO_DECIDE = 1000
 #: dwell that saw nothing (a missed detection is no evidence; a track whose dwells never see the
 #: target ends rejected `no-target`).
 GOES_ON = frozenset({INCONCLUSIVE, "no-target"})
+#: Radar cannot separate the claim from a registered model (unsigned): no dwell can accept it, but the
+#: evidence may still refute it (a Phantom 4 or a bird claiming an M300 where an M600 is registered),
+#: so the track goes on while its LLR is below 0 and stops, inconclusive, once the radar favours the
+#: claim (only a signature decides that).
+CONFUSABLE = "radar-confusable-unsigned"
 #: Kinematic forbids, which a later dwell can lift: the track judges its dwells' residuals at their
 #: lower median (`_typical`), so one dwell whose body line went astray is outvoted by the next two.
 KINEMATIC = frozenset({"range-mismatch", "velocity-mismatch"})
@@ -449,6 +454,8 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
         timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
         judged = sum(1 for o in outcomes if o.evidence.kinematics is not None)
         liftable = GOES_ON | KINEMATIC if judged < KINEMATIC_DWELLS and len(outcomes) < len(dwells) else GOES_ON
+        if request["context"].get("track", {}).get("llr_cn", 0) < 0:
+            liftable |= {CONFUSABLE}
         if result.decision == "accept" or not set(result.reasons) <= liftable:
             break  # accepted, or a forbid more dwells cannot lift
     if result is None or request is None:  # unreachable: _validate refuses an empty track

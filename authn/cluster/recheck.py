@@ -135,7 +135,9 @@ def cli_recheck(checker: Any, paths: Sequence[Path], mapping: dict[str, str], se
                 partition_size: int | None, as_json: bool, *, policy: Path | None,
                 trusted: dict[bytes, bytes] | None, model: Path | None) -> int:
     """`authn check ... --cluster`: the options as the workers need them; returns the exit code."""
+    sprt = checker.sprt
     args = CheckerArgs(checker.db.url, str(policy.resolve()) if policy else None,
-                       tuple(sorted((trusted or {}).items())), str(model.resolve()) if model else None)
+                       tuple(sorted((trusted or {}).items())), str(model.resolve()) if model else None,
+                       None if sprt is None else (sprt.false_accept, sprt.false_reject))
     claims = [mapping.get(p.name, mapping.get(str(p), serial)) for p in paths]
     return recheck(checker, args, paths, claims, address, partition_size, as_json).exit_code

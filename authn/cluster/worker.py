@@ -27,6 +27,8 @@ class CheckerArgs:
     policy: str | None = None
     trusted: tuple[tuple[bytes, bytes], ...] = ()
     model: str | None = None
+    #: the sequential test's error targets (false accept, false reject); None: its defaults
+    targets: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -43,7 +45,7 @@ class PartitionResult:
     #: made on the worker: the encoder is pure Python with an indent, and the client, which
     #: shares the machine with the workers in a local cluster, only writes the text)
     texts: tuple[str, ...]
-    codes: tuple[int, ...]  # per file, its exit code (0/1/2/3)
+    codes: tuple[int, ...]  # per file, its exit code (0/1/2/3/4)
     #: True when the key had already committed (a re-run after a worker died): nothing was checked
     replayed: bool = False
 
@@ -69,7 +71,10 @@ def checker_for(args: CheckerArgs) -> Checker:
     load once, not once per partition; other arguments (another run) replace it."""
     if _CHECKER and _CHECKER[0][0] == args:
         return _CHECKER[0][1]
-    checker = Checker(args.db_url, args.policy, dict(args.trusted) or None, model=args.model)
+    from authn.track import Sprt
+
+    checker = Checker(args.db_url, args.policy, dict(args.trusted) or None, model=args.model,
+                      sprt=Sprt(*args.targets) if args.targets else None)
     if _CHECKER:
         _CHECKER.pop()[1].db.close()
     _CHECKER.append((args, checker))

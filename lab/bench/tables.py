@@ -29,11 +29,10 @@ def _table(title: str, columns: Iterable[str], left: int = 1) -> Table:
 
 def decision_table(rows: list["Row"], n: int, expected: dict[str, str]) -> Table:
     t = _table(f"end-to-end decisions ({n} scenes per category, SNR 10-30 dB)",
-               ("preset", "category", "expected", "correct", "inconclusive", "radar skipped", "median check"),
-               left=3)
+               ("preset", "category", "want", "right", "inconcl.", "no radar", "ms"), left=3)
     for r in rows:
         t.add_row(r.preset, r.category, expected[r.category], f"{r.rate:.1%}", f"{r.inconclusive / r.n:.1%}",
-                  f"{r.radar_skipped / r.n:.0%}", f"{r.median_ms:.1f} ms")
+                  f"{r.radar_skipped / r.n:.0%}", f"{r.median_ms:.1f}")
     return t
 
 

@@ -185,3 +185,21 @@ def test_what_would_decide_an_inconclusive_claim(site, tmp_path, capsys) -> None
     assert main(["--db", db, "audit", "list", "--decision", "inconclusive", "--json"]) == 0
     listed = json.loads(capsys.readouterr().out)
     assert listed and all(e["decision"] == "inconclusive" for e in listed)
+
+
+def test_a_track_can_refute_what_it_cannot_accept(site, tmp_path, capsys) -> None:
+    """Where an M600 is registered beside the M300, no unsigned M300 claim is accepted; a Phantom 4
+    flying the claim is still refuted over a track, and a genuine M300's track stops at its first dwell,
+    inconclusive, with a signature as what would decide it."""
+    _, db = site
+    for name, flies in (("spoof", "phantom4"), ("genuine", "m300")):
+        assert main(["simulate", "--model", flies, "--range", "400", "--speed", "3", "--rid-serial", M300,
+                     "--track", "6", "--out", str(tmp_path / name)]) == 0
+    capsys.readouterr()
+    assert main(["--db", db, "check", "--track", str(tmp_path / "spoof"), "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out["reasons"] == ["radar-claim-inconsistent", "radar-confusable-unsigned"] and out["dwells_used"] >= 2
+    assert main(["--db", db, "check", "--track", str(tmp_path / "genuine"), "--json"]) == EXIT_INCONCLUSIVE
+    out = json.loads(capsys.readouterr().out)
+    assert out["dwells_used"] == 1 and out["llr"] > 0 and out["to_decide"]["signature"] is True
+    assert "radar-confusable-unsigned" in out["reasons"]
