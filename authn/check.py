@@ -189,6 +189,8 @@ class CheckInput:
     #: a dwell of a track (`authn check --track`): radar-confusable models are those of the site
     #: card's track-level errors, the level the track decides at
     track: bool = False
+    #: this check's error targets (`authn.track.Sprt`; None: the Checker's)
+    sprt: Any = None
 
     @classmethod
     def file(cls, path: str | Path, serial: str | None = None, rid_capture: "RidCapture | None" = None) -> "CheckInput":
@@ -371,7 +373,7 @@ class Checker:
         return tuple(p for p in (self.db.profile(m) for m in others) if p is not None)
 
     def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer,
-               captured: bool = False, track: bool = False, heard: Any = None) -> Outcome | _Pending:
+               captured: bool = False, track: bool = False, heard: Any = None, sprt: Any = None) -> Outcome | _Pending:
         """Everything before the radar: the claim, the registry, DRIP, and the policy with the radar
         not run. An Outcome when that already decides; otherwise what the radar stages need.
         `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`), the
@@ -388,7 +390,7 @@ class Checker:
         if auth.status == "valid":  # kinematics from signed Location messages only
             claim = claim.signed_only(auth.covered, rec.start_time, mid)
         evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth,
-                            range_measured=rec.domain != "cw", sprt=self.sprt)
+                            range_measured=rec.domain != "cw", sprt=sprt or self.sprt)
         with timer.stage("policy_registry"):
             result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
                                                          evidence.context())
@@ -492,11 +494,13 @@ class Checker:
                 with timer.stage("read"):
                     rec, digest = item.load()
                 if item.rid_capture is None:
-                    fronts = [self._front(rec, item.serial, item.name, digest, timer, track=item.track)]
+                    fronts = [self._front(rec, item.serial, item.name, digest, timer, track=item.track,
+                                          sprt=item.sprt)]
                 else:  # one claim per drone heard: each its own decision (and audit entry)
                     with timer.stage("rid_capture"):
                         claims = item.rid_capture.claims(rec, item.serial)
-                    fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True, heard=b)
+                    fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True, heard=b,
+                                          sprt=item.sprt)
                               for j, (r, s, b) in enumerate(claims)]
                     with timer.stage("non_cooperative"):
                         targets[i] = self._targets(rec)

@@ -50,9 +50,11 @@ def bench(
     suite (IQ scaled 1e-30..1e30, ADC types, degenerate cubes, NaN/Inf, clipping, odd
     shapes, SNR -40..+80 dB, extreme geometry).
 
-    Categories: genuine claims (must be accepted), type spoofs between the shipped
+    Categories: genuine claims (right when accepted; one unsigned dwell is
+    inconclusive at the default error targets), type spoofs between the shipped
     profiles, position spoofs of 100-300 m along the line of sight, unregistered
-    and revoked serials (must be rejected, the latter two with the radar skipped).
+    and revoked serials (right when not accepted, the latter two with the radar
+    skipped); the share inconclusive is reported beside.
     Signed Remote ID (IETF DRIP) against identities registered with a key: a genuine
     signed flight (accepted), an unsigned claim by a drone of the same type, a forged
     signature (another key, the victim's DET) and a day-old replayed one (rejected),

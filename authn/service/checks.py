@@ -55,19 +55,21 @@ def _read(data: bytes, name: str, header: bool = False) -> Any:
         os.unlink(tmp)
 
 
-def _input(data: bytes, name: str, serial: str | None, capture: Any = None) -> Any:
+def _input(data: bytes, name: str, serial: str | None, capture: Any = None, sprt: Any = None) -> Any:
     from authn.check import CheckInput
 
-    return CheckInput(name, serial, lambda: (_read(data, name), hashlib.sha256(data).hexdigest()), capture)
+    return CheckInput(name, serial, lambda: (_read(data, name), hashlib.sha256(data).hexdigest()), capture,
+                      sprt=sprt)
 
 
-def _check_one(checker: Any, data: bytes, name: str, serial: str | None, capture: Any = None) -> list[Any]:
+def _check_one(checker: Any, data: bytes, name: str, serial: str | None, capture: Any = None,
+               sprt: Any = None) -> list[Any]:
     """The decisions (one; one per drone heard with a Remote ID capture), recorded before they
     are answered (`Checker.check`); a failure raises as the CLI's does (bad input 400, anything
     else 503)."""
     from authn.check import Failure
 
-    items = checker.check([_input(data, name, serial, capture)]).items
+    items = checker.check([_input(data, name, serial, capture, sprt)]).items
     if isinstance(items[0], Failure):
         items[0].raise_()
     return items
@@ -105,8 +107,13 @@ async def check(request: Request, file: Annotated[UploadFile, File(description="
                 rid_skew: Annotated[float, Form(ge=0.0, le=3600.0, description="capture clock skew, s")] = 2.0,
                 figure: Annotated[bool, Form(description="also draw the evidence figure: "
                                                          "GET /v1/checks/{audit_id}/figure.png")] = False,
+                false_accept: Annotated[float, Form(gt=0.0, lt=0.5, description="target false-accept rate "
+                                                                                "(Wald's alpha; one dwell is a "
+                                                                                "track of one)")] = 1e-3,
+                false_reject: Annotated[float, Form(gt=0.0, lt=0.5, description="target false-reject rate "
+                                                                                "(Wald's beta)")] = 1e-2,
                 _caller: Caller = Depends(require("check"))) -> JSONResponse:
-    """Decide one return: the `authn check --json` object, status 200 for accept and reject alike;
+    """Decide one return: the `authn check --json` object, status 200 for accept, reject and inconclusive;
     with `rid_capture`, a JSON array when it heard several drones (one decision each)."""
     rt = runtime(request)
     data, name = await file.read(), _name(file)
@@ -115,7 +122,10 @@ async def check(request: Request, file: Annotated[UploadFile, File(description="
         from authn.check import RidCapture
 
         capture = RidCapture.data(_name(rid_capture), await rid_capture.read(), rid_skew)
-    items = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial), capture))
+    from authn.track import Sprt
+
+    sprt = Sprt(false_accept, false_reject)
+    items = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial), capture, sprt))
     for o in items:
         rt.metrics.outcome(o.decision, o.reasons, o.timings_ms)
     if figure:  # after the decisions are recorded and counted: a figure never holds one back
@@ -185,7 +195,7 @@ async def check_track(request: Request,
                                                                                        "(Wald's beta)")] = 1e-2,
                       _caller: Caller = Depends(require("check"))) -> JSONResponse:
     """One decision over the dwells of one target with one claim (docs/tracks.md): the
-    `authn check --track --json` object, status 200 for accept and reject alike; 400 for an empty,
+    `authn check --track --json` object, status 200 for any decision; 400 for an empty,
     mixed (waveforms, claims) or out-of-order track."""
     rt = runtime(request)
     if len(files) > rt.settings.max_batch_files:
