@@ -1,5 +1,10 @@
 """`authn check --plot DIR`: one evidence figure per recorded decision, of a fixed size, with
-the range-Doppler map, the spectrogram and the flash-rate panel, the verdict in its title."""
+the range-Doppler map, the spectrogram and the flash-rate panel, the verdict in its title.
+
+A single check is a track of one dwell (Wald's sequential test): at the default targets one
+unsigned dwell reaches neither bound, so the genuine M300 and the Phantom 4 claiming it are
+`inconclusive` (exit 4) and only the moved Remote ID (range-mismatch) is rejected; at the looser
+targets (--false-accept 0.02 --false-reject 0.02) the radar refutes the Phantom 4 on one dwell."""
 
 from __future__ import annotations
 
@@ -39,7 +44,7 @@ def test_one_figure_per_decision_with_its_panels(world: dict, capsys) -> None:
     files = world["files"]
     code = main(["--db", world["db"], "check", str(files["genuine"]), str(files["type"]), str(files["moved"]),
                  "--plot", str(out)])
-    assert code == 1  # two rejections
+    assert code == 1  # the worst of: one rejection (moved), two inconclusive (4 ranks below 1)
     err = capsys.readouterr().err
     written = sorted(p.name for p in out.iterdir())
     assert written == ["genuine.png", "moved.png", "type.png"]
@@ -57,18 +62,26 @@ def test_the_figure_shows_the_evidence(world: dict, monkeypatch, tmp_path: Path,
     from authn import figure
     from signatures.recording import read_recording
 
-    seen = {}
-    monkeypatch.setattr(plt, "close", lambda fig: seen.setdefault("fig", fig))
-    capsys.readouterr()
-    assert main(["--db", world["db"], "check", str(world["files"]["type"]), "--json"]) == 1
-    doc = json.loads(capsys.readouterr().out)
-    figure.draw(read_recording(world["files"]["type"]), doc, tmp_path / "t.png")
-    fig = seen["fig"]
+    def drawn(*extra: str, code: int):
+        seen = {}
+        monkeypatch.setattr(plt, "close", lambda fig: seen.setdefault("fig", fig))
+        capsys.readouterr()
+        assert main(["--db", world["db"], "check", str(world["files"]["type"]), "--json", *extra]) == code
+        doc = json.loads(capsys.readouterr().out)
+        figure.draw(read_recording(world["files"]["type"]), doc, tmp_path / "t.png")
+        return seen["fig"]
+
+    fig = drawn(code=4)  # the defaults: one dwell is inconclusive
     rd, spectrogram, cadence = [a for a in fig.axes if a.get_title()]
     assert rd.get_xlabel() == "range (m)" and "radial velocity" in rd.get_ylabel()
     assert spectrogram.get_xlabel() == "time (ms)" and cadence.get_xlabel() == "cadence frequency (Hz)"
     labels = [t.get_text() for t in cadence.get_legend().get_texts()]
     assert any(t.startswith("claimed 80 Hz") for t in labels) and any(t.startswith("measured") for t in labels)
     assert [t.get_text() for t in rd.get_legend().get_texts()] == ["radar: phantom4", "Remote ID"]
-    assert "REJECT" in fig._suptitle.get_text() and "radar-claim-inconsistent" in fig._suptitle.get_text()
+    title = fig._suptitle
+    assert "INCONCLUSIVE" in title.get_text() and "radar-inconclusive" in title.get_text()
+    assert title.get_color() == "darkorange"
+    title = drawn("--false-accept", "0.02", "--false-reject", "0.02", code=1)._suptitle  # refuted on one dwell
+    assert "REJECT" in title.get_text() and "radar-claim-inconsistent" in title.get_text()
+    assert title.get_color() == "firebrick"
 
