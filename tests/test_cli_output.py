@@ -180,6 +180,8 @@ def test_json_errors_are_one_object_on_stdout(tmp_path: Path, capsys) -> None:
 
 
 def test_json_on_audit_simulate_and_demo(tmp_path: Path, capsys) -> None:
+    """A single check is a track of one dwell: at the default targets one unsigned dwell is
+    `inconclusive` (exit 4), audited and replayed as such."""
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     flight = tmp_path / "m300.h5"
     assert main(["simulate", "--model", "m300", "--range", "500", "--rid-serial", M300, "--out", str(flight),
@@ -187,15 +189,15 @@ def test_json_on_audit_simulate_and_demo(tmp_path: Path, capsys) -> None:
     sim = json.loads(capsys.readouterr().out)
     assert sim["files"][0]["file"] == str(flight) and sim["shape"] == [600, 80] and sim["waveform"] == "paper"
     assert main(["--db", db, "register", "--serial", M300, "--model", "m300"]) == 0
-    assert main(["--db", db, "check", str(flight)]) == 0
+    assert main(["--db", db, "check", str(flight)]) == 4
     capsys.readouterr()
     assert main(["--db", db, "audit", "verify", "--json"]) == 0
     v = json.loads(capsys.readouterr().out)
     assert v["ok"] is True and v["entries"] == 1 and len(v["tree_root"]) == 64 and v["first_bad_seq"] is None
     assert main(["--db", db, "audit", "replay", "1", "--json"]) == 0
     r = json.loads(capsys.readouterr().out)
-    assert r["same"] is True and r["recorded"] == r["replayed"] == {"decision": "accept",
-                                                                    "reasons": ["registered-active"]}
+    assert r["same"] is True and r["recorded"] == r["replayed"] == {"decision": "inconclusive",
+                                                                    "reasons": ["radar-inconclusive"]}
     assert main(["--db", db, "demo", "--out", str(tmp_path / "demo"), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["ok"] is True and len(d["scenes"]) == 9 and all(s["decision"] == s["expected"] for s in d["scenes"])

@@ -12,17 +12,25 @@ OCTO = {"profiles": [{"slug": "octo-x8", "name": "Octocopter X8", "rotors": 8, "
 
 
 def test_simulate_then_register_then_check_accepts(tmp_path: Path, capsys) -> None:
-    """The order people try first: the recording is older than the registration by the time
-    it takes to type the command; the default validity window starts 24 h back."""
+    """The order people try first: the recordings are older than the registration by the time
+    it takes to type the command; the default validity window starts 24 h back. A single check is
+    a track of one dwell, which at the default targets radar alone never accepts (one dwell counts
+    at most 4 nats, the accept bound is 6.90): the flow that accepts simulates a track
+    (`simulate --track`) and checks it (`check --track`); one of its dwells alone is inconclusive."""
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
-    flight = tmp_path / "genuine.h5"
+    track = tmp_path / "genuine"
     assert main(["simulate", "--model", "m300", "--range", "500", "--speed", "4", "--rid-serial",
-                 "1581BDEM00000042", "--out", str(flight)]) == 0
+                 "1581BDEM00000042", "--track", "5", "--out", f"{track}/"]) == 0
     assert main(["--db", db, "register", "--serial", "1581BDEM00000042", "--model", "m300"]) == 0
     capsys.readouterr()
-    assert main(["--db", db, "check", str(flight), "--json"]) == 0
+    assert main(["--db", db, "check", "--track", str(track), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["registry"]["valid_from"] < out["dwell_start"]
+    assert out["decision"] == "accept" and out["reasons"] == ["registered-active"] and out["llr"] >= 6.90
+    assert out["dwells"] and all(out["registry"]["valid_from"] < d["dwell_start"] for d in out["dwells"])
+    assert main(["--db", db, "check", str(track / "dwell_000000.h5"), "--json"]) == 4
+    one = json.loads(capsys.readouterr().out)
+    assert one["decision"] == "inconclusive" and one["reasons"] == ["radar-inconclusive"]  # not outside the window
+    assert one["registry"]["valid_from"] < one["dwell_start"]
 
 
 def test_outside_the_window_says_both_times(tmp_path: Path, capsys) -> None:

@@ -101,6 +101,7 @@ def recheck(checker: Any, args: CheckerArgs, paths: Sequence[Path], claims: Sequ
     from rich.progress import Progress
 
     from authn.cluster.engine import connect, n_workers
+    from core.errors import EXIT_BAD_INPUT, EXIT_SYSTEM
 
     out = out or sys.stdout
     first = True
@@ -119,7 +120,7 @@ def recheck(checker: Any, args: CheckerArgs, paths: Sequence[Path], claims: Sequ
                     out.write(("[\n" if first else ",\n") + ",\n".join(result.texts))
                     first = False
                 for text, code in zip(result.texts, result.codes):
-                    if code > 1:
+                    if code in (EXIT_BAD_INPUT, EXIT_SYSTEM):  # 4 is a decision: inconclusive
                         doc = json.loads(text)
                         print(printable(f"error: {doc['file']}: {doc['error']}"), file=sys.stderr)
                 out.flush()

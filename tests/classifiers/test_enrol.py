@@ -20,7 +20,7 @@ import pytest
 from authn.cli import main
 from authn.policy import PolicyEngine
 from signatures.enrol import _calibration_pays
-from tests.decision.test_policy import ACTIVE, GOOD, SITE
+from tests.decision.test_policy import ACTIVE, GOOD, SITE, sprt_record
 from tests.classifiers.conftest import own_models
 
 N_PER_MODEL = 5
@@ -292,12 +292,21 @@ def test_sprt_walk_matches_the_track_policy() -> None:
 
 
 @pytest.mark.parametrize("context,decision,reasons", [
-    (dict(radar_confusable=True), "reject", ["radar-confusable-unsigned"]),
+    # radar-confusable-unsigned is an inconclusive forbid: even a track past the accept bound
+    # cannot vouch for an unsigned claim of a confusable model, but it does not refute it either
+    (dict(radar_confusable=True), "inconclusive", ["radar-confusable-unsigned"]),
+    # ... while radar evidence that refutes the claim, or another forbid, still rejects it
+    (dict(radar_confusable=True, track=sprt_record(-500)), "reject",
+     ["radar-claim-inconsistent", "radar-confusable-unsigned"]),
+    (dict(radar_confusable=True, range_residual_cm=2000), "reject", ["radar-confusable-unsigned", "range-mismatch"]),
     (dict(radar_confusable=True, remote_id_auth="valid"), "accept", ["registered-active"]),
+    # a valid signature needs only radar that favours the claim
+    (dict(radar_confusable=True, remote_id_auth="valid", track=sprt_record(100)), "accept", ["registered-active"]),
     (dict(radar_confusable=False), "accept", ["registered-active"]),
     ({}, "accept", ["registered-active"]),  # not a site bundle: the request is unchanged
 ])
 def test_policy_rows(context: dict, decision: str, reasons: list[str]) -> None:
+    """The site-enrolment forbid against the default policy (GOOD's track is past the accept bound)."""
     result = PolicyEngine.load().decide("S1", ACTIVE, SITE, {**GOOD, **context})
     assert (result.decision, result.reasons, result.errors) == (decision, reasons, [])
 

@@ -74,7 +74,7 @@ def test_a_killed_worker_loses_no_entry(client, archive, registry_url) -> None:
     files = [doc["file"] for r in results for doc, _ in _items(r)]
     assert sorted(files) == sorted(str(p.resolve()) for p in archive)
     assert _entries_per_file(registry_url) == Counter(files)  # each file exactly once
-    assert sum(code > 1 for r in results for _, code in _items(r)) == 0
+    assert sum(code in (2, 3) for r in results for _, code in _items(r)) == 0  # no errors (4: inconclusive)
     assert main(["--db", registry_url, "audit", "verify"]) == 0
     client.wait_for_workers(2, timeout=60)
     assert victim not in client.run(os.getpid).values()  # the kill happened: the nanny restarted it
@@ -110,7 +110,10 @@ def test_the_workers_dask_settings_in_the_docs_are_the_local_clusters() -> None:
 
 
 def test_cli_cluster_check_decides_as_batch_mode(archive, tmp_path, capsys) -> None:
-    """`--cluster local` prints the JSON array of batch mode with the same decisions and exit code."""
+    """`--cluster local` prints the JSON array of batch mode with the same decisions and exit code,
+    and its summary line counts them as batch mode decided them (an unsigned genuine single dwell
+    is `inconclusive`, exit 4, at the default targets; the worst code, 3 > 2 > 1 > 4 > 0, is the
+    spoofs' and revoked identities' reject)."""
     from lab.bench.decisions import register_identities
 
     folder = str(Path(archive[0]).parent)
@@ -124,7 +127,12 @@ def test_cli_cluster_check_decides_as_batch_mode(archive, tmp_path, capsys) -> N
     captured = capsys.readouterr()
     cluster = json.loads(captured.out)
     assert code == batch_code == 1  # spoofs and revoked identities are rejected, no errors
-    assert "40 returns:" in captured.err and "on 2 workers, 6 partitions" in captured.err
+    decisions = Counter(b["decision"] for b in batch)
+    assert decisions["inconclusive"] > 0 and decisions["reject"] > 0 and set(decisions) <= {"accept", "reject",
+                                                                                           "inconclusive"}
+    assert (f"40 returns: {decisions['accept']} accepted, {decisions['reject']} rejected, "
+            f"{decisions['inconclusive']} inconclusive, 0 errors in ") in captured.err
+    assert "on 2 workers, 6 partitions" in captured.err
     by_file = {Path(d["file"]).name: d for d in cluster}
     assert len(by_file) == len(cluster) == len(batch) == 40
     for b in batch:

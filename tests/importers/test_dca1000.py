@@ -18,11 +18,20 @@ from signatures.importers.dca1000 import deinterleave
 from signatures.importers.dwell import analytic_half_rate
 from signatures.recording import read_recording, write_recording
 from tests.importers.capture import quantise, raw_words, sdk_cfg, write_capture
-from tests.importers.conftest import check_json, site_args
+from tests.importers.conftest import M300, site_args
 
 #: Features of the imported capture equal the original's to this (relative or absolute), except
 #: the absolute level peak_amplitude_db, which moves by exactly the ADC scaling (within 0.01 dB).
 FEATURE_RTOL = FEATURE_ATOL = 1e-3
+
+
+def check_json(cli, db: str, path, serial: str = M300) -> tuple[int, dict]:
+    """`authn check FILE --serial SERIAL --json`: a decision (0 accept, 1 reject, 4 inconclusive:
+    one unsigned dwell at the default targets crosses neither bound of the sequential test), not
+    an error; its exit code and JSON object."""
+    code, out, err = cli("--db", db, "check", str(path), "--serial", serial, "--json")
+    assert code in (0, 1, 4), err
+    return code, json.loads(out)
 
 
 def _features_match(original, imported, scale: float) -> None:
@@ -66,6 +75,8 @@ def test_round_trip_same_recording_features_and_decision(scene_rec, two_lane_cap
     original = write_recording(scene_rec, root / "original.h5")
     code_a, a = check_json(cli, registry_db, original)
     code_b, b = check_json(cli, registry_db, root / "imported.h5")
+    # the same decision either way; for this unsigned single dwell at the default targets: inconclusive
+    assert code_a == 4 and a["decision"] == "inconclusive" and "radar-inconclusive" in a["reasons"]
     assert (code_b, b["decision"], b["reasons"]) == (code_a, a["decision"], a["reasons"])
     assert b["radar"]["model"] == a["radar"]["model"] and b["radar"]["range_m"] == pytest.approx(40.0, abs=1.0)
 

@@ -1,4 +1,9 @@
-"""POST /v1/checks with a `rid_capture` multipart field: one decision per drone the capture heard."""
+"""POST /v1/checks with a `rid_capture` multipart field: one decision per drone the capture heard.
+
+An upload is a track of one dwell: at the default targets one unsigned dwell decides neither way
+on radar, and the M300 and M600 registered here are radar-confusable, so each drone whose capture,
+target and kinematics agree is `inconclusive` (200) with exactly `UNDECIDED` as its reasons; a
+forbid that refutes (a conflicting transmitter) makes it a reject."""
 
 from __future__ import annotations
 
@@ -12,6 +17,7 @@ from signatures.recording import write_recording
 from tests.remoteid.capture_tools import BEACON, SERIAL, locations, merge_pcaps, radar_return, rewrite, site_and_scene
 
 SECOND = "MFG1A9876543210"
+UNDECIDED = ["radar-confusable-unsigned", "radar-inconclusive"]
 
 
 @pytest.fixture(scope="module")
@@ -45,8 +51,9 @@ def test_capture_field_gives_one_decision_per_drone(server, keys, capture_world)
         out = resp.json()
         entries = [c.get(f"/v1/audit/{o['audit_id']}").json() for o in out]
     assert isinstance(out, list) and {o["claim"]["serial"] for o in out} == {SERIAL, SECOND}
-    assert all(o["decision"] == "accept" for o in out)
+    assert all(o["decision"] == "inconclusive" and o["reasons"] == UNDECIDED for o in out)  # nothing refutes either
     assert {e["serial"] for e in entries} == {SERIAL, SECOND}
+    assert {e["decision"] for e in entries} == {"inconclusive"}
 
 
 def test_capture_field_with_serial_answers_one_object(server, keys, capture_world) -> None:
@@ -60,7 +67,7 @@ def test_a_serial_from_two_transmitters_is_a_conflict(server, keys, capture_worl
         resp = c.post("/v1/checks", files=_files(capture_world["two"], capture_world["impostor"]))
     assert resp.status_code == 200, resp.text
     out = resp.json()
-    assert out["claim"]["serial"] == SERIAL and out["decision"] != "accept" and "remote-id-conflict" in out["reasons"]
+    assert out["claim"]["serial"] == SERIAL and out["decision"] == "reject" and "remote-id-conflict" in out["reasons"]
     assert out["remote_id"]["transmitters"] == ["02:aa:bb:cc:dd:ee", "84:cc:a8:60:43:24"]
     assert [t["transmitter"] for t in out["remote_id"]["conflict"]] == out["remote_id"]["transmitters"]
 
