@@ -189,7 +189,7 @@ class CheckInput:
     #: a dwell of a track (`authn check --track`): radar-confusable models are those of the site
     #: card's track-level errors, the level the track decides at
     track: bool = False
-    #: this check's error targets (`authn.track.Sprt`; None: the Checker's)
+    #: this check's error targets (`authn.sprt.Sprt`; None: the Checker's)
     sprt: Any = None
 
     @classmethod
@@ -322,7 +322,7 @@ class Checker:
         self.db = Database(db_url)
         self._read = read_recording
         self.model = model  # a bundle folder that must serve every file (`--model`); None: by waveform
-        #: the sequential test the radar's evidence is put to, one dwell or many (`authn.track.Sprt`;
+        #: the sequential test the radar's evidence is put to, one dwell or many (`authn.sprt.Sprt`;
         #: None: its default error targets)
         self.sprt = sprt
         if model is not None:

@@ -339,16 +339,16 @@ class Evidence:
     #: (`authn.track`, docs/enrolment.md); None for any other bundle
     radar_confusable_track: bool | None = None
 
-    #: the sequential test the radar's evidence is put to (`authn.track.Sprt`; None: its defaults)
+    #: the sequential test the radar's evidence is put to (`authn.sprt.Sprt`; None: its defaults)
     sprt: Any = None
     #: the bundle card's measured separation of the claimed model from each alternative: the mean
     #: per-dwell increment of a genuine claim against it (`Classifier.separation`); {}: not measured
     separation: dict[str, float] | None = None
 
     def test(self) -> Any:
-        """The sequential test of this check (`authn.track.Sprt`)."""
+        """The sequential test of this check (`authn.sprt.Sprt`)."""
         if self.sprt is None:
-            from authn.track import Sprt
+            from authn.sprt import Sprt
 
             return Sprt()
         return self.sprt

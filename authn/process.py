@@ -12,7 +12,8 @@ import ctypes
 import gc
 import sys
 
-__all__ = ["GC_THRESHOLD0", "MMAP_THRESHOLD_BYTES", "TRIM_THRESHOLD_BYTES", "hold_freed_memory", "tune"]
+__all__ = ["GC_THRESHOLD0", "MMAP_THRESHOLD_BYTES", "TRIM_THRESHOLD_BYTES", "exit_quickly", "hold_freed_memory",
+           "tune"]
 
 #: The first-generation GC threshold (CPython's default: 700). Importing what a check needs
 #: allocates ~80 000 container objects, none of them garbage: at 700 that ran ~40 ms of
@@ -49,6 +50,15 @@ def hold_freed_memory() -> bool:
     mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
     return bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)) and bool(
         mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES))
+
+
+def exit_quickly() -> None:
+    """Before the interpreter exits: move every object out of the collector's reach (`gc.freeze`).
+    Finalisation still runs (modules torn down, files and connections closed, atexit handlers),
+    but its full collection no longer walks the ~100 000 objects a check leaves, none of them
+    garbage that matters to a process about to end: 70-95 ms of a cold `authn check FILE --json`
+    (2 cores). Everything the command printed was committed before it was printed."""
+    gc.freeze()
 
 
 def tune() -> None:

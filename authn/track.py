@@ -41,7 +41,6 @@ and the skipped ones.
 from __future__ import annotations
 
 import copy
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -50,31 +49,15 @@ from pathlib import Path
 from typing import Any
 
 from core.errors import AuthnError, EXIT_BAD_INPUT, describe, exit_code_for
-from signatures.verify import UNKNOWN
+from authn.sprt import (DEFAULT_FALSE_ACCEPT, DEFAULT_FALSE_REJECT, DWELL_CAP_NATS, DWELL_CORRELATION, UNKNOWN,
+                        Sprt)
 
 __all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION", "KINEMATIC_DWELLS",
            "Dwell", "Sprt", "TrackOutcome", "check_track", "decide_track", "track_files"]
 
-#: Target rate of accepting an impostor's track (alpha): Wald's accept bound log((1-b)/a) = 6.9 nats.
-DEFAULT_FALSE_ACCEPT = 1e-3
-#: Target rate of rejecting a genuine track (beta): Wald's reject bound log(b/(1-a)) = -4.6 nats.
-DEFAULT_FALSE_REJECT = 1e-2
-#: Correlation of the verification LLRs of dwells of one airframe (intra-class correlation).
-#: Measured at most 0.07 on the training simulator (paper preset, SNR 0-20 dB, genuine and
-#: type-spoof tracks); on the held-out signal model 0.07-0.09 for type spoofs and 0.37-0.50 for
-#: genuine tracks, whose one airframe, read wrongly, repeats (docs/tracks.md, "Dependence";
-#: `authn bench --track [--world heldout]`). 0.2 is a margin over the impostors' dependence, which
-#: is what the false-accept target needs; genuine dependence above it costs false rejects only.
-#: Not fitted to any decision rate.
-DWELL_CORRELATION = 0.2
-#: Most a single dwell adds to (or takes from) the track's LLR, nats: below the accept bound, so
-#: no track is accepted on one dwell alone.
-DWELL_CAP_NATS = 4.0
 #: The one reason that lets a track go on to its next dwell (no bound crossed yet); a track (or a
 #: single check) that ends with it is `inconclusive`.
 INCONCLUSIVE = "radar-inconclusive"
-#: `Sprt.dwells_to_decide` looks this far ahead.
-MAX_DWELLS_TO_DECIDE = 1000
 #: Reasons a track goes on with: no bound crossed yet, and, while no dwell has seen the target, a
 #: dwell that saw nothing (a missed detection is no evidence; a track whose dwells never see the
 #: target ends rejected `no-target`).
@@ -91,109 +74,6 @@ KINEMATIC = frozenset({"range-mismatch", "velocity-mismatch"})
 #: or at the track's last dwell; before that the track goes on, as a first dwell read wrongly would
 #: otherwise reject a track whose later dwells confirm it.
 KINEMATIC_DWELLS = 3
-_CN = 100.0  # centinats: Cedar compares integers
-
-
-@dataclass(frozen=True)
-class Sprt:
-    """Wald's test with the dependence discount: bounds from the target error rates."""
-
-    false_accept: float = DEFAULT_FALSE_ACCEPT
-    false_reject: float = DEFAULT_FALSE_REJECT
-    correlation: float = DWELL_CORRELATION
-    cap_nats: float = DWELL_CAP_NATS
-
-    def __post_init__(self) -> None:
-        for name, v in (("false accept rate", self.false_accept), ("false reject rate", self.false_reject)):
-            if not 0.0 < v < 0.5:  # NaN too
-                raise AuthnError(f"{name}: {v!r} is not in (0, 0.5)")
-        if not 0.0 <= self.correlation < 1.0:
-            raise AuthnError(f"dwell correlation: {self.correlation!r} is not in [0, 1)")
-        if not 0.0 < self.cap_nats <= 100.0:
-            raise AuthnError(f"dwell cap: {self.cap_nats!r} nats is not in (0, 100]")
-
-    @property
-    def accept_nats(self) -> float:
-        return math.log((1.0 - self.false_reject) / self.false_accept)
-
-    @property
-    def reject_nats(self) -> float:
-        return math.log(self.false_reject / (1.0 - self.false_accept))
-
-    def increment(self, llr: float, physics: bool = True) -> float:
-        """One dwell's contribution: its LLR capped at +-`cap_nats`; without a physics term (the
-        classifier alone) only what counts against the claim (the default policy's
-        the classifier never carries a claim). An LLR that is not a number
-        counts fully against the claim (fail closed: `min` and `max` would make it +cap)."""
-        capped = -self.cap_nats if math.isnan(llr) else max(-self.cap_nats, min(self.cap_nats, llr))
-        return capped if physics else min(0.0, capped)
-
-    def increments(self, against: Mapping[str, float], physics: bool = True) -> dict[str, float]:
-        """One dwell's increments against each alternative (`Verification.against`: alternative ->
-        LLR of the claim against it), each as `increment` makes it."""
-        return {k: self.increment(v, physics) for k, v in against.items()}
-
-    def track_llr(self, increments: Sequence[float | Mapping[str, float]]) -> float:
-        """n_eff times the mean increment: sum / (1 + (n - 1) rho) (module docstring). Increments
-        given per alternative (`increments`) are summed per alternative over the dwells and the
-        least sum counts: the claim must win against every alternative, each on all its dwells.
-        A dwell that lacks an alternative counts its least increment for it."""
-        n = len(increments)
-        if n == 0:
-            return 0.0
-        per = [d if isinstance(d, Mapping) else {UNKNOWN: float(d)} for d in increments]
-        keys = {k for d in per for k in d}
-        total = min(sum(d.get(k, min(d.values())) for d in per) for k in keys)
-        return total / (1.0 + (n - 1) * self.correlation)
-
-    def bounds_cn(self) -> tuple[int, int]:
-        """(accept, reject) bounds in centinats as the policy reads them: rounded away from 0."""
-        return math.ceil(self.accept_nats * _CN), math.floor(self.reject_nats * _CN)
-
-    def record(self, increments: Sequence[float | Mapping[str, float]]) -> dict[str, int]:
-        """The `track` record of the Cedar context (docs/policies.md): the LLR over the dwells that
-        verified anything and the bounds, in centinats; a single check is a track of one dwell."""
-        accept_cn, reject_cn = self.bounds_cn()
-        llr_cn = int(round(max(-1e6, min(1e6, self.track_llr(increments) * _CN))))
-        return {"llr_cn": llr_cn, "accept_cn": accept_cn, "reject_cn": reject_cn, "dwells": len(increments)}
-
-    def dwells_to_decide(self, separation_nats: float, llr_nats: float = 0.0, used: int = 0) -> int | None:
-        """About how many more dwells, each adding `separation_nats` (the expected per-dwell LLR,
-        capped), take a track at `llr_nats` after `used` dwells to a bound; None where they never
-        do (the discount makes n_eff level off at 1 / rho, so a separation below bound * rho never
-        reaches it)."""
-        if math.isnan(separation_nats) or math.isnan(llr_nats) or not separation_nats:
-            return None
-        step = max(-self.cap_nats, min(self.cap_nats, separation_nats))
-        total = llr_nats * (1.0 + max(used - 1, 0) * self.correlation)  # the undiscounted sum so far
-        for extra in range(1, MAX_DWELLS_TO_DECIDE + 1):
-            llr = (total + extra * step) / (1.0 + (used + extra - 1) * self.correlation)
-            if (llr >= self.accept_nats) if step > 0 else (llr <= self.reject_nats):
-                return extra
-        return None
-
-    def walk(self, dwells: Sequence[tuple[float | Mapping[str, float], bool]]) -> tuple[str, int]:
-        """The sequential test alone over dwells given as (LLR, or LLR per alternative; physics term
-        present), in order: ("accept" | "reject" | "inconclusive", dwells used). What the default
-        policy's radar rules decide on the request `decide_track` builds (the track LLR in
-        centinats against the same rounded bounds), with no other forbid: the site enrolment's
-        track-level pairwise errors (`signatures.enrol`, cross-validated dwell LLRs) are computed
-        with it."""
-        accept_cn, reject_cn = self.bounds_cn()
-        increments: list[Mapping[str, float]] = []
-        for llr, physics in dwells:
-            increments.append(self.increments(llr if isinstance(llr, Mapping) else {UNKNOWN: llr}, physics))
-            llr_cn = self.record(increments)["llr_cn"]
-            if llr_cn >= accept_cn:
-                return "accept", len(increments)
-            if llr_cn <= reject_cn:
-                return "reject", len(increments)
-        return "inconclusive", len(increments)
-
-    def to_json(self) -> dict[str, float]:
-        return {"false_accept": self.false_accept, "false_reject": self.false_reject,
-                "accept_nats": round(self.accept_nats, 4), "reject_nats": round(self.reject_nats, 4),
-                "dwell_correlation": self.correlation, "dwell_cap_nats": self.cap_nats}
 
 
 @dataclass(frozen=True)

@@ -359,7 +359,7 @@ def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[flo
                 length: int = TRACK_DWELLS, draws: int = TRACK_DRAWS, seed: int = 0) -> tuple[float, int, int]:
     """(accepted share, tracks, dwells per track) of `draws` tracks of `length` dwells, each
     drawn without replacement from one (flown, claimed) pair's cross-validated dwell scores and
-    decided by `walk` (`authn.track.Sprt.walk`: the check's own combination and bounds). An
+    decided by `walk` (`authn.sprt.Sprt.walk`: the check's own combination and bounds). An
     inconclusive track is not accepted, as at the end of a real track. Fewer scores than
     `length`: tracks of all of them (the card says how long)."""
     if not dwells:
@@ -485,7 +485,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     """Build the site bundle `dest` (must not exist) from `samples` (the site's labelled
     recordings, of `waveform`) on a simulated base set of `profiles` (every model the bundle
     knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. `sprt`: the
-    track check's sequential test (`authn.track.Sprt`: its `walk` and `to_json`), which gives the
+    track check's sequential test (`authn.sprt.Sprt`: its `walk` and `to_json`), which gives the
     card its track-level pairwise errors (None: single dwells only; `authn models enrol` passes
     the check's default). `physics_bands`: re-estimate each enrolled model's rate and rotor bands
     from the site recordings (`site_bands`; cross-validated like the rest). `score_calibration`:
@@ -603,7 +603,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
         "method": "tracks drawn without replacement from one model's cross-validated dwell scores (the "
                   "enrolment recordings are single dwells of different flights: a track of independent "
                   "dwells, pooled over the folds so that it reaches its full length), decided by the "
-                  "check's own sequential test (authn.track.Sprt.walk); inconclusive counts as not accepted",
+                  "check's own sequential test (authn.sprt.Sprt.walk); inconclusive counts as not accepted",
         "note": "a pair with tracks shorter than `dwells` keeps its single-dwell verdict for track checks"}
 
     # the bundle: every site sample in training

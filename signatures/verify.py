@@ -171,7 +171,7 @@ class Verification:
     def physics_abstained(self) -> bool:
         """No physics term: the rotors gave no usable rate estimate. The classifier's term alone
         is then all the score holds, and the policy does not let it carry a claim
-        (its increment counts only against the claim: `authn.track.Sprt.increment`)."""
+        (its increment counts only against the claim: `authn.sprt.Sprt.increment`)."""
         return "physics" not in self.terms
 
     def to_json(self) -> dict[str, object]:

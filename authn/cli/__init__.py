@@ -24,7 +24,7 @@ from authn.cli import (audit, bench, check, db, demo, features, importer, inspec
 from authn.cli.output import json_error, json_requested
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
-from authn.process import tune
+from authn.process import exit_quickly, tune
 from core.errors import AuthnException, describe, exit_code_for
 from core.textsafe import printable
 
@@ -232,6 +232,9 @@ def _raise_interrupted(signum: int, _frame: object) -> None:
 
 
 def run() -> None:
-    """Console-script entry point: the process's settings (`authn.process.tune`), then the command."""
+    """Console-script entry point: the process's settings (`authn.process.tune`), then the command,
+    then an exit that skips the collector's last full pass (`authn.process.exit_quickly`)."""
     tune()
-    sys.exit(main())
+    code = main()
+    exit_quickly()
+    sys.exit(code)

@@ -202,7 +202,7 @@ def check(
         from authn.uakeys import load_trusted_registries
 
         trusted = load_trusted_registries(trust_registry) if trust_registry else None
-        from authn.track import Sprt
+        from authn.sprt import Sprt
 
         sprt = Sprt(false_accept, false_reject)
         checker = Checker(state.db_url, policy, trusted, model=model, sprt=sprt)

@@ -448,7 +448,7 @@ def enrol_cmd(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from authn.enrolment import site_sample
-    from authn.track import Sprt
+    from authn.sprt import Sprt
     from registry.dbapi import Database
     from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
     from signatures.inference import active_bundle, load_classifier, models_dir, set_active

@@ -71,7 +71,7 @@ def checker_for(args: CheckerArgs) -> Checker:
     load once, not once per partition; other arguments (another run) replace it."""
     if _CHECKER and _CHECKER[0][0] == args:
         return _CHECKER[0][1]
-    from authn.track import Sprt
+    from authn.sprt import Sprt
 
     checker = Checker(args.db_url, args.policy, dict(args.trusted) or None, model=args.model,
                       sprt=Sprt(*args.targets) if args.targets else None)

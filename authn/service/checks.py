@@ -122,7 +122,7 @@ async def check(request: Request, file: Annotated[UploadFile, File(description="
         from authn.check import RidCapture
 
         capture = RidCapture.data(_name(rid_capture), await rid_capture.read(), rid_skew)
-    from authn.track import Sprt
+    from authn.sprt import Sprt
 
     sprt = Sprt(false_accept, false_reject)
     items = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial), capture, sprt))

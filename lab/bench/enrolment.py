@@ -140,7 +140,7 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
     airframe, site sample) of every enrolment recording. (database URL, bundles)."""
     from authn.enrolment import site_sample
     from authn.scenario import Broadcast
-    from authn.track import Sprt
+    from authn.sprt import Sprt
     from registry.dbapi import Database
     from signatures.enrol import enrol
     from signatures.profiles import shipped_profiles
@@ -301,7 +301,7 @@ def dwell_evidence(size: int, n: int, dwells: int, snrs: tuple[float, ...], worl
     intra-class correlation of the capped LLRs within one (flown, claimed) pair (`lab.bench.track.icc`:
     the dwell correlation the track's discount needs, re-measured on these scores)."""
     from authn.check import CheckInput, Checker
-    from authn.track import Sprt
+    from authn.sprt import Sprt
     from lab.bench.track import _pair as track_pair, icc, track_recordings
     from signatures.profiles import shipped_profiles
     from signatures.sampling import sample_scene

@@ -30,7 +30,7 @@ def walks(tracks: int, dwells: int, snr: float, seed: int = 3) -> dict[tuple[str
     from dataclasses import replace
 
     from authn.check import Checker
-    from authn.track import Sprt
+    from authn.sprt import Sprt
     from lab.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
     from lab.bench.track import track_recordings
     from signatures.profiles import shipped_profiles
@@ -66,7 +66,7 @@ def plot(curves: dict[tuple[str, str], list[list[float]]], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from authn.track import Sprt
+    from authn.sprt import Sprt
 
     s = Sprt()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)

@@ -8,7 +8,7 @@ deployed bundle: gradient-boosted trees fitted, per fold, on thousands of the wo
 vector and a raw view of the target's slow time (`dwell_view`). Its out-of-fold probabilities become
 one calibrated LLR per ordered pair (genuine A against an impostor B claiming A: Platt-scaled, cross
 fitted, classes balanced), which is what the sequential test could add per dwell at best with this
-much knowledge of the world. Tracks are then walked by `authn.track.Sprt` (the check's own bounds,
+much knowledge of the world. Tracks are then walked by `authn.sprt.Sprt` (the check's own bounds,
 cap and discount) over each scene's dwells drawn with replacement, and the within-scene correlation
 of the oracle's LLRs is measured beside it.
 
@@ -245,8 +245,8 @@ def track_eer(llr: np.ndarray, is_a: np.ndarray, scenes: np.ndarray, cap: float,
 def walk_scenes(llr: np.ndarray, scenes: np.ndarray, rho: float, seed: int = 0,
                 dwells: int = TRACK_DWELLS) -> list[tuple[str, int]]:
     """One track per scene: `dwells` of the scene's LLRs drawn with replacement, walked by the
-    check's sequential test (`authn.track.Sprt`, default bounds and cap, correlation `rho`)."""
-    from authn.track import Sprt
+    check's sequential test (`authn.sprt.Sprt`, default bounds and cap, correlation `rho`)."""
+    from authn.sprt import Sprt
 
     sprt = Sprt(correlation=rho)
     rng = np.random.default_rng(seed)

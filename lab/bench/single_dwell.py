@@ -7,7 +7,7 @@ nuisances drawn, or `heldout`: `lab.heldout`'s signal model), and checked by the
 bench registry (every shipped model registered) once per claimed shipped model. Reported per (world, SNR,
 flown, claimed): accepted / rejected / inconclusive. Per (claimed, alternative): the mean per-dwell
 increment of a genuine claim against the alternative and of the alternative flying the claim, and the
-dwells the sequential test needs at the default error rates (`authn.track.Sprt.dwells_to_decide`).
+dwells the sequential test needs at the default error rates (`authn.sprt.Sprt.dwells_to_decide`).
 
     python -m lab.bench.single_dwell --world randomised --world heldout --snr 10 --snr 0 --n 40 --workers 2
     python -m lab.bench.single_dwell --world randomised --snr 10 --snr 0 --n 60 --write-card paper
@@ -55,7 +55,7 @@ class DwellClaim:
 def _job(job: tuple) -> list[DwellClaim]:
     from authn.check import Checker
     from authn.scenario import Broadcast, remote_id_rows, simulate_flight
-    from authn.track import Sprt
+    from authn.sprt import Sprt
     from lab.bench.decisions import CLAIM_SCENES, bench_serial, register_identities
     from lab.heldout import unseen_profiles
     from signatures.profiles import shipped_profiles
@@ -141,7 +141,7 @@ def separation(rows: list[DwellClaim]) -> list[dict]:
     """Per world, SNR, claimed model and alternative: the mean per-dwell increment against the alternative
     of genuine claims, and the mean per-dwell increment (the least over alternatives) of the alternative
     flying the claim; the dwells each needs to decide at the default error rates."""
-    from authn.track import Sprt
+    from authn.sprt import Sprt
 
     sprt = Sprt()
     out = []

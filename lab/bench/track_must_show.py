@@ -484,7 +484,7 @@ def _variant_llr(r: dict[str, Any], consts: dict[str, Any], clip: float | None, 
 def _walk(dwells: list[tuple[float, bool]], rho: float = 0.2) -> tuple[str, int]:
     """`authn.track`'s sequential test alone (default bounds, discount and cap), as the default
     policy's track rules decide it: (accept | reject | inconclusive, dwells used)."""
-    from authn.track import Sprt
+    from authn.sprt import Sprt
 
     sprt = Sprt(correlation=rho)
     acc, rej = math.ceil(sprt.accept_nats * 100), math.floor(sprt.reject_nats * 100)
@@ -690,7 +690,7 @@ def term_increments(rs: list[dict[str, Any]], cap: float) -> list[tuple[float, f
 def walk_terms(incs: list[tuple[float, float]], rho_physics: float, rho_classifier: float) -> tuple[str, int]:
     """A per-term discount, sum_phys / (1 + (n-1) rho_phys) + sum_clf / (1 + (n-1) rho_clf), at the
     default bounds as `_walk` decides them: (accept | reject | inconclusive, dwells used)."""
-    from authn.track import Sprt
+    from authn.sprt import Sprt
 
     sprt = Sprt()
     acc, rej = math.ceil(sprt.accept_nats * 100), math.floor(sprt.reject_nats * 100)

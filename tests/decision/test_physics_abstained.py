@@ -2,7 +2,7 @@
 
 Where the physics term abstains (no usable blade-flash rate: signatures/verify.py), the classifier
 may count against a claim but never carries it: the sequential test counts such a dwell only against
-the claim (`authn.track.Sprt.increment`), for one dwell as for a track, signed or not. In the
+the claim (`authn.sprt.Sprt.increment`), for one dwell as for a track, signed or not. In the
 simulated worlds the shipped classifier never favours a claim whose rotors went unseen (it calls
 such returns birds), so the dwell where it would is built from real parts: the features of a real
 dwell whose rotors are not resolvable (blades 30 dB under the body at 5 dB SNR: no flash scores 1)
