@@ -374,7 +374,7 @@ class Evidence:
         sprt = self.test()
         incs = self.increments() if increments is None else increments
         record = sprt.record(incs)
-        llr = record["llr_cn"] / 100.0
+        llr, refute = record["llr_cn"] / 100.0, record["refute_llr_cn"] / 100.0
         v = self.radar.verification if self.radar is not None else None
         raw = v.against if v is not None else {}
         keys = {k for d in incs for k in d}
@@ -385,8 +385,10 @@ class Evidence:
         # evidence for the claim goes on at a genuine claim's measured pace; evidence against, at its own
         measured = (self.separation or {}).get(closest) if closest and llr > 0 else None
         step = measured if measured is not None else own
-        more = sprt.dwells_to_decide(step, llr, len(incs)) if step is not None else None
-        doc: dict[str, Any] = {"llr_nats": round(llr, 4), "accept_nats": round(record["accept_cn"] / 100.0, 2),
+        start = llr if step is not None and step > 0 else refute  # accepting reads the least, refuting the mixture
+        more = sprt.dwells_to_decide(step, start, len(incs)) if step is not None else None
+        doc: dict[str, Any] = {"llr_nats": round(llr, 4), "refute_llr_nats": round(refute, 4),
+                               "accept_nats": round(record["accept_cn"] / 100.0, 2),
                                "reject_nats": round(record["reject_cn"] / 100.0, 2), "dwells": len(incs),
                                "closest": closest,
                                "separation_nats_per_dwell": None if step is None else round(step, 4),

@@ -85,24 +85,37 @@ class Sprt:
         given per alternative (`increments`) are summed per alternative over the dwells and the
         least sum counts: the claim must win against every alternative, each on all its dwells.
         A dwell that lacks an alternative counts its least increment for it."""
-        n = len(increments)
-        if n == 0:
+        sums = _sums(increments)
+        return min(sums) / self._discount(len(increments)) if sums else 0.0
+
+    def refute_llr(self, increments: Sequence[float | Mapping[str, float]]) -> float:
+        """What refutes the claim: its LLR against the alternatives together, an equal-prior mixture
+        -log mean_a exp(-sum_a), discounted as `track_llr`. Wald's false-reject rate holds for this
+        one likelihood ratio; refuting on the least sum instead would refute a genuine claim whenever
+        any one alternative's sum strayed to the bound (up to K times beta). At least `track_llr`,
+        at most log K above it; equal to it for one alternative."""
+        sums = _sums(increments)
+        if not sums:
             return 0.0
-        per = [d if isinstance(d, Mapping) else {UNKNOWN: float(d)} for d in increments]
-        keys = {k for d in per for k in d}
-        total = min(sum(d.get(k, min(d.values())) for d in per) for k in keys)
-        return total / (1.0 + (n - 1) * self.correlation)
+        top = min(sums)
+        mixture = top - math.log(sum(math.exp(top - s) for s in sums) / len(sums))
+        return mixture / self._discount(len(increments))
+
+    def _discount(self, n: int) -> float:
+        return 1.0 + (n - 1) * self.correlation
 
     def bounds_cn(self) -> tuple[int, int]:
         """(accept, reject) bounds in centinats as the policy reads them: rounded away from 0."""
         return math.ceil(self.accept_nats * _CN), math.floor(self.reject_nats * _CN)
 
     def record(self, increments: Sequence[float | Mapping[str, float]]) -> dict[str, int]:
-        """The `track` record of the Cedar context (docs/policies.md): the LLR over the dwells that
-        verified anything and the bounds, in centinats; a single check is a track of one dwell."""
+        """The `track` record of the Cedar context (docs/policies.md), in centinats: the LLR that
+        accepts (`track_llr`: against each alternative) and the one that refutes (`refute_llr`:
+        against them together) over the dwells that verified anything, and the bounds; a single check
+        is a track of one dwell."""
         accept_cn, reject_cn = self.bounds_cn()
-        llr_cn = int(round(max(-1e6, min(1e6, self.track_llr(increments) * _CN))))
-        return {"llr_cn": llr_cn, "accept_cn": accept_cn, "reject_cn": reject_cn, "dwells": len(increments)}
+        return {"llr_cn": _cn(self.track_llr(increments)), "refute_llr_cn": _cn(self.refute_llr(increments)),
+                "accept_cn": accept_cn, "reject_cn": reject_cn, "dwells": len(increments)}
 
     def dwells_to_decide(self, separation_nats: float, llr_nats: float = 0.0, used: int = 0) -> int | None:
         """About how many more dwells, each adding `separation_nats` (the expected per-dwell LLR,
@@ -133,10 +146,10 @@ class Sprt:
         increments: list[Mapping[str, float]] = []
         for llr, physics in dwells:
             increments.append(self.increments(llr if isinstance(llr, Mapping) else {UNKNOWN: llr}, physics))
-            llr_cn = self.record(increments)["llr_cn"]
-            if llr_cn >= accept_cn:
+            rec = self.record(increments)
+            if rec["llr_cn"] >= accept_cn:
                 return "accept", len(increments)
-            if llr_cn <= reject_cn:
+            if rec["refute_llr_cn"] <= reject_cn:
                 return "reject", len(increments)
         return "inconclusive", len(increments)
 
@@ -144,3 +157,16 @@ class Sprt:
         return {"false_accept": self.false_accept, "false_reject": self.false_reject,
                 "accept_nats": round(self.accept_nats, 4), "reject_nats": round(self.reject_nats, 4),
                 "dwell_correlation": self.correlation, "dwell_cap_nats": self.cap_nats}
+
+
+def _sums(increments: Sequence[float | Mapping[str, float]]) -> list[float]:
+    """Each alternative's sum of increments over the dwells (a bare LLR is the background's; a dwell
+    that lacks an alternative counts its least increment for it)."""
+    per = [d if isinstance(d, Mapping) else {UNKNOWN: float(d)} for d in increments]
+    keys = sorted({k for d in per for k in d})
+    return [sum(d.get(k, min(d.values())) for d in per) for k in keys]
+
+
+def _cn(nats: float) -> int:
+    """Nats as the policy's centinats (Cedar compares integers), clamped inside its range."""
+    return int(round(max(-1e6, min(1e6, nats * _CN))))

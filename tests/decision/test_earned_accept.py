@@ -100,6 +100,14 @@ def test_the_test_sums_each_alternative_over_the_dwells() -> None:
     dwells = [{UNKNOWN: 4.0, "m600": -1.0}, {UNKNOWN: -1.0, "m600": 4.0}]
     assert s.track_llr(dwells) == 3.0 and s.track_llr([min(d.values()) for d in dwells]) == -2.0
     assert s.track_llr([{UNKNOWN: 2.0}, 1.0]) == 3.0  # a bare LLR is the background's
+    # refuting reads the alternatives together (an equal-prior mixture of the sums): at least the least
+    # sum, at most log K above it, the same for one alternative
+    apart = [{UNKNOWN: -3.0, "m600": -4.0, "m300": 4.0}, {UNKNOWN: -2.2, "m600": -2.2, "m300": -2.2}]
+    least, together = s.track_llr(apart), s.refute_llr(apart)
+    assert least == -6.2 and least < together <= least + math.log(3)
+    assert together == pytest.approx(-6.2 - math.log((1.0 + math.exp(-1.0) + math.exp(-8.0)) / 3.0))
+    assert s.refute_llr([-3.0, -2.0]) == s.track_llr([-3.0, -2.0]) == -5.0
+    assert Sprt().walk([(d, True) for d in apart]) == ("inconclusive", 2)  # least -5.17, together -4.50
     # dwells to decide: a separation below bound x rho never reaches the bound under the discount
     d = Sprt()
     assert d.dwells_to_decide(4.0) == 3 and d.dwells_to_decide(-4.0) == 2

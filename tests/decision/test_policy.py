@@ -39,6 +39,11 @@ CASES: dict[str, tuple[dict, dict, dict, str, list[str]]] = {
     "no target": ({}, {}, dict(target_detected=False, track=None), "reject", ["no-target"]),
     # one rule for one dwell and many: the test's record against its bounds
     "claim refuted": ({}, {}, dict(track=sprt_record(-461)), "reject", ["radar-claim-inconsistent"]),
+    # refuted on the LLR against the alternatives together, accepted on the least against each
+    "one alternative at the bound, not all together": ({}, {}, dict(track={**sprt_record(-500), "refute_llr_cn": -450}),
+                                                       "inconclusive", ["radar-inconclusive"]),
+    "refuted together": ({}, {}, dict(track={**sprt_record(-500), "refute_llr_cn": -461}), "reject",
+                         ["radar-claim-inconsistent"]),
     "just above the reject bound": ({}, {}, dict(track=sprt_record(-460)), "inconclusive", ["radar-inconclusive"]),
     "favours the claim, below the accept bound": ({}, {}, dict(track=sprt_record(689)), "inconclusive",
                                                   ["radar-inconclusive"]),
