@@ -353,16 +353,16 @@ class Evidence:
             return Sprt()
         return self.sprt
 
-    def increments(self) -> list[dict[str, float]]:
-        """This dwell's increments per alternative (`Sprt.increments`: capped; where the physics
-        term abstained, only what counts against the claim); [] where nothing was verified. An
-        LLR that is no number counts fully against the claim."""
+    def increments(self, sprt: Any = None) -> list[dict[str, float]]:
+        """This dwell's increments per alternative (`Sprt.increments` of `sprt`, default this check's:
+        capped; where the physics term abstained, only what counts against the claim); [] where
+        nothing was verified. An LLR that is no number counts fully against the claim."""
         v = self.radar.verification if self.radar is not None else None
         if v is None or not v.terms:
             return []
         from signatures.verify import UNKNOWN
 
-        return [self.test().increments(v.against or {UNKNOWN: v.llr}, not v.physics_abstained)]
+        return [(sprt or self.test()).increments(v.against or {UNKNOWN: v.llr}, not v.physics_abstained)]
 
     def to_decide(self, increments: list[dict[str, float]] | None = None) -> dict[str, Any]:
         """What would decide an inconclusive claim: about how many more dwells, and whether a valid
@@ -375,13 +375,14 @@ class Evidence:
         incs = self.increments() if increments is None else increments
         record = sprt.record(incs)
         llr, refute = record["llr_cn"] / 100.0, record["refute_llr_cn"] / 100.0
+        from authn.sprt import alternative_sums
+
         v = self.radar.verification if self.radar is not None else None
         raw = v.against if v is not None else {}
-        keys = {k for d in incs for k in d}
+        sums = alternative_sums(incs)
         # the least capped sum; among ties the least uncapped LLR (the verification's own `closest`)
-        closest = min(keys, key=lambda k: (sum(d.get(k, min(d.values())) for d in incs),
-                                           raw.get(k, 0.0))) if keys else None
-        own = sum(d.get(closest, min(d.values())) for d in incs) / len(incs) if closest else None
+        closest = min(sums, key=lambda k: (sums[k], raw.get(k, 0.0))) if sums else None
+        own = sums[closest] / len(incs) if closest else None
         # evidence for the claim goes on at a genuine claim's measured pace; evidence against, at its own
         measured = (self.separation or {}).get(closest) if closest and llr > 0 else None
         step = measured if measured is not None else own

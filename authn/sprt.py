@@ -20,7 +20,7 @@ from core.errors import AuthnError
 from signatures.verify import UNKNOWN  # a bare (not per-alternative) LLR is against the background
 
 __all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION",
-           "MAX_DWELLS_TO_DECIDE", "Sprt"]
+           "MAX_DWELLS_TO_DECIDE", "Sprt", "alternative_sums"]
 #: Target rate of accepting an impostor's track (alpha): Wald's accept bound log((1-b)/a) = 6.9 nats.
 DEFAULT_FALSE_ACCEPT = 1e-3
 #: Target rate of rejecting a genuine track (beta): Wald's reject bound log(b/(1-a)) = -4.6 nats.
@@ -85,8 +85,8 @@ class Sprt:
         given per alternative (`increments`) are summed per alternative over the dwells and the
         least sum counts: the claim must win against every alternative, each on all its dwells.
         A dwell that lacks an alternative counts its least increment for it."""
-        sums = _sums(increments)
-        return min(sums) / self._discount(len(increments)) if sums else 0.0
+        sums = alternative_sums(increments)
+        return min(sums.values()) / self._discount(len(increments)) if sums else 0.0
 
     def refute_llr(self, increments: Sequence[float | Mapping[str, float]]) -> float:
         """What refutes the claim: its LLR against the alternatives together, an equal-prior mixture
@@ -94,7 +94,7 @@ class Sprt:
         one likelihood ratio; refuting on the least sum instead would refute a genuine claim whenever
         any one alternative's sum strayed to the bound (up to K times beta). At least `track_llr`,
         at most log K above it; equal to it for one alternative."""
-        sums = _sums(increments)
+        sums = list(alternative_sums(increments).values())
         if not sums:
             return 0.0
         top = min(sums)
@@ -159,12 +159,11 @@ class Sprt:
                 "dwell_correlation": self.correlation, "dwell_cap_nats": self.cap_nats}
 
 
-def _sums(increments: Sequence[float | Mapping[str, float]]) -> list[float]:
+def alternative_sums(increments: Sequence[float | Mapping[str, float]]) -> dict[str, float]:
     """Each alternative's sum of increments over the dwells (a bare LLR is the background's; a dwell
-    that lacks an alternative counts its least increment for it)."""
+    that lacks an alternative counts its least increment for it), by alternative."""
     per = [d if isinstance(d, Mapping) else {UNKNOWN: float(d)} for d in increments]
-    keys = sorted({k for d in per for k in d})
-    return [sum(d.get(k, min(d.values())) for d in per) for k in keys]
+    return {k: sum(d.get(k, min(d.values())) for d in per) for k in sorted({k for d in per for k in d})}
 
 
 def _cn(nats: float) -> int:

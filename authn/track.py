@@ -49,8 +49,7 @@ from pathlib import Path
 from typing import Any
 
 from core.errors import AuthnError, EXIT_BAD_INPUT, describe, exit_code_for
-from authn.sprt import (DEFAULT_FALSE_ACCEPT, DEFAULT_FALSE_REJECT, DWELL_CAP_NATS, DWELL_CORRELATION, UNKNOWN,
-                        Sprt)
+from authn.sprt import (DEFAULT_FALSE_ACCEPT, DEFAULT_FALSE_REJECT, DWELL_CAP_NATS, DWELL_CORRELATION, Sprt)
 
 __all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION", "KINEMATIC_DWELLS",
            "Dwell", "Sprt", "TrackOutcome", "check_track", "decide_track", "track_files"]
@@ -239,7 +238,7 @@ def _term(o: Any, sprt: Sprt) -> DwellTerm:
     v = radar.verification if radar is not None else None
     llr = v.llr if v is not None and v.terms else None
     kin = o.evidence.kinematics
-    per = None if llr is None else sprt.increments(v.against or {UNKNOWN: llr}, "physics" in v.terms)
+    per = next(iter(o.evidence.increments(sprt)), None)
     return DwellTerm(o.file, o.file_sha256, o.evidence.report()["dwell_start"],
                      None if radar is None else radar.model, llr, None if per is None else min(per.values()),
                      dict(v.terms) if v is not None else {}, None if kin is None else kin.to_json(),

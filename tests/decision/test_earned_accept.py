@@ -17,6 +17,7 @@ from authn.track import Sprt
 from core.errors import EXIT_INCONCLUSIVE, exit_code_of, worst
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.verify import UNKNOWN, verify
+from tests.registry_tools import register
 
 P = shipped_profiles()
 M300, M600, P4 = "1581BEARN0000300", "1581BEARN0000600", "1581BEARN0000004"
@@ -28,16 +29,6 @@ LOOSE = Sprt(0.02, 0.02)
 SHARED = {"flash_rate_hz": 79.0, "flash_rate_std_hz": 1.5, "flash_score": 4.0, "rotors_seen": 4.0,
           "rotors_seen_std": 1.0}
 PROBS = {"m300": 0.65, "m600": 0.30, "phantom4": 0.05, "bird": 0.0, "none": 0.0}
-
-
-def _register(db: str, *pairs: tuple[str, str]) -> None:
-    from registry.db import session_scope
-    from registry.store import NewIdentity, register_identity
-
-    with session_scope(db) as s:
-        for serial, model in pairs:
-            register_identity(s, NewIdentity(serial=serial, model=model,
-                                             valid_from=datetime(2025, 1, 1, tzinfo=timezone.utc)))
 
 
 def _dwell(folder: Path, flies: str, serial: str, seed: int, name: str = "dwell.h5", snr: float = 20.0) -> Path:
@@ -126,7 +117,7 @@ def test_exit_codes_of_decisions() -> None:
 def site(tmp_path_factory):
     root = tmp_path_factory.mktemp("earned")
     db = f"sqlite:///{root / 'r.sqlite3'}"
-    _register(db, (M300, "m300"), (M600, "m600"), (P4, "phantom4"))
+    register(db, (M300, "m300"), (M600, "m600"), (P4, "phantom4"))
     return root, db
 
 

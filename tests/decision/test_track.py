@@ -21,24 +21,13 @@ from signatures.profiles import shipped_profiles
 from signatures.recording import read_header, read_recording, write_recording
 from signatures.scene import Scene
 from tests.decision.test_policy import ACTIVE, GOOD, SITE
+from tests.registry_tools import register
 
 #: Two M300 identities and a Phantom 4: no radar-confusable pair is registered (an M600 beside an M300
 #: would make every unsigned claim of either inconclusive, docs/classifiers.md "Separation"), so these
 #: tracks show the sequential test itself.
 M300, M300_B, PHANTOM4 = "1581BDEM00000002", "1581BDEM00000012", "1581BDEM00000004"
 DWELLS = 6
-
-
-def _register(db: str) -> None:
-    from datetime import datetime, timezone
-
-    from registry.db import session_scope
-    from registry.store import NewIdentity, register_identity
-
-    with session_scope(db) as s:
-        for serial, model in ((M300, "m300"), (M300_B, "m300"), (PHANTOM4, "phantom4")):
-            register_identity(s, NewIdentity(serial=serial, model=model,
-                                             valid_from=datetime(2025, 1, 1, tzinfo=timezone.utc)))
 
 
 def _track(folder: Path, flies: str, serial: str | None, seed: int = 100, **scene) -> Path:
@@ -54,7 +43,7 @@ def _track(folder: Path, flies: str, serial: str | None, seed: int = 100, **scen
 def setup(tmp_path_factory):
     root = tmp_path_factory.mktemp("track")
     db = f"sqlite:///{root / 'r.sqlite3'}"
-    _register(db)
+    register(db, (M300, "m300"), (M300_B, "m300"), (PHANTOM4, "phantom4"))
     tracks = {"genuine": _track(root / "genuine", "m300", M300),
               "type": _track(root / "type", "phantom4", M300_B, seed=200)}
     return root, db, tracks

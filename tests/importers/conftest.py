@@ -50,6 +50,9 @@ def site_args(rec) -> list[str]:
 
 
 def check_json(cli, db: str, path, serial: str = M300) -> tuple[int, dict]:
+    """`authn check FILE --serial SERIAL --json`: a decision (0 accept, 1 reject, 4 inconclusive:
+    one unsigned dwell at the default targets crosses neither bound of the sequential test), not
+    an error; its exit code and JSON object."""
     code, out, err = cli("--db", db, "check", str(path), "--serial", serial, "--json")
     assert code in (0, 1, 4), err  # a decision: accept, reject or inconclusive
     return code, json.loads(out)

@@ -22,20 +22,11 @@ from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import read_recording, write_recording
 from signatures.scene import Scene
-from tests.importers.conftest import M300, site_args
+from tests.importers.conftest import M300, check_json, site_args
 
 #: Range-domain features equal the IF pipeline's to this (relative or absolute): the same range
 #: spectrum, with the clutter mean removed after the FFT instead of before (float32 rounding).
 FEATURE_RTOL = FEATURE_ATOL = 1e-3
-
-
-def check_json(cli, db: str, path, serial: str = M300) -> tuple[int, dict]:
-    """`authn check FILE --serial SERIAL --json`: a decision (0 accept, 1 reject, 4 inconclusive:
-    one unsigned dwell at the default targets crosses neither bound of the sequential test), not
-    an error; its exit code and JSON object."""
-    code, out, err = cli("--db", db, "check", str(path), "--serial", serial, "--json")
-    assert code in (0, 1, 4), err
-    return code, json.loads(out)
 
 
 @pytest.fixture(scope="module")

@@ -18,20 +18,11 @@ from signatures.importers.dca1000 import deinterleave
 from signatures.importers.dwell import analytic_half_rate
 from signatures.recording import read_recording, write_recording
 from tests.importers.capture import quantise, raw_words, sdk_cfg, write_capture
-from tests.importers.conftest import M300, site_args
+from tests.importers.conftest import check_json, site_args
 
 #: Features of the imported capture equal the original's to this (relative or absolute), except
 #: the absolute level peak_amplitude_db, which moves by exactly the ADC scaling (within 0.01 dB).
 FEATURE_RTOL = FEATURE_ATOL = 1e-3
-
-
-def check_json(cli, db: str, path, serial: str = M300) -> tuple[int, dict]:
-    """`authn check FILE --serial SERIAL --json`: a decision (0 accept, 1 reject, 4 inconclusive:
-    one unsigned dwell at the default targets crosses neither bound of the sequential test), not
-    an error; its exit code and JSON object."""
-    code, out, err = cli("--db", db, "check", str(path), "--serial", serial, "--json")
-    assert code in (0, 1, 4), err
-    return code, json.loads(out)
 
 
 def _features_match(original, imported, scale: float) -> None:

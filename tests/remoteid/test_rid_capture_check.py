@@ -20,6 +20,7 @@ import pytest
 from authn.cli import main
 from registry.db import session_scope
 from registry.store import NewIdentity, register_identity
+from tests.registry_tools import register
 from signatures.recording import write_recording
 from tests.remoteid.capture_tools import (BEACON, DATA, SERIAL, locations, merge_pcaps, radar_return, rewrite,
                                           site_and_scene)
@@ -36,10 +37,7 @@ LOOSE = ("--false-accept", "0.02", "--false-reject", "0.02")  # +-3.89 nats: one
 def world(tmp_path_factory):
     root = tmp_path_factory.mktemp("ridcap")
     db = f"sqlite:///{root / 'r.sqlite3'}"
-    with session_scope(db) as s:
-        for serial, model in ((SERIAL, "m300"), (SECOND, "m600")):
-            register_identity(s, NewIdentity(serial=serial, model=model, operator_id="TEST",
-                                             valid_from=datetime(2020, 1, 1, tzinfo=timezone.utc)))
+    register(db, (SERIAL, "m300"), (SECOND, "m600"))
     c, loc = locations(BEACON)[8]  # heard 21:52:17.165; the next Location 0.8 s later
     az = (loc.direction_deg + 80.0) % 360.0  # a small radial speed (3.5 m/s) at this heading
     site, scene_a = site_and_scene(loc, RANGE_A, az, "m300")

@@ -7,13 +7,12 @@ sent two serials is attributed to either. Real pcap bytes, simulated returns, th
 from __future__ import annotations
 
 import json
-from datetime import datetime, timedelta, timezone
+from datetime import timedelta
 
 import pytest
 
 from authn.cli import main
-from registry.db import session_scope
-from registry.store import NewIdentity, register_identity
+from tests.registry_tools import register
 from remoteid import BasicId, decode, flatten
 from remoteid.capture import broadcasters, read_capture
 from remoteid.codec import split_raw
@@ -30,10 +29,7 @@ NOT_CHECKED = "not checked: no Remote ID position"
 def world(tmp_path_factory):
     root = tmp_path_factory.mktemp("ridconflict")
     db = f"sqlite:///{root / 'r.sqlite3'}"
-    with session_scope(db) as s:
-        for serial, model in ((SERIAL, "m300"), (SECOND, "m600")):
-            register_identity(s, NewIdentity(serial=serial, model=model, operator_id="TEST",
-                                             valid_from=datetime(2020, 1, 1, tzinfo=timezone.utc)))
+    register(db, (SERIAL, "m300"), (SECOND, "m600"))
     c, loc = locations(BEACON)[8]
     az = (loc.direction_deg + 80.0) % 360.0
     site, scene_a = site_and_scene(loc, 400.0, az, "m300")

@@ -7,12 +7,10 @@ forbid that refutes (a conflicting transmitter) makes it a reject."""
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
 
 import pytest
 
-from registry.db import session_scope
-from registry.store import NewIdentity, register_identity
+from tests.registry_tools import register
 from signatures.recording import write_recording
 from tests.remoteid.capture_tools import BEACON, SERIAL, locations, merge_pcaps, radar_return, rewrite, site_and_scene
 
@@ -23,10 +21,7 @@ UNDECIDED = ["radar-confusable-unsigned", "radar-inconclusive"]
 @pytest.fixture(scope="module")
 def capture_world(sqlite_db, tmp_path_factory):
     root = tmp_path_factory.mktemp("svc-ridcap")
-    with session_scope(sqlite_db) as s:
-        for serial, model in ((SERIAL, "m300"), (SECOND, "m600")):
-            register_identity(s, NewIdentity(serial=serial, model=model, operator_id="TEST",
-                                             valid_from=datetime(2020, 1, 1, tzinfo=timezone.utc)))
+    register(sqlite_db, (SERIAL, "m300"), (SECOND, "m600"))
     c, loc = locations(BEACON)[8]
     az = (loc.direction_deg + 80.0) % 360.0
     site, a = site_and_scene(loc, 400.0, az, "m300")
