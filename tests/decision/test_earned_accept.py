@@ -202,3 +202,14 @@ def test_a_track_can_refute_what_it_cannot_accept(site, tmp_path, capsys) -> Non
     out = json.loads(capsys.readouterr().out)
     assert out["dwells_used"] == 1 and out["llr"] > 0 and out["to_decide"]["signature"] is True
     assert "radar-confusable-unsigned" in out["reasons"]
+
+
+def test_error_targets_out_of_range_are_bad_input(site, tmp_path, capsys) -> None:
+    """A single check refuses targets outside (0, 0.5) as a track does: one line, exit 2, audited."""
+    _, db = site
+    path = _dwell(tmp_path, "phantom4", P4, seed=5)
+    for bad in (["--false-accept", "0.7"], ["--false-reject", "0"], ["--false-accept", "nan"]):
+        capsys.readouterr()
+        assert main(["--db", db, "check", str(path), *bad]) == 2, bad
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "rate" in err and "Traceback" not in err
