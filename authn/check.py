@@ -62,7 +62,7 @@ class Outcome:
         return self.evidence.radar.model_card_sha256 if self.evidence.radar else None
 
     def to_json(self) -> dict[str, Any]:
-        """What `authn check --json` prints (docs/policies.md)."""
+        """What `authn check --json` prints (docs/output.md)."""
         report = self.evidence.report()
         return {"file": self.file, "decision": self.decision, "reasons": list(self.reasons),
                 "dwell_start": report["dwell_start"], "claim": report["claim"], "registry": report["registry"],

@@ -1,5 +1,5 @@
 """One bundle for a band of carriers: which bundle serves a carrier near its own, and how the
-features are put on the bundle's carrier before its classifier sees them (docs/classifiers.md
+features are put on the bundle's carrier before its classifier sees them (docs/waveform.md
 "Carrier band").
 
 A radar that steps its carrier (3.30, 3.35, 3.40 GHz) records the same scene with Doppler
@@ -33,7 +33,7 @@ __all__ = ["ALIAS_BOUND", "CARRIER_BAND_REL", "WAVELENGTH_SCALED", "carrier_band
 #: the Hz moments of a spectrum that noise or aliased flashes fill, the 32-band CNN patch), and
 #: 2.5 % of a spread of up to half the band (16 of the patch's 32 bands) is under half a band:
 #: below one bin of the patch and below the scene-to-scene spread of every feature (measured at
-#: +-1.5 % in docs/classifiers.md). 77 GHz +-2.5 % is 75.1-78.9 GHz.
+#: +-1.5 % in docs/waveform.md). 77 GHz +-2.5 % is 75.1-78.9 GHz.
 CARRIER_BAND_REL = 0.025
 
 #: Features whose value is a Doppler frequency (Hz): proportional to 1/lambda for the same

@@ -1,7 +1,7 @@
 """Site enrolment: adapt a model bundle to the site's own radar from its recorded genuine flights.
 
 Why: every learned part of a bundle was fitted to simulated returns, and no simulator is the
-site's radar (docs/classifiers.md, "Site enrolment"). A site flies each registered airframe past
+site's radar (docs/enrolment.md). A site flies each registered airframe past
 its radar; these recordings, labelled with the registered model, build a *site bundle* that
 `authn check` then uses for that waveform ahead of the shipped one.
 

@@ -407,7 +407,7 @@ class Classifier:
         the open set run once over the batch, so a batch costs little more than one return.
         `carrier_hz` (one per row or one for all; None: the bundle's): the carriers the returns
         were recorded at, within the bundle's band; their features are put on the bundle's
-        carrier first (`on_carrier`). The RD patch is not rescaled (docs/classifiers.md
+        carrier first (`on_carrier`). The RD patch is not rescaled (docs/waveform.md
         "Carrier band": within the band it moves by under half of one of its 32 Doppler bands)."""
         X = self.on_carrier(features, carrier_hz)
         if len(X) > 1:  # a batch: BLAS on one thread (signatures.threads: same values, no waiting threads)

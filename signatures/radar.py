@@ -1,4 +1,4 @@
-"""FMCW radar configuration, waveforms (the two shipped presets and any other, docs/classifiers.md
+"""FMCW radar configuration, waveforms (the two shipped presets and any other, docs/waveform.md
 "Your radar's waveform") and what they imply.
 
 Everything here is closed-form physics: range resolution c/2B, beat frequency
@@ -322,7 +322,7 @@ def parse_waveform(doc: object, source: str) -> Preset:
 
 
 def load_waveform(path: Path) -> Preset:
-    """The waveform described by a radar-configuration JSON file (docs/classifiers.md)."""
+    """The waveform described by a radar-configuration JSON file (docs/waveform.md)."""
     from signatures.errors import SignaturesError
 
     try:

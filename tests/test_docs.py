@@ -1,5 +1,7 @@
-"""The documentation stays a front door plus docs that exist: README at most 10 KB, every
-relative link in README and docs/ pointing at a file of the repository, no SPEC citations."""
+"""The documentation stays a front door plus a reference a user can look things up in: README at
+most 10 KB, docs pages under 300 lines, laboratory commands only on the one page that reproduces
+our figures (the write-ups live in lab/reports), every relative link in README, docs/ and the
+laboratory's reports pointing at a file of the repository, no SPEC citations."""
 
 from __future__ import annotations
 
@@ -8,11 +10,26 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = sorted((ROOT / "docs").glob("*.md"))
+PAGES = [ROOT / "README.md", *DOCS, ROOT / "lab" / "README.md", *sorted((ROOT / "lab" / "reports").glob("*.md"))]
+MAX_DOC_LINES = 300
+#: the one user page that may name laboratory commands
+REPRODUCE = ROOT / "docs" / "reproduce.md"
 
 
 def test_readme_is_a_front_door() -> None:
     assert (ROOT / "README.md").stat().st_size <= 10 * 1024
+
+
+def test_every_docs_page_is_under_300_lines() -> None:
+    long = {p.name: n for p in DOCS if (n := len(p.read_text().splitlines())) >= MAX_DOC_LINES}
+    assert not long, long
+
+
+def test_laboratory_commands_only_on_the_reproduce_page() -> None:
+    offenders = [p.name for p in DOCS if p != REPRODUCE and re.search(r"python -m lab\b", p.read_text())]
+    assert not offenders, offenders
+    assert "python -m lab." in REPRODUCE.read_text()
 
 
 def test_every_relative_link_resolves() -> None:

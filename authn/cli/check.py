@@ -166,7 +166,7 @@ def check(
     rid_skew: float = typer.Option(2.0, "--rid-skew", min=0.0, max=3600.0,
                                    help="Clock-skew tolerance (s) between the capture and the radar."),
     plot: Path | None = typer.Option(None, "--plot", help="Write one evidence figure (PNG) per decision into this "
-                                                          "folder (the plot extra; docs/policies.md)."),
+                                                          "folder (the plot extra; docs/output.md)."),
     track: bool = typer.Option(False, "--track", help="The files (or the one directory) are dwells of one target "
                                                       "with one claim, in time order: one decision by a sequential "
                                                       "test, stopping at the first dwell that decides "

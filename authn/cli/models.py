@@ -35,7 +35,7 @@ def train(
                                            "or --radar-config)."),
     like: Path | None = typer.Option(None, "--like", help="Train for the waveform of this recorded-return file."),
     radar_config: Path | None = typer.Option(None, "--radar-config",
-                                             help="Train for the waveform in this JSON file (docs/classifiers.md)."),
+                                             help="Train for the waveform in this JSON file (docs/waveform.md)."),
     profiles: list[Path] | None = typer.Option(None, "--profiles",
                                                help="JSON file of extra UAV profiles to enrol (repeatable)."),
     samples: int | None = typer.Option(None, "--samples", min=50,
@@ -49,7 +49,7 @@ def train(
     seed: int = typer.Option(0, "--seed", help="Training seed (datasets, forests, SVM, CNN)."),
     cnn: bool = typer.Option(False, "--cnn", help="Also train the RD-patch CNN (needs torch) and the cascade."),
     randomise: bool = typer.Option(False, "--randomise",
-                                   help="Domain randomisation of the training scenes (docs/signal-model.md)."),
+                                   help="Domain randomisation of the training scenes (docs/worlds.md)."),
     out: Path | None = typer.Option(None, "--out", help="Bundle folder (default: <models dir>/<waveform name>; "
                                                         "`authn models list` shows the models dir)."),
     overwrite_shipped: bool = typer.Option(False, "--overwrite-shipped",
@@ -187,7 +187,7 @@ def list_models(
     With --json, each bundle's waveform carries the exact parameter values a file must match
     (within 1e-6 relative): the radar-configuration document `--radar-config` reads; but for the
     carrier, which may lie anywhere in `carrier_band_hz` (+-2.5 %: one bundle serves a radar
-    that hops its carrier, docs/classifiers.md "Carrier band").
+    that hops its carrier, docs/waveform.md "Carrier band").
 
     Example: authn models list --json
     """
