@@ -129,3 +129,11 @@ def beacons(dst: Path, frames: list[tuple[datetime, bytes, bytes]]) -> Path:
 def start_at(c: CapturedMessage) -> datetime:
     """A dwell starting when the capture heard `c` (its Location is the one nearest mid-dwell)."""
     return c.captured_at - timedelta(seconds=0.0)
+
+
+def crowd(dst: Path, at: datetime, n: int) -> Path:
+    """A capture of `n` drones heard at `at`: each one Basic ID (serial CROWD00000, CROWD00001, ...)
+    from its own transmitter."""
+    return beacons(dst, [(at, bytes([2, 0, 0, 0, i // 256, i % 256]), encode(BasicId(id_type=1, ua_type=2,
+                                                                                     uas_id=f"CROWD{i:05d}")))
+                         for i in range(n)])
