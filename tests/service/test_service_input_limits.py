@@ -1,13 +1,14 @@
 """Requests that would fan out past a cap are 413, audited, and decide nothing: a `rid_capture`
 naming more drones than the server's `--max-drones` (default 64), and a `:batch` of more files
-than its limit (64). The real server, real pcap bytes, a simulated return."""
+than its limit (64). A return whose captured message times no datetime can hold is a bad
+recorded return (400, audited), not a 503. The real server, real pcap bytes, simulated returns."""
 
 from __future__ import annotations
 
 import pytest
 
 from signatures.recording import read_recording
-from tests.remoteid.capture_tools import crowd
+from tests.remoteid.capture_tools import crowd, heard_at
 from tests.service.server import flight
 
 
@@ -48,6 +49,19 @@ def test_a_capture_over_the_drone_limit_is_413_and_audited(server, keys, crowds)
         assert [e["kind"] for e in new] == ["error"] and "65 drones" in new[0]["payload"]["error"]
         resp = _post(c, crowds["ret"], crowds["64"])  # at the limit: one decision each
         assert resp.status_code == 200 and len(resp.json()) == 64
+
+
+@pytest.mark.parametrize("value", [1e15, -1e15, 2**62])
+def test_captured_message_times_beyond_datetime_are_400_and_audited(server, keys, tmp_path, value) -> None:
+    good = flight(tmp_path, "g", "m300", "1581F5FJD12345678901")
+    bad = heard_at(good, tmp_path / "t.h5", value)
+    with server.client(keys.operator) as c:
+        before = _last_seq(c)
+        resp = c.post("/v1/checks", files={"file": (bad.name, bad.read_bytes(), "application/x-hdf5")})
+        assert resp.status_code == 400, resp.text
+        assert "remote_id_time_s" in resp.json()["error"] and "from start_time" in resp.json()["error"]
+        new = _newest(c, before)
+    assert [e["kind"] for e in new] == ["error"] and new[0]["payload"]["error_kind"] == "bad-input"
 
 
 def test_a_batch_over_the_file_limit_is_413_and_audited(server, keys) -> None:
