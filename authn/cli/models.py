@@ -429,6 +429,27 @@ def _distinct(todo: list[tuple[Path, str | None]]) -> list[tuple[Path, str | Non
     return kept
 
 
+def _site_samples(todo: list[tuple[Path, str | None]], db, bar):  # -> (list[SiteSample], Preset)
+    """Each recording labelled and its features extracted (`authn.enrolment.site_sample`), and
+    their one waveform; recordings of several waveforms are bad input."""
+    from authn.enrolment import site_sample
+    from signatures.enrol import EnrolError
+
+    samples, waveforms = [], {}
+    with bar:
+        task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
+        for f, model in todo:
+            s, wf = site_sample(f, model, db)
+            samples.append(s)
+            waveforms.setdefault(wf.key, wf)
+            bar.advance(task)
+    if len(waveforms) > 1:
+        described = "; ".join(w.describe() for w in waveforms.values())
+        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}): enrol each waveform's "
+                         "recordings on their own")
+    return samples, next(iter(waveforms.values()))
+
+
 @models_app.command("enrol")
 def enrol_cmd(
     ctx: typer.Context,
@@ -467,7 +488,6 @@ def enrol_cmd(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from authn.enrolment import site_sample
     from authn.sprt import Sprt
     from registry.dbapi import Database
     from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
@@ -488,19 +508,7 @@ def enrol_cmd(
     bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True,
                    disable=not sys.stderr.isatty())
-    samples, waveforms = [], {}
-    with bar:
-        task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
-        for f, model in todo:
-            s, wf = site_sample(f, model, db)
-            samples.append(s)
-            waveforms.setdefault(wf.key, wf)
-            bar.advance(task)
-    if len(waveforms) > 1:
-        described = "; ".join(w.describe() for w in waveforms.values())
-        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}): enrol each waveform's "
-                         "recordings on their own")
-    wf = next(iter(waveforms.values()))
+    samples, wf = _site_samples(todo, db, bar)
     previous = None
     if add:
         folder = active_bundle(wf)
