@@ -11,7 +11,7 @@ import hashlib
 import os
 import tempfile
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, NoReturn
 
 from fastapi import APIRouter, Depends, File, Form, Request, UploadFile
 from fastapi import Path as FastPath
@@ -96,7 +96,7 @@ def _check_many(checker: Any, files: list[tuple[str, bytes]], serial: str | None
     return batch.items
 
 
-async def _refuse(rt: Any, what: str, serial: str | None, exc: Exception) -> None:
+async def _refuse(rt: Any, what: str, serial: str | None, exc: Exception) -> NoReturn:
     """Record a request refused before any check (an audit error entry naming `what`, as a failed
     check is recorded), then raise."""
     from authn.check import Failure
