@@ -205,23 +205,32 @@ class CheckInput:
         return cls(name, serial, lambda: (rec, digest))
 
 
+#: Most drones one capture may name in a dwell's window, each its own decision and audit entry
+#: (`authn check --max-drones`, `authn serve --max-drones`): more is refused before any is decided.
+MAX_DRONES = 64
+
+
 @dataclass(frozen=True)
 class RidCapture:
-    """A pcap/pcapng capture of Remote ID and the clock-skew tolerance it is aligned with."""
+    """A pcap/pcapng capture of Remote ID, the clock-skew tolerance it is aligned with, and the
+    most drones it may name in one dwell's window (`max_drones`; `raise_with` says how to raise it)."""
 
     name: str
     #: the CapturedMessages (remoteid.capture) of the packets in a time window; raises CaptureError
     read: Callable[[tuple[datetime, datetime]], list[Any]]
     skew_s: float = 2.0
+    max_drones: int = MAX_DRONES
+    raise_with: str = "--max-drones"
 
     @classmethod
-    def file(cls, path: str | Path, skew_s: float = 2.0) -> "RidCapture":
+    def file(cls, path: str | Path, skew_s: float = 2.0, max_drones: int = MAX_DRONES) -> "RidCapture":
         from remoteid.capture import read_capture
 
-        return cls(str(path), lambda window: read_capture(path, window), skew_s)
+        return cls(str(path), lambda window: read_capture(path, window), skew_s, max_drones)
 
     @classmethod
-    def data(cls, name: str, data: bytes, skew_s: float = 2.0) -> "RidCapture":
+    def data(cls, name: str, data: bytes, skew_s: float = 2.0, max_drones: int = MAX_DRONES,
+             raise_with: str = "--max-drones") -> "RidCapture":
         from remoteid.capture import extract
         from remoteid.errors import CaptureError
 
@@ -231,7 +240,7 @@ class RidCapture:
             except CaptureError as exc:  # name the upload, as read_capture names a file
                 raise CaptureError(f"{name}: {exc}") from None
 
-        return cls(name, read, skew_s)
+        return cls(name, read, skew_s, max_drones, raise_with)
 
     def heard(self, rec: Any) -> list[Any]:
         """The drones (`remoteid.capture.Broadcaster`) heard in the dwell's window, by UAS ID;
@@ -270,11 +279,21 @@ class RidCapture:
 
         found = self.heard(rec)
         if serial is None:
+            self._within_cap(len(found))
             return [(self.with_messages(rec, b), None, b) for b in found]
         match = [b for b in found if b.uas_id == serial]
         if not match:
             return [(dreplace(rec, remote_id=None, remote_id_time_s=None, remote_id_source=None), serial, None)]
         return [(self.with_messages(rec, match[0]), serial, match[0])]
+
+    def _within_cap(self, drones: int) -> None:
+        """More drones than `max_drones` is bad input (OverLimit), refused before any is decided."""
+        from core.errors import OverLimit
+
+        if drones > self.max_drones:
+            raise OverLimit(f"{self.name}: {drones} drones heard in the dwell's window, more than the limit of "
+                            f"{self.max_drones} decisions per capture (raise it with {self.raise_with}, or "
+                            "name one drone with a serial)")
 
     def attach(self, rec: Any, serial: str | None = None) -> Any:
         """The return with the messages of the one drone heard in its window (`authn import

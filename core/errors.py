@@ -17,7 +17,7 @@ from core.textsafe import printable
 
 __all__ = ["EXIT_ACCEPT", "EXIT_REJECT", "EXIT_BAD_INPUT", "EXIT_SYSTEM", "EXIT_INCONCLUSIVE", "AuthnException",
            "BadInput",
-           "SystemFault", "Interrupted", "AuthnError", "describe", "exit_code_for", "one_line"]
+           "SystemFault", "Interrupted", "AuthnError", "OverLimit", "describe", "exit_code_for", "one_line"]
 
 EXIT_ACCEPT, EXIT_REJECT, EXIT_BAD_INPUT, EXIT_SYSTEM, EXIT_INCONCLUSIVE = 0, 1, 2, 3, 4
 #: Many results' one exit code is the worst: system error, bad input, reject, inconclusive, accept.
@@ -58,6 +58,11 @@ class Interrupted(SystemFault):
 
 class AuthnError(BadInput):
     """Bad input to the decision layer (options, claims, checkpoints, policies)."""
+
+
+class OverLimit(AuthnError):
+    """Input that would fan out into more decisions than a configured cap allows (a capture
+    naming more drones than the limit): bad input (exit 2), the service's 413."""
 
 
 def exit_code_for(exc: BaseException) -> int:

@@ -9,18 +9,24 @@ into the one-line message the CLI prints.
 from __future__ import annotations
 
 import json
+import math
 from datetime import datetime, timedelta, timezone
 from typing import Any
 
 from core.checked import Invalid
 from core.errors import BadInput
 
-__all__ = ["parse_iso_time", "in_utc_range", "first_error", "loads_json", "JsonTooDeep", "MAX_JSON_DEPTH"]
+__all__ = ["parse_iso_time", "in_utc_range", "first_error", "loads_json", "JsonTooDeep", "MAX_JSON_DEPTH",
+           "MAX_JSON_INT_DIGITS"]
 
 #: Deepest nesting of arrays and objects a JSON file from outside may have (a registry
 #: export is 3 deep, a radar configuration 2): anything deeper is refused as bad input
 #: before a recursive reader (json, pydantic, our own walkers) can hit Python's recursion limit.
 MAX_JSON_DEPTH = 64
+
+#: Longest integer literal a JSON file from outside may hold: no field needs more than 20 digits,
+#: and Python refuses to convert more than 4,300 (a ValueError deep inside the parser).
+MAX_JSON_INT_DIGITS = 100
 
 _MIN_SAFE = datetime.min + timedelta(days=1)
 _MAX_SAFE = datetime.max - timedelta(days=1)
@@ -79,14 +85,37 @@ def loads_json(text: str | bytes, *, max_depth: int = MAX_JSON_DEPTH) -> Any:
     """`json.loads`, refusing documents nested deeper than `max_depth` arrays/objects with
     JsonTooDeep. json's own parser is recursive: a 100,000-deep array raises RecursionError
     inside it, which is reported the same way; the depth of what did parse is then measured
-    without recursion. Syntax errors are json.JSONDecodeError, as from json.loads."""
+    without recursion. Syntax errors are json.JSONDecodeError, as from json.loads, and so are
+    numbers no field can hold: NaN and Infinity (not JSON), an integer of more than
+    MAX_JSON_INT_DIGITS digits, a number beyond a 64-bit float."""
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, parse_int=lambda s: _int(text, s), parse_float=lambda s: _float(text, s),
+                         parse_constant=lambda s: _refuse(text, s, f"{s} is not a JSON number"))
     except RecursionError:
         raise JsonTooDeep(max_depth) from None
     if json_depth(doc, max_depth) > max_depth:
         raise JsonTooDeep(max_depth)
     return doc
+
+
+def _refuse(text: str | bytes, literal: str, why: str) -> Any:
+    """A number the document may not hold, as json's own error at that number's position."""
+    doc = text if isinstance(text, str) else text.decode("utf-8", "replace")
+    raise json.JSONDecodeError(why, doc, max(doc.find(literal), 0))
+
+
+def _int(text: str | bytes, literal: str) -> int:
+    digits = len(literal.lstrip("-"))
+    if digits > MAX_JSON_INT_DIGITS:
+        _refuse(text, literal, f"an integer of {digits} digits, more than {MAX_JSON_INT_DIGITS}")
+    return int(literal)
+
+
+def _float(text: str | bytes, literal: str) -> float:
+    value = float(literal)
+    if not math.isfinite(value):
+        _refuse(text, literal, f"{literal[:24]}{'...' if len(literal) > 24 else ''} is beyond a 64-bit float")
+    return value
 
 
 def json_depth(doc: Any, stop_after: int | None = None) -> int:

@@ -455,26 +455,32 @@ def _threshold(impostor: dict[tuple[str, str], list[float]], target: float) -> f
     return float(np.nextafter(scores[len(scores) - 1 - allowed], np.inf))
 
 
-def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -> None:
+def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], duplicates: int = 0) -> None:
     """Refuse (EnrolError) what cannot be enrolled: an unknown model, fewer than MIN_RECORDINGS
-    recordings (or detections) of a model, a single model."""
+    distinct recordings (or detections) of a model, a single model. Recordings are counted by
+    the SHA-256 of their bytes: copies of one flight are one recording. `duplicates`: how many
+    copies the caller left out already (said in a refusal)."""
     enrolled = sorted({s.model for s in samples})
     unknown = [m for m in enrolled if m not in profiles]
     if unknown:
         raise EnrolError(f"unknown model {unknown[0]!r}: register its profile first (authn register --model ...)")
-    counts = {m: sum(s.model == m for s in samples) for m in enrolled}
+    note = f" ({duplicates} duplicate recording{'s' if duplicates != 1 else ''} ignored)" if duplicates else ""
+    counts = {m: len({s.sha256 for s in samples if s.model == m}) for m in enrolled}
     short = {m: n for m, n in counts.items() if n < MIN_RECORDINGS}
     if short:
         m, n = next(iter(short.items()))
-        raise EnrolError(f"model {m}: {n} recording{'s' if n != 1 else ''}, at least {MIN_RECORDINGS} per model needed")
+        raise EnrolError(f"model {m}: {n} recording{'s' if n != 1 else ''}, at least {MIN_RECORDINGS} per model "
+                         f"needed{note}")
+    if len({s.sha256 for s in samples}) < len(samples):
+        raise EnrolError("the same recording (by SHA-256) is given more than once: enrol each flight once")
     if len(enrolled) < 2:
         raise EnrolError(f"only one model ({enrolled[0]}) to enrol: a site bundle needs at least two registered "
-                         "models' recordings (the cross-validated pairwise errors compare them)")
+                         f"models' recordings (the cross-validated pairwise errors compare them){note}")
     det_counts = {m: sum(s.model == m and s.detected for s in samples) for m in enrolled}
     if any(n < MIN_RECORDINGS for n in det_counts.values()):
         m = next(m for m, n in det_counts.items() if n < MIN_RECORDINGS)
         raise EnrolError(f"model {m}: the radar detected a target in only {det_counts[m]} of its {counts[m]} "
-                         f"recordings, at least {MIN_RECORDINGS} needed")
+                         f"recordings, at least {MIN_RECORDINGS} needed{note}")
 
 
 def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], waveform: Preset, dest: Path, *,

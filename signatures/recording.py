@@ -49,6 +49,10 @@ MAX_IQ_BYTES = 2**29
 MAX_FILE_BYTES = 2**30
 #: Most Remote ID messages per recording (a dwell lasts seconds; 100 000 is generous).
 MAX_RID_MESSAGES = 100_000
+#: Largest |remote_id_time_s| (seconds from start_time): a capture's window is the dwell plus
+#: at most an hour of clock skew, so a day is generous; beyond, the message time is nonsense
+#: (and 1e15 s overflows Python's datetime).
+MAX_RID_TIME_S = 86_400.0
 #: Largest attribute member of an .npz (the `simulation` JSON is ~1 KB): bounds what a
 #: hostile .npy header can make us allocate for a scalar.
 MAX_NPZ_ATTR_BYTES = 2**20
@@ -277,6 +281,10 @@ def _check_rid(rid: np.ndarray | None, times: np.ndarray | None) -> None:
                 f"dataset '/remote_id_time_s': expected shape ({rid.shape[0]},), got {times.shape}")
         if not np.all(np.isfinite(times)):
             raise RecordingError("dataset '/remote_id_time_s': non-finite values")
+        far = np.abs(times.astype(np.float64)) > MAX_RID_TIME_S
+        if np.any(far):
+            raise RecordingError(f"dataset '/remote_id_time_s': {int(np.count_nonzero(far))} values more than "
+                                 f"{MAX_RID_TIME_S:,.0f} s from start_time (got {float(times[far][0]):g})")
 
 
 def _simulation_attr(attrs: dict[str, Any]) -> str | None:

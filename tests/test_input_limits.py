@@ -164,3 +164,38 @@ def test_other_json_readers_refuse_deep_documents(tmp_path: Path, reader: str, d
         else:
             from signatures.modelcard import read_card
             read_card(tmp_path)
+
+
+# --- numbers -------------------------------------------------------------------------------
+
+ABSURD_NUMBERS = {"5001 digits": "9" * 5001, "negative 5001 digits": "-" + "9" * 5001, "1e400": "1e400",
+                  "NaN": "NaN", "-Infinity": "-Infinity"}
+
+
+@pytest.mark.parametrize("number", list(ABSURD_NUMBERS))
+def test_loads_json_refuses_numbers_no_field_can_hold(number: str) -> None:
+    with pytest.raises(json.JSONDecodeError) as caught:
+        loads_json('{"a": [1, 2.5, ' + ABSURD_NUMBERS[number] + "]}")
+    assert caught.value.pos == 15  # where the number is
+
+
+def test_loads_json_keeps_ordinary_numbers() -> None:
+    from core.parsing import MAX_JSON_INT_DIGITS
+
+    big = "9" * MAX_JSON_INT_DIGITS
+    assert loads_json(f'[{big}, -0.5, 1e300, 0]') == [int(big), -0.5, 1e300, 0]
+
+
+@pytest.mark.parametrize("where", ["identities", "profiles"])
+@pytest.mark.parametrize("number", list(ABSURD_NUMBERS))
+def test_registry_import_of_absurd_numbers_is_one_line_exit_2(capsys, db: str, tmp_path: Path, where: str,
+                                                              number: str) -> None:
+    """A 5001-digit integer was a ValueError (exit 3); 1e400 and NaN slipped through as floats."""
+    record = ('{"slug": "x", "rotor_count": ' if where == "profiles" else
+              '{"serial": "' + SERIAL + '", "model": "m300", "operator_id": ') + ABSURD_NUMBERS[number] + "}"
+    path = tmp_path / "fleet.json"
+    path.write_text('{"format": "authn-registry/1", "profiles": [' + (record if where == "profiles" else "")
+                    + '], "identities": [' + (record if where == "identities" else "") + "]}")
+    code, _, err = run(capsys, db, "registry", "import", str(path))
+    assert code == 2
+    _one_error_line(err, f"{path}: not JSON")

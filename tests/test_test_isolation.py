@@ -1,9 +1,10 @@
-"""The test suite never writes into the developer's home: tests/conftest.py points HOME, the
-XDG directories, MPLCONFIGDIR and the AUTHN_* paths at a temporary folder for the whole
-session, before anything computes a default path. Proved here by running a few test files
-(the CLI with its defaults, `authn demo`, the audit log and its key) in a child pytest whose
-HOME is a fresh empty folder and whose environment has no XDG_*/AUTHN_* variables: the
-folder is still empty afterwards."""
+"""No pytest run in this repository writes into the developer's home: the root conftest.py
+points HOME, the XDG directories, MPLCONFIGDIR and the AUTHN_* paths at a temporary folder for
+the whole session, before anything computes a default path, whichever folder or file pytest
+is given. Proved here by child pytests whose HOME is a fresh empty folder and whose environment
+has no XDG_*/AUTHN_* variables: a few test files (the CLI with its defaults, `authn demo`, the
+audit log and its key), and a benchmark alone (`pytest benchmarks/...` does not load
+tests/conftest.py); the folder is still empty afterwards."""
 
 from __future__ import annotations
 
@@ -22,10 +23,27 @@ CHILD_TESTS = [f"{Path(__file__).relative_to(ROOT)}::test_default_paths_point_in
                "tests/registry/test_registry_cli.py", "tests/test_untrusted_input.py"]
 
 
-def _pinned_root() -> Path:
-    from tests.conftest import PINNED_ROOT
+#: A quick benchmark that writes the audit log key and signed heads to their default paths.
+BENCHMARK = "benchmarks/test_bench_decision.py::test_audit_append_one_transaction"
 
-    return PINNED_ROOT
+
+def _pinned_root() -> Path:
+    return Path(os.environ["AUTHN_TEST_SESSION_ROOT"])  # set by the root conftest.py
+
+
+def _child_pytest(tmp_path: Path, *args: str) -> list[str]:
+    """Run pytest on `args` in a child process with an empty HOME and none of the session's
+    variables; what it left in that HOME."""
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("XDG_", "AUTHN_", "PYTEST_")) and k not in ("MPLCONFIGDIR", "PGPASSFILE")}
+    env.update(HOME=str(home), AUTHN_TEST_CHILD="1")
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
+                           f"--basetemp={tmp_path / 'child-tmp'}", *args],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    return sorted(str(p.relative_to(home)) for p in home.rglob("*"))
 
 
 def test_default_paths_point_into_the_session_folder(tmp_path_factory) -> None:
@@ -67,14 +85,12 @@ def test_cli_with_its_defaults_stays_in_the_session_folder(tmp_path: Path) -> No
 
 @pytest.mark.slow  # ~11 s: a child pytest
 def test_an_empty_home_stays_empty(tmp_path: Path) -> None:
-    home = tmp_path / "home"
-    home.mkdir()
-    env = {k: v for k, v in os.environ.items()
-           if not k.startswith(("XDG_", "AUTHN_", "PYTEST_")) and k not in ("MPLCONFIGDIR", "PGPASSFILE")}
-    env.update(HOME=str(home), AUTHN_TEST_CHILD="1")
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
-                           f"--basetemp={tmp_path / 'child-tmp'}", *CHILD_TESTS],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
-    left = sorted(str(p.relative_to(home)) for p in home.rglob("*"))
+    left = _child_pytest(tmp_path, *CHILD_TESTS)
     assert left == [], f"the tests wrote into HOME: {left[:20]}"
+
+
+def test_a_benchmark_run_alone_leaves_home_empty(tmp_path: Path) -> None:
+    """`pytest benchmarks/...` by itself (~4 s): the audit append writes its key and heads into
+    the session folder, not into HOME/.local/share/authn."""
+    left = _child_pytest(tmp_path, BENCHMARK)
+    assert left == [], f"the benchmark wrote into HOME: {left[:20]}"

@@ -165,6 +165,9 @@ def check(
                                                  "heard in the dwell's window is a claim (docs/remoteid.md)."),
     rid_skew: float = typer.Option(2.0, "--rid-skew", min=0.0, max=3600.0,
                                    help="Clock-skew tolerance (s) between the capture and the radar."),
+    max_drones: int = typer.Option(64, "--max-drones", min=1, max=1_000_000,
+                                   help="Most drones one capture may name in a dwell's window (one decision "
+                                        "each); more is bad input, refused before any is decided."),
     plot: Path | None = typer.Option(None, "--plot", help="Write one evidence figure (PNG) per decision into this "
                                                           "folder (the plot extra; docs/output.md)."),
     track: bool = typer.Option(False, "--track", help="The files (or the one directory) are dwells of one target "
@@ -230,7 +233,7 @@ def check(
 
         def capture_of(p: Path):
             c = captures.get(p.name, captures.get(str(p), rid_capture))
-            return None if c is None else RidCapture.file(c, rid_skew)
+            return None if c is None else RidCapture.file(c, rid_skew, max_drones)
     else:
         def capture_of(p: Path):
             return None

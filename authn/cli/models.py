@@ -409,6 +409,47 @@ def _labelled(files: list[Path], labels: Path | None, db) -> list[tuple[Path, st
     return [(f, rows[r]) for r, f in resolved.items()]
 
 
+def _distinct(todo: list[tuple[Path, str | None]]) -> list[tuple[Path, str | None]]:
+    """The recordings with every copy of one (by the SHA-256 of its bytes) after the first left
+    out: a copy is the same flight, never a second one. The same bytes under two labels are bad
+    input."""
+    from core.digest import file_sha256
+    from signatures.enrol import EnrolError
+
+    first: dict[str, tuple[Path, str | None]] = {}
+    kept = []
+    for f, model in todo:
+        digest = file_sha256(f)
+        if digest not in first:
+            first[digest] = (f, model)
+            kept.append((f, model))
+        elif first[digest][1] != model:
+            raise EnrolError(f"{first[digest][0]} and {f} are the same recording (SHA-256 {digest[:12]}...) "
+                             f"labelled {first[digest][1]} and {model}")
+    return kept
+
+
+def _site_samples(todo: list[tuple[Path, str | None]], db, bar):  # -> (list[SiteSample], Preset)
+    """Each recording labelled and its features extracted (`authn.enrolment.site_sample`), and
+    their one waveform; recordings of several waveforms are bad input."""
+    from authn.enrolment import site_sample
+    from signatures.enrol import EnrolError
+
+    samples, waveforms = [], {}
+    with bar:
+        task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
+        for f, model in todo:
+            s, wf = site_sample(f, model, db)
+            samples.append(s)
+            waveforms.setdefault(wf.key, wf)
+            bar.advance(task)
+    if len(waveforms) > 1:
+        described = "; ".join(w.describe() for w in waveforms.values())
+        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}): enrol each waveform's "
+                         "recordings on their own")
+    return samples, next(iter(waveforms.values()))
+
+
 @models_app.command("enrol")
 def enrol_cmd(
     ctx: typer.Context,
@@ -447,7 +488,6 @@ def enrol_cmd(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from authn.enrolment import site_sample
     from authn.sprt import Sprt
     from registry.dbapi import Database
     from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
@@ -462,24 +502,13 @@ def enrol_cmd(
         raise EnrolError(f"--calibrate {calibrate!r}: one of {', '.join(CALIBRATE)}")
     db = Database(ctx.obj.db_url if ctx.obj else None)
     files = _recording_files(recordings)
-    todo = _labelled(files, labels, db)
+    todo = _distinct(_labelled(files, labels, db))
+    duplicates = len(files) - len(todo)
     console = Console(stderr=True)
     bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True,
                    disable=not sys.stderr.isatty())
-    samples, waveforms = [], {}
-    with bar:
-        task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
-        for f, model in todo:
-            s, wf = site_sample(f, model, db)
-            samples.append(s)
-            waveforms.setdefault(wf.key, wf)
-            bar.advance(task)
-    if len(waveforms) > 1:
-        described = "; ".join(w.describe() for w in waveforms.values())
-        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}): enrol each waveform's "
-                         "recordings on their own")
-    wf = next(iter(waveforms.values()))
+    samples, wf = _site_samples(todo, db, bar)
     previous = None
     if add:
         folder = active_bundle(wf)
@@ -488,6 +517,7 @@ def enrol_cmd(
         previous = folder.name
         load_classifier(path=folder)  # verified before its samples are reused
         known = {s.sha256 for s in previous_samples(folder)}
+        duplicates += sum(s.sha256 in known for s in samples)  # already enrolled: the same flights again
         samples = previous_samples(folder) + [s for s in samples if s.sha256 not in known]
     registered = {}
     for slug in sorted({s.model for s in samples}):
@@ -496,12 +526,14 @@ def enrol_cmd(
             raise EnrolError(f"unknown model {slug!r}: not a registered model profile (authn registry models)")
         registered[slug] = p
     profiles = {**shipped_profiles(), **registered}
-    check_counts(samples, profiles)  # before any estimate or work
+    check_counts(samples, profiles, duplicates)  # before any estimate or work
     name = name or default_name(wf)
     dest = models_dir() / name
     if dest.exists():
         raise EnrolError(f"{dest}: a bundle of that name exists (choose another --name)")
     counts = {m: sum(s.model == m for s in samples) for m in sorted({s.model for s in samples})}
+    if duplicates:
+        console.print(f"{_ignored(duplicates)} (the same bytes as another: one flight, counted once)")
     console.print(f"enrolling {len(samples)} recordings ({', '.join(f'{m} {n}' for m, n in counts.items())}) of "
                   f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers, base_samples):.0f} s "
                   "(less with a cached base set)")
@@ -515,7 +547,7 @@ def enrol_cmd(
                      n_sim=base_samples, progress=progress, sprt=Sprt(),  # track errors by the check's own test
                      physics_bands=site_bands, score_calibration=CALIBRATE[calibrate])
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
-    _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
+    _print_enrolment(card, dest, time.perf_counter() - t0, as_json, duplicates)
 
 
 def _estimate(wf, n_site: int, workers: int, n_sim: int) -> float:
@@ -530,7 +562,11 @@ def _estimate(wf, n_site: int, workers: int, n_sim: int) -> float:
     return n_sim * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
 
 
-def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) -> None:
+def _ignored(duplicates: int) -> str:
+    return f"{duplicates} duplicate recording{'s' if duplicates != 1 else ''} ignored"
+
+
+def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool, duplicates: int = 0) -> None:
     from rich import box
     from rich.console import Console
     from rich.table import Table
@@ -542,7 +578,7 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
                                "confusable_pairs": e["confusable_pairs"],
                                "confusable_pairs_tracks": e.get("confusable_pairs_tracks"), "tracks": e.get("tracks"),
                                "threshold": e["threshold"], "calibration": e.get("calibration"),
-                               "sources": len(e["sources"])}, indent=2))
+                               "sources": len(e["sources"]), "duplicates_ignored": duplicates}, indent=2))
         return
     console = Console()
     console.print(f"site bundle [bold]{e['name']}[/] written to {folder} in {seconds:.0f} s; active for "

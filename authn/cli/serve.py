@@ -29,6 +29,9 @@ def serve(
                                                         "(503 beyond)."),
     max_in_flight: int = typer.Option(256, "--max-in-flight", min=1, max=100_000,
                                       help="Requests in progress per worker (503 beyond)."),
+    max_drones: int = typer.Option(64, "--max-drones", min=1, max=1_000_000,
+                                   help="Most drones one rid_capture may name in a dwell's window (one "
+                                        "decision each; 413 beyond, refused before any is decided)."),
     figures_dir: Path | None = typer.Option(None, "--figures-dir",
                                             help="Where figure=true checks keep their evidence figures "
                                                  "(default: figures in the user data directory)."),
@@ -51,6 +54,7 @@ def serve(
 
     settings = Settings(db_url=ctx.obj.db_url, policy_path=str(policy) if policy else None,
                         max_upload_bytes=int(max_upload_mib * 2**20), upload_timeout_s=upload_timeout_s,
+                        max_drones=max_drones,
                         figures_dir=str(figures_dir) if figures_dir else None)
     os.environ.update(settings.to_env())  # read by each worker process's app factory
     from registry.db import get_engine

@@ -14,7 +14,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException
 
-from core.errors import AuthnException, BadInput, describe, one_line
+from core.errors import AuthnException, BadInput, OverLimit, describe, one_line
 from authn.service.auth import Forbidden, Unauthenticated
 from authn.service.limits import RequestLimit, UploadLimits
 from authn.service.runtime import Runtime
@@ -59,8 +59,8 @@ def _install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(AuthnException)
     async def _ours(request: Request, exc: AuthnException) -> JSONResponse:
-        if isinstance(exc, BadInput):
-            return _error(request, 400, describe(exc), "bad-input")
+        if isinstance(exc, BadInput):  # past a configured cap (OverLimit): too large, 413
+            return _error(request, 413 if isinstance(exc, OverLimit) else 400, describe(exc), "bad-input")
         log.warning("system fault on %s %s: %s", request.method, request.url.path, describe(exc))
         return _error(request, 503, describe(exc), "system")
 

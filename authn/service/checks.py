@@ -11,7 +11,7 @@ import hashlib
 import os
 import tempfile
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, NoReturn
 
 from fastapi import APIRouter, Depends, File, Form, Request, UploadFile
 from fastapi import Path as FastPath
@@ -24,7 +24,8 @@ from authn.service.deps import require, runtime
 router = APIRouter(prefix="/v1", tags=["checks"])
 _ERRORS: dict[int | str, dict[str, Any]] = {
     400: {"description": "bad recorded return"}, 401: {"description": "no valid API key"},
-    403: {"description": "role may not check"}, 413: {"description": "upload too large"},
+    403: {"description": "role may not check"},
+    413: {"description": "upload too large, or a capture naming more drones than the server's --max-drones"},
     415: {"description": "not multipart/form-data"}, 422: {"description": "missing or invalid field"},
     503: {"description": "database or policy engine unavailable; nothing was decided"}}
 _TMP = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
@@ -95,6 +96,15 @@ def _check_many(checker: Any, files: list[tuple[str, bytes]], serial: str | None
     return batch.items
 
 
+async def _refuse(rt: Any, what: str, serial: str | None, exc: Exception) -> NoReturn:
+    """Record a request refused before any check (an audit error entry naming `what`, as a failed
+    check is recorded), then raise."""
+    from authn.check import Failure
+
+    await rt.run(lambda: rt.checker.record([Failure.of(what, serial, exc)]))
+    raise exc
+
+
 def _serial(serial: str | None) -> str | None:
     return serial.strip() or None if serial is not None else None
 
@@ -121,7 +131,8 @@ async def check(request: Request, file: Annotated[UploadFile, File(description="
     if rid_capture is not None:
         from authn.check import RidCapture
 
-        capture = RidCapture.data(_name(rid_capture), await rid_capture.read(), rid_skew)
+        capture = RidCapture.data(_name(rid_capture), await rid_capture.read(), rid_skew, rt.settings.max_drones,
+                                  "the server's --max-drones")
     from authn.sprt import Sprt
 
     sprt = Sprt(false_accept, false_reject)
@@ -160,10 +171,13 @@ async def check_batch(request: Request,
     from authn.check import Outcome
 
     rt = runtime(request)
-    if len(files) > rt.settings.max_batch_files:
-        from core.errors import AuthnError
+    if len(files) > rt.settings.max_batch_files:  # a decision per file: refused, audited, before any is read
+        from core.errors import OverLimit
 
-        raise AuthnError(f"at most {rt.settings.max_batch_files} files per batch, got {len(files)}")
+        limit = rt.settings.max_batch_files
+        await _refuse(rt, "checks:batch", _serial(serial),
+                      OverLimit(f"{len(files)} files in one batch, more than the limit of {limit} decisions per "
+                                "request (send several batches)"))
     loaded = [(_name(f), await f.read()) for f in files]
     items = await rt.run(lambda: _check_many(rt.checker, loaded, _serial(serial)))
     for o in items:

@@ -353,6 +353,28 @@ def test_too_few_recordings_and_another_waveform(site: dict, tmp_path: Path, cap
     assert "recordings are of 2 waveforms" in _one_line_error(capsys)
 
 
+def test_copies_of_one_flight_are_one_recording(site: dict, tmp_path: Path, capsys) -> None:
+    """15 copies of one m300 flight (other names, same bytes) are one recording: refused as one
+    file would be, saying how many were ignored; the same bytes under two labels are bad input."""
+    before = _active()
+    one = sorted(site["flights"].glob("m300-*.h5"))[0]
+    rows = ["file,model"]
+    for i in range(15):
+        (tmp_path / f"copy-{i:02d}.h5").write_bytes(one.read_bytes())
+        rows.append(f"copy-{i:02d}.h5,m300")
+    for f in sorted(site["flights"].glob("m600-*.h5")) + sorted(site["flights"].glob("phantom4-*.h5")):
+        (tmp_path / f.name).symlink_to(f)
+        rows.append(f"{f.name},{f.name.split('-')[0]}")
+    (tmp_path / "labels.csv").write_text("\n".join(rows) + "\n")
+    capsys.readouterr()
+    assert main(["models", "enrol", str(tmp_path), "--labels", str(tmp_path / "labels.csv"), *BASE]) == 2
+    assert ("model m300: 1 recording, at least 5 per model needed (14 duplicate recordings ignored)"
+            in _one_line_error(capsys))
+    (tmp_path / "labels.csv").write_text("\n".join(rows).replace("copy-07.h5,m300", "copy-07.h5,m600") + "\n")
+    assert main(["models", "enrol", str(tmp_path), "--labels", str(tmp_path / "labels.csv"), *BASE]) == 2
+    assert "copy-07.h5 are the same recording" in _one_line_error(capsys) and _active() == before
+
+
 def test_interrupted_enrolment_leaves_the_previous_bundle_active(site: dict, capsys, monkeypatch) -> None:
     before = _active()
     assert before
@@ -375,11 +397,15 @@ def test_interrupted_enrolment_leaves_the_previous_bundle_active(site: dict, cap
 def test_add_extends_the_active_enrolment(site: dict, tmp_path: Path, capsys) -> None:
     more = tmp_path / "more"
     _make_site(more, 2, seed=99)
+    (more / "again.h5").write_bytes((site["flights"] / "m300-00.h5").read_bytes())  # enrolled already
+    (more / "copy.h5").write_bytes((more / "m600-00.h5").read_bytes())  # a copy of a new one
+    with (more / "labels.csv").open("a") as fh:
+        fh.write("again.h5,m300\ncopy.h5,m600\n")
     capsys.readouterr()
     assert main(["models", "enrol", str(more), "--labels", str(more / "labels.csv"), "--add", "--name", "site-c",
                  "--site-bands", "--calibrate", "on", "--json", *BASE]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["counts"] == {"m300": 7, "m600": 7, "phantom4": 7}
+    assert doc["counts"] == {"m300": 7, "m600": 7, "phantom4": 7} and doc["duplicates_ignored"] == 2
     card = json.loads((site["models"] / "site-c" / "card.json").read_text())
     assert card["enrolment"]["previous"] == "site-a" and list(_active().values()) == ["site-c"]
     bands = card["enrolment"]["bands"]  # --site-bands: each model's bands from its recordings, today's the prior

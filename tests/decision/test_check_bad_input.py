@@ -15,6 +15,7 @@ from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
 from signatures.scene import Scene
+from tests.remoteid.capture_tools import heard_at
 
 SERIAL = "1581BDEM00000002"
 
@@ -58,6 +59,9 @@ CASES = {
                                                                                "remote_id": _garbage_rid()}),
     "no claim at all": lambda src, d: _variant(src, d / "noclaim.h5",
                                                datasets={"remote_id_time_s": None, "remote_id": None}),
+    # message times no datetime can hold (OverflowError, exit 3), or centuries from the dwell
+    **{f"capture time {v!r}": (lambda src, d, v=v: heard_at(src, d / "t.h5", v))
+       for v in (1e15, -1e15, 1.7e308, 2**62, 1e10)},
 }
 
 

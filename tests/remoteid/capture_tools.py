@@ -129,3 +129,25 @@ def beacons(dst: Path, frames: list[tuple[datetime, bytes, bytes]]) -> Path:
 def start_at(c: CapturedMessage) -> datetime:
     """A dwell starting when the capture heard `c` (its Location is the one nearest mid-dwell)."""
     return c.captured_at - timedelta(seconds=0.0)
+
+
+def crowd(dst: Path, at: datetime, n: int) -> Path:
+    """A capture of `n` drones heard at `at`: each one Basic ID (serial CROWD00000, CROWD00001, ...)
+    from its own transmitter."""
+    return beacons(dst, [(at, bytes([2, 0, 0, 0, i // 256, i % 256]), encode(BasicId(id_type=1, ua_type=2,
+                                                                                     uas_id=f"CROWD{i:05d}")))
+                         for i in range(n)])
+
+
+def heard_at(src: Path, dst: Path, value: float | int) -> Path:
+    """The HDF5 return `src` with its Remote ID marked as captured and every message heard `value` s
+    after start_time, written by h5py (write_recording refuses such times)."""
+    import h5py
+
+    dst.write_bytes(src.read_bytes())
+    with h5py.File(dst, "a") as f:
+        n = f["remote_id"].shape[0]
+        del f["remote_id_time_s"]
+        f.create_dataset("remote_id_time_s", data=np.full(n, value, np.int64 if isinstance(value, int) else np.float64))
+        f.attrs["remote_id_source"] = "capture"
+    return dst
