@@ -55,6 +55,8 @@ class ConnectionLimits:
     max_connections_per_client: int = 64
     #: requests in the application at once per worker (503 beyond); health probes are not counted
     max_in_flight: int = 256
+    #: requests of one client address receiving their body at once per worker (503 beyond)
+    max_bodies_per_client: int = 16
 
     def __post_init__(self) -> None:
         if self.header_timeout_s <= 0:
@@ -63,6 +65,8 @@ class ConnectionLimits:
             raise ValueError("max_connections_per_client must be between 1 and max_connections")
         if self.max_in_flight < 1:
             raise ValueError("max_in_flight must be at least 1")
+        if self.max_bodies_per_client < 1:
+            raise ValueError("max_bodies_per_client must be at least 1")
 
 
 #: seconds between accepting a connection that goes over a limit and closing the oldest waiting ones
@@ -82,6 +86,8 @@ class ConnectionGuard:
         self.waiting_by_client: dict[str, OrderedDict[Any, None]] = {}
         self.in_flight = 0
         self.in_flight_by_client: dict[str, int] = {}
+        self.bodies = 0
+        self.bodies_by_client: dict[str, int] = {}
         self.counts = {"header_timeouts": 0, "evicted": 0, "refused": 0, "busy": 0}
         self._trim: asyncio.TimerHandle | None = None
 
@@ -169,13 +175,21 @@ class ConnectionGuard:
 
     # requests (RequestLimit)
     def request_started(self, addr: str) -> str | None:
-        """Count a request in; or say why it must get 503."""
-        if self.in_flight >= self.limits.max_in_flight:
+        """Count a request in; or say why it must get 503.
+
+        Fair share: an address holding m requests gets another only while more than m slots
+        are free. An address with none gets in while any slot is free, and k busy addresses
+        together can hold at most about k/(k+1) of the slots, so they never take the last ones
+        from a newcomer."""
+        free = self.limits.max_in_flight - self.in_flight
+        if free <= 0:
             return f"{self.in_flight} requests in flight on this worker (limit {self.limits.max_in_flight})"
         mine = self.in_flight_by_client.get(addr, 0)
         if mine >= self.limits.max_connections_per_client:
             return (f"{mine} requests from your address in flight on this worker "
                     f"(limit {self.limits.max_connections_per_client})")
+        if mine >= free:
+            return f"{mine} requests from your address in flight and {free} free on this worker (fair share)"
         self.in_flight += 1
         self.in_flight_by_client[addr] = mine + 1
         return None
@@ -188,9 +202,28 @@ class ConnectionGuard:
         else:
             del self.in_flight_by_client[addr]
 
+    def body_started(self, addr: str) -> str | None:
+        """Count a request of `addr` in as receiving its body; or say why it must get 503."""
+        mine = self.bodies_by_client.get(addr, 0)
+        if mine >= self.limits.max_bodies_per_client:
+            return (f"{mine} requests from your address receiving a body on this worker "
+                    f"(limit {self.limits.max_bodies_per_client})")
+        self.bodies += 1
+        self.bodies_by_client[addr] = mine + 1
+        return None
+
+    def body_done(self, addr: str) -> None:
+        self.bodies -= 1
+        left = self.bodies_by_client[addr] - 1
+        if left:
+            self.bodies_by_client[addr] = left
+        else:
+            del self.bodies_by_client[addr]
+
     def snapshot(self) -> dict[str, Any]:
         return {"connections": len(self.open), "waiting_for_head": len(self.waiting), "in_flight": self.in_flight,
-                "clients": len(self.per_client), **asdict(self.limits), **self.counts}
+                "receiving_body": self.bodies, "clients": len(self.per_client), **asdict(self.limits),
+                **self.counts}
 
 
 _GUARD: ConnectionGuard | None = None
