@@ -139,13 +139,13 @@ def _add_layers(app: FastAPI, settings: Settings) -> None:
     """The pure ASGI layers, outermost last: request slots, then the key (before any body is
     read), then the body's limit and timeout."""
     from authn.service.gate import Authenticate, route_actions
-    from authn.service.limits import FORM_OVERHEAD, BodyLimits, BodyRule, RequestLimit, upload_paths
+    from authn.service.limits import FORM_OVERHEAD, BodyLimits, BodyRule, RequestLimit, body_rules
 
     routes, clients = api_routes(app), settings.clients()
     upload = BodyRule(settings.max_upload_bytes + FORM_OVERHEAD, settings.upload_timeout_s, "upload",
-                      settings.max_upload_bytes)
+                      settings.max_upload_bytes, multipart=True)
     other = BodyRule(settings.max_body_bytes, settings.body_timeout_s, "body", settings.max_body_bytes)
-    app.add_middleware(BodyLimits, uploads=upload_paths(routes), upload=upload, other=other, clients=clients)
+    app.add_middleware(BodyLimits, rules=body_rules(routes, upload, other), other=other, clients=clients)
     app.add_middleware(Authenticate, actions=route_actions(routes))
     app.add_middleware(RequestLimit, clients=clients)  # outermost: a slow upload counts as in flight
 

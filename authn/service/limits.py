@@ -32,22 +32,15 @@ FORM_OVERHEAD = 64 * 1024
 PROBE_PATHS = ("/healthz", "/readyz")
 
 
-def upload_paths(routes: list[Any]) -> tuple[str, ...]:
-    """The paths of the routes that take files (multipart uploads)."""
-    from fastapi.params import File
-
-    return tuple(sorted({r.path for r in routes
-                         if any(isinstance(p.field_info, File) for p in r.dependant.body_params)}))
-
-
 @dataclass(frozen=True)
 class BodyRule:
     """One kind of body: its limit in bytes, its timeout, and how the errors name it."""
 
     limit: int
     timeout_s: float
-    noun: str  # "upload" or "body"
+    noun: str  # "upload", "body", or "body (this endpoint takes none)"
     stated: int  # the limit the 413 states (an upload's without the form's overhead)
+    multipart: bool = False  # 415 unless multipart/form-data
 
     def too_big(self) -> str:
         return f"{self.noun} larger than the limit of {self.stated} bytes"
@@ -56,27 +49,45 @@ class BodyRule:
         return f"{self.noun} not received within {self.timeout_s:g} s"
 
 
+def body_rules(routes: list[Any], upload: BodyRule, other: BodyRule) -> list[tuple[Any, BodyRule]]:
+    """Each route's rule: `upload` for a route that takes files, `other` for one that takes a
+    JSON body, a limit of 0 for one that takes no body."""
+    from fastapi.params import File
+
+    none = BodyRule(0, other.timeout_s, "body (this endpoint takes none)", 0)
+    rules = []
+    for route in routes:
+        params = route.dependant.body_params
+        rules.append((route, upload if any(isinstance(p.field_info, File) for p in params) else
+                      other if params else none))
+    return rules
+
+
 class BodyLimits:
-    def __init__(self, app: Any, uploads: tuple[str, ...], upload: BodyRule, other: BodyRule,
-                 clients: ClientAddress) -> None:
+    def __init__(self, app: Any, rules: list[tuple[Any, BodyRule]], other: BodyRule, clients: ClientAddress) -> None:
         self.app = app
-        self.uploads, self.upload, self.other, self.clients = uploads, upload, other, clients
+        self.rules, self.other, self.clients = rules, other, clients
+
+    def _rule(self, scope: dict) -> BodyRule:
+        from starlette.routing import Match
+
+        return next((rule for route, rule in self.rules if route.matches(scope)[0] is Match.FULL), self.other)
 
     async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
-        is_upload = scope["method"] == "POST" and scope["path"] in self.uploads
-        rule = self.upload if is_upload else self.other
-        if is_upload and not headers.get("content-type", "").lower().startswith("multipart/form-data"):
+        rule = self._rule(scope)
+        if rule.multipart and not headers.get("content-type", "").lower().startswith("multipart/form-data"):
             await reply(send, 415, "upload the recorded return as multipart/form-data (field 'file')")
             return
         declared = headers.get("content-length", "")
-        if declared.isdigit() and int(declared) > rule.limit:
+        chunked = "chunked" in headers.get("transfer-encoding", "").lower()
+        if (declared.isdigit() and int(declared) > rule.limit) or (chunked and rule.limit == 0):
             await reply(send, 413, rule.too_big())
             return
-        if not ("chunked" in headers.get("transfer-encoding", "").lower() or declared.strip("0")):
+        if not (chunked or declared.strip("0")):
             await self.app(scope, receive, send)  # no body to wait for
             return
         await self._with_body(scope, receive, send, rule)
