@@ -87,8 +87,8 @@ class ConnectionGuard:
         self.in_flight = 0
         self.in_flight_by_client: dict[str, int] = {}
         self.bodies = 0
-        self.bodies_by_client: dict[str, int] = {}
-        self.counts = {"header_timeouts": 0, "evicted": 0, "refused": 0, "busy": 0}
+        self.bodies_by_client: dict[str, OrderedDict[Any, None]] = {}  # requests receiving a body, oldest first
+        self.counts = {"header_timeouts": 0, "evicted": 0, "refused": 0, "busy": 0, "preempted": 0}
         self._trim: asyncio.TimerHandle | None = None
 
     # connection life
@@ -178,17 +178,18 @@ class ConnectionGuard:
         """Count a request in; or say why it must get 503.
 
         Fair share: an address holding m requests gets another only while more than m slots
-        are free. An address with none gets in while any slot is free, and k busy addresses
-        together can hold at most about k/(k+1) of the slots, so they never take the last ones
-        from a newcomer."""
+        are free, so one address alone takes at most half. When that refuses it, the address
+        receiving the most bodies, if it holds at least two more requests than this one, has
+        its newest body cut (503) and this request takes the slot: slow bodies from a few
+        addresses cannot keep another address out."""
         free = self.limits.max_in_flight - self.in_flight
-        if free <= 0:
-            return f"{self.in_flight} requests in flight on this worker (limit {self.limits.max_in_flight})"
         mine = self.in_flight_by_client.get(addr, 0)
         if mine >= self.limits.max_connections_per_client:
             return (f"{mine} requests from your address in flight on this worker "
                     f"(limit {self.limits.max_connections_per_client})")
-        if mine >= free:
+        if free <= mine and not self._preempt_for(mine):
+            if free <= 0:
+                return f"{self.in_flight} requests in flight on this worker (limit {self.limits.max_in_flight})"
             return f"{mine} requests from your address in flight and {free} free on this worker (fair share)"
         self.in_flight += 1
         self.in_flight_by_client[addr] = mine + 1
@@ -202,22 +203,39 @@ class ConnectionGuard:
         else:
             del self.in_flight_by_client[addr]
 
-    def body_started(self, addr: str) -> str | None:
-        """Count a request of `addr` in as receiving its body; or say why it must get 503."""
-        mine = self.bodies_by_client.get(addr, 0)
-        if mine >= self.limits.max_bodies_per_client:
-            return (f"{mine} requests from your address receiving a body on this worker "
+    def _preempt_for(self, mine: int) -> bool:
+        """Cut the newest body of the address receiving the most, if it holds at least two more
+        requests than `mine`; whether one was cut (its slot is freed as it unwinds)."""
+        if not self.bodies_by_client:
+            return False
+        top = max(self.bodies_by_client, key=lambda a: len(self.bodies_by_client[a]))
+        if len(self.bodies_by_client[top]) < mine + 2:
+            return False
+        victim = next(reversed(self.bodies_by_client[top]))
+        self.body_done(top, victim)
+        victim.preempt()
+        self.counts["preempted"] += 1
+        return True
+
+    def body_started(self, addr: str, reading: Any) -> str | None:
+        """Count `reading` (a request of `addr` receiving its body; `preempt()` cuts it) in, or
+        say why it must get 503."""
+        mine = self.bodies_by_client.setdefault(addr, OrderedDict())
+        if len(mine) >= self.limits.max_bodies_per_client:
+            return (f"{len(mine)} requests from your address receiving a body on this worker "
                     f"(limit {self.limits.max_bodies_per_client})")
         self.bodies += 1
-        self.bodies_by_client[addr] = mine + 1
+        mine[reading] = None
         return None
 
-    def body_done(self, addr: str) -> None:
+    def body_done(self, addr: str, reading: Any) -> None:
+        """`reading` has its body, or was cut, or ended. Idempotent."""
+        mine = self.bodies_by_client.get(addr)
+        if mine is None or reading not in mine:
+            return
+        del mine[reading]
         self.bodies -= 1
-        left = self.bodies_by_client[addr] - 1
-        if left:
-            self.bodies_by_client[addr] = left
-        else:
+        if not mine:
             del self.bodies_by_client[addr]
 
     def snapshot(self) -> dict[str, Any]:

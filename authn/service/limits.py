@@ -96,13 +96,13 @@ class BodyLimits:
         from authn.service.connections import current
 
         guard, addr = current(), self.clients.of(scope)
+        reading = _Reading(receive, rule, guard, addr)
         if guard is not None:
-            refused = guard.body_started(addr)
+            refused = guard.body_started(addr, reading)
             if refused is not None:
                 guard.counts["busy"] += 1
                 await reply(send, 503, f"server busy: {refused}; retry", [(b"retry-after", b"1")])
                 return
-        reading = _Reading(receive, rule, guard, addr)
 
         async def guarded_send(msg: dict) -> None:
             if reading.cut is None:
@@ -115,50 +115,66 @@ class BodyLimits:
                 raise
         finally:
             reading.done()
-        if reading.cut == "slow":
-            await reply(send, 408, rule.too_slow())
-        elif reading.cut == "over":
-            await reply(send, 413, rule.too_big())
+        if reading.cut is not None:
+            await reply(send, *_CUT[reading.cut](rule))
+
+
+#: the answer to a body cut off: over the limit, too slow, or preempted for another address
+_CUT: dict[str, Any] = {
+    "over": lambda rule: (413, rule.too_big()),
+    "slow": lambda rule: (408, rule.too_slow()),
+    "preempted": lambda rule: (503, "server busy: your slowest body was cut to make room for another address; "
+                                    "retry", [(b"retry-after", b"1")])}
 
 
 class _Reading:
     """One request's body as the app reads it: counted against the limit, against the
-    deadline until its last chunk, and in the address's requests receiving a body."""
+    deadline until its last chunk, and in the guard's bodies in progress (which may preempt it)."""
 
     def __init__(self, receive: Any, rule: BodyRule, guard: Any, addr: str) -> None:
         self._receive, self.rule, self.guard, self.addr = receive, rule, guard, addr
         self.deadline = time.monotonic() + rule.timeout_s
         self.received = 0
-        self.cut: str | None = None  # "over" or "slow": the app is told the client left; we answer
+        self.cut: str | None = None  # why the app was told the client left (BodyLimits answers)
         self.in_body = True
+        self._preempted = asyncio.get_running_loop().create_future()
+
+    def preempt(self) -> None:
+        """The guard needs this slot for another address: cut the body at once."""
+        if not self._preempted.done():
+            self._preempted.set_result(None)
 
     async def receive(self) -> dict:
-        if not self.in_body and self.cut is None:
-            return await self._receive()  # the body is in: only a disconnect is left to hear
         if self.cut is not None:
             return {"type": "http.disconnect"}
-        try:
-            msg = await asyncio.wait_for(self._receive(), max(self.deadline - time.monotonic(), 0.001))
-        except asyncio.TimeoutError:
-            self.cut = "slow"
-            self.done()
-            return {"type": "http.disconnect"}
+        if not self.in_body:
+            return await self._receive()  # the body is in: only a disconnect is left to hear
+        arriving = asyncio.ensure_future(self._receive())
+        await asyncio.wait((arriving, self._preempted), timeout=max(self.deadline - time.monotonic(), 0.001),
+                           return_when=asyncio.FIRST_COMPLETED)
+        if not arriving.done():
+            arriving.cancel()
+            return self._cut("preempted" if self._preempted.done() else "slow")
+        msg = arriving.result()
         if msg["type"] == "http.request":
             self.received += len(msg.get("body", b""))
             if self.received > self.rule.limit:
-                self.cut = "over"
-                self.done()
-                return {"type": "http.disconnect"}  # the app stops reading; BodyLimits answers
+                return self._cut("over")  # the app stops reading
             if not msg.get("more_body", False):
                 self.done()
         return msg
+
+    def _cut(self, why: str) -> dict:
+        self.cut = why
+        self.done()
+        return {"type": "http.disconnect"}
 
     def done(self) -> None:
         """The body phase is over (complete, cut, or the request ended): count it out once."""
         if self.in_body:
             self.in_body = False
             if self.guard is not None:
-                self.guard.body_done(self.addr)
+                self.guard.body_done(self.addr, self)
 
 
 class RequestLimit:

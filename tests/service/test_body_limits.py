@@ -61,17 +61,18 @@ def test_every_post_route_is_listed() -> None:
 
 @pytest.mark.parametrize("path", sorted(POSTS))
 def test_no_key_is_401_before_the_body(server, path) -> None:
-    got = push_body(*_addr(server), path, _type(path), PUSH)
+    got = push_body(*_addr(server), path, _type(path), PUSH, prefix=_prefix(path))
     assert got.status == 401 and got.sent < MiB and got.seconds < 5.0, (path, got.status, got.sent, got.seconds)
     assert "API key" in _error(got.reply)
     bad = push_body(*_addr(server), path, {**_type(path), "Authorization": "Bearer authn_nope"}, PUSH,
-                    chunked=False)
+                    chunked=False, prefix=_prefix(path))
     assert bad.status == 401 and bad.sent < MiB, (path, bad.status, bad.sent)
 
 
 @pytest.mark.parametrize("path", [p for p, role in sorted(POSTS.items()) if role == "admin"])
 def test_a_role_that_may_not_is_403_before_the_body(server, keys, path) -> None:
-    got = push_body(*_addr(server), path, {**_type(path), "Authorization": f"Bearer {keys.operator}"}, PUSH)
+    got = push_body(*_addr(server), path, {**_type(path), "Authorization": f"Bearer {keys.operator}"}, PUSH,
+                    prefix=_prefix(path))
     assert got.status == 403 and got.sent < MiB, (path, got.status, got.sent)
     assert "operator" in _error(got.reply)
 
