@@ -64,15 +64,17 @@ def push_body(host: str, port: int, path: str, headers: dict[str, str], total: i
     sock = _connect(host, port, source)
     t0 = time.monotonic()
     payload = b"x" * 65536
-    frame = f"{len(payload):x}\r\n".encode() + payload + b"\r\n" if chunked else payload
-    sent, pending, reply, answered = 0, b"", b"", None
-    if prefix:
-        pending = f"{len(prefix):x}\r\n".encode() + prefix + b"\r\n" if chunked else prefix
+
+    def piece(data: bytes) -> bytes:
+        return f"{len(data):x}\r\n".encode() + data + b"\r\n" if chunked else data
+
+    sent, reply, answered, ended = 0, b"", None, False
+    pending = piece(prefix) if prefix else b""
     try:
         sock.sendall(_head("POST", path, f"{host}:{port}", headers))
         sock.setblocking(False)
         while time.monotonic() - t0 < timeout_s:
-            want_write = sent < total or pending
+            want_write = not ended or pending
             readable, writable, _ = select.select([sock], [sock] if want_write else [], [], 0.5)
             if readable:
                 data = sock.recv(65536)
@@ -85,7 +87,10 @@ def push_body(host: str, port: int, path: str, headers: dict[str, str], total: i
                     break
             if writable:
                 if not pending:
-                    pending = frame if sent + len(payload) <= total else b"0\r\n\r\n" if chunked else b""
+                    if sent < total:
+                        pending = piece(payload[:total - sent])
+                    else:
+                        pending, ended = (b"0\r\n\r\n" if chunked else b""), True
                     if not pending:
                         continue
                 n = sock.send(pending)
