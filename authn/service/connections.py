@@ -10,9 +10,9 @@ made both workers of `authn serve --workers 2` answer every check 503. Here, per
   part of a head had arrived, silently if nothing had).
 - **Waiting connections are evictable, not counted as load:** a connection that has not yet
   sent its head (or sits idle between keep-alive requests) is *waiting*. Requests in flight
-  are limited separately (`max_in_flight` per worker and `max_connections_per_client` per
-  address, 503 beyond, in `authn.service.limits.RequestLimit`), so idle sockets never make a
-  real request 503.
+  are limited separately (`max_in_flight` per worker, `max_connections_per_client` per
+  address, a fair share, `max_bodies_per_client` receiving a body; 503 beyond, through
+  `authn.service.limits`), so idle sockets never make a real request 503.
 - **Per client address:** at most `max_connections_per_client` open connections. When an
   address goes over, its oldest *waiting* connections are closed until it is back within the
   limit. That trim runs TRIM_DELAY_S after the connection that went over was accepted, not at
