@@ -3,10 +3,10 @@
 `BodyLimits` gives every request a body limit and a body timeout: the uploads (routes that
 take files) `max_upload_bytes` and the upload timeout, routes that take a JSON body (and
 unknown paths) the small `max_body_bytes` and the body timeout, routes that take no body 0
-bytes. A declared Content-Length over the limit is
-refused before a byte is read, a chunked body as soon as it passes the limit (413); a body
-that takes longer than its timeout to arrive is cut off (408), so a slow client holds one
-connection, never a worker; an upload that is not multipart/form-data gets 415. An address
+bytes. A declared Content-Length over the limit is refused before a byte is read, a chunked
+body as soon as it passes the limit (413); a body that takes longer than its timeout to
+arrive is cut off (408), so a slow client holds one connection, never a worker; an upload
+that is not multipart/form-data gets 415. An address
 may have at most `max_bodies_per_client` requests receiving a body on a worker at once (503
 beyond, before the body is read), and the guard may cut one to make room for another
 address. It runs after `gate.Authenticate`: a caller without a valid key never reaches it.

@@ -37,3 +37,18 @@ def test_bad_networks_are_named() -> None:
     with pytest.raises(ValueError, match="'10.0.0.0/33'"):
         parse_networks("10.0.0.1,10.0.0.0/33")
     assert len(parse_networks(" 10.0.0.0/8 , ::1 ,")) == 2
+
+
+@pytest.mark.parametrize("args, named", [
+    (["--trusted-proxy-header", "X-Forwarded-For"], "go together"),
+    (["--trusted-proxies", "10.0.0.0/8"], "go together"),
+    (["--trusted-proxy-header", "X-Forwarded-For", "--trusted-proxies", "10.0.0.0/33"], "'10.0.0.0/33'"),
+    (["--trusted-proxy-header", "X Forwarded", "--trusted-proxies", "10.0.0.0/8"], "header name"),
+])
+def test_serve_refuses_bad_proxy_options(capsys, args, named) -> None:
+    """Exit 2 with one line before anything starts."""
+    from authn.cli import main
+
+    assert main(["serve", "--port", "1", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert named in err and "\n" not in err and "Traceback" not in err, err
