@@ -15,7 +15,7 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException
 
 from core.errors import AuthnException, BadInput, describe, one_line
-from authn.service.auth import Forbidden, Unauthenticated
+from authn.service.auth import Unauthenticated
 from authn.service.runtime import Runtime
 from authn.service.settings import Settings
 
@@ -40,13 +40,9 @@ def _validation_message(exc: RequestValidationError) -> str:
 
 
 def _install_error_handlers(app: FastAPI) -> None:
-    @app.exception_handler(Unauthenticated)
+    @app.exception_handler(Unauthenticated)  # a route the gate did not authenticate: fail closed
     async def _unauthenticated(request: Request, exc: Unauthenticated) -> JSONResponse:
         return _error(request, 401, str(exc), "unauthenticated", {"WWW-Authenticate": "Bearer"})
-
-    @app.exception_handler(Forbidden)
-    async def _forbidden(request: Request, exc: Forbidden) -> JSONResponse:
-        return _error(request, 403, str(exc), "forbidden")
 
     @app.exception_handler(HTTPException)
     async def _http(request: Request, exc: HTTPException) -> JSONResponse:

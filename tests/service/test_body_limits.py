@@ -59,6 +59,24 @@ def test_every_post_route_is_listed() -> None:
     assert posts == set(POSTS)
 
 
+def test_the_gate_covers_every_v1_route_and_the_dependency_fails_closed() -> None:
+    import asyncio
+
+    from starlette.requests import Request
+
+    from authn.service.app import api_routes, create_app
+    from authn.service.auth import Unauthenticated
+    from authn.service.deps import require
+    from authn.service.gate import route_actions
+    from authn.service.settings import Settings
+
+    routes = api_routes(create_app(Settings()))
+    guarded = {(r.path, m) for r, _ in route_actions(routes) for m in r.methods}
+    assert guarded == {(r.path, m) for r in routes if r.path.startswith("/v1/") for m in r.methods}
+    with pytest.raises(Unauthenticated):  # a route the gate did not see: no caller, 401
+        asyncio.run(require("check")(Request({"type": "http", "headers": [], "state": {}})))
+
+
 @pytest.mark.parametrize("path", sorted(POSTS))
 def test_no_key_is_401_before_the_body(server, path) -> None:
     got = push_body(*_addr(server), path, _type(path), PUSH, prefix=_prefix(path))
