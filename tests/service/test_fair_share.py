@@ -49,7 +49,6 @@ def fair_server(sqlite_db, keys, keys_dir, tmp_path_factory) -> Server:
     assert "Traceback" not in log and srv.proc.returncode == 0, log[-3000:]
 
 
-@pytest.mark.slow
 def test_slow_bodies_from_eight_addresses_do_not_starve_a_ninth(fair_server, keys, returns) -> None:
     """8 addresses x 20 slow check bodies against 64 slots, then 20 real checks from a ninth.
     Before: the slow bodies held all 64 slots and the checks got 503."""
