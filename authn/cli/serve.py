@@ -28,7 +28,20 @@ def serve(
                                                         "oldest idle one makes room) and requests in progress "
                                                         "(503 beyond)."),
     max_in_flight: int = typer.Option(256, "--max-in-flight", min=1, max=100_000,
-                                      help="Requests in progress per worker (503 beyond)."),
+                                      help="Requests in progress per worker (503 beyond; an address holding m "
+                                           "gets another only while more than m are free)."),
+    max_body_kib: float = typer.Option(64.0, "--max-body-kib", min=1.0, max=65536.0,
+                                       help="Largest body of a request that is not an upload (413 beyond it)."),
+    body_timeout_s: float = typer.Option(10.0, "--body-timeout-s", min=0.1, max=3600.0,
+                                         help="Seconds such a body may take to arrive (408 after)."),
+    max_bodies_per_client: int = typer.Option(16, "--max-bodies-per-client", min=1, max=100_000,
+                                              help="Per client address and worker: requests receiving a body "
+                                                   "at once (503 beyond)."),
+    trusted_proxy_header: str | None = typer.Option(None, "--trusted-proxy-header",
+                                                    help="Header naming the client (e.g. X-Forwarded-For), "
+                                                         "believed only from --trusted-proxies."),
+    trusted_proxies: str = typer.Option("", "--trusted-proxies",
+                                        help="Comma-separated addresses or CIDR networks of your proxies."),
     max_drones: int = typer.Option(64, "--max-drones", min=1, max=1_000_000,
                                    help="Most drones one rid_capture may name in a dwell's window (one "
                                         "decision each; 413 beyond, refused before any is decided)."),
@@ -49,20 +62,42 @@ def serve(
 
     if max_connections_per_client > max_connections:
         raise typer.BadParameter("may not exceed --max-connections", param_hint="--max-connections-per-client")
+    _check_proxies(trusted_proxy_header, trusted_proxies)
     limits = ConnectionLimits(header_timeout_s=header_timeout_s, max_connections=max_connections,
-                              max_connections_per_client=max_connections_per_client, max_in_flight=max_in_flight)
+                              max_connections_per_client=max_connections_per_client, max_in_flight=max_in_flight,
+                              max_bodies_per_client=max_bodies_per_client)
 
     settings = Settings(db_url=ctx.obj.db_url, policy_path=str(policy) if policy else None,
                         max_upload_bytes=int(max_upload_mib * 2**20), upload_timeout_s=upload_timeout_s,
                         max_drones=max_drones,
+                        max_body_bytes=int(max_body_kib * 2**10), body_timeout_s=body_timeout_s,
+                        trusted_proxy_header=trusted_proxy_header, trusted_proxies=trusted_proxies,
                         figures_dir=str(figures_dir) if figures_dir else None)
     os.environ.update(settings.to_env())  # read by each worker process's app factory
     from registry.db import get_engine
 
     get_engine(settings.db_url)  # migrate once here, before the workers race to
     config = dict(app="authn.service.app:app_from_env", factory=True, timeout_keep_alive=timeout_keep_alive,
-                  log_level="info", server_header=False)  # connection and request limits: `limits`
+                  log_level="info", server_header=False,  # connection and request limits: `limits`
+                  proxy_headers=False)  # uvicorn would believe X-Forwarded-For from 127.0.0.1: clients.py decides
     from authn.service.workers import run_workers
 
     typer.echo(f"authn serve: {workers} worker(s) on http://{host}:{port} (OpenAPI at /docs)", err=True)
     raise typer.Exit(run_workers(host, port, workers, config, limits))
+
+
+def _check_proxies(header: str | None, proxies: str) -> None:
+    """Both proxy options or neither; every entry an address or CIDR network; a header name."""
+    import re
+
+    from authn.service.clients import parse_networks
+
+    if bool(header) != bool(proxies.strip()):
+        raise typer.BadParameter("--trusted-proxy-header and --trusted-proxies go together",
+                                 param_hint="--trusted-proxies")
+    if header and not re.fullmatch(r"[A-Za-z0-9-]{1,64}", header):
+        raise typer.BadParameter("a header name (letters, digits, '-')", param_hint="--trusted-proxy-header")
+    try:
+        parse_networks(proxies)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc), param_hint="--trusted-proxies") from None

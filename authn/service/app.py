@@ -15,8 +15,7 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException
 
 from core.errors import AuthnException, BadInput, OverLimit, describe, one_line
-from authn.service.auth import Forbidden, Unauthenticated
-from authn.service.limits import RequestLimit, UploadLimits
+from authn.service.auth import Unauthenticated
 from authn.service.runtime import Runtime
 from authn.service.settings import Settings
 
@@ -41,13 +40,9 @@ def _validation_message(exc: RequestValidationError) -> str:
 
 
 def _install_error_handlers(app: FastAPI) -> None:
-    @app.exception_handler(Unauthenticated)
+    @app.exception_handler(Unauthenticated)  # a route the gate did not authenticate: fail closed
     async def _unauthenticated(request: Request, exc: Unauthenticated) -> JSONResponse:
         return _error(request, 401, str(exc), "unauthenticated", {"WWW-Authenticate": "Bearer"})
-
-    @app.exception_handler(Forbidden)
-    async def _forbidden(request: Request, exc: Forbidden) -> JSONResponse:
-        return _error(request, 403, str(exc), "forbidden")
 
     @app.exception_handler(HTTPException)
     async def _http(request: Request, exc: HTTPException) -> JSONResponse:
@@ -121,9 +116,34 @@ def create_app(settings: Settings) -> FastAPI:
         """Prometheus text format (this worker's counters)."""
         return Response(request.app.state.runtime.metrics.render(), media_type="text/plain; version=0.0.4")
 
-    app.add_middleware(UploadLimits, max_upload_bytes=settings.max_upload_bytes, timeout_s=settings.upload_timeout_s)
-    app.add_middleware(RequestLimit)  # outermost: a slow upload counts as in flight while it arrives
+    _add_layers(app, settings)
     return app
+
+
+def api_routes(app: FastAPI) -> list[Any]:
+    """Every API route of the app, those of included routers too (their paths carry the prefix)."""
+    found: list[Any] = []
+    for route in app.routes:
+        inner = getattr(route, "original_router", None)
+        if inner is not None and route.include_context.prefix:
+            raise RuntimeError("include routers with the prefix on the APIRouter, not in include_router")
+        found.extend(inner.routes if inner is not None else [route] if hasattr(route, "dependant") else [])
+    return found
+
+
+def _add_layers(app: FastAPI, settings: Settings) -> None:
+    """The pure ASGI layers, outermost last: request slots, then the key (before any body is
+    read), then the body's limit and timeout."""
+    from authn.service.gate import Authenticate, route_actions
+    from authn.service.limits import FORM_OVERHEAD, BodyLimits, BodyRule, RequestLimit, body_rules
+
+    routes, clients = api_routes(app), settings.clients()
+    upload = BodyRule(settings.max_upload_bytes + FORM_OVERHEAD, settings.upload_timeout_s, "upload",
+                      settings.max_upload_bytes, multipart=True)
+    other = BodyRule(settings.max_body_bytes, settings.body_timeout_s, "body", settings.max_body_bytes)
+    app.add_middleware(BodyLimits, rules=body_rules(routes, upload, other), other=other, clients=clients)
+    app.add_middleware(Authenticate, actions=route_actions(routes))
+    app.add_middleware(RequestLimit, clients=clients)  # outermost: a slow upload counts as in flight
 
 
 def app_from_env() -> FastAPI:

@@ -10,9 +10,9 @@ made both workers of `authn serve --workers 2` answer every check 503. Here, per
   part of a head had arrived, silently if nothing had).
 - **Waiting connections are evictable, not counted as load:** a connection that has not yet
   sent its head (or sits idle between keep-alive requests) is *waiting*. Requests in flight
-  are limited separately (`max_in_flight` per worker and `max_connections_per_client` per
-  address, 503 beyond, in `authn.service.limits.RequestLimit`), so idle sockets never make a
-  real request 503.
+  are limited separately (`max_in_flight` per worker, `max_connections_per_client` per
+  address, a fair share, `max_bodies_per_client` receiving a body; 503 beyond, through
+  `authn.service.limits`), so idle sockets never make a real request 503.
 - **Per client address:** at most `max_connections_per_client` open connections. When an
   address goes over, its oldest *waiting* connections are closed until it is back within the
   limit. That trim runs TRIM_DELAY_S after the connection that went over was accepted, not at
@@ -55,6 +55,8 @@ class ConnectionLimits:
     max_connections_per_client: int = 64
     #: requests in the application at once per worker (503 beyond); health probes are not counted
     max_in_flight: int = 256
+    #: requests of one client address receiving their body at once per worker (503 beyond)
+    max_bodies_per_client: int = 16
 
     def __post_init__(self) -> None:
         if self.header_timeout_s <= 0:
@@ -63,6 +65,8 @@ class ConnectionLimits:
             raise ValueError("max_connections_per_client must be between 1 and max_connections")
         if self.max_in_flight < 1:
             raise ValueError("max_in_flight must be at least 1")
+        if self.max_bodies_per_client < 1:
+            raise ValueError("max_bodies_per_client must be at least 1")
 
 
 #: seconds between accepting a connection that goes over a limit and closing the oldest waiting ones
@@ -82,7 +86,9 @@ class ConnectionGuard:
         self.waiting_by_client: dict[str, OrderedDict[Any, None]] = {}
         self.in_flight = 0
         self.in_flight_by_client: dict[str, int] = {}
-        self.counts = {"header_timeouts": 0, "evicted": 0, "refused": 0, "busy": 0}
+        self.bodies = 0
+        self.bodies_by_client: dict[str, OrderedDict[Any, None]] = {}  # requests receiving a body, oldest first
+        self.counts = {"header_timeouts": 0, "evicted": 0, "refused": 0, "busy": 0, "preempted": 0}
         self._trim: asyncio.TimerHandle | None = None
 
     # connection life
@@ -169,13 +175,22 @@ class ConnectionGuard:
 
     # requests (RequestLimit)
     def request_started(self, addr: str) -> str | None:
-        """Count a request in; or say why it must get 503."""
-        if self.in_flight >= self.limits.max_in_flight:
-            return f"{self.in_flight} requests in flight on this worker (limit {self.limits.max_in_flight})"
+        """Count a request in; or say why it must get 503.
+
+        Fair share: an address holding m requests gets another only while more than m slots
+        are free, so one address alone takes at most half. When that refuses it, the address
+        receiving the most bodies, if it holds at least two more requests than this one, has
+        its newest body cut (503) and this request takes the slot: slow bodies from a few
+        addresses cannot keep another address out."""
+        free = self.limits.max_in_flight - self.in_flight
         mine = self.in_flight_by_client.get(addr, 0)
         if mine >= self.limits.max_connections_per_client:
             return (f"{mine} requests from your address in flight on this worker "
                     f"(limit {self.limits.max_connections_per_client})")
+        if free <= mine and not self._preempt_for(mine):
+            if free <= 0:
+                return f"{self.in_flight} requests in flight on this worker (limit {self.limits.max_in_flight})"
+            return f"{mine} requests from your address in flight and {free} free on this worker (fair share)"
         self.in_flight += 1
         self.in_flight_by_client[addr] = mine + 1
         return None
@@ -188,9 +203,45 @@ class ConnectionGuard:
         else:
             del self.in_flight_by_client[addr]
 
+    def _preempt_for(self, mine: int) -> bool:
+        """Cut the newest body of the address receiving the most, if it holds at least two more
+        requests than `mine`; whether one was cut (its slot is freed as it unwinds)."""
+        if not self.bodies_by_client:
+            return False
+        top = max(self.bodies_by_client, key=lambda a: len(self.bodies_by_client[a]))
+        if len(self.bodies_by_client[top]) < mine + 2:
+            return False
+        victim = next(reversed(self.bodies_by_client[top]))
+        self.body_done(top, victim)
+        victim.preempt()
+        self.counts["preempted"] += 1
+        return True
+
+    def body_started(self, addr: str, reading: Any) -> str | None:
+        """Count `reading` (a request of `addr` receiving its body; `preempt()` cuts it) in, or
+        say why it must get 503."""
+        mine = self.bodies_by_client.setdefault(addr, OrderedDict())
+        if len(mine) >= self.limits.max_bodies_per_client:
+            return (f"{len(mine)} requests from your address receiving a body on this worker "
+                    f"(limit {self.limits.max_bodies_per_client})")
+        self.bodies += 1
+        mine[reading] = None
+        return None
+
+    def body_done(self, addr: str, reading: Any) -> None:
+        """`reading` has its body, or was cut, or ended. Idempotent."""
+        mine = self.bodies_by_client.get(addr)
+        if mine is None or reading not in mine:
+            return
+        del mine[reading]
+        self.bodies -= 1
+        if not mine:
+            del self.bodies_by_client[addr]
+
     def snapshot(self) -> dict[str, Any]:
         return {"connections": len(self.open), "waiting_for_head": len(self.waiting), "in_flight": self.in_flight,
-                "clients": len(self.per_client), **asdict(self.limits), **self.counts}
+                "receiving_body": self.bodies, "clients": len(self.per_client), **asdict(self.limits),
+                **self.counts}
 
 
 _GUARD: ConnectionGuard | None = None

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Awaitable, Callable
 
-from fastapi import Request
+from fastapi import Request, Security
 from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
-from fastapi import Security
 
-from authn.service.auth import Caller, Forbidden, Unauthenticated, token_of
-from authn.service.keys import lookup
+from authn.service.auth import Caller, Unauthenticated
+from authn.service.gate import ACTION_ATTR, CALLER
 from authn.service.runtime import Runtime
 
 # declared for the OpenAPI schema (/docs "Authorize"); the token itself is read by token_of
@@ -22,20 +21,17 @@ def runtime(request: Request) -> Runtime:
 
 
 def require(action: str) -> Callable[..., Awaitable[Caller]]:
-    """A dependency that admits a caller whose key's role the service policy allows `action`."""
+    """A dependency that needs a caller whose key's role the service policy allows `action`.
+
+    `gate.Authenticate` checks the key before the body is read (it finds `action` on this
+    dependency) and leaves the caller in the request's state; without it, no caller."""
 
     async def caller(request: Request, _b: HTTPAuthorizationCredentials | None = Security(_bearer),
                      _k: str | None = Security(_api_key)) -> Caller:
-        token = token_of(request.headers)
-        if token is None:
-            raise Unauthenticated("missing API key: send 'Authorization: Bearer <key>' or 'X-API-Key: <key>'")
-        rt = runtime(request)
-        found = await rt.run(lambda: lookup(rt.checker.db, token))
-        if found is None:
-            raise Unauthenticated("unknown or revoked API key")
-        who = Caller(*found)
-        if not rt.roles.allows(who, action):
-            raise Forbidden(f"API key {who.key_id} (role {who.role}) may not {action.replace('_', ' ')}")
+        who = getattr(request.state, CALLER, None)
+        if not isinstance(who, Caller):
+            raise Unauthenticated("no authenticated caller")
         return who
 
+    setattr(caller, ACTION_ATTR, action)
     return caller

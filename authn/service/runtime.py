@@ -1,7 +1,8 @@
 """What one worker process loads once and shares between requests: the Checker (policy,
 database connection, classifiers), the role policy, the metrics. The Checker's DB-API
 connection belongs to one thread, so every use of it runs on this runtime's single
-executor thread (checks are CPU-bound under the GIL anyway; workers give parallelism)."""
+executor thread (checks are CPU-bound under the GIL anyway; workers give parallelism). API keys
+are looked up on the key store's own thread and connection."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from authn.service.auth import RolePolicy
+from authn.service.keystore import KeyStore
 from authn.service.metrics import Metrics
 from authn.service.settings import Settings
 
@@ -28,6 +30,7 @@ class Runtime:
     executor: ThreadPoolExecutor = field(default_factory=lambda: ThreadPoolExecutor(1, "authn-checker"))
     started: float = field(default_factory=time.monotonic)
     models: list[str] = field(default_factory=list)
+    keys: KeyStore | None = None
 
     @classmethod
     def load(cls, settings: Settings) -> "Runtime":
@@ -37,6 +40,7 @@ class Runtime:
         rt.checker = rt.executor.submit(Checker, settings.db_url, settings.policy_path).result()
         rt.models = rt.executor.submit(_warm_classifiers).result()
         rt.executor.submit(rt.checker.db.connection).result()  # opens (and migrates) the database now
+        rt.keys = KeyStore(settings.db_url, rt.roles)
         return rt
 
     async def run(self, fn: Callable[[], T]) -> T:
@@ -44,6 +48,8 @@ class Runtime:
         return await asyncio.get_running_loop().run_in_executor(self.executor, fn)
 
     def close(self) -> None:
+        if self.keys is not None:
+            self.keys.close()
         self.executor.submit(self.checker.db.close).result()
         self.executor.shutdown()
 

@@ -71,7 +71,7 @@ def keys(sqlite_db) -> Keys:
 def server(sqlite_db, keys, keys_dir, tmp_path_factory) -> Server:
     """One server (1 worker, 4 MiB upload limit, 3 s upload timeout) on the SQLite database."""
     srv = start(sqlite_db, tmp_path_factory.mktemp("log") / "serve.log", server_env(keys_dir), "--max-upload-mib", "4",
-                "--upload-timeout-s", "3")
+                "--upload-timeout-s", "3", "--body-timeout-s", "2")
     yield srv
     log = srv.stop()
     assert "Traceback" not in log, log[-3000:]

@@ -124,3 +124,56 @@ def test_limits_are_checked() -> None:
         ConnectionLimits(header_timeout_s=0)
     with pytest.raises(ValueError):
         ConnectionLimits(max_in_flight=0)
+
+
+class Body:
+    """A request receiving its body, as `limits._Reading` registers it."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.preempted = False
+
+    def preempt(self) -> None:
+        self.preempted = True
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+def test_an_address_gets_another_slot_only_while_more_are_free_than_it_holds() -> None:
+    g = ConnectionGuard(ConnectionLimits(max_connections=100, max_connections_per_client=100, max_in_flight=8))
+    assert [g.request_started("a") for _ in range(5)].count(None) == 4  # alone: half the slots
+    assert "fair share" in g.request_started("a")
+    assert g.request_started("b") is None and g.request_started("b") is None
+    assert "fair share" in g.request_started("b")  # 4 + 2 held, 2 free: b holds 2
+    assert g.request_started("c") is None and g.request_started("d") is None
+    assert "requests in flight on this worker (limit 8)" in g.request_started("e")  # nothing receiving a body
+
+
+def test_the_address_receiving_the_most_bodies_gives_one_up_to_a_newcomer() -> None:
+    g = ConnectionGuard(ConnectionLimits(max_connections=100, max_connections_per_client=100, max_in_flight=5,
+                                         max_bodies_per_client=3))
+    bodies = {addr: [Body(f"{addr}{i}") for i in range(2)] for addr in ("a", "b")}
+    for addr, mine in bodies.items():
+        for body in mine:
+            assert g.request_started(addr) is None and g.body_started(addr, body) is None
+    assert g.request_started("c") is None  # the last slot (a request whose body is in)
+    assert g.in_flight == 5 and g.bodies == 4
+    assert g.request_started("d") is None  # full: a, first of the largest, gives up its newest body
+    assert [b.preempted for b in bodies["a"] + bodies["b"]] == [False, True, False, False]
+    assert g.bodies == 3 and g.counts["preempted"] == 1
+    g.body_done("a", bodies["a"][1])  # its request unwinds: idempotent
+    g.request_done("a")
+    assert g.bodies == 3 and g.in_flight == 5
+    assert "requests in flight" in g.request_started("b")  # b holds 2: nobody holds 2 more than that
+    assert g.request_started("e") is None and bodies["b"][1].preempted  # b holds 2 >= 0 + 2
+
+
+def test_an_address_receives_at_most_its_bodies() -> None:
+    g = ConnectionGuard(ConnectionLimits(max_bodies_per_client=2))
+    first, second = Body("1"), Body("2")
+    assert g.body_started("a", first) is None and g.body_started("a", second) is None
+    assert "receiving a body on this worker (limit 2)" in g.body_started("a", Body("3"))
+    assert g.body_started("b", Body("4")) is None
+    g.body_done("a", first)
+    assert g.body_started("a", Body("5")) is None and g.bodies == 3

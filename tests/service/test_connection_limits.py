@@ -127,17 +127,18 @@ def test_idle_sockets_of_an_address_make_room_for_its_real_requests(small_server
     assert load["evicted"] >= 2 and load["refused"] == 0, load
 
 
-def _trickling_upload(server: Server, token: str) -> socket.socket:
-    """A check whose body never finishes: in flight until the upload timeout."""
+def _trickling_upload(server: Server, token: str, source: str = "127.0.0.1") -> socket.socket:
+    """A check from `source` whose body never finishes: in flight until the upload timeout."""
     host, port = _addr(server)
-    sock = socket.create_connection((host, port), timeout=5)
+    sock = socket.create_connection((host, port), timeout=5, source_address=(source, 0))
     sock.sendall((f"POST /v1/checks HTTP/1.1\r\nHost: {host}\r\nAuthorization: Bearer {token}\r\n"
                   "Content-Type: multipart/form-data; boundary=b\r\nContent-Length: 100000\r\n\r\n--b\r\n").encode())
     return sock
 
 
 def test_readyz_reports_saturation_and_requests_beyond_get_503(small_server, keys, returns) -> None:
-    uploads = [_trickling_upload(small_server, keys.operator) for _ in range(2)]
+    # two addresses: one address may hold only half the slots (the fair share)
+    uploads = [_trickling_upload(small_server, keys.operator, f"127.0.0.{i}") for i in (2, 3)]
     try:
         deadline = time.monotonic() + 10
         while (ready := _readyz(small_server)).json()["load"]["in_flight"] < 2 and time.monotonic() < deadline:
