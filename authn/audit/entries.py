@@ -51,12 +51,8 @@ def _iso_db(value: Any) -> str:
     """created_at as hashed, from the stored value: SQLite's text exactly as the writer stores
     it, or PostgreSQL's timestamptz (an instant). Any other representation, the same instant
     in another UTC offset included, raises MalformedRow: one instant has one stored form."""
-    if isinstance(value, str) and _SQLITE_CANONICAL.fullmatch(value):
-        try:
-            datetime.fromisoformat(value)
-        except ValueError:
-            raise MalformedRow(f"created_at {value!r} is not a date") from None
-        return f"{value[:10]}T{value[11:]}+00:00"
+    if isinstance(value, str) and _SQLITE_CANONICAL.fullmatch(value):  # one text per instant: any other
+        return f"{value[:10]}T{value[11:]}+00:00"                         # text changes the hashed bytes
     if isinstance(value, datetime) and value.tzinfo is not None and value.utcoffset() is not None:
         return _iso(value)
     shown = value if isinstance(value, str) else type(value).__name__
@@ -111,6 +107,7 @@ def _entry(row: tuple) -> Entry:
 
 
 
+_TEXT_COLUMNS = ("kind", "serial", "decision", "payload", "prev_hash", "entry_hash", "leaf_hash")
 _OPTIONAL = ("serial", "decision", "leaf_hash")
 
 
@@ -121,10 +118,8 @@ def row_body(row: Sequence[Any]) -> bytes:
     seq, created, kind, serial, decision, payload, prev_hash, entry_hash, leaf = row
     if type(seq) is not int:
         raise MalformedRow("seq is not an integer")
-    values = dict(zip(("kind", "serial", "decision", "payload", "prev_hash", "entry_hash", "leaf_hash"),
-                      (kind, serial, decision, payload, prev_hash, entry_hash, leaf)))
-    for name, value in values.items():
-        if not (isinstance(value, str) or (value is None and name in _OPTIONAL)):
+    for name, value in zip(_TEXT_COLUMNS, (kind, serial, decision, payload, prev_hash, entry_hash, leaf)):
+        if value.__class__ is not str and not (value is None and name in _OPTIONAL):
             raise MalformedRow(f"{name} is {type(value).__name__}, not text")
     return entry_bytes(seq, _iso_db(created), kind, serial, decision, payload, prev_hash)
 

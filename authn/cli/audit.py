@@ -1,7 +1,8 @@
 """`authn audit ...`: read, verify, checkpoint and prove the tamper-evident audit log.
 
-Exit codes: 0 ok, 1 the log (or a proof, or a replay) does not hold, 2 bad input
-(unreadable or malformed STH/proof/key file), 3 system fault (log key, database).
+Exit codes: 0 ok, 1 the log (or a proof, or a replay) does not hold, a head source it reads
+is damaged, 2 bad input (a missing or malformed file named on the command line, a missing
+confirmation), 3 system fault (log key, database).
 """
 
 from __future__ import annotations
@@ -174,7 +175,10 @@ def verify_cmd(
     With one, the log must hold at least its tree_size entries and a consistency proof must
     show the signed log is a prefix of today's: truncation, rewrites, deletions and
     reordering before the head's size are reported. A head that names another log (its
-    checkpoint origin) is reported. Exit 1 names the first bad entry.
+    checkpoint origin), a malformed row, a stored leaf hash that is missing or wrong, and a
+    head source that is there but damaged (STH log lines that are not heads, a latest-head
+    file that does not parse) are reported. Exit 1 names the first entry that differs;
+    exit 2 for a --sth-log or --against file that is missing or malformed.
 
     Example: authn audit verify --against sth.json --witness /mnt/witness
     """
