@@ -237,10 +237,11 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     entries since the anchor are re-serialised and re-hashed, not taken as stored. Anything
     else raises SystemFault: the transaction rolls back, and nothing is appended to a log
     that does not extend what was signed."""
-    fresh = size_before == 0 and log_origin(db) is None
+    named = log_origin(db)
+    fresh = size_before == 0 and named is None
     heads = places.newest_heads()
     key = writer_key(db, heads, places.log_key, size=size_before)
-    origin = log_origin(db, create=True)
+    origin = named or log_origin(db, create=True)
     assert origin is not None
     for h in heads:
         _check_head(h, key, origin, size_before)
