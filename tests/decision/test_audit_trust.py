@@ -111,14 +111,37 @@ def _forget_every_head(url: str, *, key: bool) -> None:
         p.unlink()
 
 
-def test_no_new_key_over_a_log_with_entries(db_url: str, capsys) -> None:
+@pytest.fixture(scope="module")
+def genuine(tmp_path_factory) -> Path:
+    """A recorded flight whose check is decided and audited (inconclusive: exit 4)."""
+    from authn.scenario import Broadcast, simulate_flight
+    from signatures.profiles import shipped_profiles
+    from signatures.radar import get_preset
+    from signatures.recording import write_recording
+    from signatures.scene import Scene
+
+    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
+                  elevation_deg=10.0)
+    rec, _ = simulate_flight(scene, get_preset("paper"), 11, Broadcast(serial="1581BDEM00000002"),
+                             azimuth_deg=60.0, start_time=datetime.now(timezone.utc))
+    return write_recording(rec, tmp_path_factory.mktemp("trust") / "genuine.h5")
+
+
+def test_no_new_key_over_a_log_with_entries(db_url: str, genuine: Path, capsys) -> None:
     """Every head deleted (database, STH log, latest-head file) and the key file too: the next
-    append makes no key and signs nothing; verify does not say ok."""
+    `authn check` exits 3 with one line, makes no key and appends nothing; verify exits 1."""
+    from authn.demo import register_examples
+
+    register_examples(db_url)
     _fill(db_url)
     _forget_every_head(db_url, key=True)
-    with pytest.raises(SystemFault, match="missing but the log has entries.*authn audit recover"):
-        _next_append(db_url)
+    capsys.readouterr()
+    assert main(["--db", db_url, "check", str(genuine)]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "missing but the log has entries" in err and "authn audit recover" in err
     assert not _files(db_url)[0].exists()
+    with get_engine(db_url).begin() as conn:
+        assert conn.exec_driver_sql("SELECT COUNT(*) FROM audit_log").scalar_one() == 10
     code, out = _verify(db_url, capsys)
     assert code == 1 and "entries 1..10 are covered by no signed tree head" in out
 
