@@ -9,7 +9,6 @@ a signed log), and the hand-over rule for retired keys.
 
 from __future__ import annotations
 
-import json
 import os
 import secrets
 import sys
@@ -24,6 +23,7 @@ from authn.audit.logkey import CHECKPOINT_FORMAT, ENV_WITNESS, LogKey, SignedTre
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, scan_sth_log, sth_log_path, \
     write_latest_head
 from core.errors import AuthnError, SystemFault, one_line
+from core.parsing import loads_json
 from registry.dbapi import Database
 
 if TYPE_CHECKING:
@@ -284,7 +284,7 @@ def consistency_proof(db: Database, old: int, new: int) -> list[bytes]:
     rows = db.fetch("SELECT frontier FROM audit_tree_heads WHERE tree_size = :n AND frontier IS NOT NULL "
                     "ORDER BY id DESC LIMIT 1", {"n": old})
     try:
-        edge = json.loads(rows[0][0]) if rows else None
+        edge = loads_json(rows[0][0]) if rows else None
         if isinstance(edge, dict):
             leaf = db.fetch("SELECT leaf_hash FROM audit_log WHERE seq = :s", {"s": old})
             frontier = merkle.Frontier(old - 1, [bytes.fromhex(h) for h in edge["before_last"]])
