@@ -142,7 +142,7 @@ class AuditLog(Base):
     leaf_hash: Mapped[str | None] = mapped_column(CHAR(64))  # RFC 9162 leaf hash (revision 0002)
 
     __table_args__ = (
-        CheckConstraint("kind IN ('decision', 'error', 'registry')", name="kind_enum"),
+        CheckConstraint("kind IN ('decision', 'error', 'registry', 'audit')", name="kind_enum"),
         CheckConstraint("decision IS NULL OR decision IN ('accept', 'reject', 'inconclusive')", name="decision_enum"),
     )
 

@@ -15,6 +15,8 @@ Modules, each with one job:
     heads     where heads are kept and which are trusted (database, files, witness), the
               log's origin, the writer's key, the hand-over rule for retired keys
     signer    checkpoint and rotate_key: heads signed on demand
+    recover   sign a log no trusted head vouches for, as it stands, on an operator's word
+    edge      the signed right edge a periodic head keeps (where the writer's proof starts)
     verifier  verify: the whole log against every head
     proofs    inclusion proofs, checked with only the public key
     replay    re-decide an entry under the policy text it was decided with
@@ -34,6 +36,7 @@ _WHERE = {
     "heads": ("HeadPlaces", "KnownHead", "accepted_keys", "consistency_proof", "known_heads", "log_origin", "newest",
               "writer_key"),
     "proofs": ("PROOF_FORMAT", "prove", "verify_proof"),
+    "recover": ("Recovered", "recover"),
     "replay": ("ReplayResult", "replay"),
     "signer": ("checkpoint", "rotate_key"),
     "verifier": ("VerifyReport", "verify"),

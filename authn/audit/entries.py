@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -37,12 +38,25 @@ def _iso(when: datetime) -> str:
 
 
 
-def _iso_db(value: Any) -> str:
-    """created_at as hashed, from the stored value (SQLite text or a PostgreSQL datetime)."""
-    if isinstance(value, str) and len(value) == 26 and value[10] == " ":  # Database.SQLITE_TIME, UTC
-        return f"{value[:10]}T{value[11:]}+00:00"
-    return _iso(Database.from_db_time(value))
+class MalformedRow(ValueError):
+    """A stored audit row that the writer could not have written: a column of the wrong type,
+    or a time not in the one stored form (verify reports it at that entry)."""
 
+
+#: created_at as the writer stores it in SQLite (Database.SQLITE_TIME, UTC): the only text accepted
+_SQLITE_CANONICAL = re.compile(r"\d{4}-\d{2}-\d{2} \d{2}:\d{2}:\d{2}\.\d{6}")
+
+
+def _iso_db(value: Any) -> str:
+    """created_at as hashed, from the stored value: SQLite's text exactly as the writer stores
+    it, or PostgreSQL's timestamptz (an instant). Any other representation, the same instant
+    in another UTC offset included, raises MalformedRow: one instant has one stored form."""
+    if isinstance(value, str) and _SQLITE_CANONICAL.fullmatch(value):  # one text per instant: any other
+        return f"{value[:10]}T{value[11:]}+00:00"                         # text changes the hashed bytes
+    if isinstance(value, datetime) and value.tzinfo is not None and value.utcoffset() is not None:
+        return _iso(value)
+    shown = value if isinstance(value, str) else type(value).__name__
+    raise MalformedRow(f"created_at {shown!r} is not a UTC time in the form the writer stores")
 
 
 def entry_bytes(seq: int, created_iso: str, kind: str, serial: str | None, decision: str | None,
@@ -93,10 +107,21 @@ def _entry(row: tuple) -> Entry:
 
 
 
-def _row_body(row: Sequence[Any]) -> bytes:
-    seq, created, kind, serial, decision, payload, prev_hash, _, _ = row
-    return entry_bytes(int(seq), _iso_db(created), kind, serial, decision, payload, prev_hash)
+_TEXT_COLUMNS = ("kind", "serial", "decision", "payload", "prev_hash", "entry_hash", "leaf_hash")
+_OPTIONAL = ("serial", "decision", "leaf_hash")
 
+
+def row_body(row: Sequence[Any]) -> bytes:
+    """The canonical bytes of a stored row (a row of _COLUMNS), re-serialised from its content;
+    MalformedRow when a column holds what the writer never stores (a BLOB, a number, an
+    offset time)."""
+    seq, created, kind, serial, decision, payload, prev_hash, entry_hash, leaf = row
+    if type(seq) is not int:
+        raise MalformedRow("seq is not an integer")
+    for name, value in zip(_TEXT_COLUMNS, (kind, serial, decision, payload, prev_hash, entry_hash, leaf)):
+        if value.__class__ is not str and not (value is None and name in _OPTIONAL):
+            raise MalformedRow(f"{name} is {type(value).__name__}, not text")
+    return entry_bytes(seq, _iso_db(created), kind, serial, decision, payload, prev_hash)
 
 
 def db_label(db: Database) -> str:
@@ -133,20 +158,27 @@ def batch_entries(db: Database, key: str) -> list[Entry] | None:
 
 def list_entries(db: Database, *, since: datetime | None = None, decision: str | None = None,
                  serial: str | None = None, kind: str | None = None, limit: int | None = None) -> list[Entry]:
+    """Entries in seq order, filtered. `since` compares instants (each stored time read as the
+    instant it names, whatever its stored form), so it is applied here, not as text in SQL."""
     where, params = [], {}
     for name, value in (("decision", decision), ("serial", serial), ("kind", kind)):
         if value is not None:
             where.append(f"{name} = :{name}")
             params[name] = value
-    if since is not None:
-        where.append("created_at >= :since")
-        params["since"] = db.to_db_time(since)
     sql = f"SELECT {_COLUMNS} FROM audit_log" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY seq"
-    if limit is not None:
-        sql += " LIMIT :limit"
-        params["limit"] = int(limit)
-    return [_entry(r) for r in db.fetch(sql, params)]
-
+    if since is None:
+        if limit is not None:
+            sql += " LIMIT :limit"
+            params["limit"] = int(limit)
+        return [_entry(r) for r in db.fetch(sql, params)]
+    out: list[Entry] = []
+    for row in db.fetch(sql, params):
+        entry = _entry(row)
+        if entry.created_at >= since:
+            out.append(entry)
+            if limit is not None and len(out) >= limit:
+                break
+    return out
 
 
 def get_entry(db: Database, seq: int) -> Entry | None:

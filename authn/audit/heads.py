@@ -9,7 +9,6 @@ a signed log), and the hand-over rule for retired keys.
 
 from __future__ import annotations
 
-import json
 import os
 import secrets
 import sys
@@ -21,9 +20,10 @@ from typing import TYPE_CHECKING, Any
 import authn.audit.merkle as merkle
 from authn.audit.entries import GENESIS, db_label
 from authn.audit.logkey import CHECKPOINT_FORMAT, ENV_WITNESS, LogKey, SignedTreeHead, append_sth_log, check_origin, \
-    create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, read_sth_log, sth_log_path, \
+    create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, scan_sth_log, sth_log_path, \
     write_latest_head
 from core.errors import AuthnError, SystemFault, one_line
+from core.parsing import loads_json
 from registry.dbapi import Database
 
 if TYPE_CHECKING:
@@ -49,17 +49,23 @@ def _log_key(path: str | Path | None) -> LogKey:
 
 
 
-def writer_key(db: Database, heads: Sequence["KnownHead"], log_key: str | Path | None = None) -> LogKey:
-    """The log key; created only for a log that has no signed head anywhere yet. A log with
-    heads and no key is a fault: a new key would let whoever made it re-sign history."""
+def writer_key(db: Database, heads: Sequence["KnownHead"], log_key: str | Path | None = None, *,
+               size: int | None = None) -> LogKey:
+    """The log key; created only for a new log: no signed head anywhere, no entry (of the
+    first `size`: the writer's own are not yet history), no origin. Otherwise a missing key
+    is a fault: a new key would let whoever made it sign history
+    (`authn audit recover` does so on purpose, naming what it trusts)."""
     p = key_path(log_key)
     if not p.exists():
-        if heads or db.fetch("SELECT tree_size FROM audit_tree_heads LIMIT 1"):
-            raise SystemFault(f"audit log key {p} is missing but the log has signed heads: restore the key file "
-                              "(a new one is never made for a signed log; `authn audit rotate-key` changes it)")
+        held = "signed heads" if heads or db.fetch("SELECT tree_size FROM audit_tree_heads LIMIT 1") else \
+            "entries" if db.fetch("SELECT seq FROM audit_log" + ("" if size is None else f" WHERE seq <= {int(size)}")
+                                  + " LIMIT 1") or log_origin(db) is not None else None
+        if held is not None:
+            advice = ("a new one is never made for a signed log; `authn audit rotate-key` changes it" if held ==
+                      "signed heads" else "if it is lost, `authn audit recover` signs the log as it stands")
+            raise SystemFault(f"audit log key {p} is missing but the log has {held}: restore the key file ({advice})")
         create_key_file(p)
     return _log_key(p)
-
 
 
 def log_origin(db: Database, *, create: bool = False) -> str | None:
@@ -192,9 +198,26 @@ class HeadPlaces:
     def all_heads(self) -> list[KnownHead]:
         """What `verify` checks: every periodic head and the newest in the database, every STH
         log line for this database, the latest-head file, and every head the witness holds."""
-        out = [KnownHead(sth, f"file {self.sth_log}") for owner, sth in read_sth_log(self.sth_log)
-               if owner == self.label]
-        latest = read_latest_head(self.latest_file)
+        heads, damage = self.all_heads_and_damage()
+        for problem in damage:
+            if problem.startswith("latest-head file"):
+                raise SystemFault(problem)
+        return heads
+
+    def all_heads_and_damage(self) -> tuple[list[KnownHead], list[str]]:
+        """all_heads, and one line for each head source that is there but does not read as
+        heads: STH log lines that are not signed heads, a latest-head file that does not parse."""
+        damage: list[str] = []
+        logged, bad = scan_sth_log(self.sth_log)
+        if bad:
+            damage.append(f"STH log {self.sth_log}: {len(bad)} of {len(bad) + len(logged)} lines are not signed "
+                          f"heads (first: line {bad[0]})")
+        out = [KnownHead(sth, f"file {self.sth_log}") for owner, sth in logged if owner == self.label]
+        try:
+            latest = read_latest_head(self.latest_file)
+        except SystemFault as exc:
+            damage.append(f"latest-head file {exc}")
+            latest = None
         if latest is not None:
             out.append(KnownHead(latest, f"file {self.latest_file}"))
         newest_id = self.db.fetch("SELECT id FROM audit_tree_heads ORDER BY tree_size DESC, id DESC LIMIT 1")
@@ -203,7 +226,7 @@ class HeadPlaces:
         origin = log_origin(self.db)
         if self.witness is not None and origin is not None:
             out += self.witness_heads(origin, newest_only=False)
-        return out
+        return out, damage
 
     def witness_heads(self, origin: str, *, newest_only: bool) -> list[KnownHead]:
         assert self.witness is not None
@@ -261,7 +284,7 @@ def consistency_proof(db: Database, old: int, new: int) -> list[bytes]:
     rows = db.fetch("SELECT frontier FROM audit_tree_heads WHERE tree_size = :n AND frontier IS NOT NULL "
                     "ORDER BY id DESC LIMIT 1", {"n": old})
     try:
-        edge = json.loads(rows[0][0]) if rows else None
+        edge = loads_json(rows[0][0]) if rows else None
         if isinstance(edge, dict):
             leaf = db.fetch("SELECT leaf_hash FROM audit_log WHERE seq = :s", {"s": old})
             frontier = merkle.Frontier(old - 1, [bytes.fromhex(h) for h in edge["before_last"]])

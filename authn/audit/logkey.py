@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from core.errors import AuthnError, SystemFault
+from core.parsing import loads_json
 
 ENV_KEY = "AUTHN_LOG_KEY"
 ENV_STH_LOG = "AUTHN_AUDIT_STH_LOG"
@@ -131,6 +132,10 @@ class LogKey:
         sig = base64.b64encode(note_key_hash(origin, self.public_raw) + raw).decode()
         self._vouched.add((unsigned.signed_bytes(), sig))
         return SignedTreeHead(tree_size, timestamp_ms, root_hash.hex(), self.key_id, sig, origin)
+
+    def sign(self, data: bytes) -> bytes:
+        """A bare Ed25519 signature of `data` (authn.audit.edge signs the right edge with it)."""
+        return bytes(self._private.sign(data))
 
 
 def retired_keys_path(key: Path) -> Path:
@@ -295,7 +300,7 @@ class SignedTreeHead:
                 text = text.decode("utf-8")
             if not text.lstrip().startswith("{"):
                 return parse_note(text, what)[0]
-            doc = json.loads(text)
+            doc = loads_json(text)
         except (UnicodeDecodeError, ValueError):
             raise AuthnError(f"{what}: not an {CHECKPOINT_FORMAT} document or C2SP checkpoint") from None
         return cls.from_dict(doc, what)
@@ -384,24 +389,31 @@ def parse_note(text: str, what: str = "checkpoint") -> list[SignedTreeHead]:
 
 
 def read_sth_log(path: Path) -> list[tuple[str | None, SignedTreeHead]]:
-    """Every well-formed STH line of an external STH file (a missing file is an empty list).
+    """Every well-formed STH line of an external STH file (a missing file is an empty list)."""
+    return scan_sth_log(path)[0]
 
-    Lines carry the STH fields plus "db" (which database they vouch for); lines that do
-    not parse are skipped here and counted by the caller's checks of the ones that do."""
+
+def scan_sth_log(path: Path) -> tuple[list[tuple[str | None, SignedTreeHead]], list[int]]:
+    """The well-formed STH lines of an STH file, and the numbers of the non-blank lines that
+    are not one (damage `verify` reports). Lines carry the STH fields plus "db" (which
+    database they vouch for). A missing file has neither."""
     try:
         lines = path.read_bytes().splitlines()
     except FileNotFoundError:
-        return []
+        return [], []
     except OSError as exc:
         raise SystemFault(f"{path}: cannot read the STH log ({exc.strerror})") from None
     out: list[tuple[str | None, SignedTreeHead]] = []
-    for line in lines:
+    bad: list[int] = []
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
         try:
-            doc = json.loads(line.decode("utf-8"))
+            doc = loads_json(line.decode("utf-8"))
             out.append((doc.get("db"), SignedTreeHead.from_dict({k: v for k, v in doc.items() if k != "db"})))
         except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
-            continue
-    return out
+            bad.append(number)
+    return out, bad
 
 
 def lines_from_end(path: Path, what: str) -> Iterator[bytes]:
@@ -432,7 +444,7 @@ def newest_in_sth_log(path: Path, db_label: str) -> SignedTreeHead | None:
         if db_label.encode() not in line:
             continue
         try:
-            doc = json.loads(line.decode("utf-8"))
+            doc = loads_json(line.decode("utf-8"))
             if doc.get("db") == db_label:
                 return SignedTreeHead.from_dict({k: v for k, v in doc.items() if k != "db"})
         except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
@@ -470,7 +482,7 @@ def read_latest_head(path: Path) -> SignedTreeHead | None:
     except OSError as exc:
         raise SystemFault(f"{path}: cannot read the latest signed head ({exc.strerror})") from None
     try:
-        doc = json.loads(text.decode("utf-8"))
+        doc = loads_json(text.decode("utf-8"))
         return SignedTreeHead.from_dict({k: v for k, v in doc.items() if k != "db"})
     except (UnicodeDecodeError, ValueError, AuthnError, AttributeError):
         raise SystemFault(f"{path}: the latest signed head is not an authn-sth/1 document") from None

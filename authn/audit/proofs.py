@@ -8,7 +8,7 @@ from typing import Any
 from pathlib import Path
 
 import authn.audit.merkle as merkle
-from authn.audit.entries import _COLUMNS, _iso_db, entry_bytes
+from authn.audit.entries import _COLUMNS, MalformedRow, _iso_db, entry_bytes
 from authn.audit.heads import _log_key, known_heads, newest
 from authn.audit.logkey import SignedTreeHead
 from authn.audit.signer import checkpoint
@@ -52,7 +52,10 @@ def prove(db: Database, seq: int, sth: SignedTreeHead | None = None, *, log_key:
         collector.push(bytes.fromhex(h))
     if collector.root() != sth.root:
         raise AuthnError("the log does not match the signed tree head; run `authn audit verify`")
-    entry = _entry_doc(rows[0])
+    try:
+        entry = _entry_doc(rows[0])
+    except MalformedRow as exc:
+        raise AuthnError(f"entry {seq} is malformed ({exc}); run `authn audit verify`") from None
     body = entry_bytes(entry["seq"], entry["created_at"], entry["kind"], entry["serial"], entry["decision"],
                        entry["payload"], entry["prev_hash"])
     if merkle.leaf_hash(body).hex() != leaves[seq - 1][0]:

@@ -3,13 +3,13 @@ and `rotate_key` (the same, signed by the old key and a new one, then the key re
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import authn.audit.merkle as merkle
+from authn.audit.edge import edge_json
 from authn.audit.entries import lock
 from authn.audit.heads import _KEYS, HeadPlaces, _log_key, _store_head, log_origin, writer_key
 from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, create_key_file, load_retired_keys, \
@@ -19,8 +19,13 @@ from core.errors import AuthnError, SystemFault
 from registry.dbapi import Database
 
 def _verified(db: Database, places: HeadPlaces, key: LogKey) -> VerifyReport:
-    report = verify(db, places.all_heads(), public_key=key.public_key,
-                    retired=load_retired_keys(places.log_key))
+    """The log verified against every head kept anywhere, each head source readable, and every
+    entry covered by a signed head (else AuthnError: nothing is signed over it)."""
+    heads, damage = places.all_heads_and_damage()
+    if damage:
+        raise AuthnError(f"audit log does not verify: {'; '.join(damage)}")
+    report = verify(db, heads, public_key=key.public_key, retired=load_retired_keys(places.log_key),
+                    require_signed_to_end=True)
     if not report.ok:
         raise AuthnError(f"audit log does not verify: {report.problem}")
     return report
@@ -43,8 +48,10 @@ def _sign_whole(db: Database, places: HeadPlaces, report: VerifyReport, keys: Se
         if frontier.root().hex() != report.root or len(leaves) != report.size:
             raise AuthnError("audit log changed during the checkpoint; run it again")
         now_ms = int(time.time() * 1000)
-        edge = json.dumps({"before_last": [h.hex() for h in before_last]}) if frontier.size else None
-        heads = [_store_head(db, k.sign_tree_head(frontier.size, frontier.root(), now_ms, origin), edge) for k in keys]
+        heads = []
+        for k in keys:
+            sth = k.sign_tree_head(frontier.size, frontier.root(), now_ms, origin)
+            heads.append(_store_head(db, sth, edge_json(k, sth, before_last) if frontier.size else None))
     write_latest_head(places.latest_file, heads[-1], places.label)
     for sth in heads:
         append_sth_log(places.sth_log, sth, places.label)

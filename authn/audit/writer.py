@@ -25,7 +25,6 @@ Policies: `append(..., policy_text=...)` stores the Cedar text once per SHA-256 
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import time
 from collections.abc import Sequence
@@ -35,7 +34,9 @@ from pathlib import Path
 from typing import Any
 
 import authn.audit.merkle as merkle
-from authn.audit.entries import _COLUMNS, GENESIS, Entry, NewEntry, _iso, _row_body, batch_entries, entry_bytes, lock
+from authn.audit.edge import edge_json, signed_edge
+from authn.audit.entries import _COLUMNS, GENESIS, Entry, MalformedRow, NewEntry, _iso, batch_entries, entry_bytes, \
+    lock, row_body
 from authn.audit.heads import HeadPlaces, KnownHead, _check_head, _head_of, _HEAD_COLUMNS, _Signed, _store_head, \
     log_origin, writer_key
 from authn.audit.logkey import LogKey, SignedTreeHead, canonical_json
@@ -121,17 +122,9 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
                        {"s": policy_sha, "t": policy_text, "f": db.to_db_time(datetime.now(timezone.utc))})
         for e, payload, text in prepared:
             seq += 1
-            now = datetime.now(timezone.utc)
-            body = entry_bytes(seq, _iso(now), e.kind, e.serial, e.decision, text, prev)
-            digest = hashlib.sha256(body).hexdigest()
-            leaf = merkle.leaf_hash(body).hex()
-            db.execute(f"INSERT INTO audit_log ({_COLUMNS}) VALUES (:seq, :created_at, :kind, :serial, "
-                       ":decision, :payload, :prev_hash, :entry_hash, :leaf_hash)",
-                       {"seq": seq, "created_at": db.to_db_time(now), "kind": e.kind, "serial": e.serial,
-                        "decision": e.decision, "payload": text, "prev_hash": prev, "entry_hash": digest,
-                        "leaf_hash": leaf})
-            out.append(Entry(seq, now, e.kind, e.serial, e.decision, payload, prev, digest, leaf))
-            prev = digest
+            entry = insert_entry(db, seq, prev, e, payload, text)
+            out.append(entry)
+            prev = entry.entry_hash
         if idempotency_key is not None:
             db.execute("INSERT INTO audit_batches (key, first_seq, n, created_at) VALUES (:k, :f, :n, :c)",
                        {"k": idempotency_key, "f": seq - len(out) + 1, "n": len(out),
@@ -142,6 +135,20 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
         places.publish(signed)
     return out
 
+
+
+def insert_entry(db: Database, seq: int, prev: str, e: NewEntry, payload: dict[str, Any], text: str) -> Entry:
+    """Inside an append's transaction: insert entry `seq` (payload as canonical `text`) after
+    the entry whose hash is `prev`, stamped now, its hashes computed from its canonical bytes."""
+    now = datetime.now(timezone.utc)
+    body = entry_bytes(seq, _iso(now), e.kind, e.serial, e.decision, text, prev)
+    digest = hashlib.sha256(body).hexdigest()
+    leaf = merkle.leaf_hash(body).hex()
+    db.execute(f"INSERT INTO audit_log ({_COLUMNS}) VALUES (:seq, :created_at, :kind, :serial, "
+               ":decision, :payload, :prev_hash, :entry_hash, :leaf_hash)",
+               {"seq": seq, "created_at": db.to_db_time(now), "kind": e.kind, "serial": e.serial,
+                "decision": e.decision, "payload": text, "prev_hash": prev, "entry_hash": digest, "leaf_hash": leaf})
+    return Entry(seq, now, e.kind, e.serial, e.decision, payload, prev, digest, leaf)
 
 
 @dataclass(frozen=True)
@@ -159,9 +166,20 @@ class _Anchor:
 
 
 
+def _body(row: Sequence[Any]) -> bytes:
+    """A stored row's canonical bytes; a row the writer never wrote is a fault, not a crash."""
+    try:
+        return row_body(row)
+    except MalformedRow as exc:
+        raise SystemFault(f"audit log entry {row[0]} is malformed ({exc}); run `authn audit verify`") from None
+
+
 def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int) -> _Anchor:
-    """The newest periodic head, checked against its signature and root (window mode); in
-    full mode, or when there is none, the proof starts from the empty tree."""
+    """The newest periodic head, checked against its signature, and its right edge against the
+    edge's own signature (authn.audit.edge) and the head's root, with the entry at its size
+    re-hashed (window mode). In full mode, when there is none, or when its edge does not
+    check (unsigned, altered, moved), the proof starts from the empty tree: that append
+    re-hashes every entry and its head is periodic, so the next one has a signed edge."""
     rows = db.fetch(f"SELECT {_HEAD_COLUMNS}, frontier FROM audit_tree_heads WHERE frontier IS NOT NULL "
                     "ORDER BY tree_size DESC, id DESC LIMIT 1")
     if not rows:
@@ -175,27 +193,34 @@ def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int)
     b = sth.tree_size
     if mode == "full":  # the periodic head is checked by root on the way, like every trusted head
         return _Anchor(0, merkle.Frontier(), GENESIS, b, sth.timestamp, sth)
-    entry = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :s", {"s": b}) if b else []
-    try:
-        edge = json.loads(rows[0][6])
-        if isinstance(edge, dict):  # the edge before the last entry: the entry itself is checked too
-            if not entry:
-                raise ValueError
-            body = _row_body(entry[0])
-            frontier = merkle.Frontier(b - 1, [bytes.fromhex(h) for h in edge["before_last"]])
-            frontier.push(merkle.leaf_hash(body))
-            chain = hashlib.sha256(body).hexdigest()
-        else:  # an edge stored before revision 0005: the entry at its size is taken as stored
-            frontier = merkle.Frontier(b, [bytes.fromhex(h) for h in edge])
-            chain = str(entry[0][7]) if entry else ""
-    except (ValueError, TypeError, KeyError):
-        raise SystemFault(f"audit log: the right edge stored with the head of size {b} is damaged; "
-                          "run `authn audit verify`") from None
+    edge = signed_edge(rows[0][6], sth, key.public_key) if b else None
+    if edge is None:
+        return _Anchor(0, merkle.Frontier(), GENESIS, 0, 0, sth)
+    entry = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :s", {"s": b})
+    if not entry:
+        raise SystemFault(f"audit log truncated: entry {b}, which the signed head of size {b} covers, is missing; "
+                          "run `authn audit verify`")
+    body = _body(entry[0])
+    frontier = merkle.Frontier(b - 1, edge)
+    frontier.push(merkle.leaf_hash(body))
     if frontier.root() != sth.root:
         raise SystemFault(f"audit log entries 1..{b} differ from the signed head of size {b} (rewritten, deleted "
                           "or reordered); run `authn audit verify`")
-    return _Anchor(b, frontier, chain, b, sth.timestamp, sth)
+    return _Anchor(b, frontier, hashlib.sha256(body).hexdigest(), b, sth.timestamp, sth)
 
+
+def _vouched(heads: Sequence[KnownHead], fresh: bool, size_before: int) -> None:
+    """Refuse to sign over entries no trusted head vouches for: the largest trusted head must
+    be of exactly the entries before this append. Only a new log (no entries, no origin)
+    starts without one; anything else is history whose heads were deleted or never made,
+    which only `authn audit recover` may sign, as it stands and on an operator's word."""
+    largest = max((h.sth.tree_size for h in heads), default=None)
+    if fresh or largest == size_before:
+        return
+    what = (f"holds {size_before} entries but no signed head vouches for them" if largest is None
+            else f"entries {largest + 1}..{size_before} carry no signed head")
+    raise SystemFault(f"audit log {what} (heads deleted, or written outside authn); run `authn audit verify`, "
+                      "then `authn audit recover` to sign the log as it stands")
 
 
 def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, every: int, seconds: float,
@@ -206,15 +231,18 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     Trusted: the newest head in the database, the newest periodic one, the latest-head
     file, the newest line of the STH log and, when a periodic head is due, the witness's
     newest. Each must carry this key's signature and name this log; none may be larger
-    than the log; the newest in the database must be the head of exactly the entries
-    before this append; and the tree the stored entries make must have, at each trusted
-    head's size, that head's root. The entries since the anchor are re-serialised and
-    re-hashed, not taken as stored. Anything else raises SystemFault: the transaction rolls
-    back, and nothing is appended to a log that does not extend what was signed."""
-    origin = log_origin(db, create=True)
-    assert origin is not None
+    than the log; the newest in the database (else the newest kept outside it) must be the
+    head of exactly the entries before this append, unless the log is new; and the tree the
+    stored entries make must have, at each trusted head's size, that head's root. The
+    entries since the anchor are re-serialised and re-hashed, not taken as stored. Anything
+    else raises SystemFault: the transaction rolls back, and nothing is appended to a log
+    that does not extend what was signed."""
+    named = log_origin(db)
+    fresh = size_before == 0 and named is None
     heads = places.newest_heads()
-    key = writer_key(db, heads, places.log_key)
+    key = writer_key(db, heads, places.log_key, size=size_before)
+    origin = named or log_origin(db, create=True)
+    assert origin is not None
     for h in heads:
         _check_head(h, key, origin, size_before)
     now_ms = int(time.time() * 1000)
@@ -226,9 +254,7 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
             _check_head(h, key, origin, size_before)
         heads += witnessed
     in_db = [h for h in heads if h.source == "database"]
-    if in_db and max(h.sth.tree_size for h in in_db) != size_before:
-        raise SystemFault(f"audit log entries {max(h.sth.tree_size for h in in_db) + 1}..{size_before} carry no "
-                          "signed head (written outside authn?); run `authn audit verify`")
+    _vouched(in_db or heads, fresh, size_before)  # the database's newest, else those kept outside it
     at: dict[int, list[KnownHead]] = {}
     for h in heads + ([KnownHead(anchor.periodic, "database")] if anchor.periodic is not None else []):
         if h.sth.tree_size >= anchor.size:
@@ -244,11 +270,11 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
 
     check_roots()
     for row in db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq > :a ORDER BY seq", {"a": anchor.size}):
-        seq = int(row[0])
+        seq = row[0]
         if seq != expected or row[6] != chain:
             raise SystemFault(f"audit log entry {expected} is missing, moved or does not link to entry "
                               f"{expected - 1}; run `authn audit verify`")
-        body = _row_body(row)
+        body = _body(row)
         chain = hashlib.sha256(body).hexdigest()
         leaf = merkle.leaf_hash(body)
         if chain != row[7] or leaf.hex() != row[8]:
@@ -261,6 +287,5 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     if frontier.size != size:
         raise SystemFault("audit log damaged (entries missing); run `authn audit verify`")
     sth = key.sign_tree_head(size, frontier.root(), now_ms, origin)
-    edge = json.dumps({"before_last": [h.hex() for h in before_last]}) if due else None
-    _store_head(db, sth, edge)
+    _store_head(db, sth, edge_json(key, sth, before_last) if due else None)
     return _Signed(sth, due)

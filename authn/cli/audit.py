@@ -1,7 +1,8 @@
 """`authn audit ...`: read, verify, checkpoint and prove the tamper-evident audit log.
 
-Exit codes: 0 ok, 1 the log (or a proof, or a replay) does not hold, 2 bad input
-(unreadable or malformed STH/proof/key file), 3 system fault (log key, database).
+Exit codes: 0 ok, 1 the log (or a proof, or a replay) does not hold, a head source it reads
+is damaged, 2 bad input (a missing or malformed file named on the command line, a missing
+confirmation), 3 system fault (log key, database).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import typer
 
 from authn.cli.groups import subgroup
 from authn.cli.state import CliState
-from core.parsing import parse_iso_time
+from core.parsing import loads_json, parse_iso_time
 
 LOG_KEY_HELP = "Ed25519 log key (PEM; default $AUTHN_LOG_KEY, else audit-log-key.pem in the user data dir)."
 STH_LOG_HELP = "JSON-lines file of automatic signed tree heads (default $AUTHN_AUDIT_STH_LOG, else beside the key)."
@@ -145,6 +146,16 @@ def _public_key(public_key: Path | None, log_key: Path | None, *, required: bool
     return LogKey.load(log_key).public_key
 
 
+def _broken(first_bad_seq: int | None, problem: str, as_json: bool) -> None:
+    """`verify`'s exit 1: one JSON object on stdout, or one line on stderr naming the first bad entry."""
+    if as_json:
+        typer.echo(json.dumps({"ok": False, "first_bad_seq": first_bad_seq, "problem": problem}, indent=2))
+    else:
+        where = f" at entry {first_bad_seq}" if first_bad_seq is not None else ""
+        typer.echo(f"BROKEN{where}: {problem}", err=True)
+    raise typer.Exit(1)
+
+
 @audit_app.command("verify")
 def verify_cmd(
     ctx: typer.Context,
@@ -164,50 +175,48 @@ def verify_cmd(
     With one, the log must hold at least its tree_size entries and a consistency proof must
     show the signed log is a prefix of today's: truncation, rewrites, deletions and
     reordering before the head's size are reported. A head that names another log (its
-    checkpoint origin) is reported. Exit 1 names the first bad entry.
+    checkpoint origin), a malformed row, a stored leaf hash that is missing or wrong, and a
+    head source that is there but damaged (STH log lines that are not heads, a latest-head
+    file that does not parse) are reported. Exit 1 names the first entry that differs;
+    exit 2 for a --sth-log or --against file that is missing or malformed.
 
     Example: authn audit verify --against sth.json --witness /mnt/witness
     """
-    from authn.audit import KnownHead, accepted_keys, known_heads, newest, verify
+    from authn.audit import HeadPlaces, KnownHead, accepted_keys, newest, verify
     from authn.audit.logkey import SignedTreeHead, key_path, load_retired_keys
+    from core.errors import AuthnError
     from registry.dbapi import Database
 
     sth = SignedTreeHead.read(against) if against is not None else None
+    if sth_log is not None and not sth_log.exists():
+        raise AuthnError(f"--sth-log {sth_log}: no such file")
     db = Database(ctx.obj.db_url)
     retired = load_retired_keys(key_path(log_key)) if public_key is None else []
     if sth is not None:
         heads = [KnownHead(sth, f"--against {against}")]
         key = _public_key(public_key, log_key, required=True)
     else:
-        heads = known_heads(db, sth_log=sth_log, log_key=log_key, witness=witness)
+        heads, damage = HeadPlaces.of(db, sth_log=sth_log, log_key=log_key, witness=witness).all_heads_and_damage()
         key = _public_key(public_key, log_key, required=bool(heads))
         keys = accepted_keys(heads, key, retired) if heads else []
         forged = [h for h in heads if not any(h.sth.verify_signature(k) for k in keys)]
         if forged:
             h = min(forged, key=lambda h: h.sth.tree_size)
-            problem = (f"tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
-                       "(forged or altered)")
-            if as_json:
-                typer.echo(json.dumps({"ok": False, "first_bad_seq": None, "problem": problem}))
-            else:
-                typer.echo(f"BROKEN: {problem}", err=True)
-            raise typer.Exit(1)
+            damage.append(f"tree head of size {h.sth.tree_size} ({h.source}) is not signed by the log key "
+                          "(forged or altered)")
+        if damage:
+            _broken(None, "; ".join(damage), as_json)
     report = verify(db, heads, public_key=key, retired=retired, require_signed_to_end=sth is None)
     best = newest(heads)
-    if as_json:
-        doc = {"ok": report.ok, "first_bad_seq": report.first_bad_seq, "problem": report.problem or None}
-        if report.ok:
-            doc.update(entries=report.size, chain_head=report.head, tree_root=report.root, heads=len(heads),
-                       newest_head=None if best is None else {"tree_size": best.sth.tree_size, "source": best.source},
-                       unsigned=report.unsigned)
-        typer.echo(json.dumps(doc, indent=2))
-        if not report.ok:
-            raise typer.Exit(1)
-        return
     if not report.ok:
-        where = f" at entry {report.first_bad_seq}" if report.first_bad_seq is not None else ""
-        typer.echo(f"BROKEN{where}: {report.problem}", err=True)
-        raise typer.Exit(1)
+        _broken(report.first_bad_seq, str(report.problem), as_json)
+    if as_json:
+        typer.echo(json.dumps({"ok": True, "first_bad_seq": None, "problem": None, "entries": report.size,
+                               "chain_head": report.head, "tree_root": report.root, "heads": len(heads),
+                               "newest_head": None if best is None else {"tree_size": best.sth.tree_size,
+                                                                         "source": best.source},
+                               "unsigned": report.unsigned}, indent=2))
+        return
     line = f"ok: {report.size} entries, chain head {report.head[:16]}, tree root {report.root[:16]}"
     if best is None:
         line += "; no signed tree head found (truncation cannot be detected; run `authn audit checkpoint`)"
@@ -279,6 +288,46 @@ def rotate_key_cmd(
         raise typer.Exit(1) from None
     typer.echo(f"rotated: head of size {sth.tree_size} signed by the old and the new key; "
                f"new key id {sth.log_key_id[:16]}; old private key kept at {kept}")
+
+
+@audit_app.command("recover")
+def recover_cmd(
+    ctx: typer.Context,
+    trust_root: str | None = typer.Option(None, "--trust-root",
+                                          help="The tree root of the entries you trust as they stand "
+                                               "(a run without it prints it)."),
+    log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
+    sth_log: Path | None = typer.Option(None, "--sth-log", help=STH_LOG_HELP),
+    witness: str | None = typer.Option(None, "--witness", help=WITNESS_HELP),
+) -> None:
+    """Sign a log that no signed head vouches for, as it stands, and record that in the log.
+
+    Appends refuse such a log (its heads deleted, its key lost, a log from before signing).
+    Without --trust-root this prints how many entries there are and their tree root, and
+    exits 2; with it (that root), the log must be a whole chain consistent with every head
+    still found (else exit 1). It appends an `audit` entry naming what was trusted, signs a
+    head over everything (with a new key when the key file is gone and no head is left) and
+    publishes it. Exit 0 also when a signed head already vouches for every entry.
+
+    Example: authn audit recover --trust-root 5d41402abc4b2a76b9719d911017c592
+    """
+    from authn.audit import recover
+    from core.errors import AuthnError
+    from registry.dbapi import Database
+
+    try:
+        done = recover(Database(ctx.obj.db_url), trust_root, log_key=log_key, sth_log=sth_log, witness=witness)
+    except AuthnError as exc:
+        if "does not verify" not in str(exc):
+            raise
+        typer.echo(f"BROKEN: {exc}", err=True)
+        raise typer.Exit(1) from None
+    if done.seq is None or done.head is None:
+        typer.echo(f"ok: nothing to recover: a signed head vouches for all {done.entries} entries")
+        return
+    typer.echo(f"recovered: entries 1..{done.entries} trusted as they stood (tree root {done.root}; "
+               f"{done.vouched} were vouched for), recorded as entry {done.seq}, head of size {done.head.tree_size} "
+               f"signed by {'a new' if done.new_key else 'the'} log key {done.head.log_key_id[:16]}")
 
 
 @audit_app.command("public-key")
@@ -371,7 +420,7 @@ def verify_proof_cmd(
 
     key = load_public_key(public_key)
     try:
-        doc = json.loads(proof.read_bytes().decode("utf-8"))
+        doc = loads_json(proof.read_bytes().decode("utf-8"))
     except OSError as exc:
         raise AuthnError(f"{proof}: cannot read proof ({exc.strerror})") from None
     except (UnicodeDecodeError, ValueError):
