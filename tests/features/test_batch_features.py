@@ -367,3 +367,42 @@ def test_torch_stays_optional(paper, monkeypatch):
             "bf.extract_batch(np.ones((4, 64, 16), np.complex64), get_preset('paper').config); "
             "assert 'torch' not in sys.modules, 'torch imported'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _ulps_apart(iq: np.ndarray, seed: int, ulps: int = 4) -> np.ndarray:
+    """`iq` with each component moved by up to `ulps` float32 ulps (random per element)."""
+    rng = np.random.default_rng(seed)
+    parts = [iq.real.astype(np.float32), iq.imag.astype(np.float32)]
+    for p in parts:
+        for _ in range(ulps):
+            step = rng.integers(-1, 2, p.shape)
+            p[:] = np.where(step > 0, np.nextafter(p, np.float32(np.inf)),
+                            np.where(step < 0, np.nextafter(p, np.float32(-np.inf)), p))
+    return (parts[0] + 1j * parts[1]).astype(np.complex64)
+
+
+def test_a_constant_cube_gives_the_same_counts_however_it_is_batched_or_rounded(paper):
+    """A cube of one repeated chirp carries no slow-time signal (its clutter-suppressed spectra
+    hold only rounding, whose pattern varies with the batch's memory layout): alone, batched
+    among real returns at any position, moved by a few ulps, or on one BLAS thread, it gives the
+    all-zero cube's result."""
+    from signatures.threads import one_blas_thread
+
+    rec = paper[0][1]
+    const = np.full_like(rec.iq, 3 - 2j)
+    config = rec.config
+    empty = FV.empty(config, *const.shape, None).as_array()
+    others = [r.iq for _, r in paper[1:6]]
+    cubes = [const] + [_ulps_apart(const, seed) for seed in range(3)]
+    for cube in cubes:
+        assert np.array_equal(bf.extract_iq(cube, config).as_array(), empty)
+        for at in (0, 2, 5):
+            batch = np.stack(others[:at] + [cube] + others[at:])
+            assert np.array_equal(bf.extract_batch(batch, config)[at].as_array(), empty), at
+    with one_blas_thread():
+        batch = np.stack(others + cubes)
+        for res in bf.extract_batch(batch, config)[len(others):]:
+            assert np.array_equal(res.as_array(), empty)
+    moving = const.copy()
+    moving[1::2] *= np.float32(1.001)  # chirps that differ beyond rounding: a signal, not empty
+    assert not np.array_equal(bf.extract_iq(moving, config).as_array(), empty)
