@@ -53,7 +53,12 @@ class SystemFault(AuthnException, RuntimeError):
 
 
 class Interrupted(SystemFault):
-    """SIGINT or SIGTERM arrived: the command stops with exit code 3 (what it printed is audited)."""
+    """SIGINT or SIGTERM arrived: the command stops (what it printed is audited) with the shell's
+    code for that signal, 128 + its number: 130 for SIGINT, 143 for SIGTERM."""
+
+    def __init__(self, message: str, signum: int) -> None:
+        super().__init__(message)
+        self.exit_code = 128 + signum
 
 
 class AuthnError(BadInput):

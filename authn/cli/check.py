@@ -339,7 +339,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     from rich.progress import Progress
 
     from authn.check import CheckInput, Failure
-    from core.errors import SystemFault, exit_code_of, worst
+    from core.errors import Interrupted, exit_code_of, worst
 
     results: list = []
     out = sys.stdout
@@ -381,8 +381,8 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
         named = f.error.startswith(f"{f.file}:")  # the reader's messages name the file already
         print(printable(f"error: {f.error}" if named else f"error: {f.file}: {f.error}"), file=sys.stderr)
     if stop:
-        raise SystemFault(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
-                          "returns; every printed result is in the audit log")
+        raise Interrupted(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
+                          "returns; every printed result is in the audit log", stop[0])
     codes = [f.exit_code for f in failures] + [exit_code_of(o.decision) for o in results if not isinstance(o, Failure)]
     raise typer.Exit(worst(codes))
 
