@@ -158,12 +158,23 @@ def _pcapng_packet(btype, body, endian, ifaces, n) -> tuple[datetime | None, int
     return _ts((hi << 32) | lo, per_second, n), linktype, pkt
 
 
+#: the first four bytes of a pcapng file (its section header block), and of a pcap file (either
+#: byte order, microsecond or nanosecond times)
+PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
+PCAP_MAGICS = (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d")
+
+
+def capture_format(head: bytes) -> str | None:
+    """'pcapng' or 'pcap' by a file's magic number (its first four bytes), else None."""
+    return "pcapng" if head[:4] == PCAPNG_MAGIC else "pcap" if head[:4] in PCAP_MAGICS else None
+
+
 def packets(data: bytes) -> Iterator[tuple[datetime | None, int, bytes]]:
     """(capture time, link type, packet bytes) for every packet of a pcap/pcapng file."""
-    magic = data[:4]
-    if magic == b"\x0a\x0d\x0d\x0a":
+    kind = capture_format(data)
+    if kind == "pcapng":
         return _pcapng_packets(data)
-    if magic in (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"):
+    if kind == "pcap":
         return _pcap_packets(data)
     raise CaptureError("not a pcap or pcapng file (unknown magic number)")
 
