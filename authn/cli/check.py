@@ -260,8 +260,10 @@ def _track_setup(files: list[Path], claims, cluster, rid_capture, plot):
 
 
 class _Figures:
-    """`--plot DIR`: the evidence figure of each recorded decision (authn.figure), `<file>.png`,
-    or `<file>-<serial>.png` when one return carried several claims; each path on stderr."""
+    """`--plot DIR`: the evidence figure of each recorded decision (authn.figure),
+    `<file>-audit<id>.png` by the decision's audit entry, so a later decision on the same file
+    never overwrites an earlier one's figure (nor does anything else: an existing name gets a
+    `-2`, `-3` ... suffix); each path on stderr."""
 
     def __init__(self, folder: Path) -> None:
         self.folder = folder
@@ -271,14 +273,18 @@ class _Figures:
         from authn.figure import draw
         from signatures.recording import read_recording
 
-        decided = [o for o in outcomes if isinstance(o, Outcome)]
-        per_file: dict[str, int] = {}
-        for o in decided:
-            per_file[o.file] = per_file.get(o.file, 0) + 1
-        for o in decided:
-            stem = Path(o.file).stem + (f"-{o.serial}" if per_file[o.file] > 1 else "")
-            path = draw(read_recording(o.file), o.to_json(), self.folder / f"{stem}.png")
-            typer.echo(f"wrote {path}", err=True)
+        for o in outcomes:
+            if isinstance(o, Outcome):
+                path = draw(read_recording(o.file), o.to_json(), self._free(f"{Path(o.file).stem}-audit{o.audit_id}"))
+                typer.echo(f"wrote {path}", err=True)
+
+    def _free(self, stem: str) -> Path:
+        """`DIR/<stem>.png`, or the first `DIR/<stem>-N.png` that does not exist yet."""
+        path, n = self.folder / f"{stem}.png", 1
+        while path.exists():
+            n += 1
+            path = self.folder / f"{stem}-{n}.png"
+        return path
 
 
 def _record_failure(db_url, failures) -> None:
