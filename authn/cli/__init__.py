@@ -25,7 +25,7 @@ from authn.cli.output import json_error, json_requested
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
 from authn.process import exit_quickly, tune
-from core.errors import AuthnException, describe, exit_code_for
+from core.errors import AuthnException, Interrupted, describe, exit_code_for
 from core.textsafe import printable
 
 __all__ = ["app", "command", "main", "run"]
@@ -109,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
         return code if isinstance(code, int) else (0 if code is None else 1)
     except typer.Abort:
         return _fail("aborted", 130, as_json, prefix="error: ")
+    except Interrupted as exc:  # a BaseException: no handler below swallowed it
+        return _fail(describe(exc), exc.exit_code, as_json, prefix="error: ")
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes an exit code
         if _is_usage_error(exc):
             return _usage_error(exc, as_json)
