@@ -92,9 +92,9 @@ def bench(
 ) -> None:
     """Benchmark decisions and speed on simulated claims: accuracy, latency, stages, run time.
 
-    A progress bar with an estimate runs on stderr (a terminal only); Ctrl-C or SIGTERM stops
-    within 2 s, workers ended (exit 130 or 143). The options by group, what each run measures
-    and how long it takes: docs/benchmarks.md.
+    On 2 cores --quick takes about 2.5 min, the default run tens of minutes. A progress bar
+    with an estimate runs on stderr (a terminal only); Ctrl-C or SIGTERM stops within 2 s,
+    workers ended (exit 130 or 143). The options by group: docs/benchmarks.md.
 
     Example: authn bench --quick
     """
