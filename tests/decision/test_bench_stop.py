@@ -103,3 +103,13 @@ def test_bench_help_fits_40_lines(monkeypatch):
         assert main(["bench", "-h"]) == 0
     assert len(buf.getvalue().splitlines()) <= 40
     assert "docs/benchmarks.md" in buf.getvalue()
+
+
+def test_the_progress_bar_estimates_the_time_left_on_stderr():
+    from rich.progress import TimeRemainingColumn
+
+    from authn.cli.bench import _progress
+
+    bar = _progress()
+    assert any(isinstance(c, TimeRemainingColumn) for c in bar.columns)
+    assert bar.console.stderr  # stdout keeps the report (and --json its one object)
