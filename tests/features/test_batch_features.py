@@ -1,6 +1,6 @@
 """The batched feature front end (`signatures.extraction`) gives the single-return path's
 results row by row, on either FFT backend (the single path run with the same `fft_backend`):
-the cube stage's outputs bit for bit; same detection, gate and counts, every feature within
+the cube stage's outputs to float32 rounding; same detection, gate and counts, every feature within
 REL of max(|value|, 1) (the slow-time stage sums in another order), the same CNN patch."""
 
 from __future__ import annotations
@@ -101,9 +101,11 @@ def test_batch_equals_single_on_simulated_returns(request, preset, gated, backen
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("options", [dict(), dict(suppress=False), dict(domain="range")], ids=str)
-def test_cube_stage_is_the_single_paths_bit_for_bit(paper, backend, options):
+def test_cube_stage_is_the_single_paths(paper, backend, options):
     """Spectra of the gate and patch columns, range profile and mu of every row equal the single
-    path's own arrays on the same backend exactly (the scale riding on the window is exact)."""
+    path's own arrays on the same backend to `CUBE_ULPS` float32 ulps of the row's largest value
+    (the same transforms; the scale riding on the window is exact, but an FFT library may group
+    a block's transforms into vector lanes whose rounding differs by a machine's instructions)."""
     suppress, domain = options.get("suppress", True), options.get("domain", "if")
     recs = [r if domain == "if" else as_recorded(r, domain) for _, r in paper[:8]]
     on_window = np.stack([r.iq for r in recs])
@@ -129,10 +131,22 @@ def _assert_cube_is_single(cube, iq: np.ndarray, suppress: bool, domain: str, ba
         mu = _range_spectrum(prep.iq.mean(axis=0, keepdims=True), False, domain, backend)[0]
         g, p = cube.gate_lo[b], cube.patch_lo[b]
         assert cube.log2_scale[b] == prep.log2_scale and not cube.zero[b]
-        assert np.array_equal(cube.profile[b], rd.range_profile(spectrum)), f"row {b} profile"
-        assert np.array_equal(cube.mu[b], mu), f"row {b} mu"
-        assert np.array_equal(cube.slow[b], spectrum[:, g:g + F.GATE_BINS]), f"row {b} gate"
-        assert np.array_equal(cube.patch_cols[b], spectrum[:, p:p + F.PATCH_SHAPE[1]]), f"row {b} patch"
+        assert _close(cube.profile[b], rd.range_profile(spectrum)), f"row {b} profile"
+        assert _close(cube.mu[b], mu), f"row {b} mu"
+        assert _close(cube.slow[b], spectrum[:, g:g + F.GATE_BINS], spectrum), f"row {b} gate"
+        assert _close(cube.patch_cols[b], spectrum[:, p:p + F.PATCH_SHAPE[1]], spectrum), f"row {b} patch"
+
+
+#: float32 ulps (of the row's largest magnitude) the cube stage may differ from the single path by
+CUBE_ULPS = 8
+
+
+def _close(got: np.ndarray, want: np.ndarray, scale: np.ndarray | None = None) -> bool:
+    """|got - want| within `CUBE_ULPS` float32 ulps of the largest magnitude of `scale` (default
+    `want`): what rounding in another grouping of the same transforms can move."""
+    ref = float(np.abs(want if scale is None else scale).max())
+    err = float(np.abs(got.astype(np.complex128) - want).max(initial=0.0))
+    return err <= CUBE_ULPS * float(np.finfo(np.float32).eps) * ref
 
 
 def test_backends_differ_only_by_float32_rounding(paper):
