@@ -226,7 +226,7 @@ class TrackOutcome:
             refute = track.get("refute_llr_cn", track.get("llr_cn", 0)) / 100.0
             return f"the claim is refuted {after}: LLR {refute:+.2f} nats <= {s.reject_nats:.2f} ({reasons})"
         if self.decision == "reject":
-            return f"rejected {after}: {reasons} (more dwells cannot lift it)"
+            return f"rejected {after}: {reasons}" + (" (more dwells cannot lift it)" if self.skipped else "")
         if self.skipped:
             return f"stopped {after}: {reasons} (more dwells cannot decide it; a valid DRIP signature can)"
         return (f"inconclusive: all {total} dwell{'s' if total != 1 else ''} read and neither bound crossed "

@@ -61,3 +61,30 @@ def test_inconclusive_only_when_the_dwells_ran_out(world, capsys, tmp_path):
     out = json.loads(capsys.readouterr().out)
     assert code == 4 and out["decision"] == "inconclusive" and out["dwells_skipped"] == 0
     assert out["why"].startswith("inconclusive: all 1 dwell read and neither bound crossed")
+
+
+@pytest.mark.slow
+def test_sigterm_mid_track_exits_143_with_nothing_printed(tmp_path):
+    """A track whose dwells never see the target goes on through all of them; SIGTERM half way
+    stops it with 143 and one line, and no decision printed (none recorded either)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    register(db, (M300, "m300"))
+    folder = tmp_path / "faint"
+    assert main(["simulate", "--model", "m300", "--range", "300", "--speed", "2", "--snr", "-30", "--rid-serial",
+                 M300, "--track", "200", "--interval-s", "1", "--out", str(folder)]) == 0
+    env = {**os.environ, "AUTHN_DATABASE_URL": db}
+    proc = subprocess.Popen([sys.executable, "-m", "authn", "check", "--track", str(folder)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(4.0)
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143 and out == "", (out, err)
+    assert err.strip().splitlines() == ["error: interrupted by SIGTERM"], err
+    assert main(["--db", db, "audit", "verify"]) == 0
