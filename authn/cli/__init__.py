@@ -135,7 +135,7 @@ def _help_tables_wrap_prose_only() -> None:
     long option name (`--max-connections-per-client`) came out cut (`--max-connections-per…`).
     The option-name columns are made no-wrap: only the type and the help text wrap. The type
     column of an options table is held to `TYPE_COLUMN` characters (`INTEGER RANGE [1<=x<=64]`
-    folds onto two lines), or it took the help text's width and left it a ragged strip."""
+    folds onto two lines): unbounded, it takes the help text's width and leaves it a ragged strip."""
     import typer.rich_utils as ru
     from rich.table import Table
 

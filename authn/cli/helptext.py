@@ -1,9 +1,9 @@
 """Help text as prose: a command's docstring reflowed so the terminal, not the source, wraps it.
 
 typer (0.25, rich output) keeps a docstring's single line breaks after its first paragraph, so
-every source line ended a terminal line too, and a paragraph wider than the terminal came out
-ragged (a long line wrapped, then a short one). Each paragraph's lines are joined here; list
-items and `\\b` paragraphs (click's "keep as written") keep their lines.
+each source line would also end a terminal line, and a paragraph wider than the terminal would
+come out ragged (a long line wrapped, then a short one). Each paragraph's lines are joined here;
+list items and `\\b` paragraphs (click's "keep as written") keep their lines.
 """
 
 from __future__ import annotations
