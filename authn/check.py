@@ -21,6 +21,7 @@ from typing import Any
 from authn.audit import NewEntry, append
 from core.digest import file_sha256
 from core.errors import EXIT_BAD_INPUT, describe, exit_code_for
+from core.uasid import as_heard
 from authn.evidence import (Claim, Evidence, KinematicsEvidence, RadarEvidence, RegistryFacts, RemoteIdAuth,
                             authenticate, read_claim)
 from authn.kinematics import expected_from_radar, residuals, sanity
@@ -281,7 +282,7 @@ class RidCapture:
         if serial is None:
             self._within_cap(len(found))
             return [(self.with_messages(rec, b), None, b) for b in found]
-        match = [b for b in found if b.uas_id == serial]
+        match = [b for b in found if b.uas_id == as_heard(serial)]
         if not match:
             return [(dreplace(rec, remote_id=None, remote_id_time_s=None, remote_id_source=None), serial, None)]
         return [(self.with_messages(rec, match[0]), serial, match[0])]
@@ -303,7 +304,7 @@ class RidCapture:
         found = self.heard(rec)
         ids = ", ".join(b.uas_id for b in found)
         if serial is not None:
-            found = [b for b in found if b.uas_id == serial]
+            found = [b for b in found if b.uas_id == as_heard(serial)]
             if not found:
                 raise AuthnError(f"{self.name}: nothing from {serial} in the dwell's window (heard: {ids})")
         if len(found) > 1:

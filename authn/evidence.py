@@ -7,12 +7,12 @@ is named in one place. Cedar wants integers, hence the centimetre and basis-poin
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any
 
 from core.errors import AuthnError
+from core.uasid import SerialError, as_heard, normalise
 from authn.kinematics import DeclaredState, Expected, Residuals
 
 if TYPE_CHECKING:
@@ -21,7 +21,6 @@ if TYPE_CHECKING:
 __all__ = ["Claim", "RegistryFacts", "RemoteIdAuth", "RadarEvidence", "KinematicsEvidence", "Evidence", "authenticate",
            "read_claim"]
 
-_SERIAL = re.compile(r"[\x21-\x7e]{1,64}")
 #: Cedar integers are 64-bit; a residual is capped well inside them
 _MAX_CEDAR_CM = 2**53
 #: What the JSON says where a CW recording (docs/format.md, `domain`) left the range unmeasured
@@ -114,11 +113,14 @@ def read_claim(rec: Any, serial: str | None, capture: bool = False) -> Claim:
     heard = getattr(rec, "remote_id_source", None) == "capture" and times is not None and len(times) == len(wire)
     heard_s = tuple(float(t) for t in times) if heard else ()
     basic = next((m for m in msgs if isinstance(m, BasicId) and m.uas_id), None)
-    rid_serial = basic.uas_id.strip() if basic else None
+    rid_serial = as_heard(basic.uas_id) if basic else None
     if serial is None and rid_serial is None:
         raise AuthnError("no claim: give --serial, or a file whose Remote ID carries a Basic ID serial")
-    if serial is not None and not _SERIAL.fullmatch(serial):
-        raise AuthnError(f"--serial: {serial!r} is not a UAS ID (1-64 printable ASCII characters, no spaces)")
+    if serial is not None:
+        try:
+            serial = normalise(serial)
+        except SerialError as exc:
+            raise AuthnError(f"--serial: {exc}") from None
     return Claim(serial=serial or rid_serial, source="cli" if serial else "remote_id", rid_serial=rid_serial,
                  ua_type=basic.ua_type if basic else None,
                  state=_nearest_state(msgs, rec.start_time, rec.mid_time, list(heard_s) if heard_s else None),

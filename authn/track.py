@@ -209,13 +209,36 @@ class TrackOutcome:
     def serial(self) -> str:
         return self.evidence.claim.serial
 
+    def why(self) -> str:
+        """Why the track ended where it did, in words: refuted, accepted or rejected after so many
+        dwells, stopped early by a forbid more dwells cannot lift, or inconclusive because it ran
+        out of dwells with neither bound crossed."""
+        n, total = len(self.dwells), len(self.dwells) + len(self.skipped)
+        after = f"after {n} of {total} dwell{'s' if total != 1 else ''}"
+        s, reasons = self.sprt, ", ".join(self.reasons)
+        if self.decision == "accept":
+            how = f" >= {s.accept_nats:.2f}" if self.llr >= s.accept_nats else ", with a valid DRIP signature"
+            return f"the claim is accepted {after}: LLR {self.llr:+.2f} nats{how}"
+        if not self.dwells_used:
+            return f"{self.decision} {after}, before the radar ran: {reasons}"
+        if {"radar-claim-inconsistent", "radar-not-a-drone"} & set(self.reasons):
+            track = self.policy_input.get("context", {}).get("track", {})
+            refute = track.get("refute_llr_cn", track.get("llr_cn", 0)) / 100.0
+            return f"the claim is refuted {after}: LLR {refute:+.2f} nats <= {s.reject_nats:.2f} ({reasons})"
+        if self.decision == "reject":
+            return f"rejected {after}: {reasons}" + (" (more dwells cannot lift it)" if self.skipped else "")
+        if self.skipped:
+            return f"stopped {after}: {reasons} (more dwells cannot decide it; a valid DRIP signature can)"
+        return (f"inconclusive: all {total} dwell{'s' if total != 1 else ''} read and neither bound crossed "
+                f"(LLR {self.llr:+.2f} nats; refute <= {s.reject_nats:.2f}, accept >= {s.accept_nats:.2f})")
+
     def to_json(self) -> dict[str, Any]:
         """What `authn check --track --json` prints (docs/tracks.md)."""
         report = self.evidence.report()
         return {"track": True, "decision": self.decision, "reasons": list(self.reasons),
                 "claim": report["claim"], "registry": report["registry"],
                 "llr": round(self.llr, 4), "sprt": self.sprt.to_json(),
-                "dwells_used": self.dwells_used, "dwells_read": len(self.dwells),
+                "why": self.why(), "dwells_used": self.dwells_used, "dwells_read": len(self.dwells),
                 "dwells_skipped": len(self.skipped), "skipped_files": list(self.skipped),
                 "dwells": [d.to_json() for d in self.dwells], "radar": report["radar"],
                 "kinematics": report["kinematics"], "remote_id": report["remote_id"],

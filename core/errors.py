@@ -52,8 +52,15 @@ class SystemFault(AuthnException, RuntimeError):
     exit_code = EXIT_SYSTEM
 
 
-class Interrupted(SystemFault):
-    """SIGINT or SIGTERM arrived: the command stops with exit code 3 (what it printed is audited)."""
+class Interrupted(BaseException):
+    """SIGINT or SIGTERM arrived: the command stops (what it printed is audited) with the shell's
+    code for that signal, 128 + its number: 130 for SIGINT, 143 for SIGTERM. A BaseException, as
+    KeyboardInterrupt is: the handlers that turn one file's failure into that file's error (and
+    go on with the batch) catch Exception, and must not swallow a stop."""
+
+    def __init__(self, message: str, signum: int) -> None:
+        super().__init__(message)
+        self.exit_code = 128 + signum
 
 
 class AuthnError(BadInput):
@@ -66,8 +73,9 @@ class OverLimit(AuthnError):
 
 
 def exit_code_for(exc: BaseException) -> int:
-    """The exit code of an exception: its own for ours, 3 for anything unexpected."""
-    return exc.exit_code if isinstance(exc, AuthnException) else EXIT_SYSTEM
+    """The exit code of an exception: its own for ours (a stop's: 130 or 143), 3 for anything
+    unexpected."""
+    return exc.exit_code if isinstance(exc, (AuthnException, Interrupted)) else EXIT_SYSTEM
 
 
 def one_line(exc: BaseException) -> str:
@@ -87,7 +95,7 @@ def describe(exc: BaseException) -> str:
     as their message, a missing optional dependency as the extra to install, anything else
     as "internal error: Type: message" (a driver error that SQLAlchemy wraps with the SQL
     and a link: the driver's message)."""
-    if isinstance(exc, AuthnException):
+    if isinstance(exc, (AuthnException, Interrupted)):
         return one_line(exc)
     if isinstance(exc, ModuleNotFoundError) and (exc.name or "").split(".")[0] in OPTIONAL_EXTRAS:
         extra = OPTIONAL_EXTRAS[(exc.name or "").split(".")[0]]

@@ -56,6 +56,7 @@ from sqlalchemy.orm import Session
 from core.checked import Checked, Invalid
 from core.errors import BadInput
 from core.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
+from core.uasid import as_heard
 from registry.dbapi import IdentityFacts
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile, utcnow
@@ -258,10 +259,8 @@ def register_identity(session: Session, new: NewIdentity) -> IdentityRecord:
 
 
 def get_identity(session: Session, serial: str) -> IdentityRecord | None:
-    """The identity registered under `serial` (exact, or normalised CTA-2063-A form)."""
-    row = session.scalar(select(Identity).where(Identity.serial == serial.strip()))
-    if row is None and serial.strip().upper() != serial.strip():
-        row = session.scalar(select(Identity).where(Identity.serial == serial.strip().upper()))
+    """The identity registered under `serial`, read in its normal form (`core.uasid.as_heard`)."""
+    row = session.scalar(select(Identity).where(Identity.serial == as_heard(serial)))
     return _record(row) if row else None
 
 
@@ -274,8 +273,7 @@ def list_identities(session: Session, status: str | None = None) -> list[Identit
 
 def revoke_identity(session: Session, serial: str, reason: str | None = None) -> IdentityRecord:
     """Mark an identity revoked (kept for the audit trail, never deleted)."""
-    row = session.scalar(select(Identity).where(Identity.serial == serial.strip().upper())) or \
-        session.scalar(select(Identity).where(Identity.serial == serial.strip()))
+    row = session.scalar(select(Identity).where(Identity.serial == as_heard(serial)))
     if row is None:
         raise RegistryError(f"serial {serial}: not registered")
     if row.status == "revoked":

@@ -158,12 +158,23 @@ def _pcapng_packet(btype, body, endian, ifaces, n) -> tuple[datetime | None, int
     return _ts((hi << 32) | lo, per_second, n), linktype, pkt
 
 
+#: the first four bytes of a pcapng file (its section header block), and of a pcap file (either
+#: byte order, microsecond or nanosecond times)
+PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
+PCAP_MAGICS = (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d")
+
+
+def capture_format(head: bytes) -> str | None:
+    """'pcapng' or 'pcap' by a file's magic number (its first four bytes), else None."""
+    return "pcapng" if head[:4] == PCAPNG_MAGIC else "pcap" if head[:4] in PCAP_MAGICS else None
+
+
 def packets(data: bytes) -> Iterator[tuple[datetime | None, int, bytes]]:
     """(capture time, link type, packet bytes) for every packet of a pcap/pcapng file."""
-    magic = data[:4]
-    if magic == b"\x0a\x0d\x0d\x0a":
+    kind = capture_format(data)
+    if kind == "pcapng":
         return _pcapng_packets(data)
-    if magic in (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"):
+    if kind == "pcap":
         return _pcap_packets(data)
     raise CaptureError("not a pcap or pcapng file (unknown magic number)")
 
@@ -408,6 +419,7 @@ def broadcasters(captured: list[CapturedMessage], start: datetime, end: datetime
     drones behind one address; one drone may send a Basic ID per ID type): only its Basic IDs
     are attributed, each to its own UAS ID, and its other messages (Locations) are counted. A
     UAS ID sent by two transmitters, or by such a one, carries `conflict`."""
+    from core.uasid import as_heard
     from remoteid.codec import split_raw
     from remoteid.messages import BasicId, MessagePack
 
@@ -420,9 +432,9 @@ def broadcasters(captured: list[CapturedMessage], start: datetime, end: datetime
     for c in captured:
         ids = basic_ids(c)
         if ids and c.sender is not None:
-            by_sender.setdefault(c.sender, ids[0].uas_id.strip())
+            by_sender.setdefault(c.sender, as_heard(ids[0].uas_id))
             for m in ids:
-                sent.setdefault(c.sender, {}).setdefault(m.id_type, set()).add(m.uas_id.strip())
+                sent.setdefault(c.sender, {}).setdefault(m.id_type, set()).add(as_heard(m.uas_id))
     ambiguous = {s for s, types in sent.items() if any(len(ids) > 1 for ids in types.values())}
     lo, hi = window(start, end, skew_s)
     groups: dict[str, tuple[set[str], list[bytes], list[float]]] = {}
@@ -443,12 +455,12 @@ def broadcasters(captured: list[CapturedMessage], start: datetime, end: datetime
         if c.sender in ambiguous:  # each Basic ID names its own drone; nothing else can be attributed
             for m, row in zip(c.message.messages if isinstance(c.message, MessagePack) else [c.message], singles):
                 if isinstance(m, BasicId) and m.uas_id and m.uas_id.strip():
-                    add(m.uas_id.strip(), c.sender, [row], t)
+                    add(as_heard(m.uas_id), c.sender, [row], t)
                 else:
                     unattributed += 1
             continue
         ids = basic_ids(c)
-        uas = ids[0].uas_id.strip() if ids else by_sender.get(c.sender or "")
+        uas = as_heard(ids[0].uas_id) if ids else by_sender.get(c.sender or "")
         if uas is None:
             unattributed += len(singles)
             continue

@@ -72,6 +72,9 @@ _CHUNK_BYTES = 4 << 20
 _SPECTRA_BYTES = 32 << 20
 #: cubes whose peak lies within 2**+-this of 1 are scaled on the window (`_range_spectra`)
 _SAFE_EXPONENT = 20
+#: chirps that differ by at most this much of the cube's peak are the same chirp (64 float32 ulps):
+#: a cube of one repeated chirp carries no slow-time signal, only the rounding of its transforms
+STILL_TOLERANCE = 64 * float(np.finfo(np.float32).eps)
 #: a batch job's FFT backend: scipy's single-precision transforms (~2-4x numpy's complex128
 #: on these cubes; its 0.2-0.4 s import is paid once per batch job)
 DEFAULT_FFT_BACKEND = "scipy"
@@ -84,7 +87,7 @@ class _Cube:
     """What the cube stage leaves per row (B rows): all the slow-time stage needs."""
 
     log2_scale: np.ndarray  # (B,) int
-    zero: np.ndarray  # (B,) bool: all-zero cube
+    zero: np.ndarray  # (B,) bool: no slow-time signal (all zero, or one chirp repeated: `prepared`)
     profile: np.ndarray  # (B, bins) float32
     mu: np.ndarray  # (B, bins) complex64: range spectrum of the slow-time mean
     detected: np.ndarray  # (B,) bool
@@ -440,7 +443,7 @@ def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int]
 
 def prepared(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """`rd.prepare` of every row, but for the scale: (x complex64, scale (B, 1, 1) float64 that is
-    still to apply, log2 scale, all-zero flag); a NaN or Inf raises naming its row.
+    still to apply, log2 scale, no-signal flag (`_still`)); a NaN or Inf raises naming its row.
 
     The exact power-of-two scale s commutes with every rounding while nothing under- or
     overflows, so for cubes within 2**+-_SAFE_EXPONENT of unit scale it rides on the window,
@@ -458,12 +461,28 @@ def prepared(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, 
     zero = peak == 0.0
     exponent = np.where(zero, 0, np.frexp(np.where(zero, 1.0, peak))[1])
     scale = np.ldexp(1.0, -exponent)[:, None, None]
+    zero = zero | _still(work, peak)
     if np.all(np.abs(exponent) <= _SAFE_EXPONENT):
         return work.astype(np.complex64, copy=False), scale, exponent, zero
     # as rd.prepare: exact in complex64 where it can, else via complex128
     small = work.dtype == np.complex64 and bool(np.all((exponent >= -127) & (exponent <= 126)))
     x = work * scale.astype(np.float32) if small else (work.astype(np.complex128) * scale).astype(np.complex64)
     return x, np.ones_like(scale), exponent, zero
+
+
+def _still(work: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    """Rows (B, chirps, samples) whose every chirp equals the first to within `STILL_TOLERANCE` of
+    the row's peak. Such a cube (a constant one, say) has no slow-time signal: what its
+    clutter-suppressed spectra hold is rounding, whose pattern depends on the memory layout of
+    the batch, so its counts would too. They are treated as all-zero cubes."""
+    still = np.zeros(work.shape[0], bool)
+    if work.shape[1] < 2:
+        return still
+    tol = STILL_TOLERANCE * peak
+    screen = np.abs(work[:, -1] - work[:, 0]).max(axis=1) <= tol  # the last chirp against the first
+    for b in np.flatnonzero(screen & (peak > 0.0)).tolist():
+        still[b] = bool(np.abs(work[b] - work[b, :1]).max() <= tol[b])
+    return still
 
 
 def _spectra64(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, out: np.ndarray) -> np.ndarray:
@@ -644,11 +663,13 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, log2_scale: np.ndarray,
                    labels: list[int], window: int) -> np.ndarray:
     """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
-    windows, bins), with the single path's products (`estimators.scaled_subchirp_basis`), so the
-    same bits. `rd.prepare`'s power-of-two scale (the cube stage's `log2_scale`) rides on the
-    basis, which is exact; a row that `prepared` would scale itself (not complex64, or beyond its
-    safe exponent) goes through it. With BLAS on one thread the rows that share a peak bin and a
-    scale are stacked into one product (`_stacked_subchirp_bins`), else each row makes its own."""
+    windows, bins), with the single path's products (`estimators.scaled_subchirp_basis`).
+    `rd.prepare`'s power-of-two scale (the cube stage's `log2_scale`) rides on the basis, which
+    is exact; a row that `prepared` would scale itself (not complex64, or beyond its safe
+    exponent) goes through it. With BLAS on one thread the rows that share a peak bin and a
+    scale are stacked into one product (`_stacked_subchirp_bins`; the same values to float32
+    rounding: a BLAS kernel may order its sums by the product's height), else each row makes
+    its own."""
     n_chirps = iq.shape[1]
     out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
     stack = blas_on_one_thread()

@@ -11,7 +11,9 @@ depend on its batch: products are kept too small to be split (`estimators.SUBCHI
 
 On one thread a product's rows do not depend on how many rows it has (OpenBLAS 0.3.31, complex64,
 measured), so inside the block (`blas_on_one_thread()`) a batch may stack many rows into one
-product: the sub-chirp bins of a `paper` batch cost about a third less that way.
+product: the sub-chirp bins of a `paper` batch cost about a third less that way. That holds for
+that build, not for every BLAS: elsewhere a stacked row may differ in its last bits, so the tests
+compare stacked and row-by-row products to float32 rounding, not bit for bit.
 
 `one_blas_thread()` limits the loaded BLAS libraries to one thread for a block of code
 (threadpoolctl, a scikit-learn dependency; nothing happens without it). Its controller is made

@@ -25,11 +25,13 @@ from authn.cli.output import json_error, json_requested
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
 from authn.process import exit_quickly, tune
-from core.errors import AuthnException, describe, exit_code_for
+from core.errors import AuthnException, Interrupted, describe, exit_code_for
 from core.textsafe import printable
 
 __all__ = ["app", "command", "main", "run"]
 HELP_OPTIONS = ["-h", "--help"]
+#: the widest an options table's type column may be in help
+TYPE_COLUMN = 16
 
 app = typer.Typer(
     name="authn",
@@ -107,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
         return code if isinstance(code, int) else (0 if code is None else 1)
     except typer.Abort:
         return _fail("aborted", 130, as_json, prefix="error: ")
+    except Interrupted as exc:  # a BaseException: no handler below swallowed it
+        return _fail(describe(exc), exc.exit_code, as_json, prefix="error: ")
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes an exit code
         if _is_usage_error(exc):
             return _usage_error(exc, as_json)
@@ -129,7 +133,9 @@ def command():  # -> click Command
 def _help_tables_wrap_prose_only() -> None:
     """Help at 80 columns: typer's option and command tables let rich squeeze every column, so a
     long option name (`--max-connections-per-client`) came out cut (`--max-connections-per…`).
-    The option-name columns are made no-wrap: only the type and the help text wrap."""
+    The option-name columns are made no-wrap: only the type and the help text wrap. The type
+    column of an options table is held to `TYPE_COLUMN` characters (`INTEGER RANGE [1<=x<=64]`
+    folds onto two lines): unbounded, it takes the help text's width and leaves it a ragged strip."""
     import typer.rich_utils as ru
     from rich.table import Table
 
@@ -143,11 +149,18 @@ def _help_tables_wrap_prose_only() -> None:
             super().add_row(*renderables, **kwargs)
             for column in self.columns[:-2]:  # the option names (the type and help columns wrap)
                 column.no_wrap = True
+            if len(self.columns) >= 4:  # an options table (a commands table has name and help)
+                self.columns[-2].max_width = TYPE_COLUMN
 
     ru.Table = HelpTable
 
 
 def _plain_flags(cmd) -> None:
+    """Flags without a type, help text reflowed (`authn.cli.helptext`), help tables that wrap
+    prose only: on `cmd` and every command below it."""
+    from authn.cli.helptext import reflow
+
+    cmd.help = reflow(cmd.help)
     help_option = cmd.get_help_option(cmd.context_class(cmd, info_name=cmd.name, help_option_names=HELP_OPTIONS))
     for param in [*cmd.params, *([help_option] if help_option is not None else [])]:  # help: built once, cached
         if getattr(param, "is_flag", False) and param.metavar is None:

@@ -2,102 +2,104 @@
 
 from __future__ import annotations
 
+import functools
 import json
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 
 if TYPE_CHECKING:
     from rich.console import Console
+    from rich.progress import Progress
 
     from lab.bench.worlds import Trial
 
 
+@contextmanager
+def _workers_end_on_stop() -> Iterator[None]:
+    """SIGINT and SIGTERM stop the bench at once: every worker process is killed, then the
+    stop is raised (`authn.cli.signals.interrupted`: exit 130 or 143) and unwinds the pools,
+    which no longer wait for work in flight. A worker forked while this handler is installed
+    inherits it: there Ctrl-C (sent to the whole process group) is left to the parent, which
+    ends the worker, and SIGTERM (a pool ending its workers) ends it as by default."""
+    import multiprocessing
+    import os
+    import signal
+
+    from authn.cli.signals import handled, interrupted
+
+    parent = os.getpid()
+
+    def handler(signum: int, _frame: object) -> None:
+        if os.getpid() != parent:
+            if signum == signal.SIGTERM:
+                signal.signal(signum, signal.SIG_DFL)
+                os.kill(os.getpid(), signum)
+            return
+        for child in multiprocessing.active_children():
+            child.kill()
+        raise interrupted(signum)
+
+    with handled(handler):
+        yield
+
+
+def _stoppable(command: Callable[..., None]) -> Callable[..., None]:
+    """`command` run under `_workers_end_on_stop` (typer reads the wrapped signature)."""
+    @functools.wraps(command)
+    def run(*args: Any, **kwargs: Any) -> None:
+        with _workers_end_on_stop():
+            command(*args, **kwargs)
+
+    return run
+
+
+def _progress() -> "Progress":
+    """The bench's progress bar: what runs, done of total, elapsed and an estimate of the time
+    left; on stderr and only on a terminal, as `authn check`'s batch (stdout keeps the report)."""
+    import sys
+
+    from rich.console import Console
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                               TimeRemainingColumn)
+
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                    TextColumn("left"), TimeRemainingColumn(), transient=True, console=Console(stderr=True),
+                    disable=not sys.stderr.isatty())
+
+
+@_stoppable
 def bench(
-    preset: list[str] = typer.Option(["paper", "wide"], "--preset", help="Preset(s) to run (repeatable)."),
-    n: int = typer.Option(100, "--n", min=1, help="Scenes per category and preset."),
-    seed: int = typer.Option(7, "--seed", help="Seed of the scene draws."),
-    seeds: int = typer.Option(1, "--seeds", min=1, help="Identity claims over this many consecutive seeds from --seed, "
-                              "pooled (issue protocol: 10 seeds x 3 airframes x 100 claims: --seeds 10 --n 100)."),
-    quick: bool = typer.Option(False, "--quick", help="CI-sized run: 12 scenes per category, paper preset."),
-    with_latency: bool = typer.Option(True, "--latency/--no-latency", help="Also time cold and batch checks."),
-    stress: bool = typer.Option(False, "--stress",
-                                help="Run the numerical stress suite instead (exit 1 unless clean)."),
-    plot_dir: Path | None = typer.Option(None, "--plot", help="Write the error-versus-time and DET plots (PNG) here."),
-    world: str | None = typer.Option(None, "--world", help="Worlds of the identity-claim rows: training, heldout or "
-                                     "both (default both; training with --quick)."),
-    snr: list[float] = typer.Option([0.0, 10.0], "--snr", help="SNR rows (dB) of the identity claims (repeatable)."),
-    worlds_only: bool = typer.Option(False, "--worlds-only", help="Run only the identity claims in the worlds."),
-    batch: bool = typer.Option(False, "--batch", help="Run only the batch-mode figures: per-return time against "
-                               "batch size beside the FFT floor, accuracy against one return at a time, "
-                               "registry-only rejections against the I/O floor."),
-    track: bool = typer.Option(False, "--track", help="Run only the track rows: the correlation of dwell LLRs "
-                               "within and between simulated scenes, and dwells per track decision against --snr "
-                               "(docs/tracks.md)."),
-    enrolment: int | None = typer.Option(None, "--enrolment", min=5, help="Run only the site-enrolment rows: enrol "
-                                         "this many recordings per airframe (mixed SNR 0-20 dB), then --n tracks per "
-                                         "category and --snr, with their first dwells alone beside, and per-pair rows "
-                                         "(in each of --world, default heldout; docs/enrolment.md)."),
+    preset: list[str] = typer.Option(["paper", "wide"], "--preset", show_default=False,
+                                     help="Preset(s); default paper, wide."),
+    n: int = typer.Option(100, "--n", min=1, show_default=False, help="Scenes per category (100)."),
+    seed: int = typer.Option(7, "--seed", show_default=False, help="Seed of the scenes (7)."),
+    seeds: int = typer.Option(1, "--seeds", min=1, show_default=False, help="Pool claims over N seeds."),
+    quick: bool = typer.Option(False, "--quick", help="CI-sized: 12 per category, paper."),
+    no_latency: bool = typer.Option(False, "--no-latency", help="Skip timing cold and batch checks."),
+    stress: bool = typer.Option(False, "--stress", help="Only the numerical stress suite."),
+    plot_dir: Path | None = typer.Option(None, "--plot", help="Write the plots (PNG) here."),
+    world: str | None = typer.Option(None, "--world", help="training, heldout or both."),
+    snr: list[float] = typer.Option([0.0, 10.0], "--snr", show_default=False, help="SNR rows, dB (0 and 10)."),
+    worlds_only: bool = typer.Option(False, "--worlds-only", help="Only the identity claims."),
+    batch: bool = typer.Option(False, "--batch", help="Only the batch-mode figures."),
+    track: bool = typer.Option(False, "--track", help="Only the track rows."),
+    enrolment: int | None = typer.Option(None, "--enrolment", min=5, help="Only site enrolment, N each."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """Benchmark decisions and speed: accuracy, latency, stages, error vs time, throughput.
+    """Benchmark decisions and speed on simulated claims: accuracy, latency, stages, run time.
 
-    Decision accuracy on simulated claims (SNR 10-30 dB, random geometry); check
-    latency (cold process and batch mode); per-stage medians beside the FFT floor;
-    run time against error over pipeline configurations (Pareto front); import costs;
-    skip share; throughput with 1 and 2 workers. With --stress: the numerical stress
-    suite (IQ scaled 1e-30..1e30, ADC types, degenerate cubes, NaN/Inf, clipping, odd
-    shapes, SNR -40..+80 dB, extreme geometry).
+    On 2 cores --quick takes about 2.5 min, the default run tens of minutes. A progress bar
+    with an estimate runs on stderr (a terminal only); Ctrl-C or SIGTERM stops within 2 s,
+    workers ended (exit 130 or 143). The options by group: docs/benchmarks.md.
 
-    Categories: genuine claims (right when accepted; one unsigned dwell is
-    inconclusive at the default error targets), type spoofs between the shipped
-    profiles, position spoofs of 100-300 m along the line of sight, unregistered
-    and revoked serials (right when not accepted, the latter two with the radar
-    skipped); the share inconclusive is reported beside.
-    Signed Remote ID (IETF DRIP) against identities registered with a key: a genuine
-    signed flight (accepted), an unsigned claim by a drone of the same type, a forged
-    signature (another key, the victim's DET) and a day-old replayed one (rejected),
-    with the verification's cost per check (signed against unsigned).
-
-    Identity claims in two worlds: genuine claims, type spoofs and airframes never
-    trained on (octocopter, 5-inch racer, coaxial X8, tricopter) claiming a registered
-    serial, at each --snr, rendered by the training simulator and by the held-out model
-    (lab.heldout, a different signal model), the same scenes in both; right
-    decisions side by side, and the verification score's equal error rate and DET
-    curves (det-<preset>.png with --plot).
-
-    Example: authn bench --preset paper --n 200 --json
-
-    Example: authn bench --stress --quick
-
-    Batch mode (--batch): batched features + classifier per return at batch sizes 1 to 1024
-    beside one return at a time and the FFT floor (batch-size.png with --plot), macro F1
-    of both on the same returns, and registry-only rejections in batch mode against
-    the I/O floor (open + validate + hash + one Cedar decision).
-
-    Example: authn bench --worlds-only --world both --n 100 --plot docs/figures
-
-    Example: authn bench --worlds-only --world both --n 100 --seeds 10 --preset paper
-
-    Example: authn bench --batch --plot docs/figures
-
-    Tracks (--track): --n genuine and type-spoof tracks of 10 dwells per --snr, each decided by the
-    sequential test of `authn check --track`: right decisions and median dwells per decision; and
-    the intra-track correlation of the dwell LLRs the test discounts (5 dwells of --n scenes).
-
-    Example: authn bench --track --preset paper --n 40 --snr 0 --snr 5 --snr 10 --snr 20
-
-    Site enrolment (--enrolment N, paper preset): a site bundle enrolled from N recordings per
-    airframe, then tracks of up to 8 dwells (genuine, type spoof, unseen airframe), decided with the
-    shipped and the site bundle: rows per category and per (flown, claimed) pair, and the card's
-    pairwise errors of single dwells and of tracks (python -m lab.bench.enrolment --track).
-
-    Example: authn bench --enrolment 30 --n 50 --snr 0 --snr 10 --world heldout
+    Example: authn bench --quick
     """
     import registry.urls
     from rich.console import Console
-    from rich.progress import Progress
 
     registry.urls.created_notice = None  # the bench's own temporary databases are not news
 
@@ -133,13 +135,15 @@ def bench(
     from lab.bench.variants import DWELL_DIVISORS
     from lab.bench.worlds import plot_worlds, run_worlds, summarise_worlds
 
-    with Progress(transient=True, disable=as_json) as progress:
+    with _progress() as progress:
         task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n + n_claims)
         rows = run_decisions(tuple(preset), n, seed, progress=lambda k: progress.advance(task, k))
         progress.update(task, description="identity claims in " + " and ".join(worlds))
         trials = run_worlds(tuple(preset), worlds, n, seed, tuple(snr), progress=lambda k: progress.advance(task, k))
+        progress.remove_task(task)  # the timings below have no count to estimate from
+        task = progress.add_task("timing checks", total=None)
         cold_repeats = 3 if quick else 11
-        lat = {p: latency(p, 5 if quick else 20, seed, cold_repeats) for p in preset} if with_latency else {}
+        lat = {p: latency(p, 5 if quick else 20, seed, cold_repeats) for p in preset} if not no_latency else {}
         progress.update(task, description="timing stages")
         stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in preset}
         floor = {p: perf.fft_floor(p) for p in preset}
@@ -217,12 +221,11 @@ def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,
     """Only the track rows (`--track`, in each of `--world`, default training): dependence of
     dwell LLRs, dwells per decision."""
     from rich.console import Console
-    from rich.progress import Progress
     from rich.table import Table
 
     from lab.bench.track import dependence, run_tracks, summarise_tracks
 
-    with Progress(transient=True, disable=as_json) as progress:
+    with _progress() as progress:
         task = progress.add_task("simulated tracks", total=len(worlds) * len(presets) * len(snrs) * 2 * (n + 5 * n))
         step = lambda k: progress.advance(task, k)  # noqa: E731
         dep = [r for w in worlds for p in presets for s in snrs
@@ -285,14 +288,13 @@ def _enrolment(size: int, snrs: tuple[float, ...], n: int, seed: int, as_json: b
 def _batch(presets: tuple[str, ...], quick: bool, seed: int, plot_dir: Path | None, as_json: bool) -> None:
     """Only the batch-mode figures (`--batch`)."""
     from rich.console import Console
-    from rich.progress import Progress
 
     from lab.bench import batch
     from lab.bench.tables import batch_table
 
     sizes = (1, 8, 64) if quick else batch.SIZES
     report: dict[str, dict[str, object]] = {}
-    with Progress(transient=True, disable=as_json) as progress:
+    with _progress() as progress:
         task = progress.add_task("batch mode", total=3 * len(presets))
         for p in presets:
             progress.update(task, description=f"{p}: per-return time against batch size")
@@ -318,11 +320,10 @@ def _worlds(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float
             seeds: tuple[int, ...], total: int, plot_dir: Path | None, as_json: bool) -> None:
     """Only the identity claims in the chosen worlds (`--worlds-only`), pooled over `seeds`."""
     from rich.console import Console
-    from rich.progress import Progress
 
     from lab.bench.worlds import plot_worlds, run_worlds, summarise_worlds
 
-    with Progress(transient=True, disable=as_json) as progress:
+    with _progress() as progress:
         task = progress.add_task("identity claims in " + " and ".join(worlds), total=total)
         trials = [t for seed in seeds
                   for t in run_worlds(presets, worlds, n, seed, snrs, progress=lambda k: progress.advance(task, k))]

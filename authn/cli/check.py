@@ -263,8 +263,10 @@ def _track_setup(files: list[Path], claims, cluster, rid_capture, plot):
 
 
 class _Figures:
-    """`--plot DIR`: the evidence figure of each recorded decision (authn.figure), `<file>.png`,
-    or `<file>-<serial>.png` when one return carried several claims; each path on stderr."""
+    """`--plot DIR`: the evidence figure of each recorded decision (authn.figure),
+    `<file>-audit<id>.png` by the decision's audit entry, so a later decision on the same file
+    never overwrites an earlier one's figure (nor does anything else: an existing name gets a
+    `-2`, `-3` ... suffix); each path on stderr."""
 
     def __init__(self, folder: Path) -> None:
         self.folder = folder
@@ -274,14 +276,18 @@ class _Figures:
         from authn.figure import draw
         from signatures.recording import read_recording
 
-        decided = [o for o in outcomes if isinstance(o, Outcome)]
-        per_file: dict[str, int] = {}
-        for o in decided:
-            per_file[o.file] = per_file.get(o.file, 0) + 1
-        for o in decided:
-            stem = Path(o.file).stem + (f"-{o.serial}" if per_file[o.file] > 1 else "")
-            path = draw(read_recording(o.file), o.to_json(), self.folder / f"{stem}.png")
-            typer.echo(f"wrote {path}", err=True)
+        for o in outcomes:
+            if isinstance(o, Outcome):
+                path = draw(read_recording(o.file), o.to_json(), self._free(f"{Path(o.file).stem}-audit{o.audit_id}"))
+                typer.echo(f"wrote {path}", err=True)
+
+    def _free(self, stem: str) -> Path:
+        """`DIR/<stem>.png`, or the first `DIR/<stem>-N.png` that does not exist yet."""
+        path, n = self.folder / f"{stem}.png", 1
+        while path.exists():
+            n += 1
+            path = self.folder / f"{stem}-{n}.png"
+        return path
 
 
 def _record_failure(db_url, failures) -> None:
@@ -342,7 +348,7 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
     from rich.progress import Progress
 
     from authn.check import CheckInput, Failure
-    from core.errors import SystemFault, exit_code_of, worst
+    from core.errors import Interrupted, exit_code_of, worst
 
     results: list = []
     out = sys.stdout
@@ -384,8 +390,8 @@ def _batch(checker, paths: list[Path], mapping: dict[str, str], serial: str | No
         named = f.error.startswith(f"{f.file}:")  # the reader's messages name the file already
         print(printable(f"error: {f.error}" if named else f"error: {f.file}: {f.error}"), file=sys.stderr)
     if stop:
-        raise SystemFault(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
-                          "returns; every printed result is in the audit log")
+        raise Interrupted(f"interrupted by {signal.Signals(stop[0]).name} after {len(results)} of {len(paths)} "
+                          "returns; every printed result is in the audit log", stop[0])
     codes = [f.exit_code for f in failures] + [exit_code_of(o.decision) for o in results if not isinstance(o, Failure)]
     raise typer.Exit(worst(codes))
 

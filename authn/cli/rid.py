@@ -32,8 +32,9 @@ def decode_cmd(
     """Decode F3411 broadcast messages (all types, protocol versions 0-2).
 
     Unknown values decode to null; units are degrees, metres, m/s, seconds
-    and UTC times. With --pcap, every Open Drone ID frame of the capture is
-    decoded with its capture time and transport.
+    and UTC times. With --pcap (or a pcap/pcapng file, known by its magic number, given
+    in place of the messages), every Open Drone ID frame of the capture is decoded with
+    its capture time and transport.
 
     Authentication pages are reassembled and their DRIP structures (RFC 9575: Link,
     Wrapper, Manifest, Frame) listed; with --public-key the signatures are verified.
@@ -50,12 +51,17 @@ def decode_cmd(
     """
     from remoteid.errors import RemoteIdError
 
+    if messages and pcap is None and len(messages) == 1:
+        pcap = _capture_given_as_message(messages[0])
+        messages = None if pcap is not None else messages
     if bool(messages) == bool(pcap):
         raise RemoteIdError("give hex messages or --pcap FILE (one of them)")
+    title = ""
     if pcap is not None:
         from remoteid.capture import read_capture
 
         found = read_capture(pcap)
+        title = f" in {pcap.name} ({_format_of(pcap)})"
         wire = [m for c in found for m in _flat(c.message)]  # re-encoded when verified (canonical senders)
         if as_json:
             typer.echo(json.dumps([c.to_dict(json=True) for c in found], indent=2))
@@ -78,7 +84,7 @@ def decode_cmd(
     from authn.cli.output import print_table
     from core.textsafe import cell
 
-    t = Table(title=f"{len(rows)} Remote ID messages")
+    t = Table(title=f"{len(rows)} Remote ID messages{title}")
     for col in ("#", "captured", "transport", "type", "v"):
         t.add_column(col, no_wrap=True)  # identifiers and times: never split
     t.add_column("fields", overflow="fold")
@@ -86,6 +92,31 @@ def decode_cmd(
         t.add_row(frame, ts, cell(transport), cell(m.type), str(m.protocol_version), cell(_summary(m)))
     print_table(t)
     _print_auth(wire, public_key, at, as_json=False)
+
+
+def _format_of(path: Path) -> str:
+    """'pcap' or 'pcapng' by the file's magic number (`remoteid.capture.capture_format`)."""
+    from remoteid.capture import capture_format
+
+    try:
+        with open(path, "rb") as f:
+            return capture_format(f.read(4)) or "unknown format"
+    except OSError:
+        return "unreadable"
+
+
+def _capture_given_as_message(arg: str) -> Optional[Path]:
+    """The path of a pcap/pcapng file given where hex messages go (it is decoded as with
+    --pcap); a file of any other kind is bad input that says what it is, not 'not hex'."""
+    from remoteid.errors import RemoteIdError
+
+    path = Path(arg)
+    if not path.is_file():
+        return None
+    if _format_of(path) in ("pcap", "pcapng"):
+        return path
+    raise RemoteIdError(f"{arg} is a file, but not a pcap/pcapng capture (unknown magic number); "
+                        "give messages as hex, or a capture: authn rid decode --pcap FILE")
 
 
 def _print_auth(wire: list, public_key: Optional[str], at: Optional[str], as_json: bool) -> None:

@@ -1,5 +1,5 @@
-"""SIGINT/SIGTERM handling for the CLI: a stop is an `Interrupted` system error (exit 3, one
-line), never click's "Aborted!" with exit 1, which would read as a reject."""
+"""SIGINT/SIGTERM handling for the CLI: a stop is an `Interrupted` error (one line; exit 130 for
+SIGINT, 143 for SIGTERM), never click's "Aborted!" with exit 1, which would read as a reject."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def interrupted(signum: int) -> Interrupted:
-    return Interrupted(f"interrupted by {signal.Signals(signum).name}")
+    """The error a stop signal raises (its exit code: 128 + the signal's number)."""
+    return Interrupted(f"interrupted by {signal.Signals(signum).name}", signum)
 
 
 @contextmanager

@@ -168,16 +168,18 @@ def simulate(
     from signatures.recording import write_recording
     from authn.scenario import Broadcast, simulate_flight
 
-    from authn.evidence import _SERIAL
+    from core.uasid import SerialError, normalise
 
     if track and count > 1:
         raise SignaturesError("--track and --count: one or the other (a track is one target's dwells)")
     if track and out.suffix:
         raise SignaturesError(f"--out: with --track, give a directory (dwell_000000.h5, ...), not {out}")
     _check_out(out, count)
-    if rid_serial is not None and not _SERIAL.fullmatch(rid_serial):  # what `check --serial` accepts
-        raise SignaturesError(f"--rid-serial: {rid_serial!r} is not a UAS ID (1-64 printable ASCII characters, "
-                              "no spaces)")
+    if rid_serial is not None:  # what `check --serial` accepts
+        try:
+            normalise(rid_serial)
+        except SerialError as exc:
+            raise SignaturesError(f"--rid-serial: {exc}") from None
     pre = get_preset(preset)
     if chirps is not None or carrier is not None:
         cfg = pre.config if carrier is None else pre.config.replace(carrier_hz=float(carrier))

@@ -41,6 +41,7 @@ def _print(out) -> None:
     typer.echo(f"  track    {out.dwells_used} of {len(out.dwells) + len(out.skipped)} dwells used, "
                f"{len(out.skipped)} skipped; LLR {out.llr:+.2f} nats (accept >= {s.accept_nats:.2f}, "
                f"reject <= {s.reject_nats:.2f}; false accept {s.false_accept:g}, false reject {s.false_reject:g})")
+    typer.echo(printable(f"  why      {out.why()}"))
     for d in out.dwells:
         llr = "not verified" if d.llr is None else f"llr {d.llr:+.2f} -> {d.increment:+.2f}"
         kin = ""

@@ -106,7 +106,17 @@ async def _refuse(rt: Any, what: str, serial: str | None, exc: Exception) -> NoR
 
 
 def _serial(serial: str | None) -> str | None:
-    return serial.strip() or None if serial is not None else None
+    """The claimed serial in its normal form (`core.uasid.normalise`); a malformed one is a 422."""
+    from fastapi import HTTPException
+
+    from core.uasid import SerialError, normalise
+
+    if serial is None or not serial.strip():
+        return None
+    try:
+        return normalise(serial)
+    except SerialError as exc:
+        raise HTTPException(422, f"serial: {exc}") from None
 
 
 @router.post("/checks", responses=_ERRORS, summary="Check one recorded return")
@@ -136,7 +146,8 @@ async def check(request: Request, file: Annotated[UploadFile, File(description="
     from authn.sprt import Sprt
 
     sprt = Sprt(false_accept, false_reject)
-    items = await rt.run(lambda: _check_one(rt.checker, data, name, _serial(serial), capture, sprt))
+    claimed = _serial(serial)
+    items = await rt.run(lambda: _check_one(rt.checker, data, name, claimed, capture, sprt))
     for o in items:
         rt.metrics.outcome(o.decision, o.reasons, o.timings_ms)
     if figure:  # after the decisions are recorded and counted: a figure never holds one back
@@ -179,7 +190,8 @@ async def check_batch(request: Request,
                       OverLimit(f"{len(files)} files in one batch, more than the limit of {limit} decisions per "
                                 "request (send several batches)"))
     loaded = [(_name(f), await f.read()) for f in files]
-    items = await rt.run(lambda: _check_many(rt.checker, loaded, _serial(serial)))
+    claimed = _serial(serial)
+    items = await rt.run(lambda: _check_many(rt.checker, loaded, claimed))
     for o in items:
         if isinstance(o, Outcome):
             rt.metrics.outcome(o.decision, o.reasons, o.timings_ms)
@@ -217,6 +229,7 @@ async def check_track(request: Request,
 
         raise AuthnError(f"at most {rt.settings.max_batch_files} dwells per track, got {len(files)}")
     loaded = [(_name(f), await f.read()) for f in files]
-    out = await rt.run(lambda: _decide_track(rt.checker, loaded, _serial(serial), false_accept, false_reject))
+    claimed = _serial(serial)
+    out = await rt.run(lambda: _decide_track(rt.checker, loaded, claimed, false_accept, false_reject))
     rt.metrics.outcome(out.decision, out.reasons, out.timings_ms)
     return JSONResponse(out.to_json())

@@ -157,6 +157,15 @@ def _worker(args: tuple[str, list[str]]) -> int:
     return len(paths)
 
 
+def _ignore_ctrl_c() -> None:
+    """In a spawned worker: Ctrl-C reaches the whole process group, but stopping is the parent's
+    to do (`authn bench` ends its workers), so the worker prints no traceback of its own. SIGTERM
+    keeps its default: it is how the pool ends its workers."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def throughput(preset: str, n: int, seed: int) -> dict[str, float]:
     """Returns per second in batch mode with 1 and 2 worker processes (models loaded once per worker)."""
     import multiprocessing as mp
@@ -169,7 +178,7 @@ def throughput(preset: str, n: int, seed: int) -> dict[str, float]:
         ctx = mp.get_context("spawn")
         for workers in (1, 2):
             chunks = [files[i::workers] for i in range(workers)]
-            with ctx.Pool(workers) as pool:
+            with ctx.Pool(workers, initializer=_ignore_ctrl_c) as pool:
                 pool.map(_worker, [(db, c[:2]) for c in chunks])  # start-up and model load, not timed
                 t0 = time.perf_counter()
                 done = sum(pool.map(_worker, [(db, c) for c in chunks]))

@@ -179,17 +179,19 @@ def test_kill_9_mid_batch_loses_no_printed_decision(archive: Path, db: str, seed
     assert main(["--db", db, "audit", "verify"]) == 0
 
 
-def test_sigterm_mid_batch_commits_prints_and_exits_3(archive: Path, db: str) -> None:
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_stop_signal_mid_batch_commits_prints_and_exits_128_plus_its_number(archive: Path, db: str, sig: int,
+                                                                              code: int) -> None:
     proc = _start(archive, db)
     printed = _wait_for_output(proc)
-    proc.send_signal(signal.SIGTERM)
+    proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 3, err.decode()
+    assert proc.returncode == code, err.decode()
     results = json.loads((printed + out).decode())  # a complete JSON array: the batch stopped cleanly
     assert 0 < len(results) < N_GOOD + N_BAD
     entries = _audit(db)
     assert len(entries) == len(results)  # everything committed was printed and vice versa
-    assert err.decode().strip().splitlines()[-1].startswith("error: interrupted by SIGTERM")
+    assert err.decode().strip().splitlines()[-1].startswith(f"error: interrupted by {signal.Signals(sig).name}")
     assert main(["--db", db, "audit", "verify"]) == 0
 
 

@@ -8,6 +8,8 @@ targets (--false-accept 0.02 --false-reject 0.02) the radar refutes the Phantom 
 
 from __future__ import annotations
 
+import json
+import re
 from pathlib import Path
 
 import pytest
@@ -47,9 +49,9 @@ def test_one_figure_per_decision_with_its_panels(world: dict, capsys) -> None:
     assert code == 1  # the worst of: one rejection (moved), two inconclusive (4 ranks below 1)
     err = capsys.readouterr().err
     written = sorted(p.name for p in out.iterdir())
-    assert written == ["genuine.png", "moved.png", "type.png"]
+    assert [re.sub(r"-audit\d+", "", n) for n in written] == ["genuine.png", "moved.png", "type.png"]
     assert err.count("wrote ") == 3
-    height, width = mpimg.imread(out / "type.png").shape[:2]
+    height, width = mpimg.imread(next(out.glob("type-audit*.png"))).shape[:2]
     assert (width, height) == (round(figure.SIZE_IN[0] * figure.DPI), round(figure.SIZE_IN[1] * figure.DPI))
 
 
@@ -72,7 +74,14 @@ def test_the_figure_shows_the_evidence(world: dict, monkeypatch, tmp_path: Path,
         return seen["fig"]
 
     fig = drawn(code=4)  # the defaults: one dwell is inconclusive
-    rd, spectrogram, cadence = [a for a in fig.axes if a.get_title()]
+    rd, spectrogram, cadence, plain = [a for a in fig.axes if a.get_title()]
+    assert plain.get_title() == "Claimed vs measured"
+    assert [t.get_text() for t in plain.get_yticklabels()] == ["flash rate", "rotors", "range", "velocity"]
+    words = [t.get_text() for t in plain.texts]
+    assert any(w.startswith("claimed 80 Hz, measured") for w in words), words
+    assert len(words) == 4 and "registered band" in [t.get_text() for t in plain.get_legend().get_texts()]
+    band = [p for p in cadence.patches if abs(p.get_alpha() or 1.0) > 0.4 and p.get_facecolor()[:3] != (1, 1, 1)]
+    assert band, "the claimed band on the cadence panel is drawn solid, not a faint white stripe"
     assert rd.get_xlabel() == "range (m)" and "radial velocity" in rd.get_ylabel()
     assert spectrogram.get_xlabel() == "time (ms)" and cadence.get_xlabel() == "cadence frequency (Hz)"
     labels = [t.get_text() for t in cadence.get_legend().get_texts()]
@@ -85,3 +94,19 @@ def test_the_figure_shows_the_evidence(world: dict, monkeypatch, tmp_path: Path,
     assert "REJECT" in title.get_text() and "radar-claim-inconsistent" in title.get_text()
     assert title.get_color() == "firebrick"
 
+
+
+def test_plot_never_overwrites_an_earlier_decisions_figure(world: dict, capsys) -> None:
+    """The same file checked twice into one folder: two figures, one per decision (its audit id
+    in the name), the first left as it was."""
+    out = world["root"] / "twice"
+    args = ["--db", world["db"], "check", str(world["files"]["type"]), "--plot", str(out), "--json"]
+    main(args)
+    first_id = json.loads(capsys.readouterr().out)["audit_id"]
+    first = out / f"type-audit{first_id}.png"
+    before = first.read_bytes()
+    main(args)
+    second_id = json.loads(capsys.readouterr().out)["audit_id"]
+    assert second_id != first_id
+    assert sorted(p.name for p in out.iterdir()) == sorted([first.name, f"type-audit{second_id}.png"])
+    assert first.read_bytes() == before

@@ -1,6 +1,6 @@
 """The batched feature front end (`signatures.extraction`) gives the single-return path's
 results row by row, on either FFT backend (the single path run with the same `fft_backend`):
-the cube stage's outputs bit for bit; same detection, gate and counts, every feature within
+the cube stage's outputs to float32 rounding; same detection, gate and counts, every feature within
 REL of max(|value|, 1) (the slow-time stage sums in another order), the same CNN patch."""
 
 from __future__ import annotations
@@ -101,9 +101,11 @@ def test_batch_equals_single_on_simulated_returns(request, preset, gated, backen
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("options", [dict(), dict(suppress=False), dict(domain="range")], ids=str)
-def test_cube_stage_is_the_single_paths_bit_for_bit(paper, backend, options):
+def test_cube_stage_is_the_single_paths(paper, backend, options):
     """Spectra of the gate and patch columns, range profile and mu of every row equal the single
-    path's own arrays on the same backend exactly (the scale riding on the window is exact)."""
+    path's own arrays on the same backend to `CUBE_ULPS` float32 ulps of the row's largest value
+    (the same transforms; the scale riding on the window is exact, but an FFT library may group
+    a block's transforms into vector lanes whose rounding differs by a machine's instructions)."""
     suppress, domain = options.get("suppress", True), options.get("domain", "if")
     recs = [r if domain == "if" else as_recorded(r, domain) for _, r in paper[:8]]
     on_window = np.stack([r.iq for r in recs])
@@ -129,10 +131,22 @@ def _assert_cube_is_single(cube, iq: np.ndarray, suppress: bool, domain: str, ba
         mu = _range_spectrum(prep.iq.mean(axis=0, keepdims=True), False, domain, backend)[0]
         g, p = cube.gate_lo[b], cube.patch_lo[b]
         assert cube.log2_scale[b] == prep.log2_scale and not cube.zero[b]
-        assert np.array_equal(cube.profile[b], rd.range_profile(spectrum)), f"row {b} profile"
-        assert np.array_equal(cube.mu[b], mu), f"row {b} mu"
-        assert np.array_equal(cube.slow[b], spectrum[:, g:g + F.GATE_BINS]), f"row {b} gate"
-        assert np.array_equal(cube.patch_cols[b], spectrum[:, p:p + F.PATCH_SHAPE[1]]), f"row {b} patch"
+        assert _close(cube.profile[b], rd.range_profile(spectrum)), f"row {b} profile"
+        assert _close(cube.mu[b], mu), f"row {b} mu"
+        assert _close(cube.slow[b], spectrum[:, g:g + F.GATE_BINS], spectrum), f"row {b} gate"
+        assert _close(cube.patch_cols[b], spectrum[:, p:p + F.PATCH_SHAPE[1]], spectrum), f"row {b} patch"
+
+
+#: float32 ulps (of the row's largest magnitude) the cube stage may differ from the single path by
+CUBE_ULPS = 8
+
+
+def _close(got: np.ndarray, want: np.ndarray, scale: np.ndarray | None = None) -> bool:
+    """|got - want| within `CUBE_ULPS` float32 ulps of the largest magnitude of `scale` (default
+    `want`): what rounding in another grouping of the same transforms can move."""
+    ref = float(np.abs(want if scale is None else scale).max())
+    err = float(np.abs(got.astype(np.complex128) - want).max(initial=0.0))
+    return err <= CUBE_ULPS * float(np.finfo(np.float32).eps) * ref
 
 
 def test_backends_differ_only_by_float32_rounding(paper):
@@ -367,3 +381,42 @@ def test_torch_stays_optional(paper, monkeypatch):
             "bf.extract_batch(np.ones((4, 64, 16), np.complex64), get_preset('paper').config); "
             "assert 'torch' not in sys.modules, 'torch imported'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _ulps_apart(iq: np.ndarray, seed: int, ulps: int = 4) -> np.ndarray:
+    """`iq` with each component moved by up to `ulps` float32 ulps (random per element)."""
+    rng = np.random.default_rng(seed)
+    parts = [iq.real.astype(np.float32), iq.imag.astype(np.float32)]
+    for p in parts:
+        for _ in range(ulps):
+            step = rng.integers(-1, 2, p.shape)
+            p[:] = np.where(step > 0, np.nextafter(p, np.float32(np.inf)),
+                            np.where(step < 0, np.nextafter(p, np.float32(-np.inf)), p))
+    return (parts[0] + 1j * parts[1]).astype(np.complex64)
+
+
+def test_a_constant_cube_gives_the_same_counts_however_it_is_batched_or_rounded(paper):
+    """A cube of one repeated chirp carries no slow-time signal (its clutter-suppressed spectra
+    hold only rounding, whose pattern varies with the batch's memory layout): alone, batched
+    among real returns at any position, moved by a few ulps, or on one BLAS thread, it gives the
+    all-zero cube's result."""
+    from signatures.threads import one_blas_thread
+
+    rec = paper[0][1]
+    const = np.full_like(rec.iq, 3 - 2j)
+    config = rec.config
+    empty = FV.empty(config, *const.shape, None).as_array()
+    others = [r.iq for _, r in paper[1:6]]
+    cubes = [const] + [_ulps_apart(const, seed) for seed in range(3)]
+    for cube in cubes:
+        assert np.array_equal(bf.extract_iq(cube, config).as_array(), empty)
+        for at in (0, 2, 5):
+            batch = np.stack(others[:at] + [cube] + others[at:])
+            assert np.array_equal(bf.extract_batch(batch, config)[at].as_array(), empty), at
+    with one_blas_thread():
+        batch = np.stack(others + cubes)
+        for res in bf.extract_batch(batch, config)[len(others):]:
+            assert np.array_equal(res.as_array(), empty)
+    moving = const.copy()
+    moving[1::2] *= np.float32(1.001)  # chirps that differ beyond rounding: a signal, not empty
+    assert not np.array_equal(bf.extract_iq(moving, config).as_array(), empty)

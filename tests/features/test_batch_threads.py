@@ -1,6 +1,10 @@
-"""`signatures.threads.one_blas_thread`: one BLAS thread inside, the same products, the
-original limits back after (nested and overlapping blocks included); `blas_on_one_thread` says
-so, and on one thread the batch path's stacked sub-chirp products are the single path's."""
+"""`signatures.threads.one_blas_thread`: one BLAS thread inside, the same products to float32
+rounding, the original limits back after (nested and overlapping blocks included);
+`blas_on_one_thread` says so, and on one thread the batch path's stacked sub-chirp products are
+the single path's to within `ULPS` float32 ulps of the row's largest bin.
+
+A product's bits may change with the thread count and with the height of the stacked product
+(BLAS kernels split and order their sums by both), so no comparison across them is bit for bit."""
 
 from __future__ import annotations
 
@@ -10,6 +14,11 @@ import pytest
 from signatures import extraction as bf
 from signatures import estimators as est
 from signatures import threads
+
+#: float32 ulps (of a row's largest magnitude) a product may move by between thread counts or
+#: stack heights: a 48-term complex sum accumulated in another order
+ULPS = 16
+EPS32 = float(np.finfo(np.float32).eps)
 
 
 def _blas_threads() -> list[int]:
@@ -36,14 +45,16 @@ def test_same_products_on_one_thread():
     a, b = rng.standard_normal((256, 29)), rng.standard_normal((29, 8000))
     ref = a @ b
     with threads.one_blas_thread():
-        assert np.array_equal(a @ b, ref)
+        one = a @ b
+    assert np.abs(one - ref).max() <= 64 * np.finfo(np.float64).eps * np.abs(ref).max()
 
 
-def test_stacked_subchirp_bins_are_the_row_by_row_products_bit_for_bit():
+def test_stacked_subchirp_bins_are_the_row_by_row_products_to_float32_rounding():
     """On one BLAS thread the batch path stacks rows that share a peak bin and a scale into one
-    product; each row's bins are still those of its own `estimators.subchirp_bins` call (what
-    the batch path makes row by row, and the single path makes). Rows of 37 chirps: products
-    whose height is not the single path's block of 64; one row beyond the safe exponent."""
+    product; each row's bins are those of its own `estimators.subchirp_bins` call (what the
+    batch path makes row by row, and the single path makes) to within ULPS of the row's largest
+    bin. Rows of 37 chirps: products whose height is not the single path's block of 64; one row
+    beyond the safe exponent."""
     _blas_threads()
     rng = np.random.default_rng(3)
     n_rows, n_chirps, n_samples, window = 23, 37, 80, 48
@@ -59,7 +70,8 @@ def test_stacked_subchirp_bins_are_the_row_by_row_products_bit_for_bit():
         assert threads.blas_on_one_thread()
         stacked = bf._subchirp_bins(*args)
         for b in range(n_rows):
-            assert np.array_equal(stacked[b], row_by_row[b]), b
+            tol = ULPS * EPS32 * np.abs(row_by_row[b]).max()
+            assert np.abs(stacked[b] - row_by_row[b]).max() <= tol, b
             if abs(log2_scale[b]) <= bf._SAFE_EXPONENT:
                 want = est.subchirp_bins(iq[b], int(peak[b]), window, 2.0 ** -int(log2_scale[b]))
-                assert np.array_equal(stacked[b], want), b
+                assert np.abs(stacked[b] - want).max() <= tol, b

@@ -185,5 +185,6 @@ def test_subchirp_bins_are_the_windows_fft_bins_whatever_the_scale(peak_bin, n, 
     scale = math.ldexp(1.0, exponent)
     assert np.array_equal(est.subchirp_bins(x, peak_bin, window, scale),
                           est.subchirp_bins(x * np.float32(scale), peak_bin, window))
-    with one_blas_thread():
-        assert np.array_equal(est.subchirp_bins(x, peak_bin, window), got)
+    with one_blas_thread():  # another thread count: the same products to float32 rounding
+        one = est.subchirp_bins(x, peak_bin, window)
+    assert np.abs(one - got).max() <= 16 * np.finfo(np.float32).eps * np.abs(got).max()
