@@ -10,7 +10,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
-DOCS = sorted((ROOT / "docs").glob("*.md"))
+DOCS = sorted([*(ROOT / "docs").glob("*.md"), *(ROOT / "docs" / "cli").glob("*.md")])
 PAGES = [ROOT / "README.md", *DOCS, ROOT / "lab" / "README.md", *sorted((ROOT / "lab" / "reports").glob("*.md"))]
 MAX_DOC_LINES = 300
 #: the one user page that may name laboratory commands

@@ -1,10 +1,10 @@
-"""The CLI reference (docs/cli*.md), generated from the typer app: every command with its help
-and a table of its options, so the reference cannot drift from the code.
+"""The CLI reference (docs/cli.md and docs/cli/*.md), generated from the typer app: every
+command with its help and a table of its options, so the reference cannot drift from the code.
 
 `python -m authn.cli.reference docs` writes the pages; tests/test_cli_reference.py regenerates
 them and fails when the committed ones differ. Markdown only, no terminal rendering: the output
-does not depend on the terminal's width or the machine. Pages stay under `MAX_LINES` (the docs
-limit): the commands run on over as many pages as needed, `cli.md` first with the index.
+does not depend on the terminal's width or the machine. One page per top-level command keeps
+each under the docs' 300 lines (`MAX_LINES`, checked by the test).
 """
 
 from __future__ import annotations
@@ -84,44 +84,37 @@ def _anchor(heading: str) -> str:
 
 
 def pages() -> dict[str, str]:
-    """{file name: markdown} of the reference: `cli.md` (the index, then commands) and as many
-    `cli-N.md` as the commands need to keep each page within `MAX_LINES`."""
+    """{path under docs/: markdown} of the reference: `cli.md`, the index of every command, and
+    `cli/<command>.md`, one page per top-level command with its subcommands."""
     from authn.cli import command
 
     root = command()
-    sections = [(path, _section(path, cmd)) for path, cmd in _commands(root)]
-    head = ["# Command-line reference", "",
-            "Generated from the `authn` command itself (`python -m authn.cli.reference docs`; a test fails",
-            "when these pages are not current). Every command also answers `-h`.", ""]
-    page_of: dict[tuple[str, ...], str] = {}
-    bodies: list[list[str]] = [[]]
-    budget = MAX_LINES - len(head) - len(sections) - 4  # the index table on the first page
-    for path, lines in sections:
-        if len(bodies[-1]) + len(lines) > budget:
-            bodies.append([])
-            budget = MAX_LINES - 4
-        bodies[-1] += lines
-        page_of[path] = "cli.md" if len(bodies) == 1 else f"cli-{len(bodies)}.md"
-    index = ["| command | what it does |", "|---|---|"]
+    groups: dict[str, list[str]] = {}
+    for path, cmd in _commands(root):
+        groups.setdefault(path[0], []).extend(_section(path, cmd))
+    index = ["# Command-line reference", "",
+             "Generated from the `authn` command itself (`python -m authn.cli.reference docs`; a test fails",
+             "when these pages are not current). Every command also answers `-h`.", "",
+             "| command | what it does |", "|---|---|"]
     for path, cmd in _commands(root):
         name = " ".join(("authn", *path))
         summary = _cell((cmd.help or "").split("\n\n")[0])
-        index.append(f"| [{name}]({'' if page_of[path] == 'cli.md' else page_of[path]}#{_anchor(name)}) "
-                     f"| {summary} |")
-    out = {"cli.md": "\n".join(head + index + [""] + bodies[0]).rstrip() + "\n"}
-    for i, body in enumerate(bodies[1:], 2):
-        top = [f"# Command-line reference ({i} of {len(bodies)})", "", "Index: [cli.md](cli.md).", ""]
-        out[f"cli-{i}.md"] = "\n".join(top + body).rstrip() + "\n"
+        index.append(f"| [{name}](cli/{path[0]}.md#{_anchor(name)}) | {summary} |")
+    out = {"cli.md": "\n".join(index).rstrip() + "\n"}
+    for top, body in groups.items():
+        head = [f"# authn {top}", "", "Part of the [command-line reference](../cli.md), generated from the command.",
+                ""]
+        out[f"cli/{top}.md"] = "\n".join(head + body).rstrip() + "\n"
     return out
 
 
 def write(folder: Path) -> list[Path]:
-    """Write the reference pages into `folder` (and remove continuation pages it no longer
-    needs); returns their paths."""
-    folder.mkdir(parents=True, exist_ok=True)
+    """Write the reference pages under `folder` (docs/), removing command pages of commands that
+    no longer exist; returns their paths."""
     new = pages()
-    for old in folder.glob("cli-*.md"):
-        if old.name not in new:
+    (folder / "cli").mkdir(parents=True, exist_ok=True)
+    for old in (folder / "cli").glob("*.md"):
+        if f"cli/{old.name}" not in new:
             old.unlink()
     written = []
     for name, text in new.items():
