@@ -58,8 +58,8 @@ def carrier_band_hz(wf: Preset) -> tuple[float, float]:
 def carrier_ratio(bundle: Preset, wf: Preset) -> float | None:
     """f_recording / f_bundle when a bundle of waveform `bundle` serves a recording of `wf`:
     same cube size, a domain it serves, every other WAVEFORM_FIELDS within WAVEFORM_REL_TOL and
-    the carrier within CARRIER_BAND_REL; None when it does not serve it. 1.0 (within 1e-6) is the
-    exact match that lookup prefers."""
+    the carrier within CARRIER_BAND_REL; None when it does not serve it. 1.0 is the exact match
+    that lookup prefers."""
     if (bundle.n_chirps, bundle.n_samples) != (wf.n_chirps, wf.n_samples) or wf.domain not in SERVES[bundle.domain]:
         return None
     if not all(math.isclose(getattr(wf.config, f), getattr(bundle.config, f), rel_tol=WAVEFORM_REL_TOL)

@@ -185,7 +185,7 @@ def list_models(
     per dwell and dwells to decide).
 
     With --json, each bundle's waveform carries the exact parameter values a file must match
-    (within 1e-6 relative): the radar-configuration document `--radar-config` reads; but for the
+    (within 1e-3 relative): the radar-configuration document `--radar-config` reads; but for the
     carrier, which may lie anywhere in `carrier_band_hz` (+-2.5 %: one bundle serves a radar
     that hops its carrier, docs/waveform.md "Carrier band").
 
