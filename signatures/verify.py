@@ -33,8 +33,8 @@ independent terms:
   classifier's support for the claim is no evidence, so the term is capped at 0: it may count
   against the claim, never for it.
 
-A site bundle (`authn models enrol`) may carry `Bands` per enrolled model: the rate and rotor
-bands re-estimated from the site's own recordings with the bands above as the prior
+A site bundle (`authn models enrol`) may carry `Bands` per enrolled model: the rate, rotor and
+blade-ratio bands re-estimated from the site's own recordings with the bands above as the prior
 (`signatures.enrol`); without them (every other bundle) the bands above apply unchanged.
 
 **A group of radar-confusable models** (`also`): where a site's enrolment card says radar cannot
@@ -123,11 +123,13 @@ MAX_REPORTED_LOG = 700.0
 
 @dataclass(frozen=True)
 class Bands:
-    """One claimed model's physics bands: flown rate over nominal (`RATE_BAND`) and rotors seen
-    over rotors (`ROTOR_BAND`). The defaults are today's fixed bands."""
+    """One claimed model's physics bands: flown rate over nominal (`RATE_BAND`), rotors seen
+    over rotors (`ROTOR_BAND`) and the blade ratio (`BLADE_BAND`). The defaults are today's fixed
+    bands."""
 
     rate: tuple[float, float] = RATE_BAND
     rotors: tuple[float, float] = ROTOR_BAND
+    blade: tuple[float, float] = BLADE_BAND
 
 
 DEFAULT_BANDS = Bands()
@@ -135,11 +137,14 @@ DEFAULT_BANDS = Bands()
 
 def bands_from(card_bands: Mapping[str, Any] | None, model: str) -> Bands | None:
     """`model`'s bands from a site card's `enrolment.bands` (slug -> {"rate": [lo, hi], "rotors":
-    [lo, hi]}); None (today's bands) where the card has none for it."""
+    [lo, hi], "blade": [lo, hi] (optional: `BLADE_BAND`)}); None (today's bands) where the card
+    has none for it."""
     b = (card_bands or {}).get(model)
     if not b:
         return None
-    return Bands(rate=(float(b["rate"][0]), float(b["rate"][1])), rotors=(float(b["rotors"][0]), float(b["rotors"][1])))
+    blade = b.get("blade") or BLADE_BAND
+    return Bands(rate=(float(b["rate"][0]), float(b["rate"][1])), rotors=(float(b["rotors"][0]), float(b["rotors"][1])),
+                 blade=(float(blade[0]), float(blade[1])))
 
 
 @dataclass(frozen=True)
@@ -232,14 +237,14 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
         y = math.log(tip) - math.log(f) - math.log(claimed.tip_speed_mps / F)  # over 2 pi L / N
         if 0.0 <= tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
-            blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
+            blade = (y, math.log(bands.blade[0]), math.log(bands.blade[1]), sigma)
     veto = rotors_are_lower_bound(features)
     rotors = _rotors(features, claimed, (bands.rotors[0], (claimed.rotors + VISIBLE_SLACK) / claimed.rotors) if veto
                      else bands.rotors)
     compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
     if blade is not None:  # tip speed over flash rate, over the claim's 2 pi L / N: at most 1.05
         # capped for the report: a tip estimate against a near-zero rate can exceed a float's range
-        compared["blade_ratio"] = {"measured": math.exp(min(blade[0], MAX_REPORTED_LOG)), "claimed_max": BLADE_BAND[1]}
+        compared["blade_ratio"] = {"measured": math.exp(min(blade[0], MAX_REPORTED_LOG)), "claimed_max": bands.blade[1]}
     if rotors is not None:
         compared["rotors"] = {"seen": float(features["rotors_seen"]), "claimed": float(claimed.rotors)}
     slips = SLIPS if float(features.get("tip_aliased", 0.0)) >= 0.5 else UNALIASED_SLIPS

@@ -423,9 +423,10 @@ def enrol_cmd(
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated base set, the folds and the forest."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Worker processes (simulation, forest)."),
     base_samples: int = typer.Option(1500, "--base-samples", min=50, help="Simulated base returns (cached)."),
-    site_bands: bool = typer.Option(False, "--site-bands", help="Also re-estimate each model's rate and rotor "
-                                                                "bands from the recordings, today's as the prior "
-                                                                "(measured: no gain on the held-out world)."),
+    site_bands: bool | None = typer.Option(None, "--site-bands/--no-site-bands",
+                                           help="Re-estimate each model's rate, rotor and blade bands from the "
+                                                "recordings, today's as the prior (default: with one model "
+                                                "only; with several, measured: no gain on the held-out world)."),
     calibrate: str = typer.Option("auto", "--calibrate",
                                   help="Verify with the score calibration fitted on the cross-validated scores: "
                                        "on, off, or auto (where those scores say it pays). Always fitted and "
@@ -447,7 +448,7 @@ def enrol_cmd(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from authn.enrolment import site_sample
+    from authn.enrolment import on_one_waveform, site_sample
     from authn.sprt import Sprt
     from registry.dbapi import Database
     from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
@@ -467,29 +468,29 @@ def enrol_cmd(
     bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True,
                    disable=not sys.stderr.isatty())
-    samples, waveforms = [], {}
+    read = []
     with bar:
         task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
         for f, model in todo:
-            s, wf = site_sample(f, model, db)
-            samples.append(s)
-            waveforms.setdefault(wf.key, wf)
+            read.append(site_sample(f, model, db))
             bar.advance(task)
-    if len(waveforms) > 1:
-        described = "; ".join(w.describe() for w in waveforms.values())
-        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}): enrol each waveform's "
-                         "recordings on their own")
-    wf = next(iter(waveforms.values()))
-    previous = None
+    previous, base, carriers_before = None, None, {}
     if add:
-        folder = active_bundle(wf)
+        folder = active_bundle(read[0][1])
         if folder is None:
-            raise EnrolError(f"--add: no active site bundle for {wf.describe()} to add to (enrol without --add)")
+            raise EnrolError(f"--add: no active site bundle for {read[0][1].describe()} to add to "
+                             "(enrol without --add)")
         previous = folder.name
-        load_classifier(path=folder)  # verified before its samples are reused
+        base = load_classifier(path=folder).waveform  # verified before its samples are reused
+        carriers_before = {float(k): int(v) for k, v in
+                           load_classifier(path=folder).card["enrolment"].get("carriers_hz", {}).items()}
+    wf, samples, carriers = on_one_waveform(read, base)
+    for f, n in carriers_before.items():
+        carriers[f] = carriers.get(f, 0) + n
+    if add:
         known = {s.sha256 for s in previous_samples(folder)}
         samples = previous_samples(folder) + [s for s in samples if s.sha256 not in known]
-    registered = {}
+    registered = {p.slug: p for p in db.registered_profiles()}  # the other side of the card's pairs too
     for slug in sorted({s.model for s in samples}):
         p = db.profile(slug)
         if p is None:
@@ -502,9 +503,10 @@ def enrol_cmd(
     if dest.exists():
         raise EnrolError(f"{dest}: a bundle of that name exists (choose another --name)")
     counts = {m: sum(s.model == m for s in samples) for m in sorted({s.model for s in samples})}
+    n_others = len([p for p in profiles if p not in counts])
     console.print(f"enrolling {len(samples)} recordings ({', '.join(f'{m} {n}' for m, n in counts.items())}) of "
-                  f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers, base_samples):.0f} s "
-                  "(less with a cached base set)")
+                  f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers, base_samples, n_others):.0f}"
+                  " s (less with a cached base set)")
     with bar:
         task = bar.add_task("enrolling", total=1.0)
 
@@ -513,21 +515,23 @@ def enrol_cmd(
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
                      n_sim=base_samples, progress=progress, sprt=Sprt(),  # track errors by the check's own test
-                     physics_bands=site_bands, score_calibration=CALIBRATE[calibrate])
+                     physics_bands=site_bands, score_calibration=CALIBRATE[calibrate], carriers=carriers)
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
 
 
-def _estimate(wf, n_site: int, workers: int, n_sim: int) -> float:
-    """Seconds an enrolment takes on this machine: the base set's simulation (measured on three
-    returns; nothing when cached), the site features, the folds' forests."""
+def _estimate(wf, n_site: int, workers: int, n_sim: int, n_others: int = 0) -> float:
+    """Seconds an enrolment takes on this machine: the base set's and the other profiles'
+    simulation (measured on three returns; nothing when cached), the site features, the folds'
+    forests."""
     from signatures.dataset import DatasetSpec, seconds_per_return
-    from signatures.enrol import CV_FOLDS
+    from signatures.enrol import CV_FOLDS, N_OTHERS
     from signatures.profiles import shipped_profiles
 
     per = seconds_per_return(DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="train",
                                          n=n_sim, seed=0))
-    return n_sim * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
+    returns = n_sim + n_others * N_OTHERS
+    return returns * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
 
 
 def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) -> None:
