@@ -95,6 +95,9 @@ ONE_MODEL_BANDS = True
 #: Site physics bands (`site_bands`): the prior's weight in recordings, and the narrowest band (log).
 BAND_PRIOR_WEIGHT = 10
 BAND_MIN_LOG_WIDTH = math.log(1.06)
+#: Site rates further apart than this (log) are two modes (`_modes`): 25 %, over twice the +-10 %
+#: a rotor's rate wanders in one regime (hover 143-179 Hz), under the 2-3x between idling and hover.
+MODE_GAP = math.log(1.25)
 CV_FOLDS = 5
 ENROL_FORMAT = "uav-radar-authn/site-enrolment/1"
 MAX_LABEL_ROWS = 100_000
@@ -243,13 +246,49 @@ def _band(logs: list[float], prior: tuple[float, float]) -> tuple[float, float]:
     return math.exp(lo), math.exp(hi)
 
 
+def _modes(logs: list[float], prior: tuple[float, float]) -> list[tuple[float, float, float]]:
+    """The site's rates as a mixture (ratio lo, hi, weight): the prior band weighing
+    `BAND_PRIOR_WEIGHT` pseudo-recordings, and each mode of the site's log-ratios (neighbours at
+    most `MODE_GAP` apart; a mode of fewer than `MIN_RECORDINGS` joins its nearest) as a band of
+    its own (`_band`'s edges, no shrinkage: the prior is its own component) weighing its recordings.
+    An airframe that hovers and idles flashes at two rates 2-3x apart: one band over both would
+    spread its density over the gap between them. [] below `MIN_RECORDINGS`."""
+    if len(logs) < MIN_RECORDINGS:
+        return []
+    xs = sorted(logs)
+    groups: list[list[float]] = [[xs[0]]]
+    for x in xs[1:]:
+        if x - groups[-1][-1] <= MODE_GAP:
+            groups[-1].append(x)
+        else:
+            groups.append([x])
+    while len(groups) > 1 and min(len(g) for g in groups) < MIN_RECORDINGS:
+        i = min(range(len(groups)), key=lambda k: len(groups[k]))
+        left = groups[i][0] - groups[i - 1][-1] if i > 0 else math.inf
+        right = groups[i + 1][0] - groups[i][-1] if i + 1 < len(groups) else math.inf
+        j = i - 1 if left <= right else i + 1
+        a, b = min(i, j), max(i, j)
+        groups[a:b + 1] = [groups[a] + groups[b]]
+    total = len(xs) + BAND_PRIOR_WEIGHT
+    out = [(prior[0], prior[1], BAND_PRIOR_WEIGHT / total)]
+    for g in groups:
+        q10, q90 = (float(v) for v in np.percentile(g, [10, 90]))
+        lo, hi = q10 - (q90 - q10) / 8, q90 + (q90 - q10) / 8
+        if hi - lo < BAND_MIN_LOG_WIDTH:
+            mid = (hi + lo) / 2
+            lo, hi = mid - BAND_MIN_LOG_WIDTH / 2, mid + BAND_MIN_LOG_WIDTH / 2
+        out.append((math.exp(lo), math.exp(hi), len(g) / total))
+    return out
+
+
 def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile],
                max_tip_mps: float | None = None) -> dict[str, dict[str, Any]]:
     """Each model's physics bands re-estimated from its site recordings (`_band`, today's
     `signatures.verify` bands the prior): the flash rate over the nominal (estimates the rate
-    term would use), the rotors seen over the rotor count (counts the rotor term would use) and
-    the blade ratio, tip speed over flash rate over the claim's (where the blade term runs: tips
-    unaliased, the claim's tips below `max_tip_mps`)."""
+    term would use) as a mixture of the prior and the site's modes (`_modes`; `rate` their
+    envelope, what the open set's rate test takes), the rotors seen over the rotor count (counts
+    the rotor term would use) and the blade ratio, tip speed over flash rate over the claim's
+    (where the blade term runs: tips unaliased, the claim's tips below `max_tip_mps`)."""
     from signatures.verify import (BLADE_BAND, MAX_REL_STD, MIN_FLASH_GROUPS, RATE_BAND, ROTOR_BAND, min_flash_score,
                                    rotors_are_lower_bound)
 
@@ -275,7 +314,9 @@ def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile],
             visible = rotors_are_lower_bound(s.physics)  # rotors visible, a lower bound: no band to fit
             if seen > 0 and ssd > 0 and ssd / seen <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9 and not visible:
                 rot.append(math.log(seen) - math.log(prof.rotors))
-        out[m] = {"rate": [round(v, 6) for v in _band(rate, RATE_BAND)],
+        modes = _modes(rate, RATE_BAND)
+        band = (min(b[0] for b in modes), max(b[1] for b in modes)) if modes else _band(rate, RATE_BAND)
+        out[m] = {"rate": [round(v, 6) for v in band], "rate_modes": [[round(v, 6) for v in b] for b in modes],
                   "rotors": [round(v, 6) for v in _band(rot, ROTOR_BAND)],
                   "blade": [round(v, 6) for v in _band(blade, BLADE_BAND)],
                   "n_rate": len(rate), "n_rotors": len(rot), "n_blade": len(blade)}

@@ -5,7 +5,6 @@ enrolment, docs/classifiers.md), pick the active one, list them, and print the p
 from __future__ import annotations
 
 import json
-import os
 import time
 from pathlib import Path
 
@@ -69,7 +68,9 @@ def train(
     """
     from rich.console import Console
 
-    from signatures.dataset import DatasetSpec, seconds_per_return
+    from signatures.dataset import DatasetSpec, progress_note
+    from signatures.eta import pace as timed_pace
+    from signatures.eta import seconds as eta_seconds
     from signatures.sampling import NuisanceDistribution
     from signatures.training import TrainConfig, default_samples, train_bundle
 
@@ -84,23 +85,29 @@ def train(
                       unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20), n_test=n_test,
                       nuisance=NuisanceDistribution() if randomise else None)
     console = Console(stderr=as_json)  # with --json, stdout carries only the JSON object
-    per = seconds_per_return(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed))
     n_cal = 0 if randomise else n_val  # the temperature's randomised validation set (training randomised: val itself)
     total = (n + n_val + n_cal + cfg.n_unknown_val
              + len(cfg.test_snrs) * (n_test + (max(n_test // 2, 10) if n_test else 0)))
-    eta = total * per / min(workers, os.cpu_count() or 1)
+    pace = timed_pace(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed), workers)
+    eta = eta_seconds(total, pace)
     console.print(f"[bold]{wf.name}[/]: {wf.describe()}. Simulating {total} returns ({n} train, {n_val} validation"
                   + (f", {n_cal} randomised for calibration" if n_cal else "")
-                  + (f", {n_test} test per SNR" if n_test else "") + f") at {per * 1e3:.0f} ms each: about "
-                  f"{eta / 60:.1f} min with {workers} workers, plus fitting (cached datasets are reused).")
+                  + (f", {n_test} test per SNR" if n_test else "") + f") at {pace.seconds_per_return * 1e3:.0f} ms "
+                  f"each with {workers} workers (timed on {pace.timed} at once): about {eta / 60:.1f} min, plus "
+                  "fitting (cached datasets are reused).")
+    why = _why_slow(eta, total, n, pace)
+    if why:
+        console.print(why)
     t0 = time.perf_counter()
-    if cluster is None:
-        card = train_bundle(cfg, folder, progress=not as_json)
-    else:  # the engine is imported only here
-        from authn.cluster.engine import training_on
-
-        with training_on(cluster):
+    with progress_note(f"{pace.seconds_per_return * 1e3:.0f} ms/return, about {eta / 60:.1f} min in all"
+                       if why else ""):
+        if cluster is None:
             card = train_bundle(cfg, folder, progress=not as_json)
+        else:  # the engine is imported only here
+            from authn.cluster.engine import training_on
+
+            with training_on(cluster):
+                card = train_bundle(cfg, folder, progress=not as_json)
     if as_json:
         typer.echo(json.dumps({"name": wf.name, "folder": str(folder), "waveform": wf.as_json(),
                                "seconds": round(time.perf_counter() - t0, 3), "metrics": card["metrics"]}, indent=2))
@@ -115,6 +122,20 @@ def train(
     elif not overwrite_shipped:
         console.print(f"the shipped {wf.name} bundle still serves {wf.name} files; this one: "
                       f"`authn check --model {folder}`")
+
+
+#: A training run is said to be long (and why) from this many seconds on.
+LONG_S = 60.0
+
+
+def _why_slow(eta: float, total: int, n: int, pace) -> str:  # pace: signatures.eta.Pace
+    """Why a training run takes over `LONG_S`: the simulation dominates (returns, pace, workers),
+    and what shortens it; '' when it does not."""
+    if eta < LONG_S:
+        return ""
+    return (f"over a minute: simulating the {total} returns dominates (each {pace.seconds_per_return * 1e3:.0f} ms of "
+            f"wall time with {pace.workers} workers; fitting takes seconds); --samples sets the training returns "
+            f"({n} now), --workers the processes, and a second run reads the cached datasets")
 
 
 def _waveform(preset: str | None, like: Path | None, radar_config: Path | None):  # -> Preset
@@ -522,16 +543,18 @@ def enrol_cmd(
 
 def _estimate(wf, n_site: int, workers: int, n_sim: int, n_others: int = 0) -> float:
     """Seconds an enrolment takes on this machine: the base set's and the other profiles'
-    simulation (measured on three returns; nothing when cached), the site features, the folds'
-    forests."""
-    from signatures.dataset import DatasetSpec, seconds_per_return
+    simulation at the pace timed on the worker pool (`signatures.eta`; nothing when cached), and
+    the folds' and the bundle's forests, one of them timed on a small sample."""
+    from signatures.dataset import DatasetSpec
     from signatures.enrol import CV_FOLDS, N_OTHERS
+    from signatures.eta import fit_seconds, pace, seconds
+    from signatures.features import FEATURE_NAMES
     from signatures.profiles import shipped_profiles
 
-    per = seconds_per_return(DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="train",
-                                         n=n_sim, seed=0))
-    returns = n_sim + n_others * N_OTHERS
-    return returns * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
+    p = pace(DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="train", n=n_sim, seed=0),
+             workers)
+    per_fit = fit_seconds(n_sim + n_site, len(FEATURE_NAMES))
+    return seconds(n_sim + n_others * N_OTHERS, p, CV_FOLDS + 1, per_fit)
 
 
 def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) -> None:
