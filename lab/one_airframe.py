@@ -41,13 +41,16 @@ VALID_FROM = datetime(2026, 1, 1, tzinfo=timezone.utc)
 DWELL_SPACING_S = 1.0
 
 
-def dwells(k: int, n: int, world: str, serial: str | None, seed: int = 0, start: datetime | None = None) -> list:
+def dwells(k: int, n: int, world: str, serial: str | None, seed: int = 0, start: datetime | None = None,
+           carrier_hz: float | None = None) -> list:
     """The first `n` dwells of site scene `k` in `world` (successive simulator seeds), each carrying
-    the Remote ID of `serial` (None: none)."""
+    the Remote ID of `serial` (None: none); at `carrier_hz` where given, else the scene's own."""
     from lab.bench.cw_claims import broadcasting
 
     cond = CONDITIONS[SITE_CONDITIONS[(k // 2) % 2]]
     scene, pre, sim_seed = cond.draw(seed * 100_003 + k)
+    if carrier_hz is not None:
+        pre = replace(pre, config=pre.config.replace(carrier_hz=float(carrier_hz)))
     start = start or datetime.now(timezone.utc)
     out = []
     for j in range(n):
@@ -70,6 +73,30 @@ def write_site(folder: Path, scenes: list[int], world: str, seed: int = 0) -> Pa
         rows.append(f"scene-{k:03d}.h5,{DJI_QUAD.slug}")
     (folder / "labels.csv").write_text("\n".join(rows) + "\n")
     return folder / "labels.csv"
+
+
+def write_raw(folder: Path, scenes: list[int], track_scene: int, track_dwells: int, track_carrier_hz: float,
+              world: str = "training", seed: int = 0) -> dict[str, int]:
+    """A radar's raw arrays, as `authn import array --domain cw` reads them: per carrier, the first
+    dwell of each of `scenes` flown at it, one after the other (`<carrier>GHz.npy`, e.g. `3.30GHz.npy`:
+    complex I/Q, one sample per pulse), and `track.npy`: `track_dwells` dwells of `track_scene` at
+    `track_carrier_hz`. Returns the dwells written per file."""
+    import numpy as np
+
+    folder.mkdir(parents=True, exist_ok=True)
+    per: dict[float, list] = {}
+    for k in scenes:
+        rec = dwells(k, 1, world, None, seed)[0]
+        per.setdefault(rec.config.carrier_hz, []).append(rec.iq.reshape(-1))
+    counts = {}
+    for carrier, parts in sorted(per.items()):
+        name = f"{carrier / 1e9:.2f}GHz.npy"
+        np.save(folder / name, np.concatenate(parts).astype(np.complex64))
+        counts[name] = len(parts)
+    track = dwells(track_scene, track_dwells, world, None, seed, carrier_hz=track_carrier_hz)
+    np.save(folder / "track.npy", np.concatenate([r.iq.reshape(-1) for r in track]).astype(np.complex64))
+    counts["track.npy"] = track_dwells
+    return counts
 
 
 def register_site(db_url: str) -> None:
