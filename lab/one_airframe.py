@@ -143,29 +143,49 @@ def run(world: str, n_enrol: int, n_tracks: int, n_dwells: int, seed: int = 0, b
                 os.environ["AUTHN_MODELS_DIR"] = before
 
 
+def enrol_site(db_url: str, flights: Path, name: str, base_samples: int, seed: int = 0) -> dict:
+    """What `authn models enrol FLIGHTS --labels FLIGHTS/labels.csv` does (the drone's recordings
+    read and labelled, one waveform over their carriers, the bundle built and made active),
+    without the command's printing; returns the card."""
+    from authn.enrolment import on_one_waveform, site_sample
+    from authn.sprt import Sprt
+    from registry.dbapi import Database
+    from signatures.enrol import enrol
+    from signatures.inference import models_dir, set_active
+    from signatures.profiles import shipped_profiles
+
+    db = Database(db_url)
+    read = [site_sample(f, DJI_QUAD.slug, db) for f in sorted(flights.glob("*.h5"))]
+    wf, samples, carriers = on_one_waveform(read)
+    profiles = {**shipped_profiles(), **{p.slug: p for p in db.registered_profiles()}}
+    card = enrol(samples, profiles, wf, models_dir() / name, name=name, seed=seed, n_sim=base_samples, sprt=Sprt(),
+                 carriers=carriers)
+    set_active(wf.key, name)
+    return card
+
+
 def _run(root: Path, world: str, n_enrol: int, n_tracks: int, n_dwells: int, seed: int, base_samples: int,
          heldout_tracks: bool) -> dict:
     from authn.check import Checker
-    from authn.cli import main
     from lab.bench.cw_claims import cw_site_policy
 
     db = f"sqlite:///{root / 'site.sqlite3'}"
     register_site(db)
     labels = write_site(root / "flights", [2 * i for i in range(n_enrol)], world, seed)
     t0 = time.perf_counter()
-    code = main(["--db", db, "models", "enrol", str(labels.parent), "--labels", str(labels), "--name",
-                 f"one-{world}-{seed}-{int(time.time())}", "--base-samples", str(base_samples), "--json"])
-    if code != 0:
-        raise RuntimeError(f"models enrol exited {code}")
+    card = enrol_site(db, labels.parent, f"one-{world}-{seed}", base_samples, seed)["enrolment"]
     enrol_s = time.perf_counter() - t0
     policy = root / "cw-site.cedar"
     policy.write_text(cw_site_policy())
     checker = Checker(db, policy_path=policy)
     t0 = time.perf_counter()
-    out = check_tracks(checker, [2 * i + 1 for i in range(n_tracks)], n_dwells,
-                       "heldout" if heldout_tracks else world, seed)
+    out = check_tracks(checker, [2 * i + 1 for i in range(n_tracks)], n_dwells, "heldout" if heldout_tracks else world,
+                       seed)
     return {"world": world, "tracks_world": "heldout" if heldout_tracks else world, "enrolled": n_enrol,
             "tracks_checked": n_tracks, "dwells": n_dwells, "enrol_seconds": round(enrol_s, 1),
+            "card": {k: card[k] for k in ("confusable_pairs", "confusable_pairs_tracks", "signatures", "bands",
+                                          "carriers_hz")},
+            "card_genuine_tracks": card["tracks"]["genuine_accept"],
             "check_seconds": round(time.perf_counter() - t0, 1), **out}
 
 

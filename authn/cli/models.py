@@ -11,7 +11,8 @@ from pathlib import Path
 import typer
 
 
-#: `models enrol --calibrate`: the score calibration's use (None: where the site's scores say it pays).
+#: `models enrol --calibrate` and `--site-bands`: on, off, or auto (None: the enrolment decides: where
+#: the site's scores say the calibration pays; site bands with one model).
 CALIBRATE = {"auto": None, "on": True, "off": False}
 
 models_app = typer.Typer(help="Train, enrol, list and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
@@ -444,10 +445,10 @@ def enrol_cmd(
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated base set, the folds and the forest."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Worker processes (simulation, forest)."),
     base_samples: int = typer.Option(1500, "--base-samples", min=50, help="Simulated base returns (cached)."),
-    site_bands: bool | None = typer.Option(None, "--site-bands/--no-site-bands",
-                                           help="Re-estimate each model's rate, rotor and blade bands from the "
-                                                "recordings, today's as the prior (default: with one model "
-                                                "only; with several, measured: no gain on the held-out world)."),
+    site_bands: str = typer.Option("auto", "--site-bands",
+                                   help="Re-estimate each model's rate, rotor and blade bands from the recordings, "
+                                        "today's as the prior: on, off, or auto (on with one model; with several, "
+                                        "measured: no gain on the held-out world)."),
     calibrate: str = typer.Option("auto", "--calibrate",
                                   help="Verify with the score calibration fitted on the cross-validated scores: "
                                        "on, off, or auto (where those scores say it pays). Always fitted and "
@@ -480,8 +481,9 @@ def enrol_cmd(
     if name is not None and not bundle_name_ok(name):
         raise EnrolError(f"--name {name!r}: lower-case letters, digits, '.', '_' or '-' (at most 64), "
                          "not a preset name or 'shipped'")
-    if calibrate not in CALIBRATE:
-        raise EnrolError(f"--calibrate {calibrate!r}: one of {', '.join(CALIBRATE)}")
+    for flag, value in (("--calibrate", calibrate), ("--site-bands", site_bands)):
+        if value not in CALIBRATE:
+            raise EnrolError(f"{flag} {value!r}: one of {', '.join(CALIBRATE)}")
     db = Database(ctx.obj.db_url if ctx.obj else None)
     files = _recording_files(recordings)
     todo = _labelled(files, labels, db)
@@ -536,7 +538,7 @@ def enrol_cmd(
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
                      n_sim=base_samples, progress=progress, sprt=Sprt(),  # track errors by the check's own test
-                     physics_bands=site_bands, score_calibration=CALIBRATE[calibrate], carriers=carriers)
+                     physics_bands=CALIBRATE[site_bands], score_calibration=CALIBRATE[calibrate], carriers=carriers)
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json)
 

@@ -377,7 +377,7 @@ def test_add_extends_the_active_enrolment(site: dict, tmp_path: Path, capsys) ->
     _make_site(more, 2, seed=99)
     capsys.readouterr()
     assert main(["models", "enrol", str(more), "--labels", str(more / "labels.csv"), "--add", "--name", "site-c",
-                 "--site-bands", "--calibrate", "on", "--json", *BASE]) == 0
+                 "--site-bands", "on", "--calibrate", "on", "--json", *BASE]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["counts"] == {"m300": 7, "m600": 7, "phantom4": 7}
     card = json.loads((site["models"] / "site-c" / "card.json").read_text())
