@@ -28,10 +28,14 @@ Method (fixed a priori, measured in docs/benchmarks.md "Site enrolment"):
    sequential test, passed in as `sprt` since it lives above this layer), and every pair with
    fewer than `MIN_SEPARABLE_CLAIMS` cross-validated claims: too few to show radar can separate
    it, so fewer recordings never mean fewer signatures asked for;
-6. optionally (`physics_bands`, `models enrol --site-bands`; off by default: measured not to help
-   on the held-out world, docs/enrolment.md) each enrolled model's rate and rotor bands from its
-   site recordings (`site_bands`), today's `signatures.verify` bands the prior; out of fold in the
-   cross-validation (each recording verified with the bands of the other folds).
+6. optionally (`physics_bands`, `models enrol --site-bands`; by default only with one model: with
+   several, measured not to help on the held-out world, docs/enrolment.md) each enrolled model's
+   rate (a mixture of modes), rotor and blade bands from its site recordings (`site_bands`), today's
+   `signatures.verify` bands the prior; out of fold in the cross-validation (each recording verified
+   with the bands of the other folds), and the open set's rate test takes them.
+
+Every registered or shipped profile not enrolled is simulated in the waveform (`signatures.impostors`):
+the other side of each enrolled model's pairs, so that one model enrols on its own.
 
 The bundle is written to a temporary folder beside its destination and renamed into place: an
 interrupted enrolment leaves nothing half-written, and the active bundle switches only after

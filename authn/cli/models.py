@@ -458,8 +458,10 @@ def enrol_cmd(
     """Adapt the radar evidence to this site's radar from its recorded flights (site enrolment).
 
     Builds a site bundle for the recordings' waveform (a simulated base set plus the site's
-    recordings, cross-validated), writes its enrolment card (counts, confusion matrix, pairwise
-    errors, radar-confusable pairs, threshold, source digests) and makes it the active bundle:
+    recordings, cross-validated; one model is enough: the other profiles are simulated in that
+    waveform; carriers within +-2.5 % of their middle are one waveform), writes its enrolment card
+    (counts, confusion matrix, pairwise errors, radar-confusable pairs and the signatures they ask
+    for, threshold, carriers, source digests) and makes it the active bundle:
     `authn check` then uses it for that waveform ahead of the shipped one. Bad input (a missing
     or unknown label, another waveform, too few recordings) changes nothing.
 
@@ -571,6 +573,8 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
                                "confusable_pairs": e["confusable_pairs"],
                                "confusable_pairs_tracks": e.get("confusable_pairs_tracks"), "tracks": e.get("tracks"),
                                "threshold": e["threshold"], "calibration": e.get("calibration"),
+                               "signatures": e.get("signatures"), "carriers_hz": e.get("carriers_hz"),
+                               "others": (e.get("others") or {}).get("simulated"),
                                "sources": len(e["sources"])}, indent=2))
         return
     console = Console()
@@ -592,7 +596,8 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
             why = (f" (fewer than {e['min_separable_claims']} claims cannot show it separable)"
                    if sd["claims"] < e.get("min_separable_claims", 0) else "")
             mark = f"  radar-confusable{why}: unsigned claims rejected"
-        console.print(f"  {p['models'][0]} / {p['models'][1]}: type spoofs accepted {fa} "
+        sim = " (simulated at this radar)" if p.get("simulated") else ""
+        console.print(f"  {p['models'][0]} / {p['models'][1]}{sim}: type spoofs accepted {fa} "
                       f"({sd['false_accepts']} of {sd['claims']} cross-validated claims){mark}")
         tr = p.get("tracks")
         if tr and tr["false_accept_rate"] is not None:
@@ -610,7 +615,23 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool) ->
         console.print(f"  evidence per genuine dwell (cross-validated, calibrated): {ev['calibrated']} nats "
                       f"(uncalibrated {ev['uncalibrated']}); score calibration "
                       f"{'applied' if cal['applied'] else 'not applied'} ({_calibration_why(cal)})")
+    _print_band_and_signatures(console, e)
     console.print(f"  card: {folder / 'card.json'} ({len(e['sources'])} source digests)")
+
+
+def _print_band_and_signatures(console, e: dict) -> None:
+    """The carriers the recordings were made at, and which claims need a DRIP signature."""
+    carriers = e.get("carriers_hz") or {}
+    if carriers:
+        console.print("  carriers: " + ", ".join(f"{float(f) / 1e9:g} GHz ({n})" for f, n in carriers.items()))
+    for model, need in (e.get("signatures") or {}).items():
+        single, tracks = need["single_dwell"], need["tracks"]
+        if not single and not tracks:
+            console.print(f"  {model}: radar separates it from every other profile; no signature needed")
+            continue
+        console.print(f"  {model}: unsigned claims need a DRIP signature where one of these is registered: "
+                      f"{', '.join(single) or 'none'} (single dwells), "
+                      f"{'not measured' if tracks is None else ', '.join(tracks) or 'none'} (tracks)")
 
 
 def _calibration_why(cal: dict) -> str:
