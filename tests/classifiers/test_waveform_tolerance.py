@@ -49,3 +49,16 @@ def test_a_mismatch_message_starts_with_the_parameter_that_differs(tmp_path: Pat
     text = str(err.value)
     assert text.startswith(f"sample rate 5000.0 Hz here, 5100.0 Hz in bundle {bundle.name}: "), text
     assert "no classifier for this waveform" in text and "--like x.h5" in text
+
+
+def test_an_active_site_bundle_made_at_5000_1_hz_serves_a_5000_0_hz_dwell(tmp_path: Path, monkeypatch) -> None:
+    from signatures.inference import active_bundle, set_active
+
+    monkeypatch.setenv("AUTHN_MODELS_DIR", str(tmp_path))
+    bundle = _clocked(5000.1)
+    folder = tmp_path / "site-a"
+    folder.mkdir()
+    (folder / "card.json").write_text(json.dumps({"waveform": {"radar_config": bundle.as_json()}, "enrolment": {}}))
+    set_active(bundle.key, "site-a")
+    assert active_bundle(_clocked(5000.0)) == folder
+    assert active_bundle(_clocked(5100.0)) is None
