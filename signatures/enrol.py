@@ -487,7 +487,27 @@ def _pair(a: str, b: str, impostor: dict[tuple[str, str], list[float]], confusio
     n_fa = sum(v >= 0.0 for v in fa)
     return {"models": [a, b], "single_dwell": {
         "false_accept_rate": round(n_fa / len(fa), 6) if fa else None, "false_accepts": n_fa, "claims": len(fa),
-        "classifier_confusion_rate": round(confusion, 6)}, "tracks": _pair_tracks(dwell_scores, a, b, sprt, seed)}
+        "classifier_confusion_rate": round(confusion, 6)}, "tracks": _pair_tracks(dwell_scores, a, b, sprt, seed),
+        "separation": _separation_nats(dwell_scores, a, b, sprt)}
+
+
+def _separation_nats(dwell_scores: dict[tuple[str, str], list[DwellScore]], a: str, b: str,
+                     sprt: Any) -> dict[str, Any] | None:
+    """As a shipped card's `separation`: the mean capped increment (`Sprt.increment`) of a genuine
+    dwell of `a` and of a type-spoof dwell between a and b (both directions), and the dwells each
+    takes to decide (`Sprt.dwells_to_decide`; None: never)."""
+    if sprt is None:
+        return None
+
+    def mean(scores: list[DwellScore]) -> float | None:
+        inc = [sprt.increment(llr, physics) for llr, physics in (d for d in scores if d is not None)]
+        return round(float(np.mean(inc)), 3) if inc else None
+
+    g = mean(dwell_scores.get((a, a), []))
+    i = mean(dwell_scores.get((a, b), []) + dwell_scores.get((b, a), []))
+    return {"genuine_nats_per_dwell": g, "impostor_nats_per_dwell": i,
+            "dwells_to_accept": None if g is None else sprt.dwells_to_decide(g),
+            "dwells_to_reject": None if i is None else sprt.dwells_to_decide(i)}
 
 
 def _signatures(enrolled: Sequence[str], single: Sequence[Sequence[str]],

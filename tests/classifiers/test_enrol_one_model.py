@@ -81,6 +81,9 @@ def test_one_airframe_enrols_with_one_command_across_its_carriers(site: dict, ca
     assert [p["models"] for p in e["pairwise"]] == [[DJI, "m300"], [DJI, "m600"], [DJI, "phantom4"]]
     assert all(p["simulated"] == p["models"][1] and p["single_dwell"]["claims"] >= 29 for p in e["pairwise"])
     assert set(e["others"]["simulated"]) == {"m300", "m600", "phantom4"}
+    for p in e["pairwise"]:  # as a shipped card's separation: nats per dwell, dwells to decide
+        sep = p["separation"]
+        assert sep["genuine_nats_per_dwell"] > 0 > sep["impostor_nats_per_dwell"] and sep["dwells_to_reject"] >= 1
     assert set(e["signatures"]) == {DJI} and set(e["signatures"][DJI]) >= {"single_dwell", "tracks"}
     assert e["signatures"][DJI]["tracks"] == sorted({m for p in e["confusable_pairs_tracks"] for m in p} - {DJI})
     # one model: its bands re-estimated from its recordings (rate, rotors, blade), today's as the prior
