@@ -479,6 +479,37 @@ def _rate(x: float) -> float | None:
     return None if math.isnan(x) else round(x, 6)
 
 
+def _oof_unknown(phys: Any, classes: Sequence[str], X_site: np.ndarray, pred: np.ndarray, fold_of: np.ndarray,
+                 fold_bands: dict[int, dict[str, Any]]) -> np.ndarray:
+    """The open set's physical verdict on each site recording, out of fold like the verification:
+    with the site rate bands of the other folds' recordings where bands are estimated."""
+    unk = np.zeros(len(X_site), dtype=bool)
+    for k in np.unique(fold_of):
+        fk = fold_of == k
+        bands = fold_bands.get(int(k))
+        pk = phys.with_rate_bands(classes, {m: b["rate"] for m, b in bands.items()}) if bands else phys
+        unk[fk] = pk.verdict(np.nan_to_num(X_site[fk].astype(np.float64)), pred[fk])[0]
+    return unk
+
+
+def _pairs(enrolled: Sequence[str], det_counts: dict[str, int], n_oth: dict[str, int], cm: np.ndarray,
+           called: dict[tuple[str, str], int], index: dict[str, int], impostor: dict[tuple[str, str], list[float]],
+           dwell_scores: dict[tuple[str, str], list[DwellScore]], sprt: Any, seed: int) -> list[dict[str, Any]]:
+    """The card's pairs: each two enrolled models, and each enrolled model against each profile
+    simulated in the waveform (`simulated`: that profile); the classifier's confusion rate from the
+    cross-validated confusion matrix `cm` (rows: enrolled) and `called` (simulated b called a)."""
+    pairs: list[dict[str, Any]] = []
+    for i, a in enumerate(enrolled):
+        for b in enrolled[i + 1:]:
+            conf = int(cm[i, index[b]] + cm[enrolled.index(b), index[a]])
+            pairs.append(_pair(a, b, impostor, conf / (det_counts[a] + det_counts[b]), dwell_scores, sprt, seed))
+        for b, n in n_oth.items():
+            conf = int(cm[i, index[b]]) + called[(b, a)]
+            pairs.append({**_pair(a, b, impostor, conf / (det_counts[a] + n), dwell_scores, sprt, seed),
+                          "simulated": b})
+    return pairs
+
+
 def _pair(a: str, b: str, impostor: dict[tuple[str, str], list[float]], confusion: float,
           dwell_scores: dict[tuple[str, str], list[DwellScore]], sprt: Any, seed: int) -> dict[str, Any]:
     """One pair's card entry: its single-dwell false accepts at the applied threshold (0 nats), both
@@ -702,11 +733,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     all_bands = site_bands(site, profiles, max_tip) if physics_bands else None
     if all_bands:  # the open set's rate test takes the site's measured rates too
         phys = phys.with_rate_bands(classes, {m: b["rate"] for m, b in all_bands.items()})
-    unk = np.zeros(len(site), dtype=bool)
-    for k in range(n_folds):  # out of fold, as the verification
-        fk = fold_of == k
-        pk = phys.with_rate_bands(classes, {m: b["rate"] for m, b in fold_bands[k].items()}) if fold_bands else phys
-        unk[fk] = pk.verdict(np.nan_to_num(X_site[fk].astype(np.float64)), pred[fk])[0]
+    unk = _oof_unknown(phys, classes, X_site, pred, fold_of, fold_bands)
     p_oth_cal = calibrate(p_oth, beta) if len(others) else p_oth
     pred_oth = p_oth_cal.argmax(axis=1)
     unk_oth = phys.verdict(X_oth.astype(np.float64), pred_oth)[0] if len(others) else np.zeros(0, dtype=bool)
@@ -734,16 +761,10 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     for yi, pi, ui in zip(y_site, pred, unk):
         cm[enrolled.index(classes[yi]), len(classes) if ui else pi] += 1
     used_cols = [j for j, lab in enumerate(labels) if cm[:, j].any() or lab in enrolled]
-    pairs: list[dict[str, Any]] = []
     n_oth = {m: int(np.sum(y_oth == index[m])) for m in claimable[len(enrolled):]}
-    for i, a in enumerate(enrolled):
-        for b in enrolled[i + 1:]:
-            conf = int(cm[i, index[b]] + cm[enrolled.index(b), index[a]])
-            pairs.append(_pair(a, b, impostor, conf / (det_counts[a] + det_counts[b]), dwell_scores, sprt, seed))
-        for b in n_oth:  # the site's a against profile b simulated in its waveform
-            conf = int(cm[i, index[b]] + np.sum((y_oth == index[b]) & (pred_oth == index[a]) & ~unk_oth))
-            pairs.append({**_pair(a, b, impostor, conf / (det_counts[a] + n_oth[b]), dwell_scores, sprt, seed),
-                          "simulated": b})
+    called = {(b, a): int(np.sum((y_oth == index[b]) & (pred_oth == index[a]) & ~unk_oth)) for a in enrolled
+              for b in n_oth}  # simulated returns of b the system called a
+    pairs = _pairs(enrolled, det_counts, n_oth, cm, called, index, impostor, dwell_scores, sprt, seed)
     confusable = [p["models"] for p in pairs if _single_confusable(p)]
     confusable_tracks = [p["models"] for p in pairs if _track_confusable(p)]
     g = np.asarray(genuine)
