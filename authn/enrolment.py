@@ -64,7 +64,7 @@ def on_one_waveform(read: list, base=None):  # ([(SiteSample, Preset)], Preset |
     else `signatures.carrier.band_waveform`), the samples with their feature vectors as a radar
     of that waveform's carrier would have measured them (`signatures.carrier.normalise`: what a
     check does before the classifier sees them; the physics estimates, in rates and m/s, stay as
-    measured, as the check's verification reads them), and the carriers seen (Hz -> recordings).
+    measured, as the check's verification reads them), and each sample's carrier (Hz).
     A recording the waveform does not serve is an EnrolError naming the waveforms."""
     from dataclasses import replace
 
@@ -82,11 +82,8 @@ def on_one_waveform(read: list, base=None):  # ([(SiteSample, Preset)], Preset |
         raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}) that no one bundle "
                          f"serves{into} (carriers within +-{CARRIER_BAND_REL:.1%} of their middle, the rest "
                          "alike): enrol each waveform's recordings on their own")
-    carriers: dict[float, int] = {}
-    out = []
-    for s, wf in read:
-        f = float(wf.config.carrier_hz)
-        carriers[f] = carriers.get(f, 0) + 1
-        x = normalise(s.features[None, :], FEATURE_NAMES, target.config, target.n_samples, f)[0]
-        out.append(replace(s, features=np.asarray(x, dtype=np.float32)))
+    carriers = [float(wf.config.carrier_hz) for _, wf in read]
+    out = [replace(s, features=np.asarray(normalise(s.features[None, :], FEATURE_NAMES, target.config,
+                                                    target.n_samples, f)[0], dtype=np.float32))
+           for (s, _), f in zip(read, carriers)]
     return target, out, carriers

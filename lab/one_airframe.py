@@ -156,7 +156,8 @@ def enrol_site(db_url: str, flights: Path, name: str, base_samples: int, seed: i
 
     db = Database(db_url)
     read = [site_sample(f, DJI_QUAD.slug, db) for f in sorted(flights.glob("*.h5"))]
-    wf, samples, carriers = on_one_waveform(read)
+    wf, samples, at = on_one_waveform(read)
+    carriers = {f: at.count(f) for f in set(at)}
     profiles = {**shipped_profiles(), **{p.slug: p for p in db.registered_profiles()}}
     card = enrol(samples, profiles, wf, models_dir() / name, name=name, seed=seed, n_sim=base_samples, sprt=Sprt(),
                  carriers=carriers)

@@ -509,12 +509,14 @@ def enrol_cmd(
         base = load_classifier(path=folder).waveform  # verified before its samples are reused
         carriers_before = {float(k): int(v) for k, v in
                            load_classifier(path=folder).card["enrolment"].get("carriers_hz", {}).items()}
-    wf, samples, carriers = on_one_waveform(read, base)
-    for f, n in carriers_before.items():
-        carriers[f] = carriers.get(f, 0) + n
+    wf, samples, at = on_one_waveform(read, base)
     if add:
         known = {s.sha256 for s in previous_samples(folder)}
+        at = [f for s, f in zip(samples, at) if s.sha256 not in known]
         samples = previous_samples(folder) + [s for s in samples if s.sha256 not in known]
+    carriers = dict(carriers_before)
+    for f in at:
+        carriers[f] = carriers.get(f, 0) + 1
     registered = {p.slug: p for p in db.registered_profiles()}  # the other side of the card's pairs too
     for slug in sorted({s.model for s in samples}):
         p = db.profile(slug)
