@@ -4,13 +4,17 @@ The recording is labelled (LABELS.csv, or its Remote ID serial's registered mode
 features are extracted as `authn check` extracts them: gated at the range its Remote ID
 declares, so the site bundle learns the features it will be asked about. Here, not in
 `signatures.enrol`, because labelling reads the registry and gating the Remote ID (layers).
+
+A carrier-stepped radar enrols as one waveform (`on_one_waveform`): its recordings' carriers
+within the carrier band of the middle one, their Doppler-frequency features put on that carrier
+as a check puts them (`signatures.carrier`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["site_sample"]
+__all__ = ["on_one_waveform", "site_sample"]
 
 
 def site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteSample, Preset)
@@ -53,3 +57,33 @@ def site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteS
     sample = SiteSample(name=str(path), sha256=file_sha256(path), model=model,
                         features=feats.as_array().astype("float32"), physics=physics, detected=bool(feats.detected))
     return sample, recording_waveform(rec)
+
+
+def on_one_waveform(read: list, base=None):  # ([(SiteSample, Preset)], Preset | None) -> (Preset, samples, carriers)
+    """The one waveform the recordings enrol as (`base` where given: the bundle `--add` extends;
+    else `signatures.carrier.band_waveform`), the samples with their feature vectors as a radar
+    of that waveform's carrier would have measured them (`signatures.carrier.normalise`: what a
+    check does before the classifier sees them; the physics estimates, in rates and m/s, stay as
+    measured, as the check's verification reads them), and each sample's carrier (Hz).
+    A recording the waveform does not serve is an EnrolError naming the waveforms."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from signatures.carrier import CARRIER_BAND_REL, band_waveform, carrier_ratio, normalise
+    from signatures.enrol import EnrolError
+    from signatures.features import FEATURE_NAMES
+
+    waveforms = {wf.key: wf for _, wf in read}
+    target = base if base is not None else band_waveform(list(waveforms.values()))
+    if target is None or any(carrier_ratio(target, wf) is None for wf in waveforms.values()):
+        described = "; ".join(w.describe() for w in waveforms.values())
+        into = f" into {base.describe()}" if base is not None else ""
+        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}) that no one bundle "
+                         f"serves{into} (carriers within +-{CARRIER_BAND_REL:.1%} of their middle, the rest "
+                         "alike): enrol each waveform's recordings on their own")
+    carriers = [float(wf.config.carrier_hz) for _, wf in read]
+    out = [replace(s, features=np.asarray(normalise(s.features[None, :], FEATURE_NAMES, target.config,
+                                                    target.n_samples, f)[0], dtype=np.float32))
+           for (s, _), f in zip(read, carriers)]
+    return target, out, carriers

@@ -23,8 +23,8 @@ import numpy as np
 
 from signatures.radar import SERVES, WAVEFORM_FIELDS, WAVEFORM_REL_TOL, C, Preset, RadarConfig
 
-__all__ = ["ALIAS_BOUND", "CARRIER_BAND_REL", "WAVELENGTH_SCALED", "carrier_band_hz", "carrier_ratio",
-           "normalise"]
+__all__ = ["ALIAS_BOUND", "CARRIER_BAND_REL", "WAVELENGTH_SCALED", "band_waveform", "carrier_band_hz",
+           "carrier_ratio", "normalise"]
 
 #: A bundle serves a recording whose carrier is within this fraction of its own (the rest of the
 #: waveform equal): +-2.5 %, so one bundle at 3.35 GHz covers 3.266-3.434 GHz, a radar hopping
@@ -58,8 +58,8 @@ def carrier_band_hz(wf: Preset) -> tuple[float, float]:
 def carrier_ratio(bundle: Preset, wf: Preset) -> float | None:
     """f_recording / f_bundle when a bundle of waveform `bundle` serves a recording of `wf`:
     same cube size, a domain it serves, every other WAVEFORM_FIELDS within WAVEFORM_REL_TOL and
-    the carrier within CARRIER_BAND_REL; None when it does not serve it. 1.0 (within 1e-6) is the
-    exact match that lookup prefers."""
+    the carrier within CARRIER_BAND_REL; None when it does not serve it. 1.0 is the exact match
+    that lookup prefers."""
     if (bundle.n_chirps, bundle.n_samples) != (wf.n_chirps, wf.n_samples) or wf.domain not in SERVES[bundle.domain]:
         return None
     if not all(math.isclose(getattr(wf.config, f), getattr(bundle.config, f), rel_tol=WAVEFORM_REL_TOL)
@@ -94,3 +94,22 @@ def normalise(X: np.ndarray, names: Sequence[str], bundle: RadarConfig, n_sample
         shift = (C / bundle.carrier_hz - C / f_rec) * bundle.prf_hz / 4.0
         out[:, tip] = np.where(aliased, out[:, tip] + shift, out[:, tip]).astype(np.float32)
     return out
+
+
+def band_waveform(waveforms: Sequence[Preset]) -> Preset | None:
+    """The one waveform a carrier-stepped radar's recordings enrol as: theirs at the middle of
+    their carriers ((lowest + highest) / 2), when every one of them is served by it (the rest of
+    the waveform equal within WAVEFORM_REL_TOL, the carrier within CARRIER_BAND_REL: the band a
+    check is served in, so every enrolled carrier is one the bundle serves); None otherwise."""
+    from signatures.radar import waveform_of
+
+    if not waveforms:
+        return None
+    first = waveforms[0]
+    wf = first
+    if len({w.key for w in waveforms}) > 1:
+        carriers = [w.config.carrier_hz for w in waveforms]
+        mid = (min(carriers) + max(carriers)) / 2.0
+        wf = waveform_of(first.config.replace(carrier_hz=mid), first.n_chirps, first.n_samples, first.domain,
+                         first.max_range_m)
+    return wf if all(carrier_ratio(wf, w) is not None for w in waveforms) else None

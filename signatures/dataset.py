@@ -274,16 +274,6 @@ def _chunk(spec: DatasetSpec, featurizer: Featurizer, start: int, stop: int) -> 
                    classes=spec.classes, feature_names=names)
 
 
-def seconds_per_return(spec: DatasetSpec, featurizer: Featurizer | None = None, n: int = 3) -> float:
-    """Measured wall time to simulate and featurise one return of `spec` in this process (scenes
-    1..n after one warm-up): what a time estimate for a new waveform can scale."""
-    featurizer = featurizer or default_featurizer()
-    _chunk(spec, featurizer, 0, 1)  # imports, FFT plans
-    t0 = time.perf_counter()
-    _chunk(spec, featurizer, 1, 1 + n)  # scene draws do not depend on spec.n
-    return (time.perf_counter() - t0) / n
-
-
 def _names_of(featurizer: Featurizer) -> tuple[str, ...]:
     import importlib
 
@@ -298,6 +288,21 @@ def cache_dir() -> Path:
     import platformdirs
 
     return Path(platformdirs.user_cache_dir("uav-radar-authn")) / "datasets"
+
+
+#: What the progress bars of `generate` add to their text (`progress_note`): '' for nothing.
+_NOTE: ContextVar[str] = ContextVar("signatures_dataset_note", default="")
+
+
+@contextmanager
+def progress_note(text: str) -> Iterator[None]:
+    """Inside the block, every `generate` progress bar says `text` too (e.g. the pace and the
+    estimate of a long training run: why it takes what it takes)."""
+    token = _NOTE.set(text)
+    try:
+        yield
+    finally:
+        _NOTE.reset(token)
 
 
 #: The executor `generate` runs chunks on when none is given (None: its own process pool).
@@ -336,7 +341,9 @@ def generate(spec: DatasetSpec, featurizer: Featurizer | None = None, *, workers
             return Dataset.load(path)
     bounds = [(s, min(s + chunk, spec.n)) for s in range(0, spec.n, chunk)]
     parts: list[Dataset] = []
-    with _progress(progress, f"simulating {spec.n} {spec.waveform.name} returns ({spec.split})", spec.n) as advance:
+    note = f": {_NOTE.get()}" if _NOTE.get() else ""
+    text = f"simulating {spec.n} {spec.waveform.name} returns ({spec.split}){note}"
+    with _progress(progress, text, spec.n) as advance:
         if executor is None and (workers <= 1 or len(bounds) == 1):
             for a, b in bounds:
                 parts.append(_chunk(spec, featurizer, a, b))

@@ -28,10 +28,14 @@ Method (fixed a priori, measured in docs/benchmarks.md "Site enrolment"):
    sequential test, passed in as `sprt` since it lives above this layer), and every pair with
    fewer than `MIN_SEPARABLE_CLAIMS` cross-validated claims: too few to show radar can separate
    it, so fewer recordings never mean fewer signatures asked for;
-6. optionally (`physics_bands`, `models enrol --site-bands`; off by default: measured not to help
-   on the held-out world, docs/enrolment.md) each enrolled model's rate and rotor bands from its
-   site recordings (`site_bands`), today's `signatures.verify` bands the prior; out of fold in the
-   cross-validation (each recording verified with the bands of the other folds).
+6. optionally (`physics_bands`, `models enrol --site-bands`; by default only with one model: with
+   several, measured not to help on the held-out world, docs/enrolment.md) each enrolled model's
+   rate (a mixture of modes), rotor and blade bands from its site recordings (`site_bands`), today's
+   `signatures.verify` bands the prior; out of fold in the cross-validation (each recording verified
+   with the bands of the other folds), and the open set's rate test takes them.
+
+Every registered or shipped profile not enrolled is simulated in the waveform (`signatures.impostors`):
+the other side of each enrolled model's pairs, so that one model enrols on its own.
 
 The bundle is written to a temporary folder beside its destination and renamed into place: an
 interrupted enrolment leaves nothing half-written, and the active bundle switches only after
@@ -58,11 +62,12 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from signatures.errors import SignaturesError
+from signatures.impostors import N_OTHERS
 from signatures.profiles import UavProfile
 from signatures.radar import Preset
 
 __all__ = ["CALIBRATION_GAIN", "CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS",
-           "MIN_SEPARABLE_CLAIMS", "N_SIM",
+           "MIN_SEPARABLE_CLAIMS", "N_OTHERS", "N_SIM", "ONE_MODEL_BANDS",
            "SITE_SHARE", "TRACK_DWELLS", "EnrolError", "LabelRow", "SiteSample", "bundle_name_ok", "check_counts",
            "default_name", "enrol", "site_bands", "previous_samples", "read_labels", "track_rates"]
 
@@ -87,9 +92,16 @@ N_SIM = 1500
 #: and how many tracks are drawn per (flown, claimed) pair for its track-level errors.
 TRACK_DWELLS = 8
 TRACK_DRAWS = 400
+#: Site physics bands (`site_bands`) by default where one model is enrolled: its recordings are the
+#: only measurement of that airframe on this radar, and no other enrolled model's band can be blurred
+#: into it (with several, measured not to help: docs/enrolment.md).
+ONE_MODEL_BANDS = True
 #: Site physics bands (`site_bands`): the prior's weight in recordings, and the narrowest band (log).
 BAND_PRIOR_WEIGHT = 10
 BAND_MIN_LOG_WIDTH = math.log(1.06)
+#: Site rates further apart than this (log) are two modes (`_modes`): 25 %, over twice the +-10 %
+#: a rotor's rate wanders in one regime (hover 143-179 Hz), under the 2-3x between idling and hover.
+MODE_GAP = math.log(1.25)
 CV_FOLDS = 5
 ENROL_FORMAT = "uav-radar-authn/site-enrolment/1"
 MAX_LABEL_ROWS = 100_000
@@ -238,30 +250,80 @@ def _band(logs: list[float], prior: tuple[float, float]) -> tuple[float, float]:
     return math.exp(lo), math.exp(hi)
 
 
-def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile]) -> dict[str, dict[str, Any]]:
+def _modes(logs: list[float], prior: tuple[float, float]) -> list[tuple[float, float, float]]:
+    """The site's rates as a mixture (ratio lo, hi, weight): the prior band weighing
+    `BAND_PRIOR_WEIGHT` pseudo-recordings, and each mode of the site's log-ratios (neighbours at
+    most `MODE_GAP` apart; a mode of fewer than `MIN_RECORDINGS` joins its nearest) as a band of
+    its own (`_band`'s edges, no shrinkage: the prior is its own component) weighing its recordings.
+    An airframe that hovers and idles flashes at two rates 2-3x apart: one band over both would
+    spread its density over the gap between them. [] below `MIN_RECORDINGS`."""
+    if len(logs) < MIN_RECORDINGS:
+        return []
+    xs = sorted(logs)
+    groups: list[list[float]] = [[xs[0]]]
+    for x in xs[1:]:
+        if x - groups[-1][-1] <= MODE_GAP:
+            groups[-1].append(x)
+        else:
+            groups.append([x])
+    while len(groups) > 1 and min(len(g) for g in groups) < MIN_RECORDINGS:
+        i = min(range(len(groups)), key=lambda k: len(groups[k]))
+        left = groups[i][0] - groups[i - 1][-1] if i > 0 else math.inf
+        right = groups[i + 1][0] - groups[i][-1] if i + 1 < len(groups) else math.inf
+        j = i - 1 if left <= right else i + 1
+        a, b = min(i, j), max(i, j)
+        groups[a:b + 1] = [groups[a] + groups[b]]
+    total = len(xs) + BAND_PRIOR_WEIGHT
+    out = [(prior[0], prior[1], BAND_PRIOR_WEIGHT / total)]
+    for g in groups:
+        q10, q90 = (float(v) for v in np.percentile(g, [10, 90]))
+        lo, hi = q10 - (q90 - q10) / 8, q90 + (q90 - q10) / 8
+        if hi - lo < BAND_MIN_LOG_WIDTH:
+            mid = (hi + lo) / 2
+            lo, hi = mid - BAND_MIN_LOG_WIDTH / 2, mid + BAND_MIN_LOG_WIDTH / 2
+        out.append((math.exp(lo), math.exp(hi), len(g) / total))
+    return out
+
+
+def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile],
+               max_tip_mps: float | None = None) -> dict[str, dict[str, Any]]:
     """Each model's physics bands re-estimated from its site recordings (`_band`, today's
     `signatures.verify` bands the prior): the flash rate over the nominal (estimates the rate
-    term would use) and the rotors seen over the rotor count (counts the rotor term would use)."""
-    from signatures.verify import (MAX_REL_STD, MIN_FLASH_GROUPS, RATE_BAND, ROTOR_BAND, min_flash_score,
+    term would use) as a mixture of the prior and the site's modes (`_modes`; `rate` their
+    envelope, what the open set's rate test takes), the rotors seen over the rotor count (counts
+    the rotor term would use) and the blade ratio, tip speed over flash rate over the claim's
+    (where the blade term runs: tips unaliased, the claim's tips below `max_tip_mps`)."""
+    from signatures.verify import (BLADE_BAND, MAX_REL_STD, MIN_FLASH_GROUPS, RATE_BAND, ROTOR_BAND, min_flash_score,
                                    rotors_are_lower_bound)
 
     out: dict[str, dict[str, Any]] = {}
     for m in sorted({s.model for s in samples}):
         prof = profiles[m]
+        tips_fit = max_tip_mps is None or prof.tip_speed_mps * RATE_BAND[1] < max_tip_mps
         rate: list[float] = []
         rot: list[float] = []
+        blade: list[float] = []
         for s in samples:
             if s.model != m or not s.detected:
                 continue
             f, sd = s.physics.get("flash_rate_hz", 0.0), s.physics.get("flash_rate_std_hz", 0.0)
             if f > 0 and s.physics.get("flash_score", 0.0) >= min_flash_score(s.physics) and sd / f <= MAX_REL_STD:
                 rate.append(math.log(f) - math.log(prof.blade_flash_rate_hz))
+                tip = s.physics.get("tip_speed_mps", 0.0)
+                if tip > 0 and tips_fit and s.physics.get("tip_aliased", 0.0) < 0.5:
+                    y = math.log(tip) - math.log(f) - math.log(prof.tip_speed_mps / prof.blade_flash_rate_hz)
+                    if y >= math.log(BLADE_BAND[0]):
+                        blade.append(y)
             seen, ssd = s.physics.get("rotors_seen", 0.0), s.physics.get("rotors_seen_std", 0.0)
             visible = rotors_are_lower_bound(s.physics)  # rotors visible, a lower bound: no band to fit
             if seen > 0 and ssd > 0 and ssd / seen <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9 and not visible:
                 rot.append(math.log(seen) - math.log(prof.rotors))
-        out[m] = {"rate": [round(v, 6) for v in _band(rate, RATE_BAND)],
-                  "rotors": [round(v, 6) for v in _band(rot, ROTOR_BAND)], "n_rate": len(rate), "n_rotors": len(rot)}
+        modes = _modes(rate, RATE_BAND)
+        band = (min(b[0] for b in modes), max(b[1] for b in modes)) if modes else _band(rate, RATE_BAND)
+        out[m] = {"rate": [round(v, 6) for v in band], "rate_modes": [[round(v, 6) for v in b] for b in modes],
+                  "rotors": [round(v, 6) for v in _band(rot, ROTOR_BAND)],
+                  "blade": [round(v, 6) for v in _band(blade, BLADE_BAND)],
+                  "n_rate": len(rate), "n_rotors": len(rot), "n_blade": len(blade)}
     return out
 
 
@@ -292,11 +354,11 @@ DwellScore = tuple[float, bool] | None
 def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.ndarray, classes: tuple[str, ...],
                   profiles: dict[str, UavProfile], enrolled: list[str], max_tip: float,
                   bands: Callable[[int], dict[str, Any] | None] = lambda i: None, rows: list | None = None,
-                  ) -> tuple[list[float], dict[tuple[str, str], list[float]], dict[tuple[str, str], list[DwellScore]]]:
-    """Cross-validated 1:1 verification LLRs: each detected recording against its own model
-    (genuine) and against every other enrolled model ((flown, claimed) -> LLRs); and the same
-    claims per (flown, claimed), own model included, as a track's dwells (`DwellScore`).
-    `rows`, where given, receives each claim's (recording index, flown, claimed, RawTerms)."""
+                  ) -> list[tuple[str, str, float, dict[str, float]]]:
+    """Cross-validated 1:1 verification claims (flown, claimed, LLR, terms; `_scored` reads them):
+    each detected recording against its own model (genuine) and against every other model of
+    `enrolled` (the models claimed). `rows`, where given, receives each claim's (recording index,
+    flown, claimed, RawTerms)."""
     from signatures.features import FEATURE_NAMES
     from signatures.verify import bands_from, verify
 
@@ -312,7 +374,7 @@ def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.nd
             claims.append((s.model, claimed, v.llr, v.terms))
             if rows is not None:
                 rows.append((i, s.model, claimed, v.raw))
-    return _scored(claims)
+    return claims
 
 
 def _scored(claims: Sequence[tuple[str, str, float, dict[str, float]]],
@@ -333,11 +395,13 @@ def _scored(claims: Sequence[tuple[str, str, float, dict[str, float]]],
 
 
 def _calibrated(rows: Sequence[tuple[int, str, str, Any]], fold_of: np.ndarray, n_folds: int,
+                extra: Sequence[tuple[int, str, str, Any]] = (),
                 ) -> tuple[Any, list[float], dict[tuple[str, str], list[float]],
                            dict[tuple[str, str], list[DwellScore]]]:
     """The site's score calibration (`signatures.calibration.fit` on every claim's out-of-fold raw
-    terms), and the claims re-scored as `_verification` gives them, each recording's by a
-    calibration fitted on the other folds' claims only (cross-fitted: no claim scores itself)."""
+    terms), and the claims re-scored as `_scored` reads them, each recording's by a calibration
+    fitted on the other folds' claims only (cross-fitted: no claim scores itself); `extra` claims
+    (the simulated other profiles', never fitted on) by the calibration of all the rows."""
     from signatures.calibration import fit
 
     raws = [r[3] for r in rows]
@@ -351,8 +415,11 @@ def _calibrated(rows: Sequence[tuple[int, str, str, Any]], fold_of: np.ndarray, 
         for j in np.flatnonzero(~out):
             terms[j] = cal_k.terms(raws[j])
             llrs[j] = sum(terms[j].values())
-    scored = _scored([(flown, claimed, float(llr), t) for (_, flown, claimed, _raw), llr, t in zip(rows, llrs, terms)])
-    return (fit(raws, gen), *scored)
+    cal = fit(raws, gen)
+    more = [(flown, claimed, float(sum(t.values())), t) for _, flown, claimed, raw in extra for t in [cal.terms(raw)]]
+    scored = _scored([(flown, claimed, float(llr), t) for (_, flown, claimed, _raw), llr, t in zip(rows, llrs, terms)]
+                     + more)
+    return (cal, *scored)
 
 
 def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[float, bool]]], tuple[str, int]],
@@ -412,6 +479,93 @@ def _rate(x: float) -> float | None:
     return None if math.isnan(x) else round(x, 6)
 
 
+def _oof_unknown(phys: Any, classes: Sequence[str], X_site: np.ndarray, pred: np.ndarray, fold_of: np.ndarray,
+                 fold_bands: dict[int, dict[str, Any]]) -> np.ndarray:
+    """The open set's physical verdict on each site recording, out of fold like the verification:
+    with the site rate bands of the other folds' recordings where bands are estimated."""
+    unk = np.zeros(len(X_site), dtype=bool)
+    for k in np.unique(fold_of):
+        fk = fold_of == k
+        bands = fold_bands.get(int(k))
+        pk = phys.with_rate_bands(classes, {m: b["rate"] for m, b in bands.items()}) if bands else phys
+        unk[fk] = pk.verdict(np.nan_to_num(X_site[fk].astype(np.float64)), pred[fk])[0]
+    return unk
+
+
+def _pairs(enrolled: Sequence[str], det_counts: dict[str, int], n_oth: dict[str, int], cm: np.ndarray,
+           called: dict[tuple[str, str], int], index: dict[str, int], impostor: dict[tuple[str, str], list[float]],
+           dwell_scores: dict[tuple[str, str], list[DwellScore]], sprt: Any, seed: int) -> list[dict[str, Any]]:
+    """The card's pairs: each two enrolled models, and each enrolled model against each profile
+    simulated in the waveform (`simulated`: that profile); the classifier's confusion rate from the
+    cross-validated confusion matrix `cm` (rows: enrolled) and `called` (simulated b called a)."""
+    pairs: list[dict[str, Any]] = []
+    for i, a in enumerate(enrolled):
+        for b in enrolled[i + 1:]:
+            conf = int(cm[i, index[b]] + cm[enrolled.index(b), index[a]])
+            pairs.append(_pair(a, b, impostor, conf / (det_counts[a] + det_counts[b]), dwell_scores, sprt, seed))
+        for b, n in n_oth.items():
+            conf = int(cm[i, index[b]]) + called[(b, a)]
+            pairs.append({**_pair(a, b, impostor, conf / (det_counts[a] + n), dwell_scores, sprt, seed),
+                          "simulated": b})
+    return pairs
+
+
+def _pair(a: str, b: str, impostor: dict[tuple[str, str], list[float]], confusion: float,
+          dwell_scores: dict[tuple[str, str], list[DwellScore]], sprt: Any, seed: int) -> dict[str, Any]:
+    """One pair's card entry: its single-dwell false accepts at the applied threshold (0 nats), both
+    directions, the classifier's confusion rate, and its track-level false accepts."""
+    fa = impostor.get((a, b), []) + impostor.get((b, a), [])
+    n_fa = sum(v >= 0.0 for v in fa)
+    return {"models": [a, b], "single_dwell": {
+        "false_accept_rate": round(n_fa / len(fa), 6) if fa else None, "false_accepts": n_fa, "claims": len(fa),
+        "classifier_confusion_rate": round(confusion, 6)}, "tracks": _pair_tracks(dwell_scores, a, b, sprt, seed),
+        "separation": _separation_nats(dwell_scores, a, b, sprt)}
+
+
+def _separation_nats(dwell_scores: dict[tuple[str, str], list[DwellScore]], a: str, b: str,
+                     sprt: Any) -> dict[str, Any] | None:
+    """As a shipped card's `separation`: the mean capped increment (`Sprt.increment`) of a genuine
+    dwell of `a` and of a type-spoof dwell between a and b (both directions), and the dwells each
+    takes to decide (`Sprt.dwells_to_decide`; None: never)."""
+    if sprt is None:
+        return None
+
+    def mean(scores: list[DwellScore]) -> float | None:
+        inc = [sprt.increment(llr, physics) for llr, physics in (d for d in scores if d is not None)]
+        return round(float(np.mean(inc)), 3) if inc else None
+
+    g = mean(dwell_scores.get((a, a), []))
+    i = mean(dwell_scores.get((a, b), []) + dwell_scores.get((b, a), []))
+    return {"genuine_nats_per_dwell": g, "impostor_nats_per_dwell": i,
+            "dwells_to_accept": None if g is None else sprt.dwells_to_decide(g),
+            "dwells_to_reject": None if i is None else sprt.dwells_to_decide(i)}
+
+
+def _signatures(enrolled: Sequence[str], single: Sequence[Sequence[str]],
+                tracks: Sequence[Sequence[str]] | None) -> dict[str, dict[str, Any]]:
+    """Which claims need a DRIP signature: per enrolled model, the models radar cannot tell it
+    from (single dwells; tracks), so that its unsigned claims are rejected wherever one of them is
+    registered at the site too (`radar-confusable-unsigned`)."""
+    def partners(pairs: Sequence[Sequence[str]], m: str) -> list[str]:
+        return sorted({x for p in pairs if m in p for x in p if x != m})
+
+    return {m: {"single_dwell": partners(single, m), "tracks": None if tracks is None else partners(tracks, m),
+                "note": "unsigned claims of this model are rejected where one of these is registered at the site"}
+            for m in enrolled}
+
+
+def _others(wf: Preset, others: Sequence[UavProfile], n: int, seed: int, workers: int,
+            cache: Path | None | bool) -> list[SiteSample]:
+    """The detected simulated returns of the profiles not enrolled (`signatures.impostors`), as samples."""
+    from signatures.impostors import simulate_others
+
+    if not others or n <= 0:
+        return []
+    rows = simulate_others(wf, others, n, seed, workers, cache)
+    return [SiteSample(f"simulated:{m}:{i}", "", m, x, phys, det)
+            for m, rs in rows.items() for i, (x, phys, det) in enumerate(rs) if det]
+
+
 def _pair_tracks(dwell_scores: dict[tuple[str, str], list[DwellScore]], a: str, b: str, sprt: Any,
                  seed: int) -> dict[str, Any] | None:
     """The pair's track-level false accepts: tracks of a claimed as b and of b claimed as a."""
@@ -457,8 +611,9 @@ def _threshold(impostor: dict[tuple[str, str], list[float]], target: float) -> f
 
 def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], duplicates: int = 0) -> None:
     """Refuse (EnrolError) what cannot be enrolled: an unknown model, fewer than MIN_RECORDINGS
-    distinct recordings (or detections) of a model, a single model. Recordings are counted by
-    the SHA-256 of their bytes: copies of one flight are one recording. `duplicates`: how many
+    distinct recordings (or detections) of a model. One model is enough: the other profiles are
+    simulated in the site's waveform (`signatures.impostors`). Recordings are counted by the
+    SHA-256 of their bytes: copies of one flight are one recording. `duplicates`: how many
     copies the caller left out already (said in a refusal)."""
     enrolled = sorted({s.model for s in samples})
     unknown = [m for m in enrolled if m not in profiles]
@@ -473,9 +628,6 @@ def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile],
                          f"needed{note}")
     if len({s.sha256 for s in samples}) < len(samples):
         raise EnrolError("the same recording (by SHA-256) is given more than once: enrol each flight once")
-    if len(enrolled) < 2:
-        raise EnrolError(f"only one model ({enrolled[0]}) to enrol: a site bundle needs at least two registered "
-                         f"models' recordings (the cross-validated pairwise errors compare them){note}")
     det_counts = {m: sum(s.model == m and s.detected for s in samples) for m in enrolled}
     if any(n < MIN_RECORDINGS for n in det_counts.values()):
         m = next(m for m, n in det_counts.items() if n < MIN_RECORDINGS)
@@ -487,14 +639,18 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
           name: str, sources: Sequence[str] = (), previous: str | None = None, seed: int = 0, workers: int = 2,
           n_sim: int = N_SIM, cache: Path | None | bool = None,
           progress: Callable[[str, float], None] | None = None, sprt: Any = None,
-          physics_bands: bool = False, score_calibration: bool | None = None) -> dict[str, Any]:
+          physics_bands: bool | None = None, score_calibration: bool | None = None, n_others: int = N_OTHERS,
+          carriers: dict[float, int] | None = None) -> dict[str, Any]:
     """Build the site bundle `dest` (must not exist) from `samples` (the site's labelled
     recordings, of `waveform`) on a simulated base set of `profiles` (every model the bundle
     knows: the shipped and the enrolled ones). `progress(phase, fraction done)`. `sprt`: the
     track check's sequential test (`authn.sprt.Sprt`: its `walk` and `to_json`), which gives the
     card its track-level pairwise errors (None: single dwells only; `authn models enrol` passes
-    the check's default). `physics_bands`: re-estimate each enrolled model's rate and rotor bands
-    from the site recordings (`site_bands`; cross-validated like the rest). `score_calibration`:
+    the check's default). `physics_bands`: re-estimate each enrolled model's rate, rotor and blade
+    bands from the site recordings (`site_bands`; cross-validated like the rest); None (the default):
+    where one model is enrolled (`ONE_MODEL_BANDS`). `n_others`: simulated returns of each profile
+    not enrolled (`signatures.impostors`), the other side of its pairs. `carriers`: the carriers
+    the recordings were made at (Hz -> recordings), for the card. `score_calibration`:
     verify with the score calibration fitted on the cross-validated terms (`signatures.calibration`;
     always fitted and reported in the card): True applies it, False does not, None (the default)
     applies it where the site's cross-validated claims say it pays (`_calibration_pays`). Returns the card."""
@@ -518,10 +674,14 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     det_counts = {m: sum(s.model == m for s in site) for m in enrolled}
     if dest.exists():
         raise EnrolError(f"{dest}: a bundle of that name exists (choose another --name)")
+    if physics_bands is None:
+        physics_bands = len(enrolled) == 1 and ONE_MODEL_BANDS
     plist = tuple(profiles[k] for k in sorted(profiles))
     say("simulating the base set", 0.0)
     sim: Dataset = generate(DatasetSpec(preset=waveform, profiles=plist, split="train", n=n_sim, seed=seed),
                             workers=workers, cache=cache, progress=False)
+    say("simulating the other profiles", 0.0)
+    others = _others(waveform, [p for p in plist if p.slug not in enrolled], n_others, seed, workers, cache)
     classes = tuple(sim.classes)
     n_cls = len(classes)
     index = {c: i for i, c in enumerate(classes)}
@@ -530,6 +690,10 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     y_sim = np.array([index[str(v)] for v in sim.y], dtype=np.int64)
     X_site = np.stack([s.features for s in site]).astype(np.float32)
     y_site = np.array([index[s.model] for s in site], dtype=np.int64)
+    X_oth = np.nan_to_num(np.stack([s.features for s in others]), nan=0.0, posinf=1e6, neginf=-1e6) \
+        if others else np.zeros((0, len(names)), dtype=np.float32)
+    y_oth = np.array([index[s.model] for s in others], dtype=np.int64)
+    p_oth = np.zeros((len(others), n_cls))
     w_site = _weights(y_sim, y_site, n_cls)
     Xs_all = np.nan_to_num(np.concatenate([sim.X, X_site]), nan=0.0, posinf=1e6, neginf=-1e6)
     X_all = Xs_all[:, cols]
@@ -549,6 +713,8 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     def fit_fold(train_idx: np.ndarray) -> Any:
         rows = np.concatenate([np.arange(n_s), n_s + train_idx])
         model = _fit_rf(X_all[rows], y_all[rows], w_all[rows], seed, workers)
+        if len(others):  # the fold's forest never saw them: its mean over the folds is out of sample
+            p_oth[:, model.classes_.astype(np.int64)] += model.predict_proba(X_oth[:, cols]) / n_folds
         done[0] += 1
         say("cross-validating", done[0] / (n_folds + 2))
         return model
@@ -560,21 +726,33 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
 
     say("cross-validating", 0.0)
     p_oof, fold_of = _oof(fit_fold, proba, y_site, n_folds, seed)
-    beta = clf.bounded_temperature(p_oof, y_site)
+    beta = clf.bounded_temperature(np.concatenate([p_oof, p_oth]), np.concatenate([y_site, y_oth]))
     from signatures.inference import calibrate
 
     p_cal = calibrate(p_oof, beta)
     pred = p_cal.argmax(axis=1)
-    unk = phys.verdict(np.nan_to_num(X_site.astype(np.float64)), pred)[0]
     max_tip = wf.config.unambiguous_velocity_mps
     fold_bands: dict[int, dict[str, Any]] = {}
     if physics_bands:  # out of fold: each recording verified with the bands of the other folds' recordings
-        fold_bands = {k: site_bands([s for s, f in zip(site, fold_of) if f != k], profiles) for k in range(n_folds)}
+        fold_bands = {k: site_bands([s for s, f in zip(site, fold_of) if f != k], profiles, max_tip)
+                      for k in range(n_folds)}
+    all_bands = site_bands(site, profiles, max_tip) if physics_bands else None
+    if all_bands:  # the open set's rate test takes the site's measured rates too
+        phys = phys.with_rate_bands(classes, {m: b["rate"] for m, b in all_bands.items()})
+    unk = _oof_unknown(phys, classes, X_site, pred, fold_of, fold_bands)
+    p_oth_cal = calibrate(p_oth, beta) if len(others) else p_oth
+    pred_oth = p_oth_cal.argmax(axis=1)
+    unk_oth = phys.verdict(X_oth.astype(np.float64), pred_oth)[0] if len(others) else np.zeros(0, dtype=bool)
+    claimable = [*enrolled, *sorted({s.model for s in others})]
     rows: list[tuple[int, str, str, Any]] = []
-    genuine, impostor, dwell_scores = _verification(site, p_cal, ~unk, classes, profiles, enrolled, max_tip,
-                                                    lambda i: fold_bands.get(int(fold_of[i])), rows)
+    oth_rows: list[tuple[int, str, str, Any]] = []
+    claims = _verification(site, p_cal, ~unk, classes, profiles, claimable, max_tip,
+                           lambda i: fold_bands.get(int(fold_of[i])), rows)
+    claims += _verification(others, p_oth_cal, ~unk_oth, classes, profiles, enrolled, max_tip,
+                            lambda i: all_bands, oth_rows)
+    genuine, impostor, dwell_scores = _scored(claims)
     uncal_genuine = genuine
-    calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, fold_of, n_folds)
+    calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, fold_of, n_folds, oth_rows)
     choice = {"uncalibrated": _separation(genuine, impostor, dwell_scores, enrolled, sprt, seed),
               "calibrated": _separation(cal_genuine, cal_impostor, cal_dwells, enrolled, sprt, seed)}
     use_cal = _calibration_pays(choice) if score_calibration is None else score_calibration
@@ -589,16 +767,10 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
     for yi, pi, ui in zip(y_site, pred, unk):
         cm[enrolled.index(classes[yi]), len(classes) if ui else pi] += 1
     used_cols = [j for j, lab in enumerate(labels) if cm[:, j].any() or lab in enrolled]
-    pairs: list[dict[str, Any]] = []
-    for i, a in enumerate(enrolled):
-        for b in enrolled[i + 1:]:
-            fa = impostor.get((a, b), []) + impostor.get((b, a), [])
-            n_fa = sum(v >= applied for v in fa)
-            conf = int(cm[i, index[b]] + cm[enrolled.index(b), index[a]])
-            pairs.append({"models": [a, b], "single_dwell": {
-                "false_accept_rate": round(n_fa / len(fa), 6) if fa else None, "false_accepts": n_fa, "claims": len(fa),
-                "classifier_confusion_rate": round(conf / (det_counts[a] + det_counts[b]), 6)},
-                "tracks": _pair_tracks(dwell_scores, a, b, sprt, seed)})
+    n_oth = {m: int(np.sum(y_oth == index[m])) for m in claimable[len(enrolled):]}
+    called = {(b, a): int(np.sum((y_oth == index[b]) & (pred_oth == index[a]) & ~unk_oth)) for a in enrolled
+              for b in n_oth}  # simulated returns of b the system called a
+    pairs = _pairs(enrolled, det_counts, n_oth, cm, called, index, impostor, dwell_scores, sprt, seed)
     confusable = [p["models"] for p in pairs if _single_confusable(p)]
     confusable_tracks = [p["models"] for p in pairs if _track_confusable(p)]
     g = np.asarray(genuine)
@@ -659,7 +831,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                            "classifier": f"random forest on base + site returns, site weight share {SITE_SHARE}",
                            "temperature": "out-of-fold log-loss, inverse temperature bounded to 0.25..8",
                            "open_set": "physical consistency with the predicted profile (as trained)",
-                           "physics_bands": ("rate and rotor bands per enrolled model from the site recordings, "
+                           "physics_bands": ("rate, rotor and blade bands per enrolled model from the site recordings, "
                                              f"today's bands the prior ({BAND_PRIOR_WEIGHT} pseudo-recordings)"
                                              if physics_bands else "today's fixed bands"),
                            "score_calibration": ("logistic regression on the out-of-fold verification terms "
@@ -676,7 +848,7 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                               "genuine_accept_at_target": (round(float(np.mean(g >= t_fa)), 6)
                                                            if len(g) and t_fa is not None else None),
                               "note": "LLR in nats; the default policy rejects below 0 (radar-claim-inconsistent)"},
-                "bands": site_bands(site, profiles) if physics_bands else None,
+                "bands": all_bands,
                 "calibration": {**calibration.to_json(), "choice": {
                     **choice, "by": "auto" if score_calibration is None else "asked",
                     "rule": f"applied unasked when cross-validated genuine acceptance gains >= {CALIBRATION_GAIN} "
@@ -687,6 +859,11 @@ def enrol(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], wavefo
                             "genuine dwell is worth (its expected LLR); a track of `tracks.dwells` needs the "
                             "accept bound times (1 + (n - 1) rho) / n per dwell"}},
                 "pairwise": pairs, "confusable_error": CONFUSABLE_ERROR,
+                "others": {"simulated": n_oth, "method": f"{n_others} returns per profile not enrolled, simulated in "
+                           "this waveform (test split of the training scenes; never trained on), each verified "
+                           "against every enrolled model, the enrolled recordings against it (out of fold)"},
+                "carriers_hz": {f"{f:.6g}": n for f, n in sorted((carriers or {}).items())},
+                "signatures": _signatures(enrolled, confusable, confusable_tracks if sprt is not None else None),
                 "min_separable_claims": MIN_SEPARABLE_CLAIMS, "confusable_pairs": confusable,
                 "confusable_pairs_tracks": confusable_tracks if sprt is not None else None,
                 "tracks": tracks_card,

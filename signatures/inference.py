@@ -39,6 +39,7 @@ from signatures.radar import (PRESETS, SERVES, TRAINABLE_DOMAINS, WAVEFORM_FIELD
 __all__ = ["ACTIVE_FORMAT", "ACTIVE_NAME", "MEMBERS", "Classifier", "active_bundle", "active_map",
            "set_active", "ForestArrays", "KnnArrays", "NoModelError", "Prediction", "bundle_dir",
            "calibrate", "card_waveform", "classifier_for", "find_bundle", "load_classifier", "match_preset",
+           "mismatch_head",
            "models_dir", "nearest_bundle", "user_bundles", "waveform_differences"]
 
 #: The file in `models_dir()` naming each waveform's active site bundle (waveform key -> folder name).
@@ -609,18 +610,26 @@ def find_bundle(wf: Preset, source: str = "FILE") -> Path:
             band.append((abs(math.log(ratio)), folder.name, folder))
     if band:
         return min(band)[2]
+    found = nearest_bundle(wf)
+    head = mismatch_head(found[0], found[1]) if found is not None else ""
     if wf.domain not in TRAINABLE_DOMAINS:
-        raise NoModelError(f"no classifier for this waveform ({wf.describe()}): training for domain "
+        raise NoModelError(f"{head}no classifier for this waveform ({wf.describe()}): training for domain "
                            f"{wf.domain} is not supported yet{nearest_hint(wf)}")
-    raise NoModelError(f"no classifier for this waveform ({wf.describe()}): build one with "
+    raise NoModelError(f"{head}no classifier for this waveform ({wf.describe()}): build one with "
                        f"`authn models train --like {source}`{nearest_hint(wf)}")
+
+
+#: The order in which differing parameters are named: the clock first (a CW radar's PRI, bandwidth
+#: and ramp all follow its sample rate), then the carrier, then the sweep.
+_TELLING = ("sample_rate_hz", "pri_s", "carrier_hz", "bandwidth_hz", "ramp_s")
 
 
 def waveform_differences(bundle: Preset, wf: Preset) -> list[tuple[str, Any, Any]]:
     """The parameters in which a bundle's waveform differs from a file's beyond what serving
-    tolerates, as (name, bundle value, file value): cube size, domain, the carrier outside the
-    carrier band (`signatures.carrier`) and each other of WAVEFORM_FIELDS beyond `Preset.matches`'s
-    1e-6 relative tolerance. Empty exactly when the bundle serves the file."""
+    tolerates, as (name, bundle value, file value): cube size, domain, then in `_TELLING` order
+    the carrier outside the carrier band (`signatures.carrier`) and each other of WAVEFORM_FIELDS
+    beyond `Preset.matches`'s relative tolerance (WAVEFORM_REL_TOL). Empty exactly when the bundle
+    serves the file."""
     from signatures.carrier import CARRIER_BAND_REL
 
     out: list[tuple[str, Any, Any]] = []
@@ -629,7 +638,7 @@ def waveform_differences(bundle: Preset, wf: Preset) -> list[tuple[str, Any, Any
             out.append((name, getattr(bundle, name), getattr(wf, name)))
     if wf.domain not in SERVES[bundle.domain]:
         out.append(("domain", bundle.domain, wf.domain))
-    for f in WAVEFORM_FIELDS:
+    for f in sorted(WAVEFORM_FIELDS, key=_TELLING.index):
         a, b = getattr(bundle.config, f), getattr(wf.config, f)
         tol = CARRIER_BAND_REL * (1.0 + 1e-9) if f == "carrier_hz" else WAVEFORM_REL_TOL
         if (abs(b / a - 1.0) > tol) if f == "carrier_hz" else not math.isclose(a, b, rel_tol=tol):
@@ -665,8 +674,25 @@ def _value(name: str, v: Any) -> str:
     return repr(v) if isinstance(v, float) else str(v)
 
 
+#: A waveform parameter in words and its unit, for the first words of a mismatch.
+_WORDS = {"n_chirps": ("pulses per dwell", ""), "n_samples": ("samples per pulse", ""), "domain": ("domain", ""),
+          "carrier_hz": ("carrier", " Hz"), "bandwidth_hz": ("bandwidth", " Hz"), "ramp_s": ("ramp", " s"),
+          "pri_s": ("PRI", " s"), "sample_rate_hz": ("sample rate", " Hz")}
+
+
+def mismatch_head(bundle: str, diffs: list[tuple[str, Any, Any]]) -> str:
+    """'sample rate 5000.0 Hz here, 5100.0 Hz in bundle X: ', the first parameter in which the
+    bundle `bundle` differs from the file (`waveform_differences`), so that a mismatch message
+    starts with what differs; '' where nothing does."""
+    if not diffs:
+        return ""
+    field, theirs, ours = diffs[0]
+    words, unit = _WORDS.get(field, (field, ""))
+    return f"{words} {_value(field, ours)}{unit} here, {_value(field, theirs)}{unit} in bundle {bundle}: "
+
+
 def nearest_hint(wf: Preset) -> str:
-    """'; nearest bundle paper differs in pri_s: 4.4029e-05 there, 4.403e-05 here (tolerance 1e-06
+    """'; nearest bundle paper differs in pri_s: 4.5e-05 there, 4.403e-05 here (tolerance 0.001
     relative); exact values: `authn models list --json`', or '' when there is no bundle."""
     found = nearest_bundle(wf)
     if found is None or not found[1]:
@@ -729,7 +755,8 @@ def classifier_for(recording: Any, model: str | Path | None = None, source: str 
     if model is not None:
         clf = load_classifier(path=model)
         if carrier_ratio(clf.waveform, wf) is None:
-            raise NoModelError(f"{model}: this bundle is for {clf.waveform.describe()} (carrier band "
+            head = mismatch_head(Path(model).name, waveform_differences(clf.waveform, wf))
+            raise NoModelError(f"{head}{model}: this bundle is for {clf.waveform.describe()} (carrier band "
                                f"+-{CARRIER_BAND_REL:.1%}), the file's waveform is {wf.describe()}")
         return clf
     site = active_bundle(wf)

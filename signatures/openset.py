@@ -111,6 +111,9 @@ class PhysicsCheck:
     tip_mps_: np.ndarray | None = field(default=None, repr=False)
     #: indices of PHYS_FEATURES in the full feature vector (-1: absent)
     cols_: np.ndarray | None = field(default=None, repr=False)
+    #: per class index, the flown rate over the nominal a site measured ([lo, hi]; a site bundle's
+    #: enrolled models, `with_rate_bands`): a rate inside it is consistent too. None: the nominal alone
+    rate_band_: np.ndarray | None = field(default=None, repr=False)
 
     #: scalar hyper-parameters, stored by name in `openset.npz`
     SCALARS = ("jitter", "z", "max_rel_tol", "min_flash_score", "min_rel_tol", "min_rel_tip_tol", "tip_bin_mps")
@@ -158,6 +161,9 @@ class PhysicsCheck:
             alias_col = self._col(X, "tip_aliased")
             aliased = np.zeros(n, dtype=bool) if alias_col is None else alias_col >= 0.5
             miss = np.abs(f - F) > tol
+            if self.rate_band_ is not None:  # a site's measured band of the class's rate
+                lo, hi = self.rate_band_[pred, 0] * F, self.rate_band_[pred, 1] * F
+                miss &= ~((f >= lo - tol) & (f <= hi + tol))
             for m in self.rate_slips:
                 miss &= ~(aliased & (np.abs(f - m * F) <= m * tol))
             bad |= reliable & miss
@@ -179,7 +185,20 @@ class PhysicsCheck:
                 "phys_cols": np.asarray(self.cols_, dtype=np.int64),
                 "phys_param_names": np.array(self.SCALARS),
                 "phys_param_values": np.array([float(getattr(self, n)) for n in self.SCALARS], dtype=np.float64),
-                "phys_rate_slips": np.array(self.rate_slips, dtype=np.float64)}
+                "phys_rate_slips": np.array(self.rate_slips, dtype=np.float64),
+                **({} if self.rate_band_ is None
+                   else {"phys_rate_band": np.asarray(self.rate_band_, dtype=np.float64)})}
+
+    def with_rate_bands(self, classes: Sequence[str], bands: Mapping[str, Sequence[float]]) -> "PhysicsCheck":
+        """A copy whose rate test also takes each named class's rate band (flown over nominal,
+        [lo, hi]; a site's `signatures.enrol.site_bands`) as consistent; the others' stay [1, 1]."""
+        from dataclasses import replace
+
+        band = np.ones((len(classes), 2))
+        for i, c in enumerate(classes):
+            if c in bands:
+                band[i] = [float(bands[c][0]), float(bands[c][1])]
+        return replace(self, rate_band_=band)
 
     @classmethod
     def from_arrays(cls, z: Mapping[str, np.ndarray]) -> "PhysicsCheck":
@@ -194,7 +213,7 @@ class PhysicsCheck:
                 raise KeyError(f"openset.npz physical-check parameter {name!r}")
         return cls(**params, rate_slips=tuple(float(v) for v in _require(z, "phys_rate_slips")),
                    flash_hz_=_require(z, "phys_flash_hz"), tip_mps_=_require(z, "phys_tip_mps"),
-                   cols_=_require(z, "phys_cols"))
+                   cols_=_require(z, "phys_cols"), rate_band_=z["phys_rate_band"] if "phys_rate_band" in z else None)
 
 
 @dataclass

@@ -121,8 +121,14 @@ SERVES = {"if": ("if", "range"), "range": ("range",), "cw": ("cw",)}
 DEFAULT_MAX_RANGE_M = 1200.0
 #: The waveform parameters that identify a bundle's radar (range offset aside: it moves with the target).
 WAVEFORM_FIELDS = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate_hz")
-#: How close (relative) each of WAVEFORM_FIELDS must be for a bundle to serve a recording.
-WAVEFORM_REL_TOL = 1e-6
+#: How close (relative) each of WAVEFORM_FIELDS must be for a bundle to serve a recording: 1e-3.
+#: A radar's clock is good to 20-100 ppm and a recording may carry a measured or rounded value (a
+#: 5000.1 Hz file against a 5000.0 Hz bundle: 2e-5), so an exact match would split one radar into
+#: many. The features are computed with the recording's own parameters (Hz, m/s); what a difference
+#: leaves is the features counted in bins, which move by about the relative difference: 0.1 % is
+#: an order below their scene-to-scene spread and 25 times inside the carrier band
+#: (`signatures.carrier.CARRIER_BAND_REL`, chosen on the same grounds).
+WAVEFORM_REL_TOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -183,7 +189,7 @@ class Preset:
 
     def matches(self, config: RadarConfig, n_chirps: int, n_samples: int, domain: str = "if") -> bool:
         """A bundle of this waveform serves a recording of that one: same cube size and parameters
-        (range offset aside; within 1e-6 relative), a domain it serves (`SERVES`)."""
+        (range offset aside; within WAVEFORM_REL_TOL relative), a domain it serves (`SERVES`)."""
         return (self.n_chirps, self.n_samples) == (n_chirps, n_samples) and domain in SERVES[self.domain] and all(
             math.isclose(getattr(config, f), getattr(self.config, f), rel_tol=WAVEFORM_REL_TOL)
             for f in WAVEFORM_FIELDS)

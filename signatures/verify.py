@@ -33,8 +33,8 @@ independent terms:
   classifier's support for the claim is no evidence, so the term is capped at 0: it may count
   against the claim, never for it.
 
-A site bundle (`authn models enrol`) may carry `Bands` per enrolled model: the rate and rotor
-bands re-estimated from the site's own recordings with the bands above as the prior
+A site bundle (`authn models enrol`) may carry `Bands` per enrolled model: the rate, rotor and
+blade-ratio bands re-estimated from the site's own recordings with the bands above as the prior
 (`signatures.enrol`); without them (every other bundle) the bands above apply unchanged.
 
 **A group of radar-confusable models** (`also`): where a site's enrolment card says radar cannot
@@ -127,11 +127,15 @@ MAX_REPORTED_LOG = 700.0
 
 @dataclass(frozen=True)
 class Bands:
-    """One claimed model's physics bands: flown rate over nominal (`RATE_BAND`) and rotors seen
-    over rotors (`ROTOR_BAND`). The defaults are today's fixed bands."""
+    """One claimed model's physics bands: flown rate over nominal (`RATE_BAND`), rotors seen
+    over rotors (`ROTOR_BAND`) and the blade ratio (`BLADE_BAND`). The defaults are today's fixed
+    bands."""
 
     rate: tuple[float, float] = RATE_BAND
     rotors: tuple[float, float] = ROTOR_BAND
+    blade: tuple[float, float] = BLADE_BAND
+    #: the rate as a mixture of bands (lo, hi, weight) where a site measured modes; (): `rate` alone
+    rate_modes: tuple[tuple[float, float, float], ...] = ()
 
 
 DEFAULT_BANDS = Bands()
@@ -139,11 +143,15 @@ DEFAULT_BANDS = Bands()
 
 def bands_from(card_bands: Mapping[str, Any] | None, model: str) -> Bands | None:
     """`model`'s bands from a site card's `enrolment.bands` (slug -> {"rate": [lo, hi], "rotors":
-    [lo, hi]}); None (today's bands) where the card has none for it."""
+    [lo, hi], "blade": [lo, hi] (optional: `BLADE_BAND`), "rate_modes": [[lo, hi, weight], ...]
+    (optional)}); None (today's bands) where the card has none for it."""
     b = (card_bands or {}).get(model)
     if not b:
         return None
-    return Bands(rate=(float(b["rate"][0]), float(b["rate"][1])), rotors=(float(b["rotors"][0]), float(b["rotors"][1])))
+    blade = b.get("blade") or BLADE_BAND
+    modes = tuple((float(lo), float(hi), float(w)) for lo, hi, w in b.get("rate_modes") or ())
+    return Bands(rate=(float(b["rate"][0]), float(b["rate"][1])), rotors=(float(b["rotors"][0]), float(b["rotors"][1])),
+                 blade=(float(blade[0]), float(blade[1])), rate_modes=modes)
 
 
 @dataclass(frozen=True)
@@ -213,6 +221,13 @@ def _band_density(x: float, lo: float, hi: float, sigma: float) -> float:
     return (_phi((hi - x) / sigma) - _phi((lo - x) / sigma)) / (hi - lo)
 
 
+def _rate_density(x: float, bands: Bands, sigma: float) -> float:
+    """Density of log(rate / nominal) at x: the rate band, or the site's mixture of bands."""
+    if bands.rate_modes:
+        return sum(w * _band_density(x, math.log(lo), math.log(hi), sigma) for lo, hi, w in bands.rate_modes)
+    return _band_density(x, math.log(bands.rate[0]), math.log(bands.rate[1]), sigma)
+
+
 def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: float | None,
              bands: Bands = DEFAULT_BANDS) -> tuple[float, dict[str, dict[str, float]]] | None:
     """(log p(rate, blade, rotors | claim) - log p(rate, blade, rotors | other), what was compared),
@@ -227,7 +242,7 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
     if not 0.0 <= f_rel <= MAX_REL_STD:  # an estimate less certain than itself says nothing (NaN, < 0 too)
         return None
     x = math.log(f) - math.log(F)  # logs apart: f / F underflows for a subnormal f
-    rate = (math.log(bands.rate[0]), math.log(bands.rate[1]), math.hypot(f_rel, REL_FLOOR))
+    sigma_rate = math.hypot(f_rel, REL_FLOOR)
     tip = float(features.get("tip_speed_mps", 0.0))
     tips_fit = max_tip_mps is None or claimed.tip_speed_mps * RATE_BAND[1] < max_tip_mps
     blade = None
@@ -236,20 +251,20 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
         y = math.log(tip) - math.log(f) - math.log(claimed.tip_speed_mps / F)  # over 2 pi L / N
         if 0.0 <= tip_rel <= MAX_REL_STD and y >= math.log(BLADE_BAND[0]):  # below: the tips were not seen
             sigma = math.sqrt(tip_rel ** 2 + f_rel ** 2 + REL_FLOOR ** 2)
-            blade = (y, math.log(BLADE_BAND[0]), math.log(BLADE_BAND[1]), sigma)
+            blade = (y, math.log(bands.blade[0]), math.log(bands.blade[1]), sigma)
     veto = rotors_are_lower_bound(features)
     rotors = _rotors(features, claimed, (bands.rotors[0], (claimed.rotors + VISIBLE_SLACK) / claimed.rotors) if veto
                      else bands.rotors)
     compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
     if blade is not None:  # tip speed over flash rate, over the claim's 2 pi L / N: at most 1.05
         # capped for the report: a tip estimate against a near-zero rate can exceed a float's range
-        compared["blade_ratio"] = {"measured": math.exp(min(blade[0], MAX_REPORTED_LOG)), "claimed_max": BLADE_BAND[1]}
+        compared["blade_ratio"] = {"measured": math.exp(min(blade[0], MAX_REPORTED_LOG)), "claimed_max": bands.blade[1]}
     if rotors is not None:
         compared["rotors"] = {"seen": float(features["rotors_seen"]), "claimed": float(claimed.rotors)}
     slips = SLIPS if float(features.get("tip_aliased", 0.0)) >= 0.5 else UNALIASED_SLIPS
     p = 0.0
     for m, w in ((1.0, 1.0 - SLIP_WEIGHT), *((m, SLIP_WEIGHT / len(slips)) for m in slips)):
-        q = w * _band_density(x - math.log(m), *rate)
+        q = w * _rate_density(x - math.log(m), bands, sigma_rate)
         if blade is not None:
             y, lo, hi, sigma = blade
             q *= _band_density(y + math.log(m), lo, hi, sigma)

@@ -125,12 +125,14 @@ def test_no_bundle_names_the_nearest_and_the_parameter_that_differs(tmp_path: Pa
     from signatures.radar import PRESETS, waveform_of
 
     paper = PRESETS["paper"]
-    rounded = paper.config.replace(pri_s=4.403e-5, ramp_s=4.403e-5)  # docs' 4 digits
+    assert find_bundle(waveform_of(paper.config.replace(pri_s=4.403e-5, ramp_s=4.403e-5), 600, 80)).name == "paper"
+    slower = paper.config.replace(pri_s=4.5e-5, ramp_s=4.5e-5)  # 2 %: beyond the 1e-3 tolerance
     with pytest.raises(NoModelError) as err:
-        find_bundle(waveform_of(rounded, 600, 80), "x.h5")
+        find_bundle(waveform_of(slower, 600, 80), "x.h5")
     text = str(err.value)
-    assert "nearest bundle paper differs in ramp_s" in text and "pri_s 4.403046056615607e-05 there, 4.403e-05 here" \
-        in text and "tolerance 1e-06 relative" in text and "`authn models list --json`" in text, text
+    assert text.startswith("PRI 4.5e-05 s here, 4.403046056615607e-05 s in bundle paper: no classifier"), text
+    assert "nearest bundle paper differs in pri_s" in text and "pri_s 4.403046056615607e-05 there, 4.5e-05 here" \
+        in text and "tolerance 0.001 relative" in text and "`authn models list --json`" in text, text
     flight = tmp_path / "cut.h5"
     assert main(["simulate", "--model", "m300", "--range", "500", "--chirps", "512", "--out", str(flight)]) == 0
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"

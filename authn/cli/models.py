@@ -5,14 +5,14 @@ enrolment, docs/classifiers.md), pick the active one, list them, and print the p
 from __future__ import annotations
 
 import json
-import os
 import time
 from pathlib import Path
 
 import typer
 
 
-#: `models enrol --calibrate`: the score calibration's use (None: where the site's scores say it pays).
+#: `models enrol --calibrate` and `--site-bands`: on, off, or auto (None: the enrolment decides: where
+#: the site's scores say the calibration pays; site bands with one model).
 CALIBRATE = {"auto": None, "on": True, "off": False}
 
 models_app = typer.Typer(help="Train, enrol, list and evaluate the radar classifiers (kNN, RF, SVM, ensemble, CNN).",
@@ -69,7 +69,9 @@ def train(
     """
     from rich.console import Console
 
-    from signatures.dataset import DatasetSpec, seconds_per_return
+    from signatures.dataset import DatasetSpec, progress_note
+    from signatures.eta import pace as timed_pace
+    from signatures.eta import seconds as eta_seconds
     from signatures.sampling import NuisanceDistribution
     from signatures.training import TrainConfig, default_samples, train_bundle
 
@@ -84,23 +86,29 @@ def train(
                       unknown_profiles=unknown, n_unknown_val=max(n_val // 4, 20), n_test=n_test,
                       nuisance=NuisanceDistribution() if randomise else None)
     console = Console(stderr=as_json)  # with --json, stdout carries only the JSON object
-    per = seconds_per_return(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed))
     n_cal = 0 if randomise else n_val  # the temperature's randomised validation set (training randomised: val itself)
     total = (n + n_val + n_cal + cfg.n_unknown_val
              + len(cfg.test_snrs) * (n_test + (max(n_test // 2, 10) if n_test else 0)))
-    eta = total * per / min(workers, os.cpu_count() or 1)
+    pace = timed_pace(DatasetSpec(preset=wf, profiles=known, split="train", n=n, seed=seed), workers)
+    eta = eta_seconds(total, pace)
     console.print(f"[bold]{wf.name}[/]: {wf.describe()}. Simulating {total} returns ({n} train, {n_val} validation"
                   + (f", {n_cal} randomised for calibration" if n_cal else "")
-                  + (f", {n_test} test per SNR" if n_test else "") + f") at {per * 1e3:.0f} ms each: about "
-                  f"{eta / 60:.1f} min with {workers} workers, plus fitting (cached datasets are reused).")
+                  + (f", {n_test} test per SNR" if n_test else "") + f") at {pace.seconds_per_return * 1e3:.0f} ms "
+                  f"each with {workers} workers (timed on {pace.timed} at once): about {eta / 60:.1f} min, plus "
+                  "fitting (cached datasets are reused).")
+    why = _why_slow(eta, total, n, pace)
+    if why:
+        console.print(why)
     t0 = time.perf_counter()
-    if cluster is None:
-        card = train_bundle(cfg, folder, progress=not as_json)
-    else:  # the engine is imported only here
-        from authn.cluster.engine import training_on
-
-        with training_on(cluster):
+    with progress_note(f"{pace.seconds_per_return * 1e3:.0f} ms/return, about {eta / 60:.1f} min in all"
+                       if why else ""):
+        if cluster is None:
             card = train_bundle(cfg, folder, progress=not as_json)
+        else:  # the engine is imported only here
+            from authn.cluster.engine import training_on
+
+            with training_on(cluster):
+                card = train_bundle(cfg, folder, progress=not as_json)
     if as_json:
         typer.echo(json.dumps({"name": wf.name, "folder": str(folder), "waveform": wf.as_json(),
                                "seconds": round(time.perf_counter() - t0, 3), "metrics": card["metrics"]}, indent=2))
@@ -115,6 +123,20 @@ def train(
     elif not overwrite_shipped:
         console.print(f"the shipped {wf.name} bundle still serves {wf.name} files; this one: "
                       f"`authn check --model {folder}`")
+
+
+#: A training run is said to be long (and why) from this many seconds on.
+LONG_S = 60.0
+
+
+def _why_slow(eta: float, total: int, n: int, pace) -> str:  # pace: signatures.eta.Pace
+    """Why a training run takes over `LONG_S`: the simulation dominates (returns, pace, workers),
+    and what shortens it; '' when it does not."""
+    if eta < LONG_S:
+        return ""
+    return (f"over a minute: simulating the {total} returns dominates (each {pace.seconds_per_return * 1e3:.0f} ms of "
+            f"wall time with {pace.workers} workers; fitting takes seconds); --samples sets the training returns "
+            f"({n} now), --workers the processes, and a second run reads the cached datasets")
 
 
 def _waveform(preset: str | None, like: Path | None, radar_config: Path | None):  # -> Preset
@@ -185,7 +207,7 @@ def list_models(
     per dwell and dwells to decide).
 
     With --json, each bundle's waveform carries the exact parameter values a file must match
-    (within 1e-6 relative): the radar-configuration document `--radar-config` reads; but for the
+    (within 1e-3 relative): the radar-configuration document `--radar-config` reads; but for the
     carrier, which may lie anywhere in `carrier_band_hz` (+-2.5 %: one bundle serves a radar
     that hops its carrier, docs/waveform.md "Carrier band").
 
@@ -429,25 +451,18 @@ def _distinct(todo: list[tuple[Path, str | None]]) -> list[tuple[Path, str | Non
     return kept
 
 
-def _site_samples(todo: list[tuple[Path, str | None]], db, bar):  # -> (list[SiteSample], Preset)
-    """Each recording labelled and its features extracted (`authn.enrolment.site_sample`), and
-    their one waveform; recordings of several waveforms are bad input."""
+def _site_samples(todo: list[tuple[Path, str | None]], db, bar) -> list:
+    """Each recording labelled and its features extracted (`authn.enrolment.site_sample`), with
+    its waveform: (sample, waveform) pairs for `authn.enrolment.on_one_waveform`."""
     from authn.enrolment import site_sample
-    from signatures.enrol import EnrolError
 
-    samples, waveforms = [], {}
+    read = []
     with bar:
         task = bar.add_task(f"reading {len(todo)} recordings", total=len(todo))
         for f, model in todo:
-            s, wf = site_sample(f, model, db)
-            samples.append(s)
-            waveforms.setdefault(wf.key, wf)
+            read.append(site_sample(f, model, db))
             bar.advance(task)
-    if len(waveforms) > 1:
-        described = "; ".join(w.describe() for w in waveforms.values())
-        raise EnrolError(f"the recordings are of {len(waveforms)} waveforms ({described}): enrol each waveform's "
-                         "recordings on their own")
-    return samples, next(iter(waveforms.values()))
+    return read
 
 
 @models_app.command("enrol")
@@ -464,9 +479,10 @@ def enrol_cmd(
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated base set, the folds and the forest."),
     workers: int = typer.Option(2, "--workers", min=1, max=64, help="Worker processes (simulation, forest)."),
     base_samples: int = typer.Option(1500, "--base-samples", min=50, help="Simulated base returns (cached)."),
-    site_bands: bool = typer.Option(False, "--site-bands", help="Also re-estimate each model's rate and rotor "
-                                                                "bands from the recordings, today's as the prior "
-                                                                "(measured: no gain on the held-out world)."),
+    site_bands: str = typer.Option("auto", "--site-bands",
+                                   help="Re-estimate each model's rate, rotor and blade bands from the recordings, "
+                                        "today's as the prior: on, off, or auto (on with one model; with several, "
+                                        "measured: no gain on the held-out world)."),
     calibrate: str = typer.Option("auto", "--calibrate",
                                   help="Verify with the score calibration fitted on the cross-validated scores: "
                                        "on, off, or auto (where those scores say it pays). Always fitted and "
@@ -476,8 +492,10 @@ def enrol_cmd(
     """Adapt the radar evidence to this site's radar from its recorded flights (site enrolment).
 
     Builds a site bundle for the recordings' waveform (a simulated base set plus the site's
-    recordings, cross-validated), writes its enrolment card (counts, confusion matrix, pairwise
-    errors, radar-confusable pairs, threshold, source digests) and makes it the active bundle:
+    recordings, cross-validated; one model is enough: the other profiles are simulated in that
+    waveform; carriers within +-2.5 % of their middle are one waveform), writes its enrolment card
+    (counts, confusion matrix, pairwise errors, radar-confusable pairs and the signatures they ask
+    for, threshold, carriers, source digests) and makes it the active bundle:
     `authn check` then uses it for that waveform ahead of the shipped one. Bad input (a missing
     or unknown label, another waveform, too few recordings) changes nothing.
 
@@ -488,6 +506,7 @@ def enrol_cmd(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+    from authn.enrolment import on_one_waveform
     from authn.sprt import Sprt
     from registry.dbapi import Database
     from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
@@ -498,8 +517,9 @@ def enrol_cmd(
     if name is not None and not bundle_name_ok(name):
         raise EnrolError(f"--name {name!r}: lower-case letters, digits, '.', '_' or '-' (at most 64), "
                          "not a preset name or 'shipped'")
-    if calibrate not in CALIBRATE:
-        raise EnrolError(f"--calibrate {calibrate!r}: one of {', '.join(CALIBRATE)}")
+    for flag, value in (("--calibrate", calibrate), ("--site-bands", site_bands)):
+        if value not in CALIBRATE:
+            raise EnrolError(f"{flag} {value!r}: one of {', '.join(CALIBRATE)}")
     db = Database(ctx.obj.db_url if ctx.obj else None)
     files = _recording_files(recordings)
     todo = _distinct(_labelled(files, labels, db))
@@ -508,18 +528,27 @@ def enrol_cmd(
     bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True,
                    disable=not sys.stderr.isatty())
-    samples, wf = _site_samples(todo, db, bar)
-    previous = None
+    read = _site_samples(todo, db, bar)
+    previous, base, carriers_before = None, None, {}
     if add:
-        folder = active_bundle(wf)
+        folder = active_bundle(read[0][1])
         if folder is None:
-            raise EnrolError(f"--add: no active site bundle for {wf.describe()} to add to (enrol without --add)")
+            raise EnrolError(f"--add: no active site bundle for {read[0][1].describe()} to add to "
+                             "(enrol without --add)")
         previous = folder.name
-        load_classifier(path=folder)  # verified before its samples are reused
+        base = load_classifier(path=folder).waveform  # verified before its samples are reused
+        carriers_before = {float(k): int(v) for k, v in
+                           load_classifier(path=folder).card["enrolment"].get("carriers_hz", {}).items()}
+    wf, samples, at = on_one_waveform(read, base)
+    if add:
         known = {s.sha256 for s in previous_samples(folder)}
         duplicates += sum(s.sha256 in known for s in samples)  # already enrolled: the same flights again
+        at = [f for s, f in zip(samples, at) if s.sha256 not in known]
         samples = previous_samples(folder) + [s for s in samples if s.sha256 not in known]
-    registered = {}
+    carriers = dict(carriers_before)
+    for f in at:
+        carriers[f] = carriers.get(f, 0) + 1
+    registered = {p.slug: p for p in db.registered_profiles()}  # the other side of the card's pairs too
     for slug in sorted({s.model for s in samples}):
         p = db.profile(slug)
         if p is None:
@@ -534,9 +563,10 @@ def enrol_cmd(
     counts = {m: sum(s.model == m for s in samples) for m in sorted({s.model for s in samples})}
     if duplicates:
         console.print(f"{_ignored(duplicates)} (the same bytes as another: one flight, counted once)")
+    n_others = len([p for p in profiles if p not in counts])
     console.print(f"enrolling {len(samples)} recordings ({', '.join(f'{m} {n}' for m, n in counts.items())}) of "
-                  f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers, base_samples):.0f} s "
-                  "(less with a cached base set)")
+                  f"{wf.describe()} as {name}: about {_estimate(wf, len(samples), workers, base_samples, n_others):.0f}"
+                  " s (less with a cached base set)")
     with bar:
         task = bar.add_task("enrolling", total=1.0)
 
@@ -545,21 +575,25 @@ def enrol_cmd(
 
         card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
                      n_sim=base_samples, progress=progress, sprt=Sprt(),  # track errors by the check's own test
-                     physics_bands=site_bands, score_calibration=CALIBRATE[calibrate])
+                     physics_bands=CALIBRATE[site_bands], score_calibration=CALIBRATE[calibrate], carriers=carriers)
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json, duplicates)
 
 
-def _estimate(wf, n_site: int, workers: int, n_sim: int) -> float:
-    """Seconds an enrolment takes on this machine: the base set's simulation (measured on three
-    returns; nothing when cached), the site features, the folds' forests."""
-    from signatures.dataset import DatasetSpec, seconds_per_return
-    from signatures.enrol import CV_FOLDS
+def _estimate(wf, n_site: int, workers: int, n_sim: int, n_others: int = 0) -> float:
+    """Seconds an enrolment takes on this machine: the base set's and the other profiles'
+    simulation at the pace timed on the worker pool (`signatures.eta`; nothing when cached), and
+    the folds' and the bundle's forests, one of them timed on a small sample."""
+    from signatures.dataset import DatasetSpec
+    from signatures.enrol import CV_FOLDS, N_OTHERS
+    from signatures.eta import fit_seconds, pace, seconds
+    from signatures.features import FEATURE_NAMES
     from signatures.profiles import shipped_profiles
 
-    per = seconds_per_return(DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="train",
-                                         n=n_sim, seed=0))
-    return n_sim * per / min(workers, os.cpu_count() or 1) + (CV_FOLDS + 2) * 2.0 + n_site * 0.01
+    p = pace(DatasetSpec(preset=wf, profiles=tuple(shipped_profiles().values()), split="train", n=n_sim, seed=0),
+             workers)
+    per_fit = fit_seconds(n_sim + n_site, len(FEATURE_NAMES))
+    return seconds(n_sim + n_others * N_OTHERS, p, CV_FOLDS + 1, per_fit)
 
 
 def _ignored(duplicates: int) -> str:
@@ -578,6 +612,8 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool, du
                                "confusable_pairs": e["confusable_pairs"],
                                "confusable_pairs_tracks": e.get("confusable_pairs_tracks"), "tracks": e.get("tracks"),
                                "threshold": e["threshold"], "calibration": e.get("calibration"),
+                               "signatures": e.get("signatures"), "carriers_hz": e.get("carriers_hz"),
+                               "others": (e.get("others") or {}).get("simulated"),
                                "sources": len(e["sources"]), "duplicates_ignored": duplicates}, indent=2))
         return
     console = Console()
@@ -599,7 +635,8 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool, du
             why = (f" (fewer than {e['min_separable_claims']} claims cannot show it separable)"
                    if sd["claims"] < e.get("min_separable_claims", 0) else "")
             mark = f"  radar-confusable{why}: unsigned claims rejected"
-        console.print(f"  {p['models'][0]} / {p['models'][1]}: type spoofs accepted {fa} "
+        sim = " (simulated at this radar)" if p.get("simulated") else ""
+        console.print(f"  {p['models'][0]} / {p['models'][1]}{sim}: type spoofs accepted {fa} "
                       f"({sd['false_accepts']} of {sd['claims']} cross-validated claims){mark}")
         tr = p.get("tracks")
         if tr and tr["false_accept_rate"] is not None:
@@ -617,7 +654,23 @@ def _print_enrolment(card: dict, folder: Path, seconds: float, as_json: bool, du
         console.print(f"  evidence per genuine dwell (cross-validated, calibrated): {ev['calibrated']} nats "
                       f"(uncalibrated {ev['uncalibrated']}); score calibration "
                       f"{'applied' if cal['applied'] else 'not applied'} ({_calibration_why(cal)})")
+    _print_band_and_signatures(console, e)
     console.print(f"  card: {folder / 'card.json'} ({len(e['sources'])} source digests)")
+
+
+def _print_band_and_signatures(console, e: dict) -> None:
+    """The carriers the recordings were made at, and which claims need a DRIP signature."""
+    carriers = e.get("carriers_hz") or {}
+    if carriers:
+        console.print("  carriers: " + ", ".join(f"{float(f) / 1e9:g} GHz ({n})" for f, n in carriers.items()))
+    for model, need in (e.get("signatures") or {}).items():
+        single, tracks = need["single_dwell"], need["tracks"]
+        if not single and not tracks:
+            console.print(f"  {model}: radar separates it from every other profile; no signature needed")
+            continue
+        console.print(f"  {model}: unsigned claims need a DRIP signature where one of these is registered: "
+                      f"{', '.join(single) or 'none'} (single dwells), "
+                      f"{'not measured' if tracks is None else ', '.join(tracks) or 'none'} (tracks)")
 
 
 def _calibration_why(cal: dict) -> str:

@@ -403,7 +403,7 @@ def test_add_extends_the_active_enrolment(site: dict, tmp_path: Path, capsys) ->
         fh.write("again.h5,m300\ncopy.h5,m600\n")
     capsys.readouterr()
     assert main(["models", "enrol", str(more), "--labels", str(more / "labels.csv"), "--add", "--name", "site-c",
-                 "--site-bands", "--calibrate", "on", "--json", *BASE]) == 0
+                 "--site-bands", "on", "--calibrate", "on", "--json", *BASE]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["counts"] == {"m300": 7, "m600": 7, "phantom4": 7} and doc["duplicates_ignored"] == 2
     card = json.loads((site["models"] / "site-c" / "card.json").read_text())
