@@ -1029,14 +1029,18 @@ def _turned(rate: np.ndarray, asym: np.ndarray, diff_power: np.ndarray, sum_powe
     difference shows a turn at half the m-th part: a tagged rotor turns once per two flashes, so a
     rate a part of which turns at its half was a harmonic of the train (its fundamental weak where
     four rotors' flashes interfere), and the turn's own third harmonic lies at half of 3 F. The turn
-    must hold a SPECTRAL_TAG_LINE-th of the rate's own line or more: lines far weaker than a train's
-    are not its turn."""
+    must hold a SPECTRAL_TAG_LINE-th of the rate's own line or more (lines far weaker than a train's
+    are not its turn), and where the rate's half is a turn line itself, 1 / TURN_SHARE times its
+    power (else the rate turns at its half, and the part's line is a leak or a harmonic)."""
     train = _line(sum_power, rate)
+    has_turn = _turn_line(rate / 2.0, asym, diff_power, sum_power)
+    own_turn = _line(diff_power, rate / 2.0)
     out = rate.copy()
     for m in TURN_MULTIPLES:  # the largest part wins: a turn's own odd harmonics are turn lines too
         part = rate / m
+        turn = _line(diff_power, part / 2.0)
         found = ((part >= lo) & _turn_line(part / 2.0, asym, diff_power, sum_power)
-                 & (_line(diff_power, part / 2.0) * SPECTRAL_TAG_LINE >= train))
+                 & (turn * SPECTRAL_TAG_LINE >= train) & (~has_turn | (turn * TURN_SHARE >= own_turn)))
         out = np.where(found, part, out)
     return out
 
