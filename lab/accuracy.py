@@ -238,6 +238,8 @@ class Estimate:
     rotor_rate_hz: float
     radial_velocity_mps: float
     rotors_seen: float
+    #: the rate rests on a flash train the verification reads (`verify.min_flash_score`); None: not said
+    train: bool | None = None
 
 
 def feature_estimate(rec: Recording) -> Estimate:
@@ -246,9 +248,12 @@ def feature_estimate(rec: Recording) -> Estimate:
 
     result = extract(rec)
     f = result.features
+    from signatures.verify import min_flash_score
+
     unknown = result.physics.get("rotors_unknown", 0.0) >= 0.5  # the count said it cannot tell
     return Estimate(bool(f.detected > 0), float(f.rotor_rate_hz), float(f.radial_velocity_mps),
-                    math.nan if unknown else float(result.physics.get("rotors_seen", 0.0)))
+                    math.nan if unknown else float(result.physics.get("rotors_seen", 0.0)),
+                    bool(f.flash_score >= min_flash_score(result.physics)))
 
 
 @dataclass(frozen=True)
@@ -274,8 +279,10 @@ class Scores:
     at_half: float | None  # within tolerance of 0.5x the truth (one blade's flash a turn taken for two blades')
     rotor_ok_5: float | None = None  # rotor rate within RATE_TOLERANCE (5 %) of the truth
     at_triple: float | None = None  # within tolerance of 3x the truth
-    rotors_over: float | None = None  # rotors seen above the rotor count (a lower bound that is wrong)
+    rotors_over: float | None = None  # rotors seen over the rotor count + ROTORS_SEEN_TOLERANCE (a wrong bound)
     rotors_unknown: float | None = None  # rotors seen not known (NaN: the count said it cannot tell)
+    train: float | None = None  # share whose rate rests on a flash train the verification reads
+    rotor_ok_5_train: float | None = None  # rotor rate within 5 %, over those dwells
 
 
 def score(pairs: list[tuple[Estimate, Truth]]) -> Scores:
@@ -302,8 +309,10 @@ def score(pairs: list[tuple[Estimate, Truth]]) -> Scores:
         float(np.median(errs)) if errs else None,
         share([near(e, t, 2.0) for e, t in rated]), share([near(e, t, 0.5) for e, t in rated]),
         share([near(e, t, 1.0, RATE_TOLERANCE) for e, t in rated]), share([near(e, t, 3.0) for e, t in rated]),
-        share([e.rotors_seen > t.rotors for e, t in pairs if t.rotors is not None]),
-        share([math.isnan(e.rotors_seen) for e, t in pairs if t.rotors is not None]))
+        share([e.rotors_seen > t.rotors + ROTORS_SEEN_TOLERANCE for e, t in pairs if t.rotors is not None]),
+        share([math.isnan(e.rotors_seen) for e, t in pairs if t.rotors is not None]),
+        share([bool(e.train) for e, _ in pairs if e.train is not None]),
+        share([near(e, t, 1.0, RATE_TOLERANCE) for e, t in rated if e.train]))
 
 
 @dataclass(frozen=True)
@@ -323,8 +332,10 @@ class ConditionRow:
     seconds: float  # wall time of the row (render and estimate)
     rotor_ok_5: float = 0.0  # rotor rate within RATE_TOLERANCE (5 %)
     at_triple: float = 0.0  # rotor rate within tolerance of 3x the truth
-    rotors_over: float = 0.0  # rotors seen above the rotor count
+    rotors_over: float = 0.0  # rotors seen over the rotor count + ROTORS_SEEN_TOLERANCE
     rotors_unknown: float = 0.0  # rotors seen not known (NaN)
+    train: float = 0.0  # share whose rate rests on a flash train the verification reads
+    rotor_ok_5_train: float = 0.0  # rotor rate within 5 % over those dwells (0 where none)
 
     def as_dict(self) -> dict[str, float | int | str]:
         return dict(self.__dict__)
@@ -356,4 +367,5 @@ def evaluate_condition(condition: str | Condition, n: int = 40, seed: int = 0, w
     s = score(pairs)  # every truth is known here: no share is None
     return ConditionRow(cond.name, world, n, s.detected, *(float(v) for v in (
         s.velocity_ok, s.rotor_ok, s.rotors_ok, s.rotor_median_err, s.at_double, s.at_half)), time.perf_counter() - t0,
-        *(float(v or 0.0) for v in (s.rotor_ok_5, s.at_triple, s.rotors_over, s.rotors_unknown)))
+        *(float(v or 0.0) for v in (s.rotor_ok_5, s.at_triple, s.rotors_over, s.rotors_unknown, s.train,
+                                    s.rotor_ok_5_train)))

@@ -196,3 +196,16 @@ def test_a_long_dwells_tip_is_read_to_within_one_rotor_line():
     f = extract(rec).features
     assert f.tip_speed_mps > 0 and not f.tip_aliased
     assert f.tip_speed_std_mps >= f.rotor_rate_hz * rec.config.wavelength_m / 2.0
+
+
+def test_the_condition_scores_count_slips_bounds_and_trains():
+    """`lab.accuracy.score`: the rate within 5 %, at 3x, a count over the rotors by more than one,
+    a count not known (NaN), and the rate within 5 % over the dwells whose train the verification
+    reads."""
+    from lab.accuracy import Estimate, Truth, score
+
+    truth = Truth(100.0, 0.0, 4)
+    s = score([(Estimate(True, 104.0, 0.0, 4.0, True), truth), (Estimate(True, 300.0, 0.0, 9.0, True), truth),
+               (Estimate(True, 50.0, 0.0, math.nan, False), truth), (Estimate(True, 100.0, 0.0, 5.0, False), truth)])
+    assert (s.rotor_ok, s.rotor_ok_5, s.at_triple, s.at_half) == (0.25, 0.5, 0.25, 0.25)
+    assert (s.rotors_over, s.rotors_unknown, s.train, s.rotor_ok_5_train) == (0.25, 0.25, 0.5, 0.5)
