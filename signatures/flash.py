@@ -927,11 +927,10 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     phases can all but cancel a train's fundamental, never make one stronger than it; a line in
     the difference there may be a tagged rotor's turn, which the rules below read). Where the best candidate
     is the difference's stronger line of the candidate and its half, the difference holds at
-    least the sum's power there and at its third harmonic, and it is a turn line (`_turn_line`)
-    or the difference holds under ONE_SIDED_SHARE of the sum at twice the candidate, it is a
-    tagged rotor's turn rate, not its flash rate, and the rate is doubled: a turn alternates
-    sides, so the difference carries it and its odd harmonics at full strength and cancels the
-    flash train's own line, while equal blades seen
+    least the sum's power there, and it is a turn line (`_turn_line`) or the difference holds
+    under ONE_SIDED_SHARE of the sum at twice the candidate, it is a tagged rotor's turn rate,
+    not its flash rate, and the rate is doubled: a turn alternates sides, so the difference
+    carries it at full strength and cancels the flash train's own line, while equal blades seen
     in one half only hold as much in the difference as in the sum at every line. Conversely a
     rate whose half or third turns at its own half (`_turned`) was a harmonic of a tagged
     train: divided. Last, a best whose harmonics off its second (or third) are ten times under
@@ -991,7 +990,6 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     rate = (cand[best] + step) * df
     turn = ((_line(asym, rate / df) > np.maximum(_line(asym, rate / df / 2.0), SPECTRAL_TAG_LINE))
             & (_line(diff_power, rate / df) >= _line(sum_power, rate / df))
-            & (_line(diff_power, 3.0 * rate / df) >= _line(sum_power, 3.0 * rate / df))  # its third harmonic too
             & (_turn_line(rate / df, asym, diff_power, sum_power) | ~_one_sided(rate / df, diff_power, sum_power)))
     rate = np.where(turn, 2.0 * rate, rate)
     rate = _turned(rate / df, asym, diff_power, sum_power, lo) * df

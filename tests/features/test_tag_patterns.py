@@ -141,7 +141,6 @@ SLIPPED = [
     ("cw-idle-11111111", "heldout", 37, 0.5),  # a sub-harmonic: 9 rotors counted on the quad
     ("cw-on-10101010", "heldout", 59, 0.5),
     ("cw-on-11111111", "training", 5, 2.0),  # equal blades seen in one half, doubled by the turn rule
-    ("cw-idle-11111111", "training", 100030, 2.0),  # ... the flash line in one half, its third harmonic in both
 ]
 
 
