@@ -78,8 +78,10 @@ def accuracy(
     Example: authn features accuracy --snr=0,10 --world training --world randomised --world heldout
 
     With --condition (lab/accuracy.py CONDITIONS, e.g. an S-band CW radar on a hovering quadcopter with
-    tagged blades): share with |v| < 1 m/s, the mechanical rotor rate within 3 %, rotors seen within
-    +-1, and how often the rate read is twice or half the truth.
+    tagged blades): share with |v| < 1 m/s, the mechanical rotor rate within 3 % and 5 %, rotors seen
+    within +-1, over the rotors by more than one, or not known, how often the rate read is twice,
+    half or three times the truth, and the rate within 5 % over the dwells with a flash train the
+    verification reads.
 
     Example: authn features accuracy --condition cw-hover-tagged --condition cw-idle-tagged --n 40
     """
