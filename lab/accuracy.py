@@ -18,6 +18,7 @@ static clutter, idling rotors, 0.82 s and 10 s dwells), scored on what that rada
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -148,12 +149,22 @@ class Condition:
     rotor_rate_jitter: tuple[float, float] = (0.005, 0.005)
     #: radial speed (m/s), drawn per scene with a random sign where it varies (0: hovering)
     speed_mps: tuple[float, float] = (0.0, 0.0)
+    #: tag patterns (`Scene.tag_pattern`), one drawn per scene instead of `tagged_blades`; () draws none
+    tag_patterns: tuple[str, ...] = ()
+    #: blade length (m), drawn per scene where given (the airframe's own otherwise)
+    blade_length_m: tuple[float, float] | None = None
+    #: the radar's pulse rate (Hz) where it is not the preset's
+    prf_hz: float | None = None
 
     def scene(self, rng: np.random.Generator) -> tuple[Scene, Preset]:
         """One scene of the condition and the radar that sees it (its carrier drawn)."""
         pre = get_preset(self.preset).with_pulses(self.n_pulses)
         carrier = float(self.carriers_hz[int(rng.integers(len(self.carriers_hz)))])
         pre = replace(pre, config=pre.config.replace(carrier_hz=carrier))
+        if self.prf_hz is not None:  # a CW channel: one sample a pulse, ramp = PRI
+            pri = 1.0 / self.prf_hz
+            pre = replace(pre, config=pre.config.replace(pri_s=pri, ramp_s=pri, bandwidth_hz=self.prf_hz,
+                                                         sample_rate_hz=self.prf_hz))
         scene = Scene(profile=self.profile, range_m=float(rng.uniform(*self.range_m)), radial_speed_mps=0.0,
                       snr_db=float(rng.uniform(*self.snr_db)), rotor_rate_hz=float(rng.uniform(*self.rotor_rate_hz)),
                       tagged_blades=int(rng.integers(self.tagged_blades[0], self.tagged_blades[1] + 1)),
@@ -168,7 +179,19 @@ class Condition:
         if self.speed_mps[1] > 0:  # drawn last and only here: the hovering conditions' scenes stay as they were
             speed = float(rng.uniform(*self.speed_mps)) * (1.0 if rng.random() < 0.5 else -1.0)
             scene = scene.model_copy(update={"radial_speed_mps": speed})
+        if self.tag_patterns or self.blade_length_m is not None:  # drawn after the rest, only here
+            scene = self._airframe(scene, rng)
         return scene, pre
+
+    def _airframe(self, scene: Scene, rng: np.random.Generator) -> Scene:
+        """`scene` with its tag pattern and blade length drawn (`tag_patterns`, `blade_length_m`);
+        validated anew (a model copy is not)."""
+        doc = dict(scene.model_dump(), profile=scene.profile)
+        if self.tag_patterns:
+            doc.update(tagged_blades=0, tag_pattern=self.tag_patterns[int(rng.integers(len(self.tag_patterns)))])
+        if self.blade_length_m is not None:
+            doc["profile"] = replace(self.profile, blade_length_m=float(rng.uniform(*self.blade_length_m)))
+        return Scene(**doc)
 
     def draw(self, seed: int) -> tuple[Scene, Preset, int]:
         """Seeded scene `seed` of the condition: the scene, its radar and the simulator's seed (the
@@ -178,6 +201,9 @@ class Condition:
         return scene, pre, int(rng.integers(2**31))
 
 
+#: Tag patterns of a quad's 8 blades, rotor by rotor (`Scene.tag_pattern`): one blade; one per rotor;
+#: both of one rotor; all alike.
+TAG_PATTERNS = ("10000000", "10101010", "11000000", "11111111")
 _TAGGED = "hovering DJI-class quad, 1-8 of its 8 blades tagged (+6..+15 dB), clutter +20..+40 dB over it"
 _PHANTOM4 = shipped_profiles()["phantom4"]
 _PAPER = dict(preset="paper", n_pulses=600, carriers_hz=(77e9,), profile=_PHANTOM4, tagged_blades=(0, 0),
@@ -192,6 +218,11 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in (
               tagged_blades=(0, 0)),
     Condition("cw-moving-tagged", "as cw-hover-tagged, flying 2-12 m/s towards or away from the radar "
               "(the clutter's line then lies off the body's)", speed_mps=(2.0, 12.0)),
+    *(Condition(f"cw-{state}-{pattern}", f"CW 3.3-3.4 GHz at 5000.1 Hz, 0.82 s; hovering quad with blades of 5-12 cm, "
+                f"rotors {state} at {lo:g}-{hi:g} Hz (tips alias beyond ~110 m/s), blades {pattern} tagged "
+                f"(+6..+15 dB, rotor by rotor), clutter +20..+40 dB", rotor_rate_hz=(lo, hi), tag_patterns=(pattern,),
+                blade_length_m=(0.05, 0.12), prf_hz=5000.1)
+      for state, lo, hi in (("idle", 60.0, 75.0), ("on", 120.0, 180.0)) for pattern in TAG_PATTERNS),
     Condition("paper-hover", "paper (77 GHz, 26 ms); hovering Phantom 4 at 0.9-1.1x its rate, equal blades, "
               "rotors 0.5 % apart (std): the control", **_PAPER),
     Condition("paper-hover-spread", "as paper-hover, each rotor's rate 2-4 % (std) off the common one, as a "
@@ -207,6 +238,8 @@ class Estimate:
     rotor_rate_hz: float
     radial_velocity_mps: float
     rotors_seen: float
+    #: the rate rests on a flash train the verification reads (`verify.min_flash_score`); None: not said
+    train: bool | None = None
 
 
 def feature_estimate(rec: Recording) -> Estimate:
@@ -215,8 +248,12 @@ def feature_estimate(rec: Recording) -> Estimate:
 
     result = extract(rec)
     f = result.features
+    from signatures.verify import min_flash_score
+
+    unknown = result.physics.get("rotors_unknown", 0.0) >= 0.5  # the count said it cannot tell
     return Estimate(bool(f.detected > 0), float(f.rotor_rate_hz), float(f.radial_velocity_mps),
-                    float(result.physics.get("rotors_seen", 0.0)))
+                    math.nan if unknown else float(result.physics.get("rotors_seen", 0.0)),
+                    bool(f.flash_score >= min_flash_score(result.physics)))
 
 
 @dataclass(frozen=True)
@@ -240,6 +277,12 @@ class Scores:
     rotor_median_err: float | None  # median |relative rotor-rate error|
     at_double: float | None  # rotor rate within tolerance of 2x the truth (the blade-flash rate read as the rotor's)
     at_half: float | None  # within tolerance of 0.5x the truth (one blade's flash a turn taken for two blades')
+    rotor_ok_5: float | None = None  # rotor rate within RATE_TOLERANCE (5 %) of the truth
+    at_triple: float | None = None  # within tolerance of 3x the truth
+    rotors_over: float | None = None  # rotors seen over the rotor count + ROTORS_SEEN_TOLERANCE (a wrong bound)
+    rotors_unknown: float | None = None  # rotors seen not known (NaN: the count said it cannot tell)
+    train: float | None = None  # share whose rate rests on a flash train the verification reads
+    rotor_ok_5_train: float | None = None  # rotor rate within 5 %, over those dwells
 
 
 def score(pairs: list[tuple[Estimate, Truth]]) -> Scores:
@@ -251,9 +294,9 @@ def score(pairs: list[tuple[Estimate, Truth]]) -> Scores:
     def share(xs: list[bool]) -> float | None:
         return sum(xs) / len(xs) if xs else None
 
-    def near(e: Estimate, t: Truth, factor: float) -> bool:
+    def near(e: Estimate, t: Truth, factor: float, tolerance: float = CONDITION_RATE_TOLERANCE) -> bool:
         want = factor * (t.rotor_rate_hz or 0.0)
-        return abs(e.rotor_rate_hz - want) <= CONDITION_RATE_TOLERANCE * want
+        return abs(e.rotor_rate_hz - want) <= tolerance * want
 
     rated = [(e, t) for e, t in pairs if t.rotor_rate_hz is not None]
     errs = [abs(e.rotor_rate_hz - t.rotor_rate_hz) / t.rotor_rate_hz for e, t in rated if t.rotor_rate_hz]
@@ -264,7 +307,12 @@ def score(pairs: list[tuple[Estimate, Truth]]) -> Scores:
         share([near(e, t, 1.0) for e, t in rated]),
         share([abs(e.rotors_seen - t.rotors) <= ROTORS_SEEN_TOLERANCE for e, t in pairs if t.rotors is not None]),
         float(np.median(errs)) if errs else None,
-        share([near(e, t, 2.0) for e, t in rated]), share([near(e, t, 0.5) for e, t in rated]))
+        share([near(e, t, 2.0) for e, t in rated]), share([near(e, t, 0.5) for e, t in rated]),
+        share([near(e, t, 1.0, RATE_TOLERANCE) for e, t in rated]), share([near(e, t, 3.0) for e, t in rated]),
+        share([e.rotors_seen > t.rotors + ROTORS_SEEN_TOLERANCE for e, t in pairs if t.rotors is not None]),
+        share([math.isnan(e.rotors_seen) for e, t in pairs if t.rotors is not None]),
+        share([bool(e.train) for e, _ in pairs if e.train is not None]),
+        share([near(e, t, 1.0, RATE_TOLERANCE) for e, t in rated if e.train]))
 
 
 @dataclass(frozen=True)
@@ -282,6 +330,12 @@ class ConditionRow:
     at_double: float  # rotor rate within tolerance of 2x the truth (the blade-flash rate read as the rotor's)
     at_half: float  # within tolerance of 0.5x the truth
     seconds: float  # wall time of the row (render and estimate)
+    rotor_ok_5: float = 0.0  # rotor rate within RATE_TOLERANCE (5 %)
+    at_triple: float = 0.0  # rotor rate within tolerance of 3x the truth
+    rotors_over: float = 0.0  # rotors seen over the rotor count + ROTORS_SEEN_TOLERANCE
+    rotors_unknown: float = 0.0  # rotors seen not known (NaN)
+    train: float = 0.0  # share whose rate rests on a flash train the verification reads
+    rotor_ok_5_train: float = 0.0  # rotor rate within 5 % over those dwells (0 where none)
 
     def as_dict(self) -> dict[str, float | int | str]:
         return dict(self.__dict__)
@@ -312,4 +366,6 @@ def evaluate_condition(condition: str | Condition, n: int = 40, seed: int = 0, w
         pairs.append((estimate(rec), Truth(rate, speed, rotors)))
     s = score(pairs)  # every truth is known here: no share is None
     return ConditionRow(cond.name, world, n, s.detected, *(float(v) for v in (
-        s.velocity_ok, s.rotor_ok, s.rotors_ok, s.rotor_median_err, s.at_double, s.at_half)), time.perf_counter() - t0)
+        s.velocity_ok, s.rotor_ok, s.rotors_ok, s.rotor_median_err, s.at_double, s.at_half)), time.perf_counter() - t0,
+        *(float(v or 0.0) for v in (s.rotor_ok_5, s.at_triple, s.rotors_over, s.rotors_unknown, s.train,
+                                    s.rotor_ok_5_train)))

@@ -158,5 +158,8 @@ def score_recordings(rows: list[TruthRow], estimate: Callable[[Recording], Estim
 
 
 def as_json(per_row: list[tuple[str, Scores]], dwells: list[DwellScore]) -> dict[str, object]:
-    """The JSON object `authn features score --json` prints."""
-    return {"rows": [{"file": name, **asdict(s)} for name, s in per_row], "dwells": [asdict(d) for d in dwells]}
+    """The JSON object `authn features score --json` prints (a count not known, NaN, is null)."""
+    def plain(doc: dict[str, object]) -> dict[str, object]:
+        return {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in doc.items()}
+
+    return {"rows": [{"file": name, **asdict(s)} for name, s in per_row], "dwells": [plain(asdict(d)) for d in dwells]}

@@ -18,7 +18,7 @@ from signatures.radar import RadarConfig
 
 #: Bump when feature values change: training-set caches key on it, and
 #: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
-FEATURE_VERSION = "11"
+FEATURE_VERSION = "12"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
 PATCH_FLOOR_DB = -60.0
@@ -151,13 +151,18 @@ class FeatureResult:
         return self.features.radial_velocity_mps
 
 
-def physics_estimates(rotors_seen: float, rotors_seen_std: float, lower_bound: bool = False) -> dict[str, float]:
+def physics_estimates(rotors_seen: float, rotors_seen_std: float, lower_bound: bool = False,
+                      known: bool = True) -> dict[str, float]:
     """`FeatureResult.physics` from its estimates (one place for the single and batch paths).
     `lower_bound`: the count is of the rotors visible above the noise (a long dwell,
-    `signatures.rotor_lines`), marked `rotors_lower_bound` = 1 for the verification."""
+    `signatures.rotor_lines`), marked `rotors_lower_bound` = 1 for the verification. `known`
+    False: the dwell gives no count (`rotor_lines.count_known`), marked `rotors_unknown` = 1 with
+    rotors_seen 0 and no std, on which the verification abstains."""
     out = {"rotors_seen": float(rotors_seen), "rotors_seen_std": float(rotors_seen_std)}
     if lower_bound:
         out["rotors_lower_bound"] = 1.0
+    if not known:
+        out.update(rotors_seen=0.0, rotors_seen_std=0.0, rotors_unknown=1.0)
     return out
 
 

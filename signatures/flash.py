@@ -42,7 +42,7 @@ from signatures.estimators import (
     POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
     SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
 from signatures.radar import RadarConfig
-from signatures.rotor_lines import visible_rotors
+from signatures.rotor_lines import count_known, visible_rotors
 from signatures.stats import distinct
 
 __all__ = ["MEMORY_BUDGET_BYTES", "FlashSeriesBatch", "PeriodicityBatch", "flash_series_batch",
@@ -70,6 +70,20 @@ SPECTRAL_TAG_LINE = 10.0
 #: lines (`spectral_flash_rate`): its third (a tagged rotor's turn train: lines at f and 2 f under
 #: 3 f), then its second (lines at the first and third harmonics of the half).
 SUBHARMONIC_LINES = ((3, (1.0, 2.0)), (2, (1.0, 3.0)))
+#: A tagged rotor's turn alternates sides, so the envelope difference carries it and the sum cancels
+#: it: a turn line that divides a rate holds at least 1 / TURN_SHARE times the sum's power there
+#: (`_turn_line`, `_turned`).
+TURN_SHARE = 0.5
+#: ... and the difference cancels the flash train's own line at twice the turn rate, where equal
+#: blades seen in one half only (the other under the noise or cut) hold as much in the difference as
+#: in the sum: a candidate turn that is no turn line (under 1 / TURN_SHARE of the sum) is not doubled
+#: where the difference holds this share of the sum's power at twice it (`_one_sided`;
+#: cw-on-11111111, training scene 5: 1.01 and 0.96, doubled before; tagged rotors with unequal
+#: halves, cw-idle-10101010 training scenes 24 and 34: turn lines 7.8 and 4.5 over the sum, 0.6 and
+#: 0.82 at twice them).
+ONE_SIDED_SHARE = 0.8
+#: A flash rate is divided by these where a part of it, and not the rate, shows a turn (`_turned`).
+TURN_MULTIPLES = (2, 3)
 #: Subtracted from the log peak-to-median of the (whitened) harmonic sum, so that >= 1 reads as
 #: the period search's score does: noise and clutter alone score at most 0.08 over 300 `cw-sband`
 #: dwells (0-20 dB, 0-40 dB clutter), tagged-blade quads 0.17-0.83 at the lowest of 30 and >= 1 in
@@ -812,6 +826,7 @@ class FlashTrain:
     score: np.ndarray
     rotors_seen: np.ndarray  # rotors visible: a lower bound (`signatures.rotor_lines`)
     rotors_seen_std: np.ndarray
+    rotors_known: np.ndarray | None = None  # bool: False where the fold gives no count (`count_known`)
 
 
 def flash_envelope(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -906,14 +921,20 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     FLASH_RATE_MAX_HZ] that shows a line of its own (a train of short flashes has its
     fundamental: a candidate without one is a multiple or a fraction of the train whose
     harmonics happen to line up, 3/2 or 5/4 of it), the best divided by 3 while its third and
-    two thirds show lines, and halved while half of it shows the first and third harmonics
-    (then the best was the train's third or second harmonic). Where the best candidate
-    is the difference's stronger line of the candidate and its half, and the difference holds at
-    least the sum's power there, it is a tagged rotor's turn rate, not its flash rate, and the
-    rate is doubled: a turn line is an asymmetry, so the difference carries it at full strength,
-    while a flash train leaks into the difference only by what its approaching and receding
-    halves differ (a few per cent of the sum's line: doubling on the difference's line alone read
-    equal blades at twice their flash rate).
+    two thirds show lines, and halved while half of it shows the first and third harmonics, or
+    while a third or a half of it holds a stronger line than the best's own and the difference
+    none (then the best was the train's third or second harmonic: four rotors' flashes at random
+    phases can all but cancel a train's fundamental, never make one stronger than it; a line in
+    the difference there may be a tagged rotor's turn, which the rules below read). Where the best candidate
+    is the difference's stronger line of the candidate and its half, the difference holds at
+    least the sum's power there, and it is a turn line (`_turn_line`) or the difference holds
+    under ONE_SIDED_SHARE of the sum at twice the candidate, it is a tagged rotor's turn rate,
+    not its flash rate, and the rate is doubled: a turn alternates sides, so the difference
+    carries it at full strength and cancels the flash train's own line, while equal blades seen
+    in one half only hold as much in the difference as in the sum at every line. Conversely a
+    rate whose half or third turns at its own half (`_turned`) was a harmonic of a tagged
+    train: divided. Last, a best whose harmonics off its second (or third) are ten times under
+    that one's line, with no turn in the difference, is a sub-harmonic: multiplied.
     The peak is refined by a parabola through the log harmonic sum; its std is the sub-bin
     peak's half width over sqrt(harmonics). Score: log of the peak over the median of the
     harmonic sum, less SPECTRAL_NOISE_LOG (as the period search's score, >= 1 is a periodic
@@ -947,9 +968,19 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
             base = cand[best] / order
             # a train's fundamental is about its strongest line (a single-peaked flash's harmonics
             # fall off): lines under the best but far weaker than it are the sampling's, not a train's
-            shown = (np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
-                     & (_line(power, base) * SPECTRAL_TAG_LINE >= _line(power, cand[best].astype(float))))
+            own = _line(power, cand[best].astype(float))
+            shown = ((np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
+                      & (_line(power, base) * SPECTRAL_TAG_LINE >= own))
+                     | ((_line(power, base) > np.maximum(own, SPECTRAL_TAG_LINE))  # a fundamental over its harmonic
+                        & (_line(asym, base) <= SPECTRAL_TAG_LINE)))  # ... unless a tagged rotor's turn
             best = np.where(shown & (base >= lo), np.clip(np.rint(base).astype(int) - lo, 0, cand.size - 1), best)
+    for order in (2, 3):  # the converse: a best whose own harmonics off the order-th are the sampling's
+        up = cand[best] * order
+        off = np.max([_line(power, k * cand[best].astype(float)) for k in range(1, SPECTRAL_HARMONICS + 1)
+                      if k % order], axis=0)
+        shown = ((_line(power, up.astype(float)) > SPECTRAL_TAG_LINE * np.maximum(off, 1.0))
+                 & (_line(asym, cand[best].astype(float)) <= SPECTRAL_TAG_LINE))
+        best = np.where(shown & (up <= hi), np.clip(up - lo, 0, cand.size - 1), best)
     inner = (best > 0) & (best < cand.size - 1)
     bi = np.clip(best, 1, cand.size - 2)
     a, m, c = (np.log(np.maximum(harm[rows, bi + j], 1e-300)) for j in (-1, 0, 1))
@@ -958,8 +989,10 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
         step = np.where(inner & (den < 0.0), np.clip(0.5 * (a - c) / np.where(den < 0, den, -1.0), -0.5, 0.5), 0.0)
     rate = (cand[best] + step) * df
     turn = ((_line(asym, rate / df) > np.maximum(_line(asym, rate / df / 2.0), SPECTRAL_TAG_LINE))
-            & (_line(diff_power, rate / df) >= _line(sum_power, rate / df)))
+            & (_line(diff_power, rate / df) >= _line(sum_power, rate / df))
+            & (_turn_line(rate / df, asym, diff_power, sum_power) | ~_one_sided(rate / df, diff_power, sum_power)))
     rate = np.where(turn, 2.0 * rate, rate)
+    rate = _turned(rate / df, asym, diff_power, sum_power, lo) * df
     med = median_last(harm)
     score = np.maximum(np.log(np.maximum(harm[rows, best], 1e-300) / np.maximum(med, 1e-300))
                        - SPECTRAL_NOISE_LOG, 0.0)
@@ -967,9 +1000,49 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     rate = np.where(live, rate, 0.0)
     std = np.where(live, np.where(turn, 2.0, 1.0) * 0.5 * df / math.sqrt(SPECTRAL_HARMONICS), 0.0)
     edge = taper_length(n, ENVELOPE_TAPER)  # the rotors are counted where the envelope is not tapered
-    seen = np.array([float(len(visible_rotors(total[b, edge:n - edge], rate[b] * config.pri_s)))
+    known = np.array([count_known(n - 2 * edge, rate[b] * config.pri_s) for b in range(b_rows)], dtype=bool)
+    seen = np.array([float(len(visible_rotors(total[b, edge:n - edge], rate[b] * config.pri_s))) if known[b] else 0.0
                      for b in range(b_rows)])
-    return FlashTrain(rate, std, np.where(live, score, 0.0), seen, np.where(seen > 0.0, VISIBLE_STD, 0.0))
+    return FlashTrain(rate, std, np.where(live, score, 0.0), seen, np.where(seen > 0.0, VISIBLE_STD, 0.0),
+                      known | ~live)
+
+
+def _turn_line(at: np.ndarray, asym: np.ndarray, diff_power: np.ndarray, sum_power: np.ndarray) -> np.ndarray:
+    """Whether each row's envelope difference shows a tagged rotor's turn at fractional bin `at`: a
+    line of its own (SPECTRAL_TAG_LINE over the whitened floor) holding TURN_SHARE^-1 times the
+    sum's power there or more (a turn alternates sides, so the sum cancels it: a flash train seen
+    in one half only, or leaking into the difference, holds as much in the sum)."""
+    return ((_line(asym, at) > SPECTRAL_TAG_LINE)
+            & (_line(diff_power, at) * TURN_SHARE >= _line(sum_power, at)))
+
+
+def _one_sided(at: np.ndarray, diff_power: np.ndarray, sum_power: np.ndarray) -> np.ndarray:
+    """Whether each row's envelope difference holds ONE_SIDED_SHARE of the sum's power or more at
+    twice fractional bin `at`: a flash train seen in one half only, where a turn at `at` would have
+    cancelled there."""
+    return _line(diff_power, 2.0 * at) >= ONE_SIDED_SHARE * _line(sum_power, 2.0 * at)
+
+
+def _turned(rate: np.ndarray, asym: np.ndarray, diff_power: np.ndarray, sum_power: np.ndarray,
+            lo: int) -> np.ndarray:
+    """Flash rates (fractional bins) divided by m (TURN_MULTIPLES, the largest that holds) where the
+    difference shows a turn at half the m-th part: a tagged rotor turns once per two flashes, so a
+    rate a part of which turns at its half was a harmonic of the train (its fundamental weak where
+    four rotors' flashes interfere), and the turn's own third harmonic lies at half of 3 F. The turn
+    must hold a SPECTRAL_TAG_LINE-th of the rate's own line or more (lines far weaker than a train's
+    are not its turn), and where the rate's half is a turn line itself, 1 / TURN_SHARE times its
+    power (else the rate turns at its half, and the part's line is a leak or a harmonic)."""
+    train = _line(sum_power, rate)
+    has_turn = _turn_line(rate / 2.0, asym, diff_power, sum_power)
+    own_turn = _line(diff_power, rate / 2.0)
+    out = rate.copy()
+    for m in TURN_MULTIPLES:  # the largest part wins: a turn's own odd harmonics are turn lines too
+        part = rate / m
+        turn = _line(diff_power, part / 2.0)
+        found = ((part >= lo) & _turn_line(part / 2.0, asym, diff_power, sum_power)
+                 & (turn * SPECTRAL_TAG_LINE >= train) & (~has_turn | (turn * TURN_SHARE >= own_turn)))
+        out = np.where(found, part, out)
+    return out
 
 
 def _line(power: np.ndarray, at: np.ndarray) -> np.ndarray:

@@ -37,7 +37,8 @@ from statistics import NormalDist
 
 import numpy as np
 
-__all__ = ["FALSE_LINES", "Line", "clear_z", "phase_time", "searched_slopes", "visible_rotors"]
+__all__ = ["FALSE_LINES", "MIN_KNOWN_WINDOWS", "Line", "clear_z", "count_known", "phase_time", "searched_slopes",
+           "visible_rotors"]
 
 #: Flash periods folded into one window (row) of the phase-time image.
 PERIODS = 4
@@ -55,6 +56,12 @@ RESIDUE_SHARE = 0.08
 MIN_CLEAR_WINDOWS = 8
 #: Zero-padding factor of the FFTs over windows (the slope sums' interpolation).
 PAD = 8
+#: A fold of fewer windows than this gives no count (`count_known`): its lines' slopes are too coarse
+#: to keep rotors a fraction of a per cent apart, and a rate read at half the train's (idle rotors,
+#: 0.82 s: 11-13 windows) folds each rotor's flashes twice a period, read as up to twice the rotors
+#: (cw-idle-11111111, held-out scene 37: 9 lines on a quad). Every right rate of the CW conditions
+#: folds 0.82 s into 23 windows or more.
+MIN_KNOWN_WINDOWS = 16
 
 
 @dataclass(frozen=True)
@@ -118,6 +125,14 @@ def searched_slopes(rows: int, bins: int, periods: int = PERIODS, max_drift: flo
     step = 0.5 / rows
     reach = max_drift * periods * bins
     return np.arange(-reach, reach + step / 2, step)
+
+
+def count_known(samples: int, cycles_per_pulse: float, periods: int = PERIODS) -> bool:
+    """Whether `visible_rotors` of an envelope of `samples` folded at `cycles_per_pulse` is a count
+    (MIN_KNOWN_WINDOWS windows or more) rather than "not known"."""
+    if not cycles_per_pulse > 0.0:
+        return False
+    return samples // max(1, int(round(periods / cycles_per_pulse))) >= MIN_KNOWN_WINDOWS
 
 
 def visible_rotors(envelope: np.ndarray, cycles_per_pulse: float, periods: int = PERIODS,

@@ -93,6 +93,10 @@ class Scene(BaseModel):
     tag_gain_db: float = Field(default=10.0, ge=0.0, le=40.0, description="power gain of a tagged blade")
     tag_layout: Literal["random", "spread"] = Field(
         default="random", description="random: any blades; spread: one per rotor before a second on any rotor")
+    tag_pattern: str | None = Field(
+        default=None, pattern=r"^[01]+$", max_length=128,
+        description="which blades carry a tag (at tag_gain_db), one digit per blade, rotor by rotor: "
+                    "10101010 tags blade 0 of each of a quad's 4 rotors, 11000000 both blades of rotor 0")
     clutter_to_signal_db: float | None = Field(
         default=None, ge=-30, le=80, description="clutter power over the target's (instead of clutter_db)")
 
@@ -113,8 +117,14 @@ class Scene(BaseModel):
                 raise ValueError("clutter_to_signal_db needs a target: use clutter_db for an empty scene")
         blades = (self.profile.rotors * self.profile.blades_per_rotor) if self.profile is not None else 0
         if self.kind != "uav" and (self.rotor_rate_hz is not None or self.blade_weights is not None
-                                   or self.tagged_blades):
-            raise ValueError("rotor_rate_hz, blade_weights and tagged_blades describe a UAV's rotors")
+                                   or self.tagged_blades or self.tag_pattern is not None):
+            raise ValueError("rotor_rate_hz, blade_weights, tagged_blades and tag_pattern describe a UAV's rotors")
+        if self.tag_pattern is not None:
+            if self.tagged_blades or self.blade_weights is not None:
+                raise ValueError("give one of tag_pattern, tagged_blades and blade_weights")
+            if len(self.tag_pattern) != blades or "1" not in self.tag_pattern:
+                raise ValueError(f"tag_pattern must be {blades} digits (the airframe's blades, rotor by rotor) "
+                                 "with at least one 1")
         if self.blade_weights is not None:
             p = self.profile
             assert p is not None

@@ -235,17 +235,21 @@ def _uav_amplitudes(scene: Scene, t: np.ndarray, wavelength: float,
 def blade_weights(scene: Scene, rng: np.random.Generator) -> np.ndarray | None:
     """Field amplitude of every blade (rotors, blades) of a UAV scene, None when all are alike.
 
-    `scene.blade_weights` as given; else `tagged_blades` blades get amplitude 10**(tag_gain_db/20)
-    and the rest 1. Layout `random` picks the tagged blades uniformly (drawing from `rng` only when
-    there are tags); `spread` tags blade 0 of rotors 0, 1, ... in turn, then blade 1, so that up to
-    one tag per rotor every rotor carries one."""
+    `scene.blade_weights` as given; else the blades `tag_pattern` names (rotor by rotor, drawing
+    nothing) or `tagged_blades` blades get amplitude 10**(tag_gain_db/20) and the rest 1. Layout
+    `random` picks the tagged blades uniformly (drawing from `rng` only when there are tags);
+    `spread` tags blade 0 of rotors 0, 1, ... in turn, then blade 1, so that up to one tag per
+    rotor every rotor carries one."""
     p = scene.profile
     assert p is not None
     if scene.blade_weights is not None:
         return np.asarray(scene.blade_weights, dtype=np.float64)
+    total = p.rotors * p.blades_per_rotor
+    if scene.tag_pattern is not None:  # the blades named, drawing nothing
+        w = np.where(np.array([c == "1" for c in scene.tag_pattern]), 10 ** (scene.tag_gain_db / 20), 1.0)
+        return w.reshape(p.rotors, p.blades_per_rotor)
     if not scene.tagged_blades:
         return None
-    total = p.rotors * p.blades_per_rotor
     if scene.tag_layout == "random":
         chosen = rng.choice(total, size=scene.tagged_blades, replace=False)
     else:  # blade-major order: (rotor 0, blade 0), (rotor 1, blade 0), ...

@@ -218,16 +218,18 @@ def _tags(scene: Scene, n_st: int, rng: np.random.Generator) -> tuple[np.ndarray
     A tag here is a strip of reflective tape: it covers 2-4 adjacent stations at 45-90 % of the
     span (the tip point untouched), and raises those stations so that the blade's summed station
     power grows by the scene's `tag_gain_db`. The tagged blades are drawn from the held-out
-    model's own stream. Blade weights scale a whole blade."""
+    model's own stream (or named by `tag_pattern`). Blade weights scale a whole blade."""
     p = scene.profile
     assert p is not None
     r, b = p.rotors, p.blades_per_rotor
     if scene.blade_weights is not None:
         w = np.asarray(scene.blade_weights, dtype=np.float64)
         return np.broadcast_to(w[:, :, None], (r, b, n_st + 1)).copy(), 20 * np.log10(np.maximum(w, 1e-6))
-    if not scene.tagged_blades:
+    if scene.tag_pattern is not None:  # the blades named, rotor by rotor
+        flat = [k for k, c in enumerate(scene.tag_pattern) if c == "1"]
+    elif not scene.tagged_blades:
         return None, np.zeros((r, b))
-    if scene.tag_layout == "spread":  # one per rotor first (rotor order shuffled), then a second
+    elif scene.tag_layout == "spread":  # one per rotor first (rotor order shuffled), then a second
         rotor_order = rng.permutation(r)
         flat = [int(rotor_order[k % r]) * b + (k // r) for k in range(scene.tagged_blades)]
     else:
@@ -291,7 +293,9 @@ def airframe_stream(scene: Scene) -> np.random.Generator:
     `lab.bench.track`) see one airframe, flown at one rate with one set of blades, as a real track
     does, while the dwell's own seed draws what changes from dwell to dwell (attitude, blade
     phases, noise); the same scene at another SNR is the same airframe."""
-    key = json.dumps(scene.model_dump(mode="json", exclude=NOT_AIRFRAME), sort_keys=True, separators=(",", ":"))
+    unset = {"tag_pattern"} if scene.tag_pattern is None else set()  # scenes without one keep their airframe
+    key = json.dumps(scene.model_dump(mode="json", exclude=NOT_AIRFRAME | unset), sort_keys=True,
+                     separators=(",", ":"))
     digest = hashlib.sha256(f"heldout-airframe/1:{key}".encode()).digest()
     return np.random.default_rng(int.from_bytes(digest[:16], "big"))
 
