@@ -97,10 +97,28 @@ def push_body(host: str, port: int, path: str, headers: dict[str, str], total: i
                 sent += n
                 pending = pending[n:]
     except (ConnectionResetError, BrokenPipeError):
-        pass  # the server closed on us: what it answered (if anything) is in `reply`
+        # the server answered and closed with our bytes unread (a reset): its reply may still sit
+        # in our receive queue, unread because the send failed first; the kernel hands it over
+        # before the reset's error
+        reply += _drain(sock)
+        if answered is None and b"\r\n" in reply:
+            answered = sent
     finally:
         sock.close()
     return Pushed(_status(reply), sent if answered is None else answered, time.monotonic() - t0, reply)
+
+
+def _drain(sock: socket.socket) -> bytes:
+    """What can still be read from a socket the peer has reset."""
+    got = b""
+    try:
+        while True:
+            data = sock.recv(65536)
+            if not data:
+                return got
+            got += data
+    except OSError:  # the reset's own error (or nothing queued: EAGAIN), after the queued bytes
+        return got
 
 
 def start_slow_body(host: str, port: int, path: str, headers: dict[str, str], first: bytes = b"--b\r\n",
