@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.flights import write_m300_flight
+
 from authn.audit import merkle
 from authn.audit import NewEntry, append, checkpoint, entry_bytes, verify
 from core.errors import SystemFault
@@ -251,19 +253,7 @@ def _latest_files() -> list[Path]:
 
 @pytest.fixture(scope="module")
 def genuine(tmp_path_factory) -> Path:
-    from datetime import datetime, timezone
-
-    from authn.scenario import Broadcast, simulate_flight
-    from signatures.profiles import shipped_profiles
-    from signatures.radar import get_preset
-    from signatures.recording import write_recording
-    from signatures.scene import Scene
-
-    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
-                  elevation_deg=10.0)
-    rec, _ = simulate_flight(scene, get_preset("paper"), 11, Broadcast(serial="1581BDEM00000002"),
-                             azimuth_deg=60.0, start_time=datetime.now(timezone.utc))
-    return write_recording(rec, tmp_path_factory.mktemp("tamper") / "genuine.h5")
+    return write_m300_flight(tmp_path_factory.mktemp("tamper"))
 
 
 def _checks(url: str, genuine: Path, n: int) -> None:

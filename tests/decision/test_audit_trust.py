@@ -17,6 +17,8 @@ from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import pytest
+
+from tests.flights import write_m300_flight
 from sqlalchemy import text
 
 from authn.audit import NewEntry, _iso_db, append, db_label, entry_bytes, list_entries, merkle
@@ -114,17 +116,7 @@ def _forget_every_head(url: str, *, key: bool) -> None:
 @pytest.fixture(scope="module")
 def genuine(tmp_path_factory) -> Path:
     """A recorded flight whose check is decided and audited (inconclusive: exit 4)."""
-    from authn.scenario import Broadcast, simulate_flight
-    from signatures.profiles import shipped_profiles
-    from signatures.radar import get_preset
-    from signatures.recording import write_recording
-    from signatures.scene import Scene
-
-    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
-                  elevation_deg=10.0)
-    rec, _ = simulate_flight(scene, get_preset("paper"), 11, Broadcast(serial="1581BDEM00000002"),
-                             azimuth_deg=60.0, start_time=datetime.now(timezone.utc))
-    return write_recording(rec, tmp_path_factory.mktemp("trust") / "genuine.h5")
+    return write_m300_flight(tmp_path_factory.mktemp("trust"))
 
 
 def test_no_new_key_over_a_log_with_entries(db_url: str, genuine: Path, capsys) -> None:

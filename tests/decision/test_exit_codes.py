@@ -8,29 +8,21 @@ import os
 import sqlite3
 import subprocess
 import sys
-from datetime import datetime, timezone
 from pathlib import Path
 
 import pytest
 
+from tests.flights import write_m300_flight
+
 from authn.cli import main
 from authn.demo import register_examples
-from authn.scenario import Broadcast, simulate_flight
-from signatures.profiles import shipped_profiles
-from signatures.radar import get_preset
-from signatures.recording import write_recording
-from signatures.scene import Scene
 
 M300 = "1581BDEM00000002"
 
 
 @pytest.fixture(scope="module")
 def genuine(tmp_path_factory) -> Path:
-    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
-                  elevation_deg=10.0)
-    rec, _ = simulate_flight(scene, get_preset("paper"), 11, Broadcast(serial=M300), azimuth_deg=60.0,
-                             start_time=datetime.now(timezone.utc))
-    return write_recording(rec, tmp_path_factory.mktemp("faults") / "genuine.h5")
+    return write_m300_flight(tmp_path_factory.mktemp("faults"))
 
 
 @pytest.fixture
