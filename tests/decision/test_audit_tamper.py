@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.audit_tools import drop_triggers
 from tests.flights import write_m300_flight
 
 from authn.audit import merkle
@@ -220,17 +221,6 @@ def test_cli_verify_uses_the_external_sth_file(db_url: str, capsys) -> None:
 
 # --- the writer: every append proves the log extends what was signed ------------------------
 
-def _drop_triggers(url: str) -> None:
-    engine = get_engine(url)
-    with engine.begin() as conn:
-        if engine.dialect.name == "sqlite":
-            for (name,) in conn.exec_driver_sql("SELECT name FROM sqlite_master WHERE type='trigger'").all():
-                conn.exec_driver_sql(f"DROP TRIGGER {name}")
-        else:
-            for table in ("audit_log", "audit_tree_heads", "audit_policies", "audit_log_meta"):
-                conn.exec_driver_sql(f"ALTER TABLE {table} DISABLE TRIGGER ALL")
-
-
 def _launder(conn, first: int) -> None:
     """Entries `first`.. turned from accept to reject (and back), reasons edited, chain and
     leaf hashes recomputed with the project's own functions."""
@@ -281,7 +271,7 @@ def test_laundering_after_the_last_periodic_head_is_refused(db_url: str, genuine
     monkeypatch.setenv("AUTHN_AUDIT_CHECKPOINT_EVERY", "4")
     register_examples(db_url)
     _checks(db_url, genuine, 10)  # periodic heads at 4 and 8
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         _launder(conn, 9)
         if heads_too:
@@ -428,7 +418,7 @@ def test_rewrite_resigned_with_the_readable_key_is_reported_by_the_witness(db_ur
     held = open_witness(witness).heads(origin)
     assert [h.tree_size for h in held] == [1, 5]  # the first append is periodic, then every 4
     assert main(["--db", db_url, "audit", "verify"]) == 0
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         _launder(conn, 2)
         conn.exec_driver_sql("DELETE FROM audit_tree_heads")

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.audit_tools import drop_triggers
 from tests.flights import write_m300_flight
 from sqlalchemy import text
 
@@ -51,17 +52,6 @@ def _next_append(url: str) -> None:
         append(db, [NewEntry("decision", "NEXT", "reject", {"reasons": ["r"]})])
     finally:
         db.close()
-
-
-def _drop_triggers(url: str) -> None:
-    engine = get_engine(url)
-    with engine.begin() as conn:
-        if engine.dialect.name == "sqlite":
-            for (name,) in conn.exec_driver_sql("SELECT name FROM sqlite_master WHERE type='trigger'").all():
-                conn.exec_driver_sql(f"DROP TRIGGER {name}")
-        else:
-            for table in ("audit_log", "audit_tree_heads", "audit_policies", "audit_log_meta"):
-                conn.exec_driver_sql(f"ALTER TABLE {table} DISABLE TRIGGER ALL")
 
 
 def _files(url: str) -> tuple[Path, Path, Path]:
@@ -105,7 +95,7 @@ def _content(conn) -> dict[int, dict]:
 # --- item 3: no new key, no signature over entries no trusted head vouches for -------------------
 
 def _forget_every_head(url: str, *, key: bool) -> None:
-    _drop_triggers(url)
+    drop_triggers(url)
     with get_engine(url).begin() as conn:
         conn.exec_driver_sql("DELETE FROM audit_tree_heads")
     key_file, sth_log, latest = _files(url)
@@ -179,7 +169,7 @@ def test_recover_signs_the_log_as_it_stands(db_url: str, capsys, key: bool) -> N
 def test_recover_refuses_a_log_a_signed_head_contradicts(db_url: str, capsys) -> None:
     """Recover signs what nothing vouches for; it does not overrule a head that still exists."""
     _fill(db_url)
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         rows = _content(conn)
         rows[3]["decision"] = "accept" if rows[3]["decision"] == "reject" else "reject"
@@ -216,7 +206,7 @@ def test_an_old_form_edge_does_not_hide_an_edit_of_the_anchor_entry(db_url: str)
     its size, computed from the stored leaves), then the entry at its size edited: the writer
     took that entry as stored and appended."""
     _fill(db_url)
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         head_id, b = _edges(conn)[-1]
         edge = json.dumps([h.hex() for h in _frontier(conn, b).hashes])
@@ -230,7 +220,7 @@ def test_an_edge_put_on_a_newer_head_does_not_move_the_anchor(db_url: str) -> No
     """A right edge written onto the newest (not periodic) head moved the anchor past an edit
     between the periodic head and it: the writer no longer re-hashed that entry."""
     _fill(db_url, 12)  # periodic heads at 1, 5 and 9
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         (_, periodic), = _edges(conn)[-1:]
         newest_id, size = conn.exec_driver_sql(
@@ -250,7 +240,7 @@ def test_a_time_rewritten_in_another_offset_fails(db_url: str, capsys) -> None:
     UTC-23:59: SQLite keeps the text, which is not the writer's form (verify names entry 6; the
     next append refuses); PostgreSQL's timestamptz stores the instant, so nothing changes there."""
     _fill(db_url, 7)
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     pg = get_engine(db_url).dialect.name == "postgresql"
     offset = timezone(-timedelta(hours=15 if pg else 23, minutes=59))  # PostgreSQL's widest offset is 15:59
     with get_engine(db_url).begin() as conn:
@@ -298,7 +288,7 @@ def test_a_garbage_sth_log_does_not_verify(db_url: str, capsys, tmp_path: Path) 
 def test_verify_names_the_first_rewritten_entry(db_url: str, capsys) -> None:
     """Entries 3..8 rewritten with their chain recomputed (entry 9 left to break): entry 3."""
     _fill(db_url)
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         rows = _content(conn)
         for seq in range(3, 9):
@@ -310,7 +300,7 @@ def test_verify_names_the_first_rewritten_entry(db_url: str, capsys) -> None:
 
 def test_verify_names_the_first_of_two_swapped_entries(db_url: str, capsys) -> None:
     _fill(db_url)
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         rows = _content(conn)
         rows[3], rows[4] = rows[4], rows[3]
@@ -322,7 +312,7 @@ def test_verify_names_the_first_of_two_swapped_entries(db_url: str, capsys) -> N
 
 def test_a_null_leaf_hash_fails_verify(db_url: str, capsys) -> None:
     _fill(db_url)
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     with get_engine(db_url).begin() as conn:
         conn.exec_driver_sql("UPDATE audit_log SET leaf_hash = NULL WHERE seq = 4")
     code, out = _verify(db_url, capsys)
@@ -336,7 +326,7 @@ def test_a_row_of_the_wrong_type_fails_verify_at_its_entry(db_url: str, capsys, 
     """A BLOB serial or an integer created_at (SQLite stores what it is given; on PostgreSQL the
     column's type is altered, so every row changes and entry 1 is the first)."""
     _fill(db_url, 6)
-    _drop_triggers(db_url)
+    drop_triggers(db_url)
     engine = get_engine(db_url)
     with engine.begin() as conn:
         if engine.dialect.name == "sqlite":
