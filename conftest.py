@@ -52,5 +52,18 @@ def _pin_user_dirs() -> Path:
 PINNED_ROOT = _pin_user_dirs()
 
 
+def _hypothesis_profiles() -> None:
+    """`HYPOTHESIS_PROFILE=ci` (set by .ci/run) draws every property test's examples from a seed
+    fixed per test, so CI judges the same examples on every run; elsewhere they are random, and a
+    failure found prints the example to pin with `@example`."""
+    from hypothesis import settings
+
+    settings.register_profile("ci", derandomize=True, print_blob=True)
+    settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+_hypothesis_profiles()
+
+
 def pytest_unconfigure(config) -> None:
     shutil.rmtree(PINNED_ROOT, ignore_errors=True)

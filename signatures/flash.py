@@ -66,6 +66,10 @@ SPECTRAL_HARMONICS = 4
 #: A whitened envelope line this many times its floor is a line (`spectral_flash_rate`): a flash
 #: train's fundamental, its first and third harmonics at half a candidate, a tagged blade's turn.
 SPECTRAL_TAG_LINE = 10.0
+#: A candidate's harmonic counts in its sum up to this many times its own line: a train's
+#: fundamental is about its strongest line, and the whitening lifts high harmonics (their floor is
+#: the noise, far under the skirt of the low ones), so uncapped, 2.5 F summed F's high harmonics.
+HARMONIC_CAP = 10.0
 #: The best candidate was a flash train's m-th harmonic where these multiples of best / m show
 #: lines (`spectral_flash_rate`): its third (a tagged rotor's turn train: lines at f and 2 f under
 #: 3 f), then its second (lines at the first and third harmonics of the half).
@@ -953,13 +957,13 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     cand = np.arange(lo, hi + 1)
     harm = np.zeros((b_rows, cand.size))
     width = power.shape[1]
+    own = np.max(np.stack([power[:, np.clip(cand + d, 0, width - 1)] for d in (-1, 0, 1)]), axis=0)
     for k in range(1, SPECTRAL_HARMONICS + 1):  # harmonic k of a candidate lies within k / 2 bins of k c
         reach = k // 2
         idx = cand * k
         ok = idx + reach < width
         near = np.max(np.stack([power[:, idx[ok] + d] for d in range(-reach, reach + 1)]), axis=0)
-        harm[:, ok] += near
-    own = np.max(np.stack([power[:, np.clip(cand + d, 0, width - 1)] for d in (-1, 0, 1)]), axis=0)
+        harm[:, ok] += np.minimum(near, HARMONIC_CAP * own[:, ok])
     fundamental = np.where(own > SPECTRAL_TAG_LINE, harm, 0.0)  # candidates with a line of their own
     best = np.argmax(np.where(fundamental.max(axis=1, keepdims=True) > 0.0, fundamental, harm), axis=1)
     rows = np.arange(b_rows)
@@ -968,17 +972,20 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
             base = cand[best] / order
             # a train's fundamental is about its strongest line (a single-peaked flash's harmonics
             # fall off): lines under the best but far weaker than it are the sampling's, not a train's
-            own = _line(power, cand[best].astype(float))
+            # (compared in power, not whitened: the whitening floor under a strong line is raised by
+            # its own skirt, so a line 500x weaker than it whitened to a tenth of it)
+            own = _line(sum_power, cand[best].astype(float))
             shown = ((np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
-                      & (_line(power, base) * SPECTRAL_TAG_LINE >= own))
-                     | ((_line(power, base) > np.maximum(own, SPECTRAL_TAG_LINE))  # a fundamental over its harmonic
+                      & (_line(sum_power, base) * SPECTRAL_TAG_LINE >= own))
+                     | ((_line(sum_power, base) > own) & (_line(power, base) > SPECTRAL_TAG_LINE)  # over its harmonic
                         & (_line(asym, base) <= SPECTRAL_TAG_LINE)))  # ... unless a tagged rotor's turn
             best = np.where(shown & (base >= lo), np.clip(np.rint(base).astype(int) - lo, 0, cand.size - 1), best)
     for order in (2, 3):  # the converse: a best whose own harmonics off the order-th are the sampling's
         up = cand[best] * order
-        off = np.max([_line(power, k * cand[best].astype(float)) for k in range(1, SPECTRAL_HARMONICS + 1)
-                      if k % order], axis=0)
-        shown = ((_line(power, up.astype(float)) > SPECTRAL_TAG_LINE * np.maximum(off, 1.0))
+        off = np.max([_line(sum_power, k * cand[best].astype(float)) for k in range(1, SPECTRAL_HARMONICS + 1)
+                      if k % order], axis=0)  # in power, as above
+        shown = ((_line(sum_power, up.astype(float)) > SPECTRAL_TAG_LINE * off)
+                 & (_line(power, up.astype(float)) > SPECTRAL_TAG_LINE)
                  & (_line(asym, cand[best].astype(float)) <= SPECTRAL_TAG_LINE))
         best = np.where(shown & (up <= hi), np.clip(up - lo, 0, cand.size - 1), best)
     inner = (best > 0) & (best < cand.size - 1)

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from signatures import flash, rotor_lines
@@ -71,6 +71,15 @@ SPREAD = (0.0, 0.004, -0.003, 0.006)
 
 
 @settings(max_examples=12, deadline=None)
+# rotors a quarter flash period apart, tagged rotor first: read at half the rate while lines were
+# compared whitened (a line 500x under the fundamental whitened to a tenth of it)
+@example(pattern="11000000", rotor_hz=120.0, start=0.0, gaps=(0.25, 0.25, 0.25), order=[0, 1, 2, 3],
+         log10_scale=0.0, rotate=0)
+# read at 2.5x, its high harmonics' whitened lines summed over the train's own before they were capped
+@example(pattern="11000000", rotor_hz=85.75155867185066, start=1.0, gaps=(0.3, 0.23747767622840862, 0.3),
+         order=[3, 1, 2, 0], log10_scale=0.0, rotate=0)
+@example(pattern="10101010", rotor_hz=85.42735407336197, start=1.0, gaps=(0.25, 0.25, 0.3), order=[0, 1, 2, 3],
+         log10_scale=0.0, rotate=0)
 @given(pattern=st.sampled_from(PATTERNS[:3]), rotor_hz=st.floats(60.0, 180.0),
        start=st.floats(0.0, 1.0), gaps=st.tuples(*[st.floats(0.1, 0.3)] * 3), order=st.permutations(range(4)),
        log10_scale=st.floats(-6.0, 6.0), rotate=st.integers(0, 3))
