@@ -105,21 +105,21 @@ def write(key: UaKey, path: Path) -> tuple[Path, Path]:
 def load(path: Path, raa: int = DEFAULT_RAA, hda: int = DEFAULT_HDA) -> UaKey:
     """A private key written by `write` (PKCS#8 PEM, unencrypted)."""
     from cryptography.hazmat.primitives import serialization
-    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+    from core.pem import PemError, private_key, raw_public
 
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
         raise BadInput(f"{path}: cannot read the signing key ({exc.strerror})") from None
     try:
-        private = serialization.load_pem_private_key(data, password=None)
-    except (ValueError, TypeError):
-        raise BadInput(f"{path}: not an unencrypted PEM private key") from None
-    if not isinstance(private, Ed25519PrivateKey):
-        raise BadInput(f"{path}: not an Ed25519 key")
+        private = private_key(data)
+    except PemError as exc:
+        raise BadInput(f"{path}: not an unencrypted PEM private key" if exc.kind == "pem" else
+                       f"{path}: not an Ed25519 key") from None
     raw = private.private_bytes(serialization.Encoding.Raw, serialization.PrivateFormat.Raw,
                                 serialization.NoEncryption())
-    public = private.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
+    public = raw_public(private.public_key())
     return UaKey(raw, public, _det(public, raa, hda))
 
 

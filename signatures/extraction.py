@@ -49,6 +49,7 @@ from signatures import fft as _fft
 from signatures import rd
 from signatures import timefreq as tf
 from signatures.errors import SignaturesError
+from signatures.cube_scale import SAFE_EXPONENT, RowError, prepared
 from signatures.flash import median_last
 from signatures.radar import RadarConfig
 from signatures.recording import DOMAINS
@@ -70,11 +71,6 @@ _BUDGET_CAP = 1 << 30
 _CHUNK_BYTES = 4 << 20
 #: complex64 spectra of this many bytes are detected and gated together (`_cube_stage`)
 _SPECTRA_BYTES = 32 << 20
-#: cubes whose peak lies within 2**+-this of 1 are scaled on the window (`_range_spectra`)
-_SAFE_EXPONENT = 20
-#: chirps that differ by at most this much of the cube's peak are the same chirp (64 float32 ulps):
-#: a cube of one repeated chirp carries no slow-time signal, only the rounding of its transforms
-STILL_TOLERANCE = 64 * float(np.finfo(np.float32).eps)
 #: a batch job's FFT backend: scipy's single-precision transforms (~2-4x numpy's complex128
 #: on these cubes; its 0.2-0.4 s import is paid once per batch job)
 DEFAULT_FFT_BACKEND = "scipy"
@@ -298,16 +294,8 @@ def _extract(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list
         with one_blas_thread() if iq.shape[0] > 1 else contextlib.nullcontext():
             return _extract_rows(iq, configs, expected, gate_bins, suppress, domain, labels, fft_backend,
                                  device, quick)
-    except _RowError as exc:
+    except RowError as exc:
         raise SignaturesError(f"row {exc.row}: {exc.message}" if labelled else exc.message) from None
-
-
-class _RowError(Exception):
-    """Bad input in one row: `_extract` words it for a batch or for a single return."""
-
-    def __init__(self, row: int, message: str) -> None:
-        super().__init__(message)
-        self.row, self.message = row, message
 
 
 def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list[float | None],
@@ -345,10 +333,10 @@ def _within(config: RadarConfig, expected: float | None, gate_bins: int, n_bins:
     if expected is None:
         return None
     if domain == "cw":
-        raise _RowError(label, "a CW recording measures no range: an expected range cannot gate it")
+        raise RowError(label, "a CW recording measures no range: an expected range cannot gate it")
     lo, hi = config.range_window_m
     if not (math.isfinite(expected) and lo <= expected < hi):
-        raise _RowError(label, f"expected range {expected:g} m is outside the recorded window [{lo:g}, {hi:g}) m")
+        raise RowError(label, f"expected range {expected:g} m is outside the recorded window [{lo:g}, {hi:g}) m")
     k = int((expected - lo) / config.range_bin_m(n_bins))
     return max(0, k - gate_bins // 2), min(n_bins, k + gate_bins // 2 + 1)
 
@@ -439,50 +427,6 @@ def _range_spectra(a: np.ndarray, suppress: bool, domain: str, labels: list[int]
         mu = _spectra64(x, scale, suppress, domain, out)
         profile = _range_profile(out)
     return mu, exponent, zero, profile
-
-
-def prepared(a: np.ndarray, labels: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """`rd.prepare` of every row, but for the scale: (x complex64, scale (B, 1, 1) float64 that is
-    still to apply, log2 scale, no-signal flag (`_still`)); a NaN or Inf raises naming its row.
-
-    The exact power-of-two scale s commutes with every rounding while nothing under- or
-    overflows, so for cubes within 2**+-_SAFE_EXPONENT of unit scale it rides on the window,
-    (x - m) * (w * s), saving a pass over the cube; other cubes are scaled here (scale 1).
-    """
-    if a.dtype in (np.complex64, np.float32, np.float16) or np.issubdtype(a.dtype, np.integer):
-        work = np.ascontiguousarray(a, dtype=np.complex64)
-    else:
-        work = np.ascontiguousarray(a, dtype=np.complex128)
-    flat = work.view(work.real.dtype).reshape(work.shape[0], -1)
-    peak = np.maximum(flat.max(axis=1), -flat.min(axis=1)).astype(np.float64)  # NaN/Inf propagate
-    bad = ~np.isfinite(peak)
-    if bad.any():
-        raise _RowError(labels[int(np.argmax(bad))], "IQ cube holds NaN or Inf")
-    zero = peak == 0.0
-    exponent = np.where(zero, 0, np.frexp(np.where(zero, 1.0, peak))[1])
-    scale = np.ldexp(1.0, -exponent)[:, None, None]
-    zero = zero | _still(work, peak)
-    if np.all(np.abs(exponent) <= _SAFE_EXPONENT):
-        return work.astype(np.complex64, copy=False), scale, exponent, zero
-    # as rd.prepare: exact in complex64 where it can, else via complex128
-    small = work.dtype == np.complex64 and bool(np.all((exponent >= -127) & (exponent <= 126)))
-    x = work * scale.astype(np.float32) if small else (work.astype(np.complex128) * scale).astype(np.complex64)
-    return x, np.ones_like(scale), exponent, zero
-
-
-def _still(work: np.ndarray, peak: np.ndarray) -> np.ndarray:
-    """Rows (B, chirps, samples) whose every chirp equals the first to within `STILL_TOLERANCE` of
-    the row's peak. Such a cube (a constant one, say) has no slow-time signal: what its
-    clutter-suppressed spectra hold is rounding, whose pattern depends on the memory layout of
-    the batch, so its counts would too. They are treated as all-zero cubes."""
-    still = np.zeros(work.shape[0], bool)
-    if work.shape[1] < 2:
-        return still
-    tol = STILL_TOLERANCE * peak
-    screen = np.abs(work[:, -1] - work[:, 0]).max(axis=1) <= tol  # the last chirp against the first
-    for b in np.flatnonzero(screen & (peak > 0.0)).tolist():
-        still[b] = bool(np.abs(work[b] - work[b, :1]).max() <= tol[b])
-    return still
 
 
 def _spectra64(x: np.ndarray, scale: np.ndarray, suppress: bool, domain: str, out: np.ndarray) -> np.ndarray:
@@ -677,7 +621,7 @@ def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarr
     for j, b in enumerate(rows.tolist()):
         row = np.asarray(iq[b])
         exponent = int(log2_scale[j])
-        if row.dtype == np.complex64 and abs(exponent) <= _SAFE_EXPONENT:
+        if row.dtype == np.complex64 and abs(exponent) <= SAFE_EXPONENT:
             if stack:
                 shared.setdefault((int(peak_bin[j]), exponent), []).append(j)
                 continue
@@ -1201,7 +1145,7 @@ def detections(recording, clutter_suppression: bool = True,
     try:
         _, _, zero, profile = _range_spectra(a[None], clutter_suppression, recording.domain, [0],
                                              np.empty(a.shape, np.complex64)[None], "numpy")
-    except _RowError as exc:
+    except RowError as exc:
         raise SignaturesError(exc.message) from None
     if zero[0]:
         return []

@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from signatures import extraction as bf
 from signatures import rd
+from signatures.cube_scale import prepared
 from signatures.errors import SignaturesError
 
 __all__ = ["columns", "range_spectra", "resolve"]
@@ -49,7 +49,7 @@ def range_spectra(iq: np.ndarray, suppress: bool, domain: str, labels: list[int]
     """The range spectra (`extraction._range_spectra`) of every row of `iq` (B, chirps, samples) on `device`:
     (complex64 spectra (B, chirps, bins) on the device, mu (B, bins) complex64, log2 scale,
     all-zero flag, range profile (B, bins) float32). A NaN or Inf raises naming its row."""
-    x, scale, exponent, zero = bf.prepared(iq, labels)  # one host pass: checks and exponents
+    x, scale, exponent, zero = prepared(iq, labels)  # one host pass: checks and exponents
     n_chirps, n_bins = x.shape[1:]
     if not x.flags.writeable:  # torch wants writable memory; the input itself is never written
         x = x.copy()

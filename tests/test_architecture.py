@@ -118,3 +118,17 @@ def test_cli_modules_do_not_import_the_cli_package() -> None:
     graph = _graph()
     back = sorted(m for m in graph if m.startswith("authn.cli.") and "authn.cli" in graph[m])
     assert not back, back
+
+
+def _product_sources() -> dict[str, str]:
+    """Module name -> source, for the product (everything below the laboratory)."""
+    return {m: p.read_text() for m, p in _modules().items() if not (m == "lab" or m.startswith("lab."))}
+
+
+def test_one_pem_parser() -> None:
+    """Ed25519 PEM keys are parsed by `cryptography` in core/pem.py only: no other module calls
+    its PEM loaders or takes a SubjectPublicKeyInfo apart by hand."""
+    marks = ("load_pem_", "302a300506032b6570032100", "b64decode(b\"\".join")
+    others = sorted(f"{m}: {mark}" for m, text in _product_sources().items() if m != "core.pem"
+                    for mark in marks if mark in text)
+    assert not others, others

@@ -98,8 +98,7 @@ class LogKey:
     def load(cls, path: str | Path | None = None, *, create: bool = False) -> "LogKey":
         """The key at `path` (see key_path); generated there when absent only with `create`
         (the audit writer's decision: never for a log that already has signed heads)."""
-        from cryptography.hazmat.primitives import serialization
-        from cryptography.hazmat.primitives.asymmetric import ed25519
+        from core.pem import PemError, private_key
 
         p = key_path(path)
         if not p.exists():
@@ -111,12 +110,10 @@ class LogKey:
         except OSError as exc:
             raise SystemFault(f"audit log key {p}: cannot read ({exc.strerror})") from None
         try:
-            private = serialization.load_pem_private_key(data, password=None)
-        except (ValueError, TypeError) as exc:
-            raise SystemFault(f"audit log key {p}: not an unencrypted PEM private key ({exc})") from None
-        if not isinstance(private, ed25519.Ed25519PrivateKey):
-            raise SystemFault(f"audit log key {p}: not an Ed25519 key")
-        return cls(private, p)
+            return cls(private_key(data), p)
+        except PemError as exc:
+            what = "not an unencrypted PEM private key" if exc.kind == "pem" else "not an Ed25519 key"
+            raise SystemFault(f"audit log key {p}: {what}") from None
 
     def public_pem(self) -> str:
         from cryptography.hazmat.primitives import serialization
@@ -145,7 +142,7 @@ def retired_keys_path(key: Path) -> Path:
 
 def load_retired_keys(key: Path) -> list[Any]:
     """The retired public keys beside the key file (none: an empty list)."""
-    from cryptography.hazmat.primitives import serialization
+    from core.pem import PemError, public_key
 
     path = retired_keys_path(key)
     try:
@@ -157,8 +154,8 @@ def load_retired_keys(key: Path) -> list[Any]:
     out = []
     for block in text.split(b"-----END PUBLIC KEY-----")[:-1]:
         try:
-            out.append(serialization.load_pem_public_key(block + b"-----END PUBLIC KEY-----\n"))
-        except ValueError:
+            out.append(public_key(block + b"-----END PUBLIC KEY-----\n"))
+        except PemError:
             raise SystemFault(f"{path}: not a list of PEM public keys") from None
     return out
 
@@ -193,8 +190,7 @@ def create_key_file(p: Path) -> None:
 
 def load_public_key(path: str | Path) -> Any:
     """An Ed25519 public key from a PEM file (public key, or the private key itself)."""
-    from cryptography.hazmat.primitives import serialization
-    from cryptography.hazmat.primitives.asymmetric import ed25519
+    from core.pem import PemError, public_key
 
     p = Path(path)
     try:
@@ -202,15 +198,10 @@ def load_public_key(path: str | Path) -> Any:
     except OSError as exc:
         raise AuthnError(f"{p}: cannot read public key ({exc.strerror})") from None
     try:
-        key: Any = serialization.load_pem_public_key(data)
-    except (ValueError, TypeError):
-        try:
-            key = serialization.load_pem_private_key(data, password=None).public_key()
-        except (ValueError, TypeError):
-            raise AuthnError(f"{p}: not a PEM Ed25519 public key") from None
-    if not isinstance(key, ed25519.Ed25519PublicKey):
-        raise AuthnError(f"{p}: not an Ed25519 key")
-    return key
+        return public_key(data, private_ok=True)
+    except PemError as exc:
+        raise AuthnError(f"{p}: not a PEM Ed25519 public key" if exc.kind == "pem" else
+                         f"{p}: not an Ed25519 key") from None
 
 
 def public_raw(public_key: Any) -> bytes:

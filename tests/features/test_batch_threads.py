@@ -14,6 +14,7 @@ import pytest
 from signatures import extraction as bf
 from signatures import estimators as est
 from signatures import threads
+from signatures.cube_scale import SAFE_EXPONENT
 
 #: float32 ulps (of a row's largest magnitude) a product may move by between thread counts or
 #: stack heights: a 48-term complex sum accumulated in another order
@@ -72,6 +73,6 @@ def test_stacked_subchirp_bins_are_the_row_by_row_products_to_float32_rounding()
         for b in range(n_rows):
             tol = ULPS * EPS32 * np.abs(row_by_row[b]).max()
             assert np.abs(stacked[b] - row_by_row[b]).max() <= tol, b
-            if abs(log2_scale[b]) <= bf._SAFE_EXPONENT:
+            if abs(log2_scale[b]) <= SAFE_EXPONENT:
                 want = est.subchirp_bins(iq[b], int(peak[b]), window, 2.0 ** -int(log2_scale[b]))
                 assert np.abs(stacked[b] - want).max() <= tol, b
