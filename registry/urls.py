@@ -14,12 +14,10 @@ Two rules keep a typo from silently becoming an empty registry (every check `unr
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Callable
 from pathlib import Path
 
-ENV_URL = "AUTHN_DATABASE_URL"
 #: The database backends we ship drivers for and test (`+driver` suffixes allowed).
 SUPPORTED_BACKENDS = ("sqlite", "postgresql")
 #: Called with the URL of each SQLite database file this process creates; None: silent.
@@ -39,7 +37,9 @@ def resolve_url(url: str | None = None) -> str:
 
     Bare `postgresql://` URLs get the psycopg (3) driver, the one we ship.
     """
-    url = url or os.environ.get(ENV_URL) or default_url()
+    from core.settings import current
+
+    url = url or current().database_url or default_url()
     for prefix in ("postgresql://", "postgres://"):
         if url.startswith(prefix):
             return "postgresql+psycopg://" + url[len(prefix):]

@@ -282,7 +282,9 @@ def _names_of(featurizer: Featurizer) -> tuple[str, ...]:
 
 def cache_dir() -> Path:
     """Feature cache: `$AUTHN_CACHE_DIR` or the user cache directory."""
-    env = os.environ.get("AUTHN_CACHE_DIR")
+    from core.settings import current
+
+    env = current().cache_dir
     if env:
         return Path(env)
     import platformdirs

@@ -8,7 +8,7 @@ complex64 (1.0 ms) is not the transform: it is the kernel zero-filling fresh
 pages for every large temporary (glibc returns >128 KiB blocks to the OS). So
 the default backend is numpy, transforming in complex128 into per-thread
 workspaces that are reused between calls, and handing back complex64. Set
-`AUTHN_FFT=scipy` (read once, at import) in long batch jobs where scipy is
+`AUTHN_FFT=scipy` (`core.settings`, read at each call) in long batch jobs where scipy is
 imported anyway: it is ~2x faster on the 8192x64 `wide` cube. A caller that knows its
 workload picks per call (`fft(..., backend=...)`): a batch (`signatures.features.extract_many`)
 runs scipy's single-precision transforms whatever the process default, since a batch job does
@@ -17,11 +17,11 @@ not care about the import.
 
 from __future__ import annotations
 
-import os
 import threading
 
 import numpy as np
 
+from core.settings import current
 from signatures.errors import SignaturesError
 
 __all__ = ["BACKENDS", "SCIPY_WORKERS", "backend", "fft", "resolve", "rfft"]
@@ -32,22 +32,19 @@ BACKENDS = ("numpy", "scipy")
 #: check (the gate's 8192x5 Doppler FFT 0.17 against 0.10 ms), and a fleet runs one process per core.
 #: Values do not depend on it (the threads split the rows, not a transform).
 SCIPY_WORKERS = 1
-#: 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s import); anything else: numpy
-_BACKEND = os.environ.get("AUTHN_FFT", "numpy")
-if _BACKEND not in BACKENDS:
-    _BACKEND = "numpy"
 _local = threading.local()
 
 
 def backend() -> str:
-    """The backend this process uses (from `AUTHN_FFT`)."""
-    return _BACKEND
+    """The process default: 'numpy' (no import cost) or 'scipy' (faster on big cubes, 0.2-0.4 s
+    import), from `AUTHN_FFT`."""
+    return current().fft
 
 
 def resolve(backend: str | None) -> str:
     """`backend`, or the process default for None; an unknown name raises `SignaturesError`."""
     if backend is None:
-        return _BACKEND
+        return current().fft
     if backend not in BACKENDS:
         raise SignaturesError(f"unknown FFT backend {backend!r} (known: {', '.join(BACKENDS)})")
     return backend

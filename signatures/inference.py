@@ -453,7 +453,9 @@ def bundle_dir(preset: str) -> Path:
 
 def models_dir() -> Path:
     """Where user bundles live: `$AUTHN_MODELS_DIR`, else `models/` in the user data folder."""
-    env = os.environ.get("AUTHN_MODELS_DIR")
+    from core.settings import current
+
+    env = current().models_dir
     if env:
         return Path(env)
     import platformdirs

@@ -9,7 +9,6 @@ a signed log), and the hand-over rule for retired keys.
 
 from __future__ import annotations
 
-import os
 import secrets
 import sys
 from collections.abc import Sequence
@@ -19,17 +18,17 @@ from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
 from authn.audit.entries import GENESIS, db_label
-from authn.audit.logkey import CHECKPOINT_FORMAT, ENV_WITNESS, LogKey, SignedTreeHead, append_sth_log, check_origin, \
+from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append_sth_log, check_origin, \
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, scan_sth_log, sth_log_path, \
     write_latest_head
 from core.errors import AuthnError, SystemFault, one_line
 from core.parsing import loads_json
+from core.settings import current
 from registry.dbapi import Database
 
 if TYPE_CHECKING:
     from authn.audit.witness import HttpWitness, WitnessStore
 
-ENV_ORIGIN = "AUTHN_AUDIT_ORIGIN"
 _KEYS: dict[Path, tuple[tuple[int, int] | None, LogKey]] = {}
 
 
@@ -76,11 +75,12 @@ def log_origin(db: Database, *, create: bool = False) -> str | None:
         return str(rows[0][0])
     if not create:
         return None
-    origin = os.environ.get(ENV_ORIGIN) or f"authn.invalid/audit/{secrets.token_hex(8)}"
+    origin = current().audit_origin or f"authn.invalid/audit/{secrets.token_hex(8)}"
     try:
         check_origin(origin)
     except ValueError:
-        raise AuthnError(f"${ENV_ORIGIN}: not a checkpoint origin (no spaces, '+' or control characters)") from None
+        raise AuthnError("$AUTHN_AUDIT_ORIGIN: not a checkpoint origin "
+                         "(no spaces, '+' or control characters)") from None
     db.execute("INSERT INTO audit_log_meta (name, value) VALUES ('origin', :v)", {"v": origin})
     return origin
 
@@ -268,7 +268,7 @@ class HeadPlaces:
 
 def _witness(spec: str | None) -> WitnessStore | HttpWitness | None:
     """--witness, else $AUTHN_AUDIT_WITNESS (authn.audit.witness, loaded only when one is set)."""
-    if not (spec or os.environ.get(ENV_WITNESS)):
+    if not (spec or current().audit_witness):
         return None
     from authn.audit.witness import open_witness
 

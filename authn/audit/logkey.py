@@ -33,10 +33,8 @@ from typing import Any
 
 from core.errors import AuthnError, SystemFault
 from core.parsing import loads_json
+from core.settings import current
 
-ENV_KEY = "AUTHN_LOG_KEY"
-ENV_STH_LOG = "AUTHN_AUDIT_STH_LOG"
-ENV_WITNESS = "AUTHN_AUDIT_WITNESS"  # authn.audit.witness: a folder or an http(s) URL
 STH_FORMAT = "authn-sth/1"  # legacy heads: JSON, no origin
 CHECKPOINT_FORMAT = "authn-checkpoint/1"  # JSON carrying a C2SP checkpoint and its fields
 TIMESTAMP_EXTENSION = "authn-timestamp-ms"
@@ -55,13 +53,14 @@ def default_key_path() -> Path:
 
 def key_path(explicit: str | Path | None = None) -> Path:
     """--log-key, else $AUTHN_LOG_KEY, else the user data directory."""
-    return Path(explicit or os.environ.get(ENV_KEY) or default_key_path()).expanduser()
+    return Path(explicit or current().log_key or default_key_path()).expanduser()
 
 
 def sth_log_path(explicit: str | Path | None = None, key: str | Path | None = None) -> Path:
     """Where automatic STHs are appended (JSON lines): $AUTHN_AUDIT_STH_LOG, else beside the key."""
-    if explicit or os.environ.get(ENV_STH_LOG):
-        return Path(explicit or os.environ[ENV_STH_LOG]).expanduser()
+    explicit = explicit or current().audit_sth_log
+    if explicit:
+        return Path(explicit).expanduser()
     return key_path(key).parent / "audit-sth.jsonl"
 
 

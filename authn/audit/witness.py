@@ -34,7 +34,8 @@ from typing import Any
 
 import authn.audit.merkle as merkle
 from core.errors import AuthnError, SystemFault
-from authn.audit.logkey import ENV_WITNESS, SignedTreeHead, lines_from_end, parse_note
+from core.settings import current
+from authn.audit.logkey import SignedTreeHead, lines_from_end, parse_note
 
 TIMEOUT_S = 5.0
 
@@ -185,7 +186,7 @@ def parse_add_request(body: bytes) -> tuple[SignedTreeHead, int, list[bytes]]:
 
 def open_witness(spec: str | None) -> WitnessStore | HttpWitness | None:
     """--witness, else $AUTHN_AUDIT_WITNESS: a folder or an http(s) URL (None: no witness)."""
-    spec = spec or os.environ.get(ENV_WITNESS) or None
+    spec = spec or current().audit_witness
     if spec is None:
         return None
     if spec.startswith(("http://", "https://")):

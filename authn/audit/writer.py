@@ -25,7 +25,6 @@ Policies: `append(..., policy_text=...)` stores the Cedar text once per SHA-256 
 from __future__ import annotations
 
 import hashlib
-import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -41,38 +40,8 @@ from authn.audit.heads import HeadPlaces, KnownHead, _check_head, _head_of, _HEA
     log_origin, writer_key
 from authn.audit.logkey import LogKey, SignedTreeHead, canonical_json
 from core.errors import AuthnError, SystemFault
+from core.settings import current
 from registry.dbapi import Database
-
-ENV_EVERY = "AUTHN_AUDIT_CHECKPOINT_EVERY"
-
-ENV_SECONDS = "AUTHN_AUDIT_CHECKPOINT_SECONDS"
-
-ENV_CHECK = "AUTHN_AUDIT_APPEND_CHECK"
-
-DEFAULT_EVERY, DEFAULT_SECONDS = 64, 300.0
-
-
-
-def _env_number(name: str, default: float, kind: type) -> Any:
-    raw = os.environ.get(name)
-    if raw is None or raw == "":
-        return kind(default)
-    try:
-        value = kind(raw)
-    except ValueError:
-        raise AuthnError(f"${name}: not a number: {raw!r}") from None
-    if value <= 0:
-        raise AuthnError(f"${name}: must be positive, got {raw!r}")
-    return value
-
-
-
-def _append_check() -> str:
-    mode = os.environ.get(ENV_CHECK) or "window"
-    if mode not in ("window", "full"):
-        raise AuthnError(f"${ENV_CHECK}: 'window' or 'full', got {mode!r}")
-    return mode
-
 
 
 def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None = None,
@@ -103,9 +72,9 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
                 raise AuthnError(f"audit entry policy_sha256 {given} is not the SHA-256 of policy_text")
         prepared.append((e, payload, canonical_json(payload)))
     places = HeadPlaces.of(db, sth_log=sth_log, log_key=log_key, witness=witness)
-    every = _env_number(ENV_EVERY, DEFAULT_EVERY, int)
-    seconds = _env_number(ENV_SECONDS, DEFAULT_SECONDS, float)
-    mode = _append_check()
+    settings = current()
+    every, seconds = settings.audit_checkpoint_every, settings.audit_checkpoint_seconds
+    mode = settings.audit_append_check
     out: list[Entry] = []
     signed: _Signed | None = None
     with db.write():

@@ -60,8 +60,7 @@ def _global_options(
     db_url: str | None = typer.Option(
         None,
         "--db",
-        envvar="AUTHN_DATABASE_URL",
-        help="SQLAlchemy database URL (default: SQLite file in the user data directory).",
+        help="SQLAlchemy database URL (default: $AUTHN_DATABASE_URL, else a SQLite file in the user data directory).",
     ),
     _show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
                                        help="Print the version and exit."),

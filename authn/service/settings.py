@@ -3,15 +3,14 @@ worker processes uvicorn spawns, which import `authn.service.app:app_from_env`).
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from core.settings import current, name_of
+
 if TYPE_CHECKING:
     from authn.service.clients import ClientAddress
-
-ENV_PREFIX = "AUTHN_SERVE_"
 
 
 @dataclass(frozen=True)
@@ -50,35 +49,22 @@ class Settings:
         return ClientAddress(header, parse_networks(self.trusted_proxies))
 
     def to_env(self) -> dict[str, str]:
-        """The settings as environment variables for worker processes."""
-        env = {f"{ENV_PREFIX}MAX_UPLOAD_BYTES": str(self.max_upload_bytes),
-               f"{ENV_PREFIX}MAX_BATCH_FILES": str(self.max_batch_files),
-               f"{ENV_PREFIX}MAX_DRONES": str(self.max_drones),
-               f"{ENV_PREFIX}UPLOAD_TIMEOUT_S": str(self.upload_timeout_s),
-               f"{ENV_PREFIX}MAX_BODY_BYTES": str(self.max_body_bytes),
-               f"{ENV_PREFIX}BODY_TIMEOUT_S": str(self.body_timeout_s),
-               f"{ENV_PREFIX}TRUSTED_PROXIES": self.trusted_proxies}
-        if self.trusted_proxy_header:
-            env[f"{ENV_PREFIX}TRUSTED_PROXY_HEADER"] = self.trusted_proxy_header
-        if self.db_url:
-            env[f"{ENV_PREFIX}DB_URL"] = self.db_url
-        if self.policy_path:
-            env[f"{ENV_PREFIX}POLICY"] = self.policy_path
-        if self.figures_dir:
-            env[f"{ENV_PREFIX}FIGURES_DIR"] = self.figures_dir
-        return env
+        """The settings as environment variables for worker processes (`core.settings` names them)."""
+        values = {"serve_max_upload_bytes": self.max_upload_bytes, "serve_max_batch_files": self.max_batch_files,
+                  "serve_max_drones": self.max_drones, "serve_upload_timeout_s": self.upload_timeout_s,
+                  "serve_max_body_bytes": self.max_body_bytes, "serve_body_timeout_s": self.body_timeout_s,
+                  "serve_trusted_proxies": self.trusted_proxies,
+                  "serve_trusted_proxy_header": self.trusted_proxy_header,
+                  "serve_db_url": self.db_url, "serve_policy": self.policy_path, "serve_figures_dir": self.figures_dir}
+        return {name_of(field): str(value) for field, value in values.items() if value is not None}
 
     @classmethod
     def from_env(cls) -> "Settings":
-        env = os.environ
-        return cls(db_url=env.get(f"{ENV_PREFIX}DB_URL") or env.get("AUTHN_DATABASE_URL"),
-                   policy_path=env.get(f"{ENV_PREFIX}POLICY"),
-                   max_upload_bytes=int(env.get(f"{ENV_PREFIX}MAX_UPLOAD_BYTES", 64 * 2**20)),
-                   max_batch_files=int(env.get(f"{ENV_PREFIX}MAX_BATCH_FILES", 64)),
-                   max_drones=int(env.get(f"{ENV_PREFIX}MAX_DRONES", 64)),
-                   upload_timeout_s=float(env.get(f"{ENV_PREFIX}UPLOAD_TIMEOUT_S", 60.0)),
-                   max_body_bytes=int(env.get(f"{ENV_PREFIX}MAX_BODY_BYTES", 64 * 2**10)),
-                   body_timeout_s=float(env.get(f"{ENV_PREFIX}BODY_TIMEOUT_S", 10.0)),
-                   trusted_proxy_header=env.get(f"{ENV_PREFIX}TRUSTED_PROXY_HEADER") or None,
-                   trusted_proxies=env.get(f"{ENV_PREFIX}TRUSTED_PROXIES", ""),
-                   figures_dir=env.get(f"{ENV_PREFIX}FIGURES_DIR"))
+        """What `to_env` wrote (a worker process's settings), from `core.settings`."""
+        env = current()
+        return cls(db_url=env.serve_db_url or env.database_url, policy_path=env.serve_policy,
+                   max_upload_bytes=env.serve_max_upload_bytes, max_batch_files=env.serve_max_batch_files,
+                   max_drones=env.serve_max_drones, upload_timeout_s=env.serve_upload_timeout_s,
+                   max_body_bytes=env.serve_max_body_bytes, body_timeout_s=env.serve_body_timeout_s,
+                   trusted_proxy_header=env.serve_trusted_proxy_header,
+                   trusted_proxies=env.serve_trusted_proxies, figures_dir=env.serve_figures_dir)
