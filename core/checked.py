@@ -20,7 +20,7 @@ import math
 import operator
 import re
 from datetime import datetime
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Self
 
 __all__ = ["Checked", "Invalid", "choice", "data", "integer", "moment", "number", "text"]
 
@@ -226,7 +226,7 @@ def _rules(cls: type) -> tuple[tuple[str, Callable[[Any], Any]], ...]:
     found = cls.__dict__.get("_checked_rules")
     if found is None:
         found = tuple((f.name, f.metadata["check"]) for f in dataclasses.fields(cls) if "check" in f.metadata)
-        cls._checked_rules = found
+        setattr(cls, "_checked_rules", found)  # noqa: B010 - a class attribute the class does not declare
     return found
 
 
@@ -259,6 +259,8 @@ class Checked:
     fields and raises `Invalid('', why)` (or a ValueError, which becomes one)."""
 
     __slots__ = ()
+    if TYPE_CHECKING:  # what @dataclass gives every subclass: dataclasses.fields() and replace() take it
+        __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
 
     def __post_init__(self) -> None:
         for name, check in _rules(type(self)):
@@ -277,7 +279,7 @@ class Checked:
         """Rules across fields (none by default)."""
 
     @classmethod
-    def from_dict(cls, doc: Any) -> Any:
+    def from_dict(cls, doc: Any) -> Self:
         """An instance from an external document: a dict with the declared fields, no others.
         The first error is reported as pydantic orders them: fields in declaration order (a
         missing one or a refused value), then unknown keys, then the rules across fields."""
@@ -302,6 +304,6 @@ class Checked:
         return {f.name: _plain(getattr(self, f.name), json) for f in dataclasses.fields(self)
                 if f.name not in exclude}
 
-    def replace(self, **changes: Any) -> Any:
+    def replace(self, **changes: Any) -> Self:
         """A copy with `changes`, checked like a new instance."""
         return dataclasses.replace(self, **changes)

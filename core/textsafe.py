@@ -16,7 +16,10 @@ A leaf module: the standard library only (rich is imported by `cell`, when calle
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rich.text import Text
 
 __all__ = ["printable", "cell", "UNSAFE"]
 
@@ -34,7 +37,7 @@ def printable(value: Any) -> str:
     return text.translate(_TABLE)
 
 
-def cell(value: Any):
+def cell(value: Any) -> Text:
     """A rich table cell (or console line) holding `value` as plain text: escaped by
     `printable`, and never read as rich markup (`[red]` in a serial stays text)."""
     from rich.text import Text

@@ -1,5 +1,7 @@
 """ASTM F3411 (Open Drone ID) broadcast Remote ID: messages, codec, capture reader."""
 
+from typing import Any
+
 from remoteid.codec import (
     decode,
     decode_hex,
@@ -35,7 +37,7 @@ _DRIP = ("AuthResult", "DripError", "det_from_public_key", "det_to_text", "encod
          "encode_link", "encode_manifest", "encode_wrapper", "paginate", "parse_det", "verify")
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _DRIP:
         from remoteid import drip
 

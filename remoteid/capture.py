@@ -139,7 +139,8 @@ def _tsresol(options: bytes, endian: str) -> int:
     return 1_000_000
 
 
-def _pcapng_packet(btype, body, endian, ifaces, n) -> tuple[datetime | None, int, bytes]:
+def _pcapng_packet(btype: int, body: bytes, endian: str, ifaces: list[tuple[int, int]],
+                   n: int) -> tuple[datetime | None, int, bytes]:
     try:
         if btype == 3:  # simple packet block: interface 0, no timestamp
             orig = struct.unpack_from(endian + "I", body)[0]
@@ -261,6 +262,7 @@ def _ble_ll(pkt: bytes, coded: bool = False) -> Iterator[tuple[Transport, bytes,
     pdu_type, length = pkt[off] & 0xF, pkt[off + 1]
     payload = pkt[off + 2:off + 2 + length]
     sender = None
+    transport: Transport
     if pdu_type in (0, 2, 4, 6):  # ADV_IND, ADV_NONCONN_IND, SCAN_RSP, ADV_SCAN_IND
         adv, transport = payload[6:], "bt_legacy"
         sender = _mac(payload[5::-1]) if len(payload) >= 6 else None  # AdvA, little-endian on air
@@ -453,9 +455,10 @@ def broadcasters(captured: list[CapturedMessage], start: datetime, end: datetime
         t = (c.captured_at - start).total_seconds()
         singles = split_raw(c.raw) if c.raw else []
         if c.sender in ambiguous:  # each Basic ID names its own drone; nothing else can be attributed
-            for m, row in zip(c.message.messages if isinstance(c.message, MessagePack) else [c.message], singles):
-                if isinstance(m, BasicId) and m.uas_id and m.uas_id.strip():
-                    add(as_heard(m.uas_id), c.sender, [row], t)
+            for single, row in zip(c.message.messages if isinstance(c.message, MessagePack) else [c.message],
+                                   singles):
+                if isinstance(single, BasicId) and single.uas_id and single.uas_id.strip():
+                    add(as_heard(single.uas_id), c.sender, [row], t)
                 else:
                     unattributed += 1
             continue

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from datetime import datetime, timedelta, timezone
 from decimal import Decimal
+from typing import Any, TypeVar
 
 from core.checked import Invalid
 from remoteid.errors import RemoteIdError
@@ -31,6 +32,8 @@ from remoteid.messages import (
     MessagePack,
     OperatorId,
     SelfId,
+    Message,
+    SingleMessage,
     System,
     _Message,
 )
@@ -61,7 +64,10 @@ def _round_half_away(x: float) -> int:
     return math.floor(x + 0.5) if x >= 0 else -math.floor(-x + 0.5)
 
 
-def _build(cls: type[_Message], what: str, **fields: object) -> _Message:
+_M = TypeVar("_M", bound=_Message)
+
+
+def _build(cls: type[_M], what: str, **fields: Any) -> _M:
     try:
         return cls(**fields)
     except Invalid as exc:
@@ -197,8 +203,9 @@ def _decode_operator_id(b: bytes, ver: int) -> OperatorId:
                   operator_id=_text(b[2:22], "operator ID"))
 
 
-_DECODERS = {0x0: _decode_basic_id, 0x1: _decode_location, 0x2: _decode_auth,
-             0x3: _decode_self_id, 0x4: _decode_system, 0x5: _decode_operator_id}
+_DECODERS: dict[int, Callable[[bytes, int], SingleMessage]] = {
+    0x0: _decode_basic_id, 0x1: _decode_location, 0x2: _decode_auth, 0x3: _decode_self_id, 0x4: _decode_system,
+    0x5: _decode_operator_id}
 
 
 def _header(data: bytes) -> tuple[int, int]:
@@ -212,7 +219,7 @@ def _header(data: bytes) -> tuple[int, int]:
     return mtype, ver
 
 
-def _decode_single(data: bytes):
+def _decode_single(data: bytes) -> SingleMessage:
     mtype, ver = _header(data)
     if mtype == 0xF:
         raise RemoteIdError("a message pack cannot contain a message pack")
@@ -242,7 +249,7 @@ def _decode_pack(data: bytes, ver: int) -> MessagePack:
     return MessagePack(protocol_version=ver, messages=msgs)
 
 
-def decode(data: bytes | bytearray | memoryview):
+def decode(data: bytes | bytearray | memoryview) -> Message:
     """One message (25 bytes) or a message pack (3 + 25 n bytes) -> typed model.
 
     Raises RemoteIdError, and nothing else, for any input.
@@ -256,7 +263,7 @@ def decode(data: bytes | bytearray | memoryview):
     return _decode_single(data)
 
 
-def decode_hex(text: str):
+def decode_hex(text: str) -> Message:
     """`decode` of a hex string (spaces, colons and a 0x prefix allowed)."""
     clean = text.strip().lower().removeprefix("0x").replace(":", "").replace(" ", "")
     try:
@@ -318,16 +325,16 @@ def decode_rows_raw(rows: Iterable) -> list[tuple]:
     return out
 
 
-def flatten(messages: Iterable) -> list:
+def flatten(messages: Iterable[Message]) -> list[SingleMessage]:
     """Single messages, with message packs expanded in place."""
-    out = []
+    out: list[SingleMessage] = []
     for m in messages:
         out.extend(m.messages if isinstance(m, MessagePack) else [m])
     return out
 
 
 # ---------------------------------------------------------------- encode
-def _head(msg: _Message) -> int:
+def _head(msg: Message) -> int:
     return TYPE_CODES[msg.type] << 4 | msg.protocol_version
 
 

@@ -46,10 +46,23 @@ import ipaddress
 import struct
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from typing import NamedTuple
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, NamedTuple, cast
 
 from remoteid.errors import RemoteIdError
 from remoteid.messages import ODID_EPOCH
+
+if TYPE_CHECKING:
+    from _hashlib import HASHXOF
+
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+    from remoteid.messages import Message
+
+    #: a signing key: the object, or its 32 raw bytes
+    SigningKey = Ed25519PrivateKey | bytes | bytearray
+    #: a message to sign: the model, or its 25 wire bytes
+    Signable = Message | bytes | bytearray | memoryview
 
 PAGE_SIZE = 25
 PAGE0_DATA = 17
@@ -110,7 +123,7 @@ def cshake128(data: bytes, out_len: int, customization: bytes, name: bytes = b""
         z = _left_encode(168) + enc
         prefix = _CSHAKE_PREFIX[key] = z + bytes(-len(z) % 168)
     try:
-        h = hashlib.new("KECCAK-KMAC-128")
+        h = cast("HASHXOF", hashlib.new("KECCAK-KMAC-128"))  # variable length, as SHAKE
     except ValueError:
         raise DripError("cSHAKE128 needs OpenSSL >= 3 (digest KECCAK-KMAC-128)") from None
     h.update(prefix + data)
@@ -239,7 +252,7 @@ def paginate(auth_data: bytes, timestamp: datetime | int, *, auth_type: int = AU
     return pages
 
 
-def xor_pages(bodies) -> bytes:
+def xor_pages(bodies: Iterable[bytes]) -> bytes:
     """Byte-wise XOR of 23-byte page bodies (bytes 2..24 of each page): the FEC parity."""
     acc = 0
     for b in bodies:
@@ -364,7 +377,7 @@ def _check_window(name: str, vnb: int, vna: int) -> None:
 
 
 # ------------------------------------------------------------------ encode (signing)
-def _signer(private_key):
+def _signer(private_key: SigningKey) -> Ed25519PrivateKey:
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
     if isinstance(private_key, (bytes, bytearray)):
@@ -372,7 +385,7 @@ def _signer(private_key):
     return private_key
 
 
-def _raw(message) -> bytes:
+def _raw(message: Signable) -> bytes:
     if isinstance(message, (bytes, bytearray, memoryview)):
         raw = bytes(message)
     else:
@@ -384,7 +397,8 @@ def _raw(message) -> bytes:
     return raw
 
 
-def _encode_signed(sam: int, evidence: bytes, det: bytes, private_key, vnb, vna) -> bytes:
+def _encode_signed(sam: int, evidence: bytes, det: bytes, private_key: SigningKey, vnb: datetime | int,
+                   vna: datetime | int) -> bytes:
     det = parse_det(det)
     lo, hi = to_valid_time(vnb), to_valid_time(vna)
     _check_window(SAM_NAMES[sam], lo, hi)
@@ -394,7 +408,8 @@ def _encode_signed(sam: int, evidence: bytes, det: bytes, private_key, vnb, vna)
     return bytes([sam]) + signed + _signer(private_key).sign(signed)
 
 
-def encode_wrapper(messages, det: bytes, private_key, vnb: datetime | int, vna: datetime | int) -> bytes:
+def encode_wrapper(messages: Iterable[Signable], det: bytes, private_key: SigningKey, vnb: datetime | int,
+                   vna: datetime | int) -> bytes:
     """Auth data of a DRIP Wrapper over 0..4 F3411 messages (models or 25-byte bytes)."""
     raws = [_raw(m) for m in messages]
     if len(raws) > MAX_WRAPPED:
@@ -402,7 +417,8 @@ def encode_wrapper(messages, det: bytes, private_key, vnb: datetime | int, vna: 
     return _encode_signed(SAM_WRAPPER, b"".join(raws), det, private_key, vnb, vna)
 
 
-def encode_manifest(messages, det: bytes, private_key, vnb: datetime | int, vna: datetime | int, *,
+def encode_manifest(messages: Iterable[Signable], det: bytes, private_key: SigningKey, vnb: datetime | int,
+                    vna: datetime | int, *,
                     previous_hash: bytes = bytes(8), link_hash: bytes = bytes(8)) -> bytes:
     """Auth data of a DRIP Manifest over the hashes of 0..11 F3411 messages."""
     hashes = [message_hash(_raw(m)) for m in messages]
@@ -415,7 +431,7 @@ def encode_manifest(messages, det: bytes, private_key, vnb: datetime | int, vna:
     return _encode_signed(SAM_MANIFEST, bytes(previous_hash) + current + tail, det, private_key, vnb, vna)
 
 
-def encode_frame(frame_type: int, frame: bytes, det: bytes, private_key, vnb: datetime | int,
+def encode_frame(frame_type: int, frame: bytes, det: bytes, private_key: SigningKey, vnb: datetime | int,
                  vna: datetime | int) -> bytes:
     """Auth data of a DRIP Frame: a signed frame of `frame_type` (up to 111 bytes)."""
     if not 0 <= frame_type <= 255:
@@ -423,7 +439,7 @@ def encode_frame(frame_type: int, frame: bytes, det: bytes, private_key, vnb: da
     return _encode_signed(SAM_FRAME, bytes([frame_type]) + bytes(frame), det, private_key, vnb, vna)
 
 
-def encode_link(ua_det: bytes, ua_public_key: bytes, hda_det: bytes, hda_private_key,
+def encode_link(ua_det: bytes, ua_public_key: bytes, hda_det: bytes, hda_private_key: SigningKey,
                 vnb: datetime | int, vna: datetime | int) -> bytes:
     """Auth data of a DRIP Link: the HDA's endorsement of the UA's DET and Ed25519 key."""
     ua_det, hda_det = parse_det(ua_det), parse_det(hda_det)

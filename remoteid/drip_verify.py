@@ -11,6 +11,7 @@ import struct
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from typing import TYPE_CHECKING
 
 from remoteid.drip_formats import (
     AUTH_TYPE_SAM,
@@ -32,6 +33,13 @@ from remoteid.drip_formats import (
 )
 from remoteid.errors import RemoteIdError
 from remoteid.messages import ODID_EPOCH, AuthPage, AuthPage0, BasicId, Location
+
+if TYPE_CHECKING:
+    from remoteid.drip_formats import Signed
+    from remoteid.messages import Message
+
+    #: what `verify` takes per message: the decoded message, its 25 raw bytes, or both
+    Heard = Message | bytes | bytearray | memoryview | tuple[Message | None, bytes]
 
 STATUSES = ("valid", "invalid", "absent", "unknown-key", "expired", "not-yet-valid")
 
@@ -105,7 +113,7 @@ class _Open:
         return None
 
 
-def reassemble(messages: Iterable) -> list[AuthMessage]:
+def reassemble(messages: Iterable[Message | None]) -> list[AuthMessage]:
     """Authentication pages (AuthPage0 / AuthPage, other messages ignored) -> messages.
 
     A page 0 opens (or, repeated identically, re-opens) a message of its auth type; pages
@@ -148,9 +156,9 @@ def reassemble(messages: Iterable) -> list[AuthMessage]:
     seen: set[tuple] = set()
     for rec in order:
         msg = _close(rec)
-        key = (msg.auth_type, msg.timestamp, msg.data, msg.reason)
-        if key not in seen:  # a message rebuilt without its page 0 and also received whole
-            seen.add(key)
+        seen_key = (msg.auth_type, msg.timestamp, msg.data, msg.reason)
+        if seen_key not in seen:  # a message rebuilt without its page 0 and also received whole
+            seen.add(seen_key)
             out.append(msg)
     return out
 
@@ -208,7 +216,7 @@ def _close_headless(rec: _Open) -> AuthMessage:
 
 
 # ------------------------------------------------------------------ verification
-def _split(item) -> tuple[object, bytes | None]:
+def _split(item: Heard) -> tuple[Message | None, bytes | None]:
     """A decoded message, 25 raw bytes or a (message, raw) pair -> (message, raw)."""
     if isinstance(item, tuple) and len(item) == 2:
         return item[0], bytes(item[1])
@@ -223,7 +231,7 @@ def _split(item) -> tuple[object, bytes | None]:
     return item, None
 
 
-def _raw_of(msg, raw: bytes | None) -> bytes | None:
+def _raw_of(msg: Message | None, raw: bytes | None) -> bytes | None:
     if raw is not None:
         return raw
     if msg is None:
@@ -236,7 +244,7 @@ def _raw_of(msg, raw: bytes | None) -> bytes | None:
         return None
 
 
-def verify(messages: Iterable, key_for: Callable[[bytes], bytes | None], dwell_time: datetime, *,
+def verify(messages: Iterable[Heard], key_for: Callable[[bytes], bytes | None], dwell_time: datetime, *,
            trusted_registry_keys: Mapping[bytes, bytes] = {}, skew_s: float = 5.0) -> AuthResult:
     """DRIP authentication of one recording's flattened Remote ID messages.
 
@@ -256,7 +264,9 @@ def verify(messages: Iterable, key_for: Callable[[bytes], bytes | None], dwell_t
         return AuthResult("invalid", reason=str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
 
 
-def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
+def _verify(items: list[tuple[Message | None, bytes | None]], decoded: list[Message | None],
+            key_for: Callable[[bytes], bytes | None], dwell_time: datetime, trusted: Mapping[bytes, bytes],
+            skew_s: float) -> AuthResult:
     from cryptography.exceptions import InvalidSignature
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
@@ -272,7 +282,7 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
     now = dwell_time.timestamp()  # VNB / VNA are Unix times
     at = dwell_time.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
-    def outside(s) -> tuple[str, str] | None:
+    def outside(s: Signed | Link) -> tuple[str, str] | None:
         """(status, reason) of a verified signature outside its window, None inside it."""
         window = f"valid {valid_time_text(s.vnb)} to {valid_time_text(s.vna)}, checked at {at}"
         if now < s.vnb - skew_s:
@@ -284,8 +294,8 @@ def _verify(items, decoded, key_for, dwell_time, trusted, skew_s) -> AuthResult:
     structures = []
     others = set()
     for am in reassemble(decoded):
-        if am.reason:
-            return AuthResult("invalid", reason=am.reason)
+        if am.reason or am.data is None:  # a message without its data says why
+            return AuthResult("invalid", reason=am.reason or "an authentication message without data")
         if am.auth_type != AUTH_TYPE_SAM:
             others.add(am.auth_type)
             continue

@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
-from typing import Union
+from typing import Any, Union
 
 from core.checked import Checked, Invalid, choice, integer, moment, number, text
 from core.checked import data as octets
@@ -25,23 +25,23 @@ MAX_ALT_M = 31767.5
 MIN_ALT_M = -1000.0
 
 
-def _nibble(default: int = 0):
+def _nibble(default: int = 0) -> Any:
     return integer(default, ge=0, le=15)
 
 
-def _byte(default: int = 0):
+def _byte(default: int = 0) -> Any:
     return integer(default, ge=0, le=255)
 
 
-def _altitude():
+def _altitude() -> Any:
     return number(None, ge=MIN_ALT_M, le=MAX_ALT_M, finite=True, optional=True)
 
 
-def _utc_time():
+def _utc_time() -> Any:
     return moment(None, ge=ODID_EPOCH, le=ODID_LAST, optional=True)
 
 
-def _ascii(max_len: int):
+def _ascii(max_len: int) -> Any:
     """Printable-ASCII text field of at most `max_len` bytes (NUL-padded on the wire)."""
     return text("", max_length=max_len, pattern=r"^[\x20-\x7e]*$")
 
