@@ -32,7 +32,7 @@ POOLS = {
 SCRIPT = """
 import json, multiprocessing as mp, sys, time
 from concurrent.futures import ProcessPoolExecutor
-from authn.cli.bench import _workers_end_on_stop
+from lab.cli.bench import _workers_end_on_stop
 from core.errors import Interrupted
 from lab.bench import perf
 
@@ -109,7 +109,7 @@ def test_bench_help_fits_40_lines(monkeypatch):
 def test_the_progress_bar_estimates_the_time_left_on_stderr():
     from rich.progress import TimeRemainingColumn
 
-    from authn.cli.bench import _progress
+    from lab.cli.bench import _progress
 
     bar = _progress()
     assert any(isinstance(c, TimeRemainingColumn) for c in bar.columns)
