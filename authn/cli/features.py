@@ -11,7 +11,8 @@ import typer
 from authn.cli.plugins import PluginGroup
 
 
-features_app = typer.Typer(help="Micro-Doppler features and estimator accuracy.", no_args_is_help=True, cls=PluginGroup)
+features_app = typer.Typer(help="Micro-Doppler features of a return (estimator accuracy: with the laboratory).",
+                           no_args_is_help=True, cls=PluginGroup)
 
 
 @features_app.command("show")
