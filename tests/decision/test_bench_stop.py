@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
+from tests.lab_plugin import needs_lab
 from tests.proc_signals import wait_until_running
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -79,6 +80,7 @@ def test_a_stop_kills_the_workers_at_once(pool, sig, code):
     assert "Traceback" not in err and err.strip() == f"interrupted by {signal.Signals(sig).name}", err
 
 
+@needs_lab
 @pytest.mark.slow
 def test_bench_stops_on_sigterm_with_one_line(tmp_path):
     """The stop's timing, a generous bound: measured 0.3-0.6 s here (see the report)."""
@@ -97,6 +99,7 @@ def test_bench_stops_on_sigterm_with_one_line(tmp_path):
     assert json.loads(out) == {"error": "interrupted by SIGTERM", "exit_code": 143} and err == "", err
 
 
+@needs_lab
 def test_bench_help_fits_40_lines(monkeypatch):
     monkeypatch.setenv("COLUMNS", "80")
     buf = io.StringIO()
