@@ -33,6 +33,9 @@ def extra() -> None:
     Example: authn features extra
     """
     typer.echo("extra")
+
+
+NOT_A_COMMAND = 3
 '''
 
 #: a probe that runs `authn` as if no plugin were installed (the laboratory included)
@@ -103,6 +106,9 @@ def test_a_plugin_that_fails_to_load_is_one_line_exit_3(site: Path) -> None:
         assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
         assert "'broken' (broken_plugin 1.0) failed to load: ModuleNotFoundError" in proc.stderr, proc.stderr
     assert _authn(["hello"], site).stdout == "hello world\n"
+    _distribution(site, "odd_plugin", "odd = hello_plugin:NOT_A_COMMAND")
+    proc = _authn(["odd"], site)
+    assert proc.returncode == 3 and proc.stderr == "error: plugin command 'odd' is a int, not a function\n", proc.stderr
 
 
 def test_a_product_command_neither_scans_nor_loads_plugins(site: Path, tmp_path: Path) -> None:

@@ -3,7 +3,7 @@
 
 An entry point's name is the command's path, dotted (`bench`, `features.accuracy`): a new
 top-level command, or a new command in one of the product's groups. Its value is a
-function typer can turn into a command, a `typer.Typer`, or a click command. Nothing is
+function typer turns into a command (its options declared as typer's). Nothing is
 looked up until a group is asked for a name it does not define or lists its commands for
 help, so a cold `authn check` neither scans the installed distributions nor imports a
 plugin. The product imports no plugin: it only knows which commands the laboratory
@@ -54,41 +54,30 @@ def installed() -> dict[tuple[str, ...], EntryPoint]:
 
 
 def as_command(name: str, obj: Any) -> click.Command:
-    """A loaded entry point as a click command named `name`."""
-    import click
+    """A loaded entry point (a function) as a click command named `name`."""
     import typer
 
-    if isinstance(obj, click.Command):
-        return obj
-    if isinstance(obj, typer.Typer):
-        cmd = typer.main.get_command(obj)
-    elif callable(obj):
-        single = typer.Typer(add_completion=False)  # completion belongs to `authn` itself
-        single.command(name)(obj)
-        cmd = typer.main.get_command(single)
-    else:
-        raise SystemFault(f"plugin command {name!r} is a {type(obj).__name__}, not a command")
-    cmd.name = name
-    return cmd
+    if not callable(obj):
+        raise SystemFault(f"plugin command {name!r} is a {type(obj).__name__}, not a function")
+    single = typer.Typer(add_completion=False)  # completion belongs to `authn` itself
+    single.command(name)(obj)
+    return typer.main.get_command(single)
 
 
 class PluginGroup(TyperGroup):
     """A typer group whose commands include the plugins registered below its `path`.
 
     `path` is the group's own command path (() for `authn`); `prepare` is applied to every
-    plugin command once loaded (the product's help styling); `plugins`, if set, returns the
-    plugin entry points by path instead of `installed` (a fixed table)."""
+    plugin command once loaded (the product's help styling)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.path: tuple[str, ...] = ()
         self.prepare: Callable[[click.Command], None] | None = None
-        self.plugins: Callable[[], dict[tuple[str, ...], EntryPoint]] | None = None
 
     def _here(self) -> dict[str, EntryPoint]:
         depth = len(self.path) + 1
-        table = (self.plugins or installed)()
-        return {p[-1]: ep for p, ep in table.items() if len(p) == depth and p[:-1] == self.path}
+        return {p[-1]: ep for p, ep in installed().items() if len(p) == depth and p[:-1] == self.path}
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         own = super().list_commands(ctx)
