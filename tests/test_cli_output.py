@@ -27,9 +27,11 @@ def _eighty_columns(monkeypatch) -> None:
 
 
 def _commands(cmd=None, path=()):
+    from authn.cli.reference import subcommands
+
     cmd = cmd or command()
     yield path, cmd
-    for name, sub in sorted(getattr(cmd, "commands", {}).items()):
+    for name, sub in sorted(subcommands(cmd, path).items()):  # plugin commands (the laboratory's) too
         yield from _commands(sub, (*path, name))
 
 

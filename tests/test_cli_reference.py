@@ -6,10 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from authn.cli.reference import MAX_LINES, pages
+from tests.lab_plugin import needs_lab
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
+@needs_lab
 def test_the_cli_reference_is_current() -> None:
     want = pages()
     on_disk = {"cli.md", *(f"cli/{p.name}" for p in (DOCS / "cli").glob("*.md"))}

@@ -1,6 +1,7 @@
 """The `authn` command line: the root Typer app, composed here from one module per command
 or command group (the modules define their commands and sub-apps; nothing registers itself
-on import).
+on import), and the commands of installed plugins (`authn.cli.plugins`: the laboratory's
+`authn bench` and `authn features accuracy|score`), loaded only when asked for.
 
 Heavy libraries (scipy, sklearn, torch, matplotlib, sqlalchemy) are imported inside the
 commands that need them, never at module level, so `authn --help` and a single
@@ -19,9 +20,10 @@ os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
 import typer
 
-from authn.cli import (audit, bench, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid,
-                       serve, simulate)
+from authn.cli import (audit, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid, serve,
+                       simulate)
 from authn.cli.output import json_error, json_requested
+from authn.cli.plugins import PluginGroup
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
 from authn.process import exit_quickly, tune
@@ -37,6 +39,7 @@ app = typer.Typer(
     name="authn",
     help="Radar micro-Doppler + Remote ID identity authentication for UAVs.\n\nExample: authn demo",
     no_args_is_help=True,
+    cls=PluginGroup,  # `authn bench` and other commands of installed plugins (authn/cli/plugins.py)
     pretty_exceptions_enable=False,
     add_completion=True,  # --install-completion / --show-completion (bash, zsh, fish, PowerShell)
     context_settings={"help_option_names": HELP_OPTIONS},  # inherited by every subcommand
@@ -70,7 +73,7 @@ def _global_options(
 
 for _name, _command in (("check", check.check), ("simulate", simulate.simulate), ("inspect", inspect.inspect_file),
                         ("register", registry.register_cmd), ("demo", demo.demo), ("plot", plot.plot),
-                        ("bench", bench.bench), ("serve", serve.serve)):
+                        ("serve", serve.serve)):
     app.command(_name)(_command)
 #: One example per command group (each command's own examples are in its docstring).
 GROUP_EXAMPLES = {"registry": "authn registry list", "audit": "authn audit verify --json",
@@ -126,7 +129,16 @@ def command():  # -> click Command
     (installed when help is first rendered: a check never imports rich's help machinery)."""
     cmd = typer.main.get_command(app)
     _plain_flags(cmd)
+    _plugins_below(cmd)
     return cmd
+
+
+def _plugins_below(cmd, path: tuple[str, ...] = ()) -> None:
+    """Each plugin-aware group told its command path and the help styling its plugins get."""
+    if isinstance(cmd, PluginGroup):
+        cmd.path, cmd.prepare = path, _plain_flags
+    for name, sub in getattr(cmd, "commands", {}).items():
+        _plugins_below(sub, (*path, name))
 
 
 def _help_tables_wrap_prose_only() -> None:

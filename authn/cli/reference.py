@@ -13,15 +13,26 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["MAX_LINES", "pages", "write"]
+__all__ = ["MAX_LINES", "pages", "subcommands", "write"]
 
 #: the most lines a generated page holds (docs pages stay under 300)
 MAX_LINES = 280
 
 
+def subcommands(cmd, path: tuple[str, ...] = ()) -> dict[str, object]:
+    """{name: click command} directly below `cmd` (the command at `path`), as the group lists
+    them: those of installed plugins too (`authn.cli.plugins`), loaded to be listed."""
+    import click
+
+    if not isinstance(cmd, click.Group):
+        return {}
+    ctx = click.Context(cmd, info_name=" ".join(("authn", *path)))
+    return {name: cmd.get_command(ctx, name) for name in cmd.list_commands(ctx)}
+
+
 def _commands(cmd, path: tuple[str, ...] = ()) -> Iterator[tuple[tuple[str, ...], object]]:
     """(path, click command) of every visible command below `cmd`, in name order."""
-    for name, sub in sorted(getattr(cmd, "commands", {}).items()):
+    for name, sub in sorted(subcommands(cmd, path).items()):
         if getattr(sub, "hidden", False):
             continue
         yield (*path, name), sub
@@ -62,7 +73,7 @@ def _section(path: tuple[str, ...], cmd) -> list[str]:
     for paragraph in (reflow(cmd.help or "") or "").split("\n\n"):
         lines += [" ".join(paragraph.replace("\b", "").split()), ""]
     if hasattr(cmd, "commands"):
-        subs = [f"[{n}](#{_anchor(' '.join(('authn', *path, n)))})" for n, c in sorted(cmd.commands.items())
+        subs = [f"[{n}](#{_anchor(' '.join(('authn', *path, n)))})" for n, c in sorted(subcommands(cmd, path).items())
                 if not getattr(c, "hidden", False)]
         lines += ["Commands: " + ", ".join(subs) + ".", ""]
     options = _options(cmd)

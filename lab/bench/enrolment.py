@@ -15,7 +15,7 @@ required" (counted accepted when that forbid is the only reason). Nothing is tun
 
     python -m lab.bench.enrolment --track --sizes 30 --n 50 --snr 0,10 --world heldout --json out.json
 
-`--track`: the issue's must-show over tracks. Each test claim is a track of up to `--dwells` (8)
+`--track`: decisions over tracks. Each test claim is a track of up to `--dwells` (8)
 dwells of one scene (`lab.bench.track`'s dwells: a new simulator seed per dwell, 1 s apart),
 decided by `authn.track.decide_track` (the real Checker, policy and sequential test, stopping
 early) with the shipped bundle and each site bundle (whose card now carries track-level pairwise

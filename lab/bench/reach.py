@@ -1,16 +1,16 @@
 """How far any per-dwell scoring can reach: a learner fitted on a world's own dwells (docs/tracks.md,
 "What any per-dwell scoring can reach").
 
-The track must-shows ask genuine tracks of the held-out world to be accepted at 95-97 %. Whether a
-better estimator or scoring could get there is measured here with an oracle far stronger than any
-deployed bundle: gradient-boosted trees fitted, per fold, on thousands of the world's *own* dwells
-(scenes disjoint between folds; a site enrols 30 recordings per airframe), given today's feature
-vector and a raw view of the target's slow time (`dwell_view`). Its out-of-fold probabilities become
-one calibrated LLR per ordered pair (genuine A against an impostor B claiming A: Platt-scaled, cross
-fitted, classes balanced), which is what the sequential test could add per dwell at best with this
-much knowledge of the world. Tracks are then walked by `authn.sprt.Sprt` (the check's own bounds,
-cap and discount) over each scene's dwells drawn with replacement, and the within-scene correlation
-of the oracle's LLRs is measured beside it.
+The track accuracy targets (`lab.bench.track_accuracy.TARGETS`) ask genuine tracks of the held-out world
+to be accepted at 95-97 %. Whether a better estimator or scoring could get there is measured here with
+an oracle far stronger than any deployed bundle: gradient-boosted trees fitted, per fold, on thousands
+of the world's *own* dwells (scenes disjoint between folds; a site enrols 30 recordings per airframe),
+given today's feature vector and a raw view of the target's slow time (`dwell_view`). Its out-of-fold
+probabilities become one calibrated LLR per ordered pair (genuine A against an impostor B claiming A:
+Platt-scaled, cross fitted, classes balanced), which is what the sequential test could add per dwell at
+best with this much knowledge of the world. Tracks are then walked by `authn.sprt.Sprt` (the check's own
+bounds, cap and discount) over each scene's dwells drawn with replacement, and the within-scene
+correlation of the oracle's LLRs is measured beside it.
 
     python -m lab.bench.reach --world heldout --snr 10 --snr 0 --scenes 200 --dwells 5 --workers 2
     python -m lab.bench.reach ... --per-class 30 --inputs "envelope autocorrelation" --cache dwells.json
@@ -23,7 +23,7 @@ drawn) and scores the other worlds (what a shipped bundle must do). The track EE
 rule on a track's mean LLR could reach under a random-effects model of the dwells (`track_eer`),
 beside what the check's test does.
 
-Scenes are drawn as `lab.bench.track_must_show` draws them (another seed: no scene of the must-show is
+Scenes are drawn as `lab.bench.track_accuracy` draws them (another seed: no scene of the track accuracy run is
 fitted on); nothing here ships or tunes anything that ships.
 """
 
@@ -43,7 +43,7 @@ from datetime import datetime, timezone
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-#: A genuine track's dwells in 2 s of back-to-back `paper` dwells (lab.bench.track_must_show).
+#: A genuine track's dwells in 2 s of back-to-back `paper` dwells (lab.bench.track_accuracy).
 TRACK_DWELLS = 75
 #: STFT of the view: frames of this many chirps, a hop of a quarter.
 VIEW_WIN = 32
@@ -104,10 +104,10 @@ class RenderedDwell:
 
 
 def _render(job: tuple) -> list[RenderedDwell]:
-    """The dwells of one genuine scene of `flies` (drawn as the must-show draws them)."""
+    """The dwells of one genuine scene of `flies` (drawn as the track accuracy run draws them)."""
     from lab.bench.decisions import bench_serial
     from lab.bench.track import track_recordings
-    from lab.bench.track_must_show import _scene_and_draws
+    from lab.bench.track_accuracy import _scene_and_draws
     from signatures.extraction import extract
     from signatures.radar import get_preset
 
@@ -130,7 +130,7 @@ def _render(job: tuple) -> list[RenderedDwell]:
 
 def render(world: str, snr: float, scenes: int, dwells: int, seed: int, workers: int) -> list[RenderedDwell]:
     """`scenes` genuine scenes of each shipped airframe, `dwells` back-to-back dwells each."""
-    from lab.bench.track_must_show import pairs
+    from lab.bench.track_accuracy import pairs
 
     jobs = [(world, snr, seed, p_idx, flies, i, dwells)
             for p_idx, (cat, flies, _claims, _why) in enumerate(pairs()) if cat == "genuine" for i in range(scenes)]
@@ -397,7 +397,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--snr", action="append", type=float)
     ap.add_argument("--scenes", type=int, default=200, help="genuine scenes per airframe, world and SNR")
     ap.add_argument("--dwells", type=int, default=5, help="back-to-back dwells per scene")
-    ap.add_argument("--seed", type=int, default=11, help="scene seed (the must-show uses 7)")
+    ap.add_argument("--seed", type=int, default=11, help="scene seed (the track accuracy run uses 7)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--inputs", action="append", choices=tuple(_PARTS),
                     help="what the oracle is given (repeatable; the last three are parts of the view)")

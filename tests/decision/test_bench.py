@@ -6,6 +6,7 @@ import pytest
 
 from lab.bench.decisions import CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, run_decisions, summarise
 from lab.bench.pareto import Point, _mark_front, near_floor
+from tests.lab_plugin import needs_lab
 
 
 def test_decision_rows_cover_every_category() -> None:
@@ -103,6 +104,7 @@ def test_pareto_grid_runs_every_configuration_on_one_set() -> None:
     assert default.f1_by_snr[20.0] >= 0.8  # 5 returns at 20 dB: the shipped ensemble gets (almost) all
 
 
+@needs_lab
 @pytest.mark.slow  # ~80 s: `authn bench --quick` end to end
 def test_bench_quick_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkeypatch) -> None:
     """`authn bench --quick` end to end (latency skipped: it spawns processes): the JSON report has

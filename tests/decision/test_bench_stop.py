@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
+from tests.lab_plugin import needs_lab
 from tests.proc_signals import wait_until_running
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -32,7 +33,7 @@ POOLS = {
 SCRIPT = """
 import json, multiprocessing as mp, sys, time
 from concurrent.futures import ProcessPoolExecutor
-from authn.cli.bench import _workers_end_on_stop
+from lab.cli.bench import _workers_end_on_stop
 from core.errors import Interrupted
 from lab.bench import perf
 
@@ -79,6 +80,7 @@ def test_a_stop_kills_the_workers_at_once(pool, sig, code):
     assert "Traceback" not in err and err.strip() == f"interrupted by {signal.Signals(sig).name}", err
 
 
+@needs_lab
 @pytest.mark.slow
 def test_bench_stops_on_sigterm_with_one_line(tmp_path):
     """The stop's timing, a generous bound: measured 0.3-0.6 s here (see the report)."""
@@ -97,6 +99,7 @@ def test_bench_stops_on_sigterm_with_one_line(tmp_path):
     assert json.loads(out) == {"error": "interrupted by SIGTERM", "exit_code": 143} and err == "", err
 
 
+@needs_lab
 def test_bench_help_fits_40_lines(monkeypatch):
     monkeypatch.setenv("COLUMNS", "80")
     buf = io.StringIO()
@@ -109,7 +112,7 @@ def test_bench_help_fits_40_lines(monkeypatch):
 def test_the_progress_bar_estimates_the_time_left_on_stderr():
     from rich.progress import TimeRemainingColumn
 
-    from authn.cli.bench import _progress
+    from lab.cli.bench import _progress
 
     bar = _progress()
     assert any(isinstance(c, TimeRemainingColumn) for c in bar.columns)

@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lab.bench.verification import UNVERIFIED, eer, roc, verification_score
+from tests.lab_plugin import needs_lab
 
 scores = st.lists(st.integers(-20, 20), min_size=1, max_size=40)  # integers: ties happen, maps stay strict
 
@@ -145,6 +146,7 @@ def test_summary_splits_claims_by_rotor_evidence() -> None:
     assert not rotor_evidence(None) and not rotor_evidence({"model": "bird"})
 
 
+@needs_lab
 def test_cli_world_option(tmp_path, capsys) -> None:
     from authn.cli import main
 
@@ -200,6 +202,7 @@ def test_bench_tables_fit_80_columns() -> None:
     _fits(_render(eer_table(trials)), ["type spoof", "0.0%", "training sim"])
 
 
+@needs_lab
 def test_cli_seeds_pool_the_claims(capsys) -> None:
     """--seeds K runs the claims of K consecutive seeds and pools them (K x n per cell)."""
     from authn.cli import main
@@ -211,6 +214,7 @@ def test_cli_seeds_pool_the_claims(capsys) -> None:
     assert doc["worlds"]["decisions"]["paper"]["20"]["genuine"]["training"]["n"] == 2
 
 
+@needs_lab
 def test_cli_seeds_below_one_is_bad_input(capsys) -> None:
     """Exit 2, one line naming the option (typer's range check, reported by `main`)."""
     from authn.cli import main

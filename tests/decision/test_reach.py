@@ -193,7 +193,7 @@ def test_a_randomised_scene_draws_its_nuisances_once_for_all_its_dwells(monkeypa
     (r1, w1), (r2, _), (plain, w3) = seen
     assert w1 == w3 == "training" and r1.nuisance is not None and plain.nuisance is None
     assert r1 == r2  # the same scene draws the same nuisances (seeded by the scene)
-    assert r1.profile == plain.profile and r1.range_m == plain.range_m  # the must-show's scene, randomised
+    assert r1.profile == plain.profile and r1.range_m == plain.range_m  # the track accuracy run's scene, randomised
 
 
 def test_the_normal_eer_of_point_masses_is_finite() -> None:

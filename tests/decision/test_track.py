@@ -21,6 +21,7 @@ from signatures.profiles import shipped_profiles
 from signatures.recording import read_header, read_recording, write_recording
 from signatures.scene import Scene
 from tests.decision.test_policy import ACTIVE, GOOD, SITE
+from tests.lab_plugin import needs_lab
 from tests.registry_tools import register
 
 #: Two M300 identities and a Phantom 4: no radar-confusable pair is registered (an M600 beside an M300
@@ -303,6 +304,7 @@ def test_the_header_is_the_recordings_metadata(setup, tmp_path, suffix: str) -> 
     assert np.array_equal(head.remote_id, rec.remote_id) and np.array_equal(head.remote_id_time_s, rec.remote_id_time_s)
 
 
+@needs_lab
 def test_bench_track_rows(capsys) -> None:
     """`authn bench --track`: the correlation rows and dwells per decision, as JSON."""
     capsys.readouterr()

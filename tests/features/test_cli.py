@@ -7,6 +7,7 @@ import json
 from authn.cli import main
 from signatures.recording import write_recording
 from tests.features.conftest import sim
+from tests.lab_plugin import needs_lab
 
 
 def test_plot_writes_the_five_figures(tmp_path, capsys):
@@ -21,6 +22,7 @@ def test_plot_writes_the_five_figures(tmp_path, capsys):
     assert all(p.stat().st_size > 5000 for p in (tmp_path / "png").iterdir())
 
 
+@needs_lab
 def test_features_show_and_accuracy_json(tmp_path, capsys):
     rec, _ = sim(model="m600")
     path = write_recording(rec, tmp_path / "m600.h5")

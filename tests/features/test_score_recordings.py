@@ -12,6 +12,7 @@ from authn.cli import main
 from lab.accuracy import CONDITIONS, Estimate, Truth, evaluate_condition, render_condition, score
 from lab.recordings import read_truth, score_recordings
 from signatures.recording import write_recording
+from tests.lab_plugin import needs_lab
 
 HEADER = "file,rotor_rate_hz,radial_velocity_mps,rotors,note\n"
 
@@ -63,6 +64,7 @@ def test_scores_count_only_the_dwells_that_have_each_truth() -> None:
         score([])
 
 
+@needs_lab
 def test_the_command_prints_a_table_and_json(recorded, capsys) -> None:
     root, rates = recorded
     (root / "cli.csv").write_text(HEADER + f"capture/,{sum(rates) / 3},0,4,mean of the three\n")
@@ -75,6 +77,7 @@ def test_the_command_prints_a_table_and_json(recorded, capsys) -> None:
     assert doc["dwells"][0]["file"].endswith("dwell_000000.h5") and doc["rows"][0]["velocity_ok"] == 1.0
 
 
+@needs_lab
 @pytest.mark.parametrize(("text", "message"), [
     ("file,rate\ncapture,1\n", "columns file, rotor_rate_hz"),
     ("rotor_rate_hz\n150\n", "file required"),
@@ -100,6 +103,7 @@ def test_a_bad_truth_file_is_refused_in_one_line(recorded, capsys, text: str, me
     assert not out.out and len(err) == 1 and message in err[0] and "bad.csv" in err[0], err
 
 
+@needs_lab
 def test_a_recording_the_reader_refuses_is_bad_input(recorded, capsys) -> None:
     root, _ = recorded
     (root / "junk.h5").write_bytes(b"not a recording")

@@ -1,12 +1,12 @@
-"""Issue 31's track must-show, measured: 2 s tracks of back-to-back `paper` dwells, no enrolment,
+"""Decisions over 2 s tracks of back-to-back `paper` dwells, no enrolment,
 decided by `authn.track.decide_track` (the real Checker, policy and sequential test, stopping
 early), per (airframe flown, model claimed) pair, in the held-out world and the training
 simulator; and the per-dwell diagnosis of genuine claims (docs/tracks.md, "2 s tracks, no enrolment").
 
-    python -m lab.bench.track_must_show --world heldout --world training --snr 10 --snr 0 --n 16
-    python -m lab.bench.track_must_show --diagnose --world heldout --snr 10 --snr 0 --n 12 --dwells 8 --json d.json
-    python -m lab.bench.track_must_show --what-if d.json
-    python -m lab.bench.track_must_show --icc d.json [--first 5] [--rho-terms 0.3,0.4]
+    python -m lab.bench.track_accuracy --world heldout --world training --snr 10 --snr 0 --n 16
+    python -m lab.bench.track_accuracy --diagnose --world heldout --snr 10 --snr 0 --n 12 --dwells 8 --json d.json
+    python -m lab.bench.track_accuracy --what-if d.json
+    python -m lab.bench.track_accuracy --icc d.json [--first 5] [--rho-terms 0.3,0.4]
 
 Which pairs the physics can separate (`separable`): the claimed and the flown airframe's nominal
 blade-flash rates lie outside each other's `signatures.verify.RATE_BAND`, or their rotor counts
@@ -39,7 +39,7 @@ from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import get_preset
 from signatures.sampling import sample_scene
 
-#: The issue's track: 2 s of a target, its dwells back to back.
+#: A track: 2 s of a target, its dwells back to back.
 TRACK_SECONDS = 2.0
 CATEGORIES = ("genuine", "type_spoof", "unseen")
 TARGETS = {("genuine", 10.0): 0.97, ("genuine", 0.0): 0.95, ("type_spoof", 10.0): 0.97, ("type_spoof", 0.0): 0.95,
@@ -99,7 +99,7 @@ def _recording_checker() -> Any:
                               "verification": None if v is None else v.to_json()})
             return v
 
-    tmp = tempfile.mkdtemp(prefix="must-show-")
+    tmp = tempfile.mkdtemp(prefix="track-accuracy-")
     db = f"sqlite:///{os.path.join(tmp, 'bench.sqlite3')}"
     register_identities(db)
     checker = Recorder(db)
@@ -239,9 +239,9 @@ def _run(fn: Any, jobs: list[tuple], workers: int) -> list[Any]:
         return list(ex.map(fn, jobs, chunksize=1))
 
 
-def run_must_show(preset: str = "paper", worlds: tuple[str, ...] = ("heldout",), snrs: tuple[float, ...] = (10.0, 0.0),
-                  n: int = 16, seed: int = 7, workers: int = 1,
-                  categories: tuple[str, ...] = CATEGORIES) -> list[TrackResult]:
+def run_track_accuracy(preset: str = "paper", worlds: tuple[str, ...] = ("heldout",),
+                       snrs: tuple[float, ...] = (10.0, 0.0), n: int = 16, seed: int = 7, workers: int = 1,
+                       categories: tuple[str, ...] = CATEGORIES) -> list[TrackResult]:
     """n tracks per (flown, claimed) pair, world and SNR; each `TRACK_SECONDS` of back-to-back dwells."""
     max_dwells = int(TRACK_SECONDS / get_preset(preset).dwell_s)
     return _run(_one_track, _jobs(preset, worlds, snrs, n, seed, max_dwells, categories), workers)
@@ -270,7 +270,7 @@ OUT_OF_REACH: dict[str, frozenset[tuple[str, str]]] = {
     "heldout": frozenset({("m300", "m300"), ("m600", "m600"), ("m300", "m600"), ("m600", "m300")})}
 
 
-def must_show_table(results: list[TrackResult]) -> list[str]:
+def track_accuracy_table(results: list[TrackResult]) -> list[str]:
     """Per world, SNR and category (separable pairs only): right decisions against the target, median
     and mean dwells used; where `OUT_OF_REACH` names pairs of the row, the row again without them."""
     lines = ["| world | SNR dB | claims | pairs | tracks | right | target | inconclusive | median dwells "
@@ -728,7 +728,7 @@ def term_walk_table(rows: list[dict[str, Any]], rhos: list[tuple[float, float]])
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m lab.bench.track_must_show", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m lab.bench.track_accuracy", description=__doc__.splitlines()[0])
     ap.add_argument("--preset", default="paper")
     ap.add_argument("--world", action="append", choices=("heldout", "training"))
     ap.add_argument("--snr", action="append", type=float)
@@ -764,7 +764,7 @@ def main(argv: list[str] | None = None) -> int:
             print("\n".join(term_walk_table(rows, rhos)))
         return 0
     t0 = time.perf_counter()
-    print(f"# {' '.join(['python -m lab.bench.track_must_show', *(argv if argv is not None else sys.argv[1:])])}")
+    print(f"# {' '.join(['python -m lab.bench.track_accuracy', *(argv if argv is not None else sys.argv[1:])])}")
     print(f"# {datetime.now(timezone.utc).date()}, {os.cpu_count()} cores")
     if a.diagnose:
         rows = run_diagnosis(a.preset, worlds, snrs, a.n, a.dwells, a.seed, a.workers,
@@ -780,8 +780,8 @@ def main(argv: list[str] | None = None) -> int:
         for cat, flies, claims, why in pairs():
             if cat != "genuine":
                 print(f"#   {flies} -> {claims}: {' + '.join(why) or 'NOT separable'}")
-        res = run_must_show(a.preset, worlds, snrs, a.n, a.seed, a.workers, tuple(a.category or CATEGORIES))
-        print("\n".join(must_show_table(res)))
+        res = run_track_accuracy(a.preset, worlds, snrs, a.n, a.seed, a.workers, tuple(a.category or CATEGORIES))
+        print("\n".join(track_accuracy_table(res)))
         print()
         print("\n".join(pair_table(res)))
         if a.json:

@@ -1,13 +1,13 @@
-"""The must-show bench's rule of which (flown, claimed) pairs the physics can separate, and its
-offline sequential test against authn.track's (lab/bench/track_must_show.py)."""
+"""The track accuracy bench's rule of which (flown, claimed) pairs the physics can separate, and its
+offline sequential test against authn.track's (lab/bench/track_accuracy.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from authn.track import Sprt
-from lab.bench.track_must_show import (OUT_OF_REACH, TrackResult, _variant_llr, _walk, all_profiles,
-                                       must_show_table, pairs, separable, spread_table, term_icc, term_icc_table,
+from lab.bench.track_accuracy import (OUT_OF_REACH, TrackResult, _variant_llr, _walk, all_profiles,
+                                       track_accuracy_table, pairs, separable, spread_table, term_icc, term_icc_table,
                                        term_increments, walk_terms, what_if_pair_table)
 
 
@@ -46,7 +46,7 @@ def test_pairs_shown_out_of_reach_are_reported_apart_never_dropped() -> None:
     results = [_track("heldout", "type_spoof", "m600", "m300", "accept"),
                _track("heldout", "type_spoof", "m600", "phantom4", "reject"),
                _track("training", "type_spoof", "m600", "m300", "reject")]
-    rows = [r for r in must_show_table(results) if "type spoof" in r]
+    rows = [r for r in track_accuracy_table(results) if "type spoof" in r]
     held = [r for r in rows if r.startswith("| heldout")]
     assert len(held) == 2 and "| 2 | 50.0 % |" in held[0]  # the whole row, the failing pair counted
     assert "(pairs in reach)" in held[1] and "| 1 | 100.0 % |" in held[1]

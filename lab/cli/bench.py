@@ -1,4 +1,7 @@
-"""`authn bench`: how often the decision is right, and how long it takes."""
+"""`authn bench`: how often the decision is right, and how long it takes (plugged into `authn`
+through the `authn.plugins` entry point of lab/pyproject.toml). One function per mode: the
+default run (`_measure_all`, then JSON or tables), `--stress`, `--batch`, `--track`,
+`--enrolment`, `--worlds-only`."""
 
 from __future__ import annotations
 
@@ -6,6 +9,7 @@ import functools
 import json
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -99,83 +103,143 @@ def bench(
     Example: authn bench --quick
     """
     import registry.urls
-    from rich.console import Console
-
-    registry.urls.created_notice = None  # the bench's own temporary databases are not news
-
-    from lab.bench.decisions import (CATEGORIES, DRIP_REASONS, EXPECTED, drip_cost, latency, run_decisions,
-                                       summarise)
-    from lab.bench.tables import decision_table, imports_table, pareto_table, stage_table
     from lab.bench.worlds import WORLD_CATEGORIES, world_choice
     from signatures.radar import get_preset
 
+    registry.urls.created_notice = None  # the bench's own temporary databases are not news
     if quick:
         preset, n = ["paper"], 12
+    presets, snrs = tuple(preset), tuple(snr)
     worlds = world_choice(world or ("training" if quick else "both"))
-    for p in preset:
+    for p in presets:
         get_preset(p)
     if stress:
-        _stress(tuple(preset), quick, as_json)
-        return
-    if batch:
-        _batch(tuple(preset), quick, seed, plot_dir, as_json)
-        return
-    if track:
-        _track(tuple(preset), tuple(snr), n, seed, as_json, world_choice(world or "training"))
-        return
-    if enrolment is not None:
-        _enrolment(enrolment, tuple(snr), n, seed, as_json, world_choice(world or "heldout"))
-        return
-    n_claims = len(preset) * len(snr) * len(WORLD_CATEGORIES) * n * len(worlds)
-    if worlds_only:
-        _worlds(tuple(preset), worlds, tuple(snr), n, tuple(range(seed, seed + seeds)), n_claims * seeds, plot_dir,
-                as_json)
-        return
-    from lab.bench import pareto, perf
-    from lab.bench.variants import DWELL_DIVISORS
-    from lab.bench.worlds import plot_worlds, run_worlds, summarise_worlds
+        _stress(presets, quick, as_json)
+    elif batch:
+        _batch(presets, quick, seed, plot_dir, as_json)
+    elif track:
+        _track(presets, snrs, n, seed, as_json, world_choice(world or "training"))
+    elif enrolment is not None:
+        _enrolment(enrolment, snrs, n, seed, as_json, world_choice(world or "heldout"))
+    elif worlds_only:
+        n_claims = len(presets) * len(snrs) * len(WORLD_CATEGORIES) * n * len(worlds)
+        _worlds(presets, worlds, snrs, n, tuple(range(seed, seed + seeds)), n_claims * seeds, plot_dir, as_json)
+    else:
+        run = _measure_all(presets, worlds, snrs, n, seed, quick, no_latency)
+        if plot_dir is not None:
+            _plot_all(run, plot_dir)
+        if as_json:
+            typer.echo(json.dumps(_report(run), indent=2))
+        else:
+            _print_all(run)
 
+
+@dataclass
+class FullRun:
+    """Everything the default run measures (`bench` without a mode option)."""
+
+    presets: tuple[str, ...]
+    n: int
+    seed: int
+    cold_repeats: int
+    rows: list
+    trials: list
+    latency: dict
+    stages: dict
+    floor: dict
+    dwell_floors: dict
+    grid: dict
+    imports: dict
+    throughput: dict
+
+
+def _measure_all(presets: tuple[str, ...], worlds: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int,
+                 quick: bool, no_latency: bool) -> FullRun:
+    """The default run: decisions per category, identity claims in each world, latency, stages,
+    the FFT floor, run time against error, imports and throughput."""
+    from lab.bench import pareto, perf
+    from lab.bench.decisions import CATEGORIES, latency, run_decisions
+    from lab.bench.variants import DWELL_DIVISORS
+    from lab.bench.worlds import WORLD_CATEGORIES, run_worlds
+
+    n_claims = len(presets) * len(snrs) * len(WORLD_CATEGORIES) * n * len(worlds)
+    cold_repeats = 3 if quick else 11
     with _progress() as progress:
-        task = progress.add_task("checking simulated claims", total=len(preset) * len(CATEGORIES) * n + n_claims)
-        rows = run_decisions(tuple(preset), n, seed, progress=lambda k: progress.advance(task, k))
+        task = progress.add_task("checking simulated claims", total=len(presets) * len(CATEGORIES) * n + n_claims)
+        rows = run_decisions(presets, n, seed, progress=lambda k: progress.advance(task, k))
         progress.update(task, description="identity claims in " + " and ".join(worlds))
-        trials = run_worlds(tuple(preset), worlds, n, seed, tuple(snr), progress=lambda k: progress.advance(task, k))
+        trials = run_worlds(presets, worlds, n, seed, snrs, progress=lambda k: progress.advance(task, k))
         progress.remove_task(task)  # the timings below have no count to estimate from
         task = progress.add_task("timing checks", total=None)
-        cold_repeats = 3 if quick else 11
-        lat = {p: latency(p, 5 if quick else 20, seed, cold_repeats) for p in preset} if not no_latency else {}
+        lat = {p: latency(p, 5 if quick else 20, seed, cold_repeats) for p in presets} if not no_latency else {}
         progress.update(task, description="timing stages")
-        stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in preset}
-        floor = {p: perf.fft_floor(p) for p in preset}
+        stages = {p: perf.stage_table(p, 14 if quick else 70, seed) for p in presets}
+        floor = {p: perf.fft_floor(p) for p in presets}
         dwell_floors = {p: {f"1/{d}": perf.fft_floor(p, dwell_divisor=d)["fft_ms"] for d in DWELL_DIVISORS}
-                        for p in preset}
+                        for p in presets}
         progress.update(task, description="run time against error")
         grid = {p: pareto.run(p, per_class=4 if quick else 25, seed=seed, n_train=300 if quick else 3000)
-                for p in preset}
+                for p in presets}
         progress.update(task, description="timing imports and throughput")
         imports = perf.import_costs(1 if quick else 3)
-        tput = {p: perf.throughput(p, 20 if quick else 100, seed) for p in preset}
-    near = {p: pareto.near_floor(pts, floor[p]["fft_ms"]) for p, pts in grid.items()}
-    if plot_dir is not None:
-        plot_dir.mkdir(parents=True, exist_ok=True)
-        for p, pts in grid.items():
-            pareto.plot(pts, (0.0, 10.0, 20.0), plot_dir / f"error-vs-time-{p}.png", floor[p]["fft_ms"])
-        plot_worlds(trials, plot_dir)
-    drip = drip_cost(rows)
-    report = {"decisions": summarise(rows), "drip_verification_ms": drip, "latency_ms": lat, "stages": stages,
-              "fft_floor": floor,
-              "fft_floor_of_dwell_part_ms": dwell_floors,
-              "pareto": {p: [pt.__dict__ for pt in pts] for p, pts in grid.items()},
-              "near_fft_floor": {p: [q.name for q in pts] for p, pts in near.items()},
-              "imports_ms": imports, "throughput_per_s": tput, "n_per_category": n, "seed": seed,
-              "worlds": summarise_worlds(trials)}
-    if as_json:
-        typer.echo(json.dumps(report, indent=2))
-        return
+        tput = {p: perf.throughput(p, 20 if quick else 100, seed) for p in presets}
+    return FullRun(presets, n, seed, cold_repeats, rows, trials, lat, stages, floor, dwell_floors, grid, imports,
+                   tput)
+
+
+def _near_floor(run: FullRun) -> dict:
+    """Per preset, the front points within 3x of the FFT floor with macro F1 >= 0.95 at 10 dB."""
+    from lab.bench import pareto
+
+    return {p: pareto.near_floor(pts, run.floor[p]["fft_ms"]) for p, pts in run.grid.items()}
+
+
+def _plot_all(run: FullRun, plot_dir: Path) -> None:
+    """Error against run time per preset, and the two-world figures, as PNG in `plot_dir`."""
+    from lab.bench import pareto
+    from lab.bench.worlds import plot_worlds
+
+    plot_dir.mkdir(parents=True, exist_ok=True)
+    for p, pts in run.grid.items():
+        pareto.plot(pts, (0.0, 10.0, 20.0), plot_dir / f"error-vs-time-{p}.png", run.floor[p]["fft_ms"])
+    plot_worlds(run.trials, plot_dir)
+
+
+def _report(run: FullRun) -> dict:
+    """The default run as one JSON object (`--json`)."""
+    from lab.bench.decisions import drip_cost, summarise
+    from lab.bench.worlds import summarise_worlds
+
+    return {"decisions": summarise(run.rows), "drip_verification_ms": drip_cost(run.rows), "latency_ms": run.latency,
+            "stages": run.stages, "fft_floor": run.floor, "fft_floor_of_dwell_part_ms": run.dwell_floors,
+            "pareto": {p: [pt.__dict__ for pt in pts] for p, pts in run.grid.items()},
+            "near_fft_floor": {p: [q.name for q in pts] for p, pts in _near_floor(run).items()},
+            "imports_ms": run.imports, "throughput_per_s": run.throughput, "n_per_category": run.n,
+            "seed": run.seed, "worlds": summarise_worlds(run.trials)}
+
+
+def _print_all(run: FullRun) -> None:
+    """The default run as tables and lines on stdout."""
+    from rich.console import Console
+
+    from lab.bench.decisions import EXPECTED
+    from lab.bench.tables import decision_table, imports_table
+
     console = Console()
-    console.print(decision_table(rows, n, EXPECTED))
-    _print_worlds(console, trials)
-    for p, d in drip.items():
+    console.print(decision_table(run.rows, run.n, EXPECTED))
+    _print_worlds(console, run.trials)
+    _print_drip(console, run.rows)
+    _print_latency(console, run.latency, run.cold_repeats)
+    _print_stages(console, run)
+    _print_pareto(console, run)
+    console.print(imports_table(run.imports))
+
+
+def _print_drip(console: "Console", rows: list) -> None:
+    """What DRIP verification costs a check, and whether each DRIP rejection names its reason."""
+    from lab.bench.decisions import DRIP_REASONS, drip_cost
+
+    for p, d in drip_cost(rows).items():
         console.print(f"{p}: DRIP verification, median of the check's remote_id_auth stage:")
         console.print(f"  signed {d['signed_valid_ms']:.3f} ms, unsigned {d['unsigned_ms']:.3f} ms: "
                       f"+{d['signed_minus_unsigned_ms']:.3f} ms ({d['signed_valid_n']} and {d['unsigned_n']} checks)")
@@ -184,6 +248,10 @@ def bench(
     missing = [f"{r.preset}/{r.category} {r.reason_missing}" for r in drip_rows if r.reason_missing]
     console.print(f"  DRIP rejections with their own reason: {sum(r.n - r.reason_missing for r in drip_rows)} of "
                   f"{sum(r.n for r in drip_rows)}" + ("" if not missing else "; missing in " + ", ".join(missing)))
+
+
+def _print_latency(console: "Console", lat: dict, cold_repeats: int) -> None:
+    """A cold check process against `import numpy`, batch mode, and registry-only rejections."""
     for p, d in lat.items():
         console.print(f"{p}: cold `authn check` process {d['cold_process_ms']:.0f} ms = "
                       f"{d['cold_vs_import_numpy']:.2f}x `python -c 'import numpy'` ({d['import_numpy_ms']:.0f} ms, "
@@ -192,8 +260,14 @@ def bench(
         console.print(f"  registry-only rejection: cold process {d['cold_registry_only_ms']:.0f} ms; after start-up "
                       f"{d['first_registry_only_ms']:.1f} ms against {d['first_check_ms']:.1f} ms for a full first "
                       f"check = {d['first_registry_only_vs_full']:.1%}")
-    for p in preset:
-        st, fl = stages[p], floor[p]
+
+
+def _print_stages(console: "Console", run: FullRun) -> None:
+    """Per preset: the stage table, the radar stage against the FFT floor, skips, throughput."""
+    from lab.bench.tables import stage_table
+
+    for p in run.presets:
+        st, fl = run.stages[p], run.floor[p]
         console.print(stage_table(p, st, fl))
         radar_ms = st["stage_median_ms"].get("radar_features", float("nan"))
         console.print(f"  FFTs of one gated check: {fl['fft_mflop']:.2f} MFLOP at {fl['gflops']:.1f} GFLOP/s; "
@@ -203,17 +277,23 @@ def bench(
                       f"{st['radar_time_saved_per_skip_ms']:.1f} ms each; registry-only check "
                       f"{st['registry_only_check_ms']:.1f} ms = {st['registry_only_vs_full']:.0%} of a full "
                       f"check ({st['full_check_ms']:.1f} ms)")
-        tp = tput[p]
+        tp = run.throughput[p]
         console.print(f"  throughput: {tp['1_worker']:.0f} returns/s with 1 worker, "
                       f"{tp['2_worker']:.0f} with 2 workers")
-    for p, pts in grid.items():
-        fl = floor[p]["fft_ms"]
+
+
+def _print_pareto(console: "Console", run: FullRun) -> None:
+    """Per preset: run time against error, the points near the FFT floor, the partial-dwell floors."""
+    from lab.bench.tables import pareto_table
+
+    near = _near_floor(run)
+    for p, pts in run.grid.items():
+        fl = run.floor[p]["fft_ms"]
         console.print(pareto_table(p, pts, fl, (0.0, 10.0, 20.0)))
         console.print(f"  front points within 3x of the FFT floor ({fl:.2f} ms) with macro F1 >= 0.95 at 10 dB: "
                       + (", ".join(f"{q.name} ({q.ms_per_return / fl:.1f}x)" for q in near[p]) or "none"))
         console.print("  FFT floor of just the first part of the dwell (what those configurations transform): "
-                      + ", ".join(f"{k} {v:.2f} ms" for k, v in dwell_floors[p].items()))
-    console.print(imports_table(imports))
+                      + ", ".join(f"{k} {v:.2f} ms" for k, v in run.dwell_floors[p].items()))
 
 
 def _track(presets: tuple[str, ...], snrs: tuple[float, ...], n: int, seed: int, as_json: bool,
@@ -358,6 +438,7 @@ def _print_worlds(console: "Console", trials: "list[Trial]") -> None:
 
 
 def _stress(presets: tuple[str, ...], quick: bool, as_json: bool) -> None:
+    """Only the numerical stress suite (`--stress`): exit 1 unless it is clean."""
     from rich.console import Console
     from rich.table import Table
 
