@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from authn.audit.entries import Entry, NewEntry
+from authn.audit.writer import append
 from core.errors import EXIT_BAD_INPUT
 from registry.dbapi import Database
 
@@ -43,8 +44,6 @@ class AuditLog:
     def record(self, entries: Sequence[NewEntry], *, idempotency_key: str | None = None) -> list[Entry]:
         """Append `entries` in one transaction (see authn.audit.writer.append); raises if it
         does not commit, so the caller prints nothing it did not record."""
-        from authn.audit.writer import append
-
         return append(self.db, entries, policy_text=self.policy_text, idempotency_key=idempotency_key)
 
     def record_decision(self, serial: str | None, decision: str, payload: dict[str, Any]) -> Entry:

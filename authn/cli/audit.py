@@ -472,8 +472,11 @@ def export_cmd(
                                        "bytes, the newest checkpoint and the public key (docs/audit.md)."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
 ) -> None:
-    """Export the log as JSON lines, a signed tree head to keep elsewhere, or (--dir) what a
-    verifier outside authn needs: tools/verify_audit_export.py DIR checks it.
+    """Export the log as JSON lines, a signed tree head to keep elsewhere, or a folder to verify.
+
+    With --dir: the leaf bytes of every entry the newest checkpoint covers, that checkpoint
+    and the public key; `python tools/verify_audit_export.py DIR` checks the folder without
+    authn. Exit 1 when the stored log does not make the tree the checkpoint signed.
 
     Example: authn audit export --dir audit-export
     """
