@@ -78,6 +78,8 @@ def test_upgrade_from_0001_keeps_entries_as_leaves(db_url: str, tmp_path: Path) 
         bytes.fromhex(e.leaf_hash) for e in list_entries(db)[-2:]]).hex()
     doc = prove(db, 2)
     assert verify_proof(doc, LogKey.load().public_key).startswith("ok")
+    legacy = {k: v for k, v in doc.items() if k != "leaf_bytes"} | {"format": "authn-inclusion-proof/1"}
+    assert verify_proof(legacy, LogKey.load().public_key).startswith("ok")  # a proof issued before 0008
     export(db, tmp_path / "export")  # version 0 and version 1 leaves in one export
     done = subprocess.run([sys.executable, str(Path(__file__).resolve().parents[2] / "tools" /
                                                "verify_audit_export.py"), str(tmp_path / "export")],
