@@ -18,7 +18,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from authn.audit import NewEntry, append
+from authn.audit import AuditLog, NewEntry
 from core.digest import file_sha256
 from core.errors import EXIT_BAD_INPUT, describe, exit_code_for
 from core.uasid import as_heard
@@ -109,9 +109,7 @@ class Failure:
         raise SystemFault(f"{self.file}: {self.error}")
 
     def entry(self, policy_sha256: str | None) -> NewEntry:
-        kind = "bad-input" if self.exit_code == EXIT_BAD_INPUT else "system"
-        payload = {"file": self.file, "error": self.error, "error_kind": kind, "policy_sha256": policy_sha256}
-        return NewEntry("error", self.serial, None, payload)
+        return AuditLog.error(self.file, self.serial, self.error, self.exit_code, policy_sha256=policy_sha256)
 
     def to_json(self) -> dict[str, Any]:
         return {"file": self.file, "error": self.error, "exit_code": self.exit_code}
@@ -668,10 +666,10 @@ class Checker:
         """Append decisions and failed checks in one transaction; raises DatabaseFault if it
         does not commit (the caller then prints no decision). With `idempotency_key`, a key
         that already committed writes nothing and returns that transaction's entry ids."""
-        entries = [NewEntry("decision", o.serial, o.decision, o.audit_payload()) if isinstance(o, Outcome)
+        entries = [AuditLog.decision(o.serial, o.decision, o.audit_payload()) if isinstance(o, Outcome)
                    else o.entry(self.policy.sha256) for o in outcomes]
         t0 = time.perf_counter()
-        written = append(self.db, entries, policy_text=self.policy.text, idempotency_key=idempotency_key)
+        written = AuditLog(self.db, self.policy.text).record(entries, idempotency_key=idempotency_key)
         ms = round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)
         ids = [e.seq for e in written]
         for o, seq in zip(outcomes, ids):

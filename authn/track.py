@@ -48,7 +48,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from core.errors import AuthnError, EXIT_BAD_INPUT, describe, exit_code_for
+from core.errors import AuthnError, describe, exit_code_for
 from authn.sprt import (DEFAULT_FALSE_ACCEPT, DEFAULT_FALSE_REJECT, DWELL_CAP_NATS, DWELL_CORRELATION, Sprt)
 
 __all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION", "KINEMATIC_DWELLS",
@@ -371,32 +371,28 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
 
 
 def _error_entry(names: Sequence[str], serial: str | None, exc: BaseException, policy_sha256: str) -> Any:
-    from authn.audit import NewEntry
+    from authn.audit import AuditLog
 
-    kind = "bad-input" if exit_code_for(exc) == EXIT_BAD_INPUT else "system"
-    return NewEntry("error", serial, None, {"file": names[0] if names else "", "track_files": list(names),
-                                            "error": describe(exc), "error_kind": kind,
-                                            "policy_sha256": policy_sha256})
+    return AuditLog.error(names[0] if names else "", serial, describe(exc), exit_code_for(exc),
+                          policy_sha256=policy_sha256, track_files=names)
 
 
 def check_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = None,
                 sprt: Sprt | None = None) -> TrackOutcome:
     """Decide a track and record it: one audit entry (the decision, or the error that stopped it)
     committed before this returns or raises; a commit that fails raises (nothing to print)."""
-    from authn.audit import NewEntry, append
+    from authn.audit import AuditLog
 
+    log = AuditLog(checker.db, checker.policy.text)
     try:
         out = decide_track(checker, dwells, serial, sprt)
     except Exception as exc:
         try:
-            append(checker.db, [_error_entry([d.name for d in dwells], serial, exc, checker.policy.sha256)],
-                   policy_text=checker.policy.text)
+            log.record([_error_entry([d.name for d in dwells], serial, exc, checker.policy.sha256)])
         except Exception:  # noqa: BLE001 - the error that stopped the track is the one reported
             pass
         raise
     t0 = time.perf_counter()
-    written = append(checker.db, [NewEntry("decision", out.serial, out.decision, out.audit_payload())],
-                     policy_text=checker.policy.text)
-    out.audit_id = written[0].seq
+    out.audit_id = log.record_decision(out.serial, out.decision, out.audit_payload()).seq
     out.timings_ms["audit"] = round((time.perf_counter() - t0) * 1e3, 3)
     return out

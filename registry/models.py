@@ -140,6 +140,7 @@ class AuditLog(Base):
     prev_hash: Mapped[str] = mapped_column(CHAR(64))
     entry_hash: Mapped[str] = mapped_column(CHAR(64), unique=True)
     leaf_hash: Mapped[str | None] = mapped_column(CHAR(64))  # RFC 9162 leaf hash (revision 0002)
+    leaf_bytes: Mapped[bytes | None] = mapped_column(LargeBinary)  # what is hashed, authn.audit.leaf (revision 0008)
 
     __table_args__ = (
         CheckConstraint("kind IN ('decision', 'error', 'registry', 'audit')", name="kind_enum"),

@@ -10,7 +10,10 @@ signed by the log key (a file the database never holds) and kept elsewhere fixes
 first tree_size entries.
 
 Modules, each with one job:
-    entries   the canonical entry bytes, the rows, reading them back
+    log       AuditLog, the one way the product records: a decision, an error, a registry change
+    leaf      the leaf bytes: what is stored and hashed (versioned, docs/audit.md)
+    entries   the entries recorded and read back
+    export    the log's leaf bytes and newest checkpoint, for a verifier outside authn
     writer    append: prove the log extends every trusted head, then sign the new one
     heads     where heads are kept and which are trusted (database, files, witness), the
               log's origin, the writer's key, the hand-over rule for retired keys
@@ -23,6 +26,7 @@ Modules, each with one job:
     logkey    the Ed25519 log key and the checkpoint format
     witness   heads kept on another host, each proven to extend the last
     merkle    RFC 9162 hashing and proofs
+    _internal what the modules share: stored rows, heads as rows (never imported outside the package)
 """
 
 from importlib import import_module
@@ -31,8 +35,10 @@ from typing import Any
 #: the public API, by the module that defines it: loaded on first use (PEP 562), so a check,
 #: which needs only the writer, does not import the verifier, the prover or the witness client
 _WHERE = {
-    "entries": ("GENESIS", "Entry", "NewEntry", "_iso_db", "batch_entries", "compute_hash", "db_label", "entry_bytes",
-                "get_entry", "get_policy", "list_entries"),
+    "entries": ("GENESIS", "Entry", "NewEntry", "batch_entries", "db_label", "get_entry", "get_policy",
+                "list_entries"),
+    "export": ("export",),
+    "log": ("AuditLog",),
     "heads": ("HeadPlaces", "KnownHead", "accepted_keys", "consistency_proof", "known_heads", "log_origin", "newest",
               "writer_key"),
     "proofs": ("PROOF_FORMAT", "prove", "verify_proof"),

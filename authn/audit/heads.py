@@ -17,8 +17,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
+from authn.audit._internal.headrows import HEAD_COLUMNS, Signed, head_of, load_key
 from authn.audit.entries import GENESIS, db_label
-from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, append_sth_log, check_origin, \
+from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, check_origin, \
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, scan_sth_log, sth_log_path, \
     write_latest_head
 from core.errors import AuthnError, SystemFault, one_line
@@ -28,24 +29,6 @@ from registry.dbapi import Database
 
 if TYPE_CHECKING:
     from authn.audit.witness import HttpWitness, WitnessStore
-
-_KEYS: dict[Path, tuple[tuple[int, int] | None, LogKey]] = {}
-
-
-
-def _log_key(path: str | Path | None) -> LogKey:
-    """The key at `path`, loaded once per file version (a replaced file is loaded again)."""
-    p = key_path(path)
-    try:
-        st = p.stat()
-        version = (st.st_ino, st.st_mtime_ns)
-    except OSError:
-        version = None
-    cached = _KEYS.get(p)
-    if cached is None or cached[0] != version or version is None:
-        _KEYS[p] = (version, LogKey.load(p))
-    return _KEYS[p][1]
-
 
 
 def writer_key(db: Database, heads: Sequence["KnownHead"], log_key: str | Path | None = None, *,
@@ -64,7 +47,7 @@ def writer_key(db: Database, heads: Sequence["KnownHead"], log_key: str | Path |
                       "signed heads" else "if it is lost, `authn audit recover` signs the log as it stands")
             raise SystemFault(f"audit log key {p} is missing but the log has {held}: restore the key file ({advice})")
         create_key_file(p)
-    return _log_key(p)
+    return load_key(p)
 
 
 def log_origin(db: Database, *, create: bool = False) -> str | None:
@@ -86,42 +69,6 @@ def log_origin(db: Database, *, create: bool = False) -> str | None:
 
 
 
-_HEAD_COLUMNS = "tree_size, timestamp_ms, root_hash, log_key_id, signature, origin"
-
-
-
-def _head_of(row: Sequence[Any]) -> SignedTreeHead:
-    """A head from a row of _HEAD_COLUMNS (AuthnError when malformed)."""
-    n, ts, root, kid, sig, origin = row
-    fmt = "authn-sth/1" if origin is None else CHECKPOINT_FORMAT
-    return SignedTreeHead.from_dict({"format": fmt, "tree_size": int(n), "timestamp": int(ts), "root_hash": root,
-                                     "log_key_id": str(kid).strip(), "signature": sig, "origin": origin})
-
-
-
-def _store_head(db: Database, sth: SignedTreeHead, edge: str | None) -> SignedTreeHead:
-    db.execute("INSERT INTO audit_tree_heads (tree_size, timestamp_ms, root_hash, log_key_id, signature, frontier, "
-               "origin) VALUES (:n, :t, :r, :k, :s, :f, :o)",
-               {"n": sth.tree_size, "t": sth.timestamp, "r": sth.root_hash, "k": sth.log_key_id,
-                "s": sth.signature, "f": edge, "o": sth.origin})
-    return sth
-
-
-
-def _check_head(h: "KnownHead", key: LogKey, origin: str, size_before: int) -> None:
-    """A trusted head must be this key's, name this log, and not be larger than the log."""
-    if not key.vouches_for(h.sth):
-        raise SystemFault(f"audit log: the signed head of size {h.sth.tree_size} ({h.source}) is not signed by "
-                          "this log's key; run `authn audit verify`")
-    if h.sth.origin is not None and h.sth.origin != origin:
-        raise SystemFault(f"audit log: the signed head of size {h.sth.tree_size} ({h.source}) names the log "
-                          f"{h.sth.origin}, not this one ({origin})")
-    if h.sth.tree_size > size_before:
-        raise SystemFault(f"audit log truncated: {size_before} entries, but the signed head ({h.source}) has "
-                          f"{h.sth.tree_size}; run `authn audit verify`")
-
-
-
 def accepted_keys(heads: Sequence[KnownHead], current: Any, retired: Sequence[Any] = ()) -> list[Any]:
     """The current key, and each retired key that signed a head which a key already accepted
     signed too (the rotation head `authn audit rotate-key` signs with both): a retired key
@@ -137,13 +84,6 @@ def accepted_keys(heads: Sequence[KnownHead], current: Any, retired: Sequence[An
                 pending.remove(r)
                 grown = True
     return keys
-
-
-
-@dataclass(frozen=True)
-class _Signed:
-    sth: SignedTreeHead
-    due: bool  # periodic: also to the STH log and the witness
 
 
 
@@ -175,9 +115,9 @@ class HeadPlaces:
 
     def _db_heads(self, where: str, params: dict[str, Any] | None = None) -> list[KnownHead]:
         out = []
-        for row in self.db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads {where}", params or {}):
+        for row in self.db.fetch(f"SELECT {HEAD_COLUMNS} FROM audit_tree_heads {where}", params or {}):
             try:
-                out.append(KnownHead(_head_of(row), "database"))
+                out.append(KnownHead(head_of(row), "database"))
             except AuthnError:
                 out.append(KnownHead(SignedTreeHead(int(row[0]), int(row[1]), GENESIS, "", ""),
                                      "database (malformed)"))
@@ -237,7 +177,7 @@ class HeadPlaces:
             held = self.witness.heads(origin)
         return [KnownHead(h, f"witness {self.witness.name}") for h in held]
 
-    def publish(self, signed: _Signed) -> None:
+    def publish(self, signed: Signed) -> None:
         """After commit: the latest-head file always; periodic heads to the STH log and the witness."""
         write_latest_head(self.latest_file, signed.sth, self.label)
         if not signed.due:
@@ -258,7 +198,7 @@ class HeadPlaces:
             old = held.tree_size if held is not None else 0
             proof = consistency_proof(self.db, old, sth.tree_size)
             for head in (sth, *cosigned):
-                self.witness.add(head, old, proof, list(keys) or [_log_key(self.log_key).public_key])
+                self.witness.add(head, old, proof, list(keys) or [load_key(self.log_key).public_key])
         except Conflict as exc:
             raise SystemFault(f"witness {self.witness.name} refused the head of size {sth.tree_size}: {exc}") from None
         except SystemFault as exc:

@@ -3,27 +3,33 @@ the log's public key (no database)."""
 
 from __future__ import annotations
 
+import base64
+import binascii
 import hashlib
 from typing import Any
 from pathlib import Path
 
 import authn.audit.merkle as merkle
-from authn.audit.entries import _COLUMNS, MalformedRow, _iso_db, entry_bytes
-from authn.audit.heads import _log_key, known_heads, newest
+from authn.audit._internal.headrows import load_key, when
+from authn.audit import leaf
+from authn.audit._internal.rows import COLUMNS, MalformedRow, stored_leaf, utc_text
+from authn.audit.heads import known_heads, newest
 from authn.audit.logkey import SignedTreeHead
 from authn.audit.signer import checkpoint
-from authn.audit.verifier import _when
 from core.errors import AuthnError
 from registry.dbapi import Database
 
-PROOF_FORMAT = "authn-inclusion-proof/1"
+PROOF_FORMAT = "authn-inclusion-proof/2"
+PROOF_FORMAT_V1 = "authn-inclusion-proof/1"  # no leaf bytes: the entry's version 0 bytes rebuilt from its fields
 
 
-
-def _entry_doc(row: tuple) -> dict[str, Any]:
-    seq, created, kind, serial, decision, payload, prev_hash, entry_hash, _ = row
-    return {"seq": int(seq), "created_at": _iso_db(created), "kind": kind, "serial": serial,
-            "decision": decision, "payload": payload, "prev_hash": prev_hash, "entry_hash": entry_hash}
+def _entry_doc(row: tuple) -> tuple[dict[str, Any], bytes]:
+    """The entry's readable fields (created_at as its leaf bytes write it) and its leaf bytes."""
+    body = stored_leaf(row)
+    seq, created, kind, serial, decision, payload, prev_hash, entry_hash = row[:8]
+    when = utc_text(created) + ("Z" if leaf.version(body) == 1 else "+00:00")
+    return ({"seq": int(seq), "created_at": when, "kind": kind, "serial": serial, "decision": decision,
+             "payload": payload, "prev_hash": prev_hash, "entry_hash": entry_hash}, body)
 
 
 
@@ -32,11 +38,11 @@ def prove(db: Database, seq: int, sth: SignedTreeHead | None = None, *, log_key:
     """A self-contained inclusion proof of entry `seq` (JSON-ready): the entry as hashed,
     its leaf index, the audit path, and the STH it is proved against (the newest one
     covering it, a new checkpoint if none does, or the one given)."""
-    rows = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :s", {"s": seq})
+    rows = db.fetch(f"SELECT {COLUMNS} FROM audit_log WHERE seq = :s", {"s": seq})
     if not rows:
         raise AuthnError(f"no audit entry {seq}")
     if sth is None:
-        key = _log_key(log_key)
+        key = load_key(log_key)
         good = [h for h in known_heads(db, sth_log=sth_log, log_key=log_key)
                 if h.sth.tree_size >= seq and h.sth.verify_signature(key.public_key)]
         best = newest(good)
@@ -53,14 +59,13 @@ def prove(db: Database, seq: int, sth: SignedTreeHead | None = None, *, log_key:
     if collector.root() != sth.root:
         raise AuthnError("the log does not match the signed tree head; run `authn audit verify`")
     try:
-        entry = _entry_doc(rows[0])
+        entry, body = _entry_doc(rows[0])
     except MalformedRow as exc:
         raise AuthnError(f"entry {seq} is malformed ({exc}); run `authn audit verify`") from None
-    body = entry_bytes(entry["seq"], entry["created_at"], entry["kind"], entry["serial"], entry["decision"],
-                       entry["payload"], entry["prev_hash"])
     if merkle.leaf_hash(body).hex() != leaves[seq - 1][0]:
         raise AuthnError(f"entry {seq} does not match its leaf hash; run `authn audit verify`")
-    return {"format": PROOF_FORMAT, "entry": entry, "leaf_index": seq - 1, "tree_size": n,
+    return {"format": PROOF_FORMAT, "entry": entry, "leaf_bytes": base64.b64encode(body).decode(),
+            "leaf_index": seq - 1, "tree_size": n,
             "audit_path": [collector.hashes[r].hex() for r in merkle.inclusion_ranges(seq - 1, n)],
             "sth": sth.to_dict()}
 
@@ -69,7 +74,7 @@ def prove(db: Database, seq: int, sth: SignedTreeHead | None = None, *, log_key:
 def verify_proof(doc: Any, public_key: Any) -> str:
     """Check an inclusion proof with only the log's public key; returns a one-line summary.
     Raises AuthnError naming what does not hold."""
-    if not isinstance(doc, dict) or doc.get("format") != PROOF_FORMAT:
+    if not isinstance(doc, dict) or doc.get("format") not in (PROOF_FORMAT, PROOF_FORMAT_V1):
         raise AuthnError(f"not an {PROOF_FORMAT} document")
     sth = SignedTreeHead.from_dict(doc.get("sth"), "proof's signed tree head")
     if not sth.verify_signature(public_key):
@@ -86,16 +91,32 @@ def verify_proof(doc: Any, public_key: Any) -> str:
         nodes = [bytes.fromhex(p) for p in path]
         if any(len(p) != 32 for p in nodes) or any(p != p.lower() for p in path):
             raise ValueError
-    except (KeyError, TypeError, ValueError):
-        raise AuthnError("proof: malformed entry, leaf_index, tree_size or audit_path") from None
+        body = _proof_leaf(doc, seq, fields)
+    except (KeyError, TypeError, ValueError, binascii.Error):
+        raise AuthnError("proof: malformed entry, leaf_bytes, leaf_index, tree_size or audit_path") from None
     if size != sth.tree_size:
         raise AuthnError("proof: tree_size differs from the signed tree head's")
     if index != seq - 1:
         raise AuthnError(f"proof: leaf_index {index} is not entry {seq}'s")
-    body = entry_bytes(seq, *fields)
+    if body != (leaf.encode if leaf.version(body) == 1 else leaf.encode_v0)(seq, *fields):
+        raise AuthnError(f"proof: entry {seq}'s fields disagree with its leaf bytes (altered)")
     if hashlib.sha256(body).hexdigest() != entry["entry_hash"]:
         raise AuthnError(f"proof: entry {seq} does not match its entry_hash (altered)")
     if not merkle.verify_inclusion(index, size, merkle.leaf_hash(body), nodes, sth.root):
         raise AuthnError(f"proof: entry {seq} is not in the tree the signed tree head signed")
-    return (f"ok: entry {seq} is leaf {index} of the log of {size} entries signed at {_when(sth.timestamp)} "
+    return (f"ok: entry {seq} is leaf {index} of the log of {size} entries signed at {when(sth.timestamp)} "
             f"by key {sth.log_key_id[:16]}")
+
+
+def _proof_leaf(doc: dict[str, Any], seq: int, fields: tuple) -> bytes:
+    """The proved leaf bytes: as the proof carries them (base64), or, in a version 1 proof,
+    rebuilt from the entry's fields in the version 0 encoding (ValueError when malformed)."""
+    if doc["format"] == PROOF_FORMAT_V1:
+        return leaf.encode_v0(seq, *fields)
+    text = doc["leaf_bytes"]
+    if not isinstance(text, str):
+        raise TypeError
+    body = base64.b64decode(text, validate=True)
+    if leaf.version(body) is None:
+        raise ValueError
+    return body

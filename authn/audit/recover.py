@@ -17,7 +17,8 @@ from pathlib import Path
 import authn.audit.merkle as merkle
 from authn.audit.edge import edge_json
 from authn.audit.entries import NewEntry, lock
-from authn.audit.heads import HeadPlaces, _log_key, _Signed, _store_head, log_origin
+from authn.audit._internal.headrows import Signed, load_key, store_head
+from authn.audit.heads import HeadPlaces, log_origin
 from authn.audit.logkey import SignedTreeHead, canonical_json, create_key_file, load_retired_keys
 from authn.audit.verifier import VerifyReport, verify
 from authn.audit.writer import insert_entry
@@ -47,7 +48,7 @@ def _state(db: Database, places: HeadPlaces) -> tuple[VerifyReport, bool, bool]:
         raise SystemFault(f"audit log key {places.log_key} is missing but signed heads of the log exist: restore the "
                           "key file (recover signs with a new key only a log that no head is left of)")
     if heads:
-        report = verify(db, heads, public_key=_log_key(places.log_key).public_key,
+        report = verify(db, heads, public_key=load_key(places.log_key).public_key,
                         retired=load_retired_keys(places.log_key))
     else:
         report = verify(db)
@@ -78,7 +79,7 @@ def recover(db: Database, trust_root: str | None, *, log_key: str | Path | None 
             raise AuthnError("audit log changed during recover; run it again")
         if not have_key:
             create_key_file(places.log_key)
-        key = _log_key(places.log_key)
+        key = load_key(places.log_key)
         origin = log_origin(db, create=True)
         assert origin is not None
         payload = {"action": "recover", "trusted": {"entries": report.size, "tree_root": report.root,
@@ -92,6 +93,6 @@ def recover(db: Database, trust_root: str | None, *, log_key: str | Path | None 
         before_last = frontier.hashes
         frontier.push(bytes.fromhex(str(entry.leaf_hash)))
         sth = key.sign_tree_head(frontier.size, frontier.root(), int(time.time() * 1000), origin)
-        _store_head(db, sth, edge_json(key, sth, before_last))
-    places.publish(_Signed(sth, True))
+        store_head(db, sth, edge_json(key, sth, before_last))
+    places.publish(Signed(sth, True))
     return Recovered(report.size, report.root, vouched, entry.seq, sth, not have_key)

@@ -11,7 +11,8 @@ from pathlib import Path
 import authn.audit.merkle as merkle
 from authn.audit.edge import edge_json
 from authn.audit.entries import lock
-from authn.audit.heads import _KEYS, HeadPlaces, _log_key, _store_head, log_origin, writer_key
+from authn.audit._internal.headrows import KEYS, load_key, store_head
+from authn.audit.heads import HeadPlaces, log_origin, writer_key
 from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, create_key_file, load_retired_keys, \
     retired_keys_path, write_latest_head
 from authn.audit.verifier import VerifyReport, verify
@@ -51,7 +52,7 @@ def _sign_whole(db: Database, places: HeadPlaces, report: VerifyReport, keys: Se
         heads = []
         for k in keys:
             sth = k.sign_tree_head(frontier.size, frontier.root(), now_ms, origin)
-            heads.append(_store_head(db, sth, edge_json(k, sth, before_last) if frontier.size else None))
+            heads.append(store_head(db, sth, edge_json(k, sth, before_last) if frontier.size else None))
     write_latest_head(places.latest_file, heads[-1], places.label)
     for sth in heads:
         append_sth_log(places.sth_log, sth, places.label)
@@ -82,7 +83,7 @@ def rotate_key(db: Database, *, log_key: str | Path | None = None, sth_log: str 
     p = places.log_key
     if not p.exists():
         raise SystemFault(f"audit log key {p} does not exist: rotation needs the old key to hand over from")
-    old = _log_key(p)
+    old = load_key(p)
     report = _verified(db, places, old)
     staged = p.with_name(p.name + ".new")
     if staged.exists():
@@ -102,5 +103,5 @@ def rotate_key(db: Database, *, log_key: str | Path | None = None, sth_log: str 
     except OSError as exc:
         raise SystemFault(f"audit log key {p}: rotation signed but not completed ({exc.strerror}); "
                           f"the new key is {staged}") from None
-    _KEYS.pop(p, None)
+    KEYS.pop(p, None)
     return heads[-1], kept

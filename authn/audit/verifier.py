@@ -12,12 +12,13 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
 from typing import Any
 
 import authn.audit.merkle as merkle
-from authn.audit.entries import GENESIS, MalformedRow, _rows, row_body
-from authn.audit.heads import _HEAD_COLUMNS, KnownHead, _head_of, accepted_keys, log_origin
+from authn.audit._internal.headrows import HEAD_COLUMNS, head_of, when
+from authn.audit._internal.rows import ColumnsAltered, MalformedRow, rows, stored_leaf
+from authn.audit.entries import GENESIS
+from authn.audit.heads import KnownHead, accepted_keys, log_origin
 from authn.audit.logkey import SignedTreeHead
 from core.errors import AuthnError
 from registry.dbapi import Database
@@ -35,17 +36,14 @@ class VerifyReport:
 
 
 
-def _when(ms: int) -> str:
-    return datetime.fromtimestamp(ms / 1000, timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-
-
-
 def _leaf(row: Sequence[Any]) -> tuple[bytes, bytes | None, str | None]:
-    """A row's recomputed leaf hash and entry bytes, or a leaf no entry has and what is wrong."""
+    """A row's leaf hash and stored leaf bytes (its columns agreeing with them), or a leaf no
+    entry has and what is wrong."""
     try:
-        body = row_body(row)
+        body = stored_leaf(row)
     except MalformedRow as exc:
-        return hashlib.sha256(b"\xffmalformed" + str(row[0]).encode()).digest(), None, f"is malformed: {exc}"
+        what = f"was modified ({exc})" if isinstance(exc, ColumnsAltered) else f"is malformed: {exc}"
+        return hashlib.sha256(b"\xffmalformed" + str(row[0]).encode()).digest(), None, what
     return merkle.leaf_hash(body), body, None
 
 
@@ -82,9 +80,9 @@ def _pin(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size: in
     by_size: dict[int, list[KnownHead]] = {}
     candidates = list(heads)
     if keys:
-        for row in db.fetch(f"SELECT {_HEAD_COLUMNS} FROM audit_tree_heads WHERE tree_size <= :n", {"n": size}):
+        for row in db.fetch(f"SELECT {HEAD_COLUMNS} FROM audit_tree_heads WHERE tree_size <= :n", {"n": size}):
             try:
-                candidates.append(KnownHead(_head_of(row), "database"))
+                candidates.append(KnownHead(head_of(row), "database"))
             except AuthnError:
                 continue
     for h in candidates:
@@ -93,7 +91,7 @@ def _pin(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size: in
     if not by_size:
         return None
     collector = merkle.RangeCollector(root_sizes=by_size)
-    for row in _rows(db):
+    for row in rows(db):
         collector.push(_leaf(row)[0])
     roots = collector.roots
     sizes = sorted(by_size)
@@ -103,7 +101,7 @@ def _pin(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size: in
     m, head = bad
     good = next((n for n in reversed(sizes) if n < m and any(roots.get(n) == h.sth.root and _signed(h, keys)
                                                               for h in by_size[n])), 0)
-    return good, m, f"STH size {m} of {_when(head.sth.timestamp)} ({head.source})"
+    return good, m, f"STH size {m} of {when(head.sth.timestamp)} ({head.source})"
 
 
 def _failure(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size: int,
@@ -164,7 +162,7 @@ def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | Kno
             wanted.update(merkle.consistency_ranges(h.sth.tree_size, total))
     collector = merkle.RangeCollector(wanted, root_sizes={h.sth.tree_size for h in heads})
     prev, size, local = GENESIS, 0, None
-    for row in _rows(db):
+    for row in rows(db):
         leaf, body, malformed = _leaf(row)
         if local is None:
             problem = _row_problem(row, size + 1, prev, body, leaf, malformed)
@@ -195,7 +193,7 @@ def _check_heads(heads: Sequence[KnownHead], collector: merkle.RangeCollector,
     root = collector.root()
     for h in sorted(heads, key=lambda h: h.sth.tree_size):
         m = h.sth.tree_size
-        label = f"STH size {m} of {_when(h.sth.timestamp)} ({h.source})"
+        label = f"STH size {m} of {when(h.sth.timestamp)} ({h.source})"
         if size < m:
             return checked, (size + 1, f"log truncated: {size} entries, but the {label} signed {m}"), covered
         proof = [collector.hashes[r] for r in merkle.consistency_ranges(m, size)]

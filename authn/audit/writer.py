@@ -12,11 +12,12 @@ Extension before every append: the writer trusts the newest head of each place (
 database, the latest-head file, the STH log, the witness when a periodic head is due),
 checks each one's signature and origin, and proves, by root, that the stored log extends
 every one of them. It starts from the newest periodic head's right edge, which must fold
-(with the entry at its size, re-hashed) to that head's signed root, then re-serialises and
-re-hashes every entry since: O(K + log n) per append. Rewrites before the anchor that keep
-the chain consistent change the anchor entry or the entries after it, and are refused;
-an edit before the anchor that breaks the chain locally is found by `verify` (or by every
-append with AUTHN_AUDIT_APPEND_CHECK=full, which starts from the first entry: O(n)).
+(with the entry at its size, re-hashed) to that head's signed root, then re-hashes the
+stored leaf bytes of every entry since, each row's columns checked against its bytes:
+O(K + log n) per append. Rewrites before the anchor that keep the chain consistent
+change the anchor entry or the entries after it, and are refused; an edit before the
+anchor that breaks the chain locally is found by `verify` (or by every append with
+AUTHN_AUDIT_APPEND_CHECK=full, which starts from the first entry: O(n)).
 
 Policies: `append(..., policy_text=...)` stores the Cedar text once per SHA-256 in
 `audit_policies` in the same transaction, so `replay` can re-decide an entry later.
@@ -34,10 +35,11 @@ from typing import Any
 
 import authn.audit.merkle as merkle
 from authn.audit.edge import edge_json, signed_edge
-from authn.audit.entries import _COLUMNS, GENESIS, Entry, MalformedRow, NewEntry, _iso, batch_entries, entry_bytes, \
-    lock, row_body
-from authn.audit.heads import HeadPlaces, KnownHead, _check_head, _head_of, _HEAD_COLUMNS, _Signed, _store_head, \
-    log_origin, writer_key
+from authn.audit import leaf as leaf_bytes
+from authn.audit._internal.headrows import HEAD_COLUMNS, Signed, check_head, head_of, store_head
+from authn.audit._internal.rows import COLUMNS, ColumnsAltered, MalformedRow, stored_leaf
+from authn.audit.entries import GENESIS, Entry, NewEntry, batch_entries, lock
+from authn.audit.heads import HeadPlaces, KnownHead, log_origin, writer_key
 from authn.audit.logkey import LogKey, SignedTreeHead, canonical_json
 from core.errors import AuthnError, SystemFault
 from core.settings import current
@@ -76,7 +78,7 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
     every, seconds = settings.audit_checkpoint_every, settings.audit_checkpoint_seconds
     mode = settings.audit_append_check
     out: list[Entry] = []
-    signed: _Signed | None = None
+    signed: Signed | None = None
     with db.write():
         lock(db)
         if idempotency_key is not None:
@@ -108,15 +110,17 @@ def append(db: Database, entries: Sequence[NewEntry], *, policy_text: str | None
 
 def insert_entry(db: Database, seq: int, prev: str, e: NewEntry, payload: dict[str, Any], text: str) -> Entry:
     """Inside an append's transaction: insert entry `seq` (payload as canonical `text`) after
-    the entry whose hash is `prev`, stamped now, its hashes computed from its canonical bytes."""
+    the entry whose hash is `prev`, stamped now: its leaf bytes (authn.audit.leaf, version 1)
+    stored with it, its hashes those of the stored bytes."""
     now = datetime.now(timezone.utc)
-    body = entry_bytes(seq, _iso(now), e.kind, e.serial, e.decision, text, prev)
+    body = leaf_bytes.encode(seq, leaf_bytes.time_text(now), e.kind, e.serial, e.decision, text, prev)
     digest = hashlib.sha256(body).hexdigest()
     leaf = merkle.leaf_hash(body).hex()
-    db.execute(f"INSERT INTO audit_log ({_COLUMNS}) VALUES (:seq, :created_at, :kind, :serial, "
-               ":decision, :payload, :prev_hash, :entry_hash, :leaf_hash)",
+    db.execute(f"INSERT INTO audit_log ({COLUMNS}) VALUES (:seq, :created_at, :kind, :serial, "
+               ":decision, :payload, :prev_hash, :entry_hash, :leaf_hash, :leaf_bytes)",
                {"seq": seq, "created_at": db.to_db_time(now), "kind": e.kind, "serial": e.serial,
-                "decision": e.decision, "payload": text, "prev_hash": prev, "entry_hash": digest, "leaf_hash": leaf})
+                "decision": e.decision, "payload": text, "prev_hash": prev, "entry_hash": digest, "leaf_hash": leaf,
+                "leaf_bytes": body})
     return Entry(seq, now, e.kind, e.serial, e.decision, payload, prev, digest, leaf)
 
 
@@ -136,11 +140,13 @@ class _Anchor:
 
 
 def _body(row: Sequence[Any]) -> bytes:
-    """A stored row's canonical bytes; a row the writer never wrote is a fault, not a crash."""
+    """A stored row's leaf bytes, its columns agreeing with them; a row the writer never wrote
+    is a fault, not a crash."""
     try:
-        return row_body(row)
+        return stored_leaf(row)
     except MalformedRow as exc:
-        raise SystemFault(f"audit log entry {row[0]} is malformed ({exc}); run `authn audit verify`") from None
+        what = "was modified" if isinstance(exc, ColumnsAltered) else "is malformed"
+        raise SystemFault(f"audit log entry {row[0]} {what} ({exc}); run `authn audit verify`") from None
 
 
 def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int) -> _Anchor:
@@ -149,23 +155,23 @@ def _anchor(db: Database, key: LogKey, origin: str, mode: str, size_before: int)
     re-hashed (window mode). In full mode, when there is none, or when its edge does not
     check (unsigned, altered, moved), the proof starts from the empty tree: that append
     re-hashes every entry and its head is periodic, so the next one has a signed edge."""
-    rows = db.fetch(f"SELECT {_HEAD_COLUMNS}, frontier FROM audit_tree_heads WHERE frontier IS NOT NULL "
+    rows = db.fetch(f"SELECT {HEAD_COLUMNS}, frontier FROM audit_tree_heads WHERE frontier IS NOT NULL "
                     "ORDER BY tree_size DESC, id DESC LIMIT 1")
     if not rows:
         return _Anchor(0, merkle.Frontier(), GENESIS, 0, 0)
     try:
-        sth = _head_of(rows[0][:6])
+        sth = head_of(rows[0][:6])
     except AuthnError:
         raise SystemFault("audit log: the newest periodic head in the database is malformed; "
                           "run `authn audit verify`") from None
-    _check_head(KnownHead(sth, "database"), key, origin, size_before)
+    check_head(KnownHead(sth, "database"), key, origin, size_before)
     b = sth.tree_size
     if mode == "full":  # the periodic head is checked by root on the way, like every trusted head
         return _Anchor(0, merkle.Frontier(), GENESIS, b, sth.timestamp, sth)
     edge = signed_edge(rows[0][6], sth, key.public_key) if b else None
     if edge is None:
         return _Anchor(0, merkle.Frontier(), GENESIS, 0, 0, sth)
-    entry = db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq = :s", {"s": b})
+    entry = db.fetch(f"SELECT {COLUMNS} FROM audit_log WHERE seq = :s", {"s": b})
     if not entry:
         raise SystemFault(f"audit log truncated: entry {b}, which the signed head of size {b} covers, is missing; "
                           "run `authn audit verify`")
@@ -193,7 +199,7 @@ def _vouched(heads: Sequence[KnownHead], fresh: bool, size_before: int) -> None:
 
 
 def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, every: int, seconds: float,
-               mode: str) -> _Signed:
+               mode: str) -> Signed:
     """Inside append's transaction: prove the log extends every head it trusts, then sign
     the head of all `size` entries (and say whether it is also periodic).
 
@@ -203,7 +209,7 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     than the log; the newest in the database (else the newest kept outside it) must be the
     head of exactly the entries before this append, unless the log is new; and the tree the
     stored entries make must have, at each trusted head's size, that head's root. The
-    entries since the anchor are re-serialised and re-hashed, not taken as stored. Anything
+    entries since the anchor are re-hashed from their leaf bytes, not taken as stored. Anything
     else raises SystemFault: the transaction rolls back, and nothing is appended to a log
     that does not extend what was signed."""
     named = log_origin(db)
@@ -213,14 +219,14 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     origin = named or log_origin(db, create=True)
     assert origin is not None
     for h in heads:
-        _check_head(h, key, origin, size_before)
+        check_head(h, key, origin, size_before)
     now_ms = int(time.time() * 1000)
     anchor = _anchor(db, key, origin, mode, size_before)
     due = size - anchor.periodic_size >= every or now_ms - anchor.periodic_ms >= seconds * 1000
     if due and places.witness is not None:
         witnessed = places.witness_heads(origin, newest_only=True)
         for h in witnessed:
-            _check_head(h, key, origin, size_before)
+            check_head(h, key, origin, size_before)
         heads += witnessed
     in_db = [h for h in heads if h.source == "database"]
     _vouched(in_db or heads, fresh, size_before)  # the database's newest, else those kept outside it
@@ -238,7 +244,7 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
                                   f"({h.source}): rewritten, deleted or reordered; run `authn audit verify`")
 
     check_roots()
-    for row in db.fetch(f"SELECT {_COLUMNS} FROM audit_log WHERE seq > :a ORDER BY seq", {"a": anchor.size}):
+    for row in db.fetch(f"SELECT {COLUMNS} FROM audit_log WHERE seq > :a ORDER BY seq", {"a": anchor.size}):
         seq = row[0]
         if seq != expected or row[6] != chain:
             raise SystemFault(f"audit log entry {expected} is missing, moved or does not link to entry "
@@ -256,5 +262,5 @@ def _sign_head(db: Database, places: "HeadPlaces", size_before: int, size: int, 
     if frontier.size != size:
         raise SystemFault("audit log damaged (entries missing); run `authn audit verify`")
     sth = key.sign_tree_head(size, frontier.root(), now_ms, origin)
-    _store_head(db, sth, edge_json(key, sth, before_last) if due else None)
-    return _Signed(sth, due)
+    store_head(db, sth, edge_json(key, sth, before_last) if due else None)
+    return Signed(sth, due)

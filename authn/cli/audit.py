@@ -468,16 +468,33 @@ def export_cmd(
     checkpoint_only: bool = typer.Option(False, "--checkpoint",
                                          help="Write a signed tree head instead (as `checkpoint`)."),
     out: Path | None = typer.Option(None, "--out", help="Write to this file instead of stdout."),
+    folder: Path | None = typer.Option(None, "--dir", help="Write the verifiable export into this folder: the leaf "
+                                       "bytes, the newest checkpoint and the public key (docs/audit.md)."),
     log_key: Path | None = typer.Option(None, "--log-key", help=LOG_KEY_HELP),
 ) -> None:
-    """Export the log as JSON lines, or a signed tree head to keep elsewhere.
+    """Export the log as JSON lines, a signed tree head to keep elsewhere, or a folder to verify.
 
-    Example: authn audit export --out audit.jsonl
+    With --dir: the leaf bytes of every entry the newest checkpoint covers, that checkpoint
+    and the public key; `python tools/verify_audit_export.py DIR` checks the folder without
+    authn. Exit 1 when the stored log does not make the tree the checkpoint signed.
+
+    Example: authn audit export --dir audit-export
     """
-    from authn.audit import checkpoint, list_entries
+    from authn.audit import checkpoint, export, list_entries
+    from authn.audit.export import NotExportable
+    from core.errors import AuthnError
     from registry.dbapi import Database
 
     db = Database(ctx.obj.db_url)
+    if folder is not None:
+        if checkpoint_only or out is not None:
+            raise AuthnError("--dir writes its own files: not with --checkpoint or --out")
+        try:
+            done = export(db, folder, log_key=log_key)
+        except NotExportable as exc:
+            _broken(None, str(exc), False)
+        typer.echo(f"exported {done.entries} entries to {done.folder} (tree root {done.root})")
+        return
     if checkpoint_only:
         text = checkpoint(db, log_key=log_key).to_json() + "\n"
     else:

@@ -293,11 +293,11 @@ class _Figures:
 def _record_failure(db_url, failures) -> None:
     """A check that could not even start is an audit error entry too. If the audit itself is
     what failed, the original error is the one reported (exit code by its kind)."""
-    from authn.audit import append
+    from authn.audit import AuditLog
     from registry.dbapi import Database
 
     try:
-        append(Database(db_url), [f.entry(None) for f in failures])
+        AuditLog(Database(db_url)).record([f.entry(None) for f in failures])
     except Exception:  # noqa: BLE001 - the caller re-raises the error that stopped the check
         pass
 

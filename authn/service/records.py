@@ -149,10 +149,9 @@ def _record_json(rec: Any) -> dict[str, Any]:
 
 def _audit_change(rt: Any, caller: Caller, action: str, serial: str, detail: dict[str, Any]) -> None:
     """The registry change as an audit entry naming the acting key (kind 'registry')."""
-    from authn.audit import NewEntry, append
+    from authn.audit import AuditLog
 
-    append(rt.checker.db, [NewEntry("registry", serial, None, {"action": action, "api_key_id": caller.key_id,
-                                                                "role": caller.role, **detail})])
+    AuditLog(rt.checker.db).record_registry_change(serial, action, caller.key_id, caller.role, detail)
 
 
 async def _audited_write(rt: Any, caller: Caller, action: str, serial: str, detail: dict[str, Any],

@@ -216,7 +216,7 @@ def test_missing_log_key_is_a_system_fault(db_url: str, tmp_path: Path, capsys) 
 PROOF_FIELDS = [("entry", "serial", "S9"), ("entry", "decision", "maybe"), ("entry", "payload", "{}"),
                 ("entry", "created_at", "2020-01-01T00:00:00.000000+00:00"), ("entry", "seq", 2),
                 ("entry", "prev_hash", "1" * 64), ("entry", "kind", "error"), ("entry", "entry_hash", "2" * 64),
-                (None, "leaf_index", 0), (None, "tree_size", 4),
+                (None, "leaf_index", 0), (None, "tree_size", 4), (None, "leaf_bytes", "AXt9"),
                 ("sth", "tree_size", 7), ("sth", "timestamp", 1), ("sth", "root_hash", "3" * 64),
                 ("sth", "log_key_id", "4" * 64)]
 

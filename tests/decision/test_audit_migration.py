@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import subprocess
+import sys
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
@@ -12,7 +14,7 @@ import pytest
 from sqlalchemy import text
 
 from authn.audit import merkle
-from authn.audit import NewEntry, append, known_heads, list_entries, prove, recover, verify, verify_proof
+from authn.audit import NewEntry, append, export, known_heads, list_entries, prove, recover, verify, verify_proof
 from authn.audit.logkey import LogKey
 from core.errors import SystemFault
 from registry.db import alembic_config, create_db_engine, dispose_engines
@@ -32,7 +34,7 @@ def _old_body(seq, created: datetime, kind, serial, decision, payload, prev) -> 
                       sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode()
 
 
-def test_upgrade_from_0001_keeps_entries_as_leaves(db_url: str) -> None:
+def test_upgrade_from_0001_keeps_entries_as_leaves(db_url: str, tmp_path: Path) -> None:
     from alembic import command
 
     engine = create_db_engine(db_url)
@@ -62,6 +64,8 @@ def test_upgrade_from_0001_keeps_entries_as_leaves(db_url: str) -> None:
     db = Database(db_url)  # not at head: migrates
     entries = list_entries(db)
     assert [e.leaf_hash for e in entries] == [merkle.leaf_hash(b).hex() for b in bodies]
+    stored = [bytes(b) for (b,) in db.fetch("SELECT leaf_bytes FROM audit_log ORDER BY seq")]
+    assert stored == bodies  # revision 0008 keeps the bytes the hashes were computed over
     assert verify(db).ok  # a whole chain, which no signed head vouches for yet:
     with pytest.raises(SystemFault, match="key .* is missing but the log has entries"):
         append(db, [NewEntry("decision", "NEW", "accept", {"reasons": []})])
@@ -74,6 +78,13 @@ def test_upgrade_from_0001_keeps_entries_as_leaves(db_url: str) -> None:
         bytes.fromhex(e.leaf_hash) for e in list_entries(db)[-2:]]).hex()
     doc = prove(db, 2)
     assert verify_proof(doc, LogKey.load().public_key).startswith("ok")
+    legacy = {k: v for k, v in doc.items() if k != "leaf_bytes"} | {"format": "authn-inclusion-proof/1"}
+    assert verify_proof(legacy, LogKey.load().public_key).startswith("ok")  # a proof issued before 0008
+    export(db, tmp_path / "export")  # version 0 and version 1 leaves in one export
+    done = subprocess.run([sys.executable, str(Path(__file__).resolve().parents[2] / "tools" /
+                                               "verify_audit_export.py"), str(tmp_path / "export")],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.startswith("OK: 9 entries"), done.stderr
     for stmt in ("UPDATE audit_log SET decision = 'accept' WHERE seq = 2", "DELETE FROM audit_log WHERE seq = 1"):
         with pytest.raises(Exception, match="append-only"):
             with db.write():

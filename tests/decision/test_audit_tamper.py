@@ -18,7 +18,7 @@ from tests.audit_tools import drop_triggers
 from tests.flights import write_m300_flight
 
 from authn.audit import merkle
-from authn.audit import NewEntry, append, checkpoint, entry_bytes, verify
+from authn.audit import NewEntry, append, checkpoint, leaf, verify
 from core.errors import SystemFault
 from authn.audit.logkey import LogKey, SignedTreeHead
 from registry.db import get_engine
@@ -59,9 +59,7 @@ def _rows(conn) -> list[list]:
 
 
 def _iso(v) -> str:
-    from authn.audit import _iso_db
-
-    return _iso_db(v)
+    return leaf.time_text(Database.from_db_time(v))
 
 
 def _rewrite(conn, rows: list[list]) -> None:
@@ -69,14 +67,12 @@ def _rewrite(conn, rows: list[list]) -> None:
     conn.exec_driver_sql("DELETE FROM audit_log")
     prev = "0" * 64
     for i, (_, created, kind, serial, decision, payload) in enumerate(rows, start=1):
-        body = entry_bytes(i, _iso(created), kind, serial, decision, payload, prev)
+        body = leaf.encode(i, _iso(created), kind, serial, decision, payload, prev)
         digest = hashlib.sha256(body).hexdigest()
         conn.exec_driver_sql(
             "INSERT INTO audit_log (seq, created_at, kind, serial, decision, payload, prev_hash, entry_hash, "
-            "leaf_hash) VALUES (%s)" % ", ".join(["?"] * 9) if conn.dialect.name == "sqlite" else
-            "INSERT INTO audit_log (seq, created_at, kind, serial, decision, payload, prev_hash, entry_hash, "
-            "leaf_hash) VALUES (%s)" % ", ".join(["%s"] * 9),
-            (i, created, kind, serial, decision, payload, prev, digest, merkle.leaf_hash(body).hex()))
+            "leaf_hash, leaf_bytes) VALUES (%s)" % ", ".join(["?" if conn.dialect.name == "sqlite" else "%s"] * 10),
+            (i, created, kind, serial, decision, payload, prev, digest, merkle.leaf_hash(body).hex(), body))
         prev = digest
 
 
@@ -466,10 +462,11 @@ def test_rotate_key_hands_over_and_a_listed_stranger_is_not_trusted(db_url: str,
     stranger = LogKey.load(stranger_path)
     with open(retired_keys_path(key_path()), "a") as fh:
         fh.write(stranger.public_pem())
-    from authn.audit.heads import _store_head, log_origin
+    from authn.audit._internal.headrows import store_head
+    from authn.audit.heads import log_origin
 
     with db.write():
-        _store_head(db, stranger.sign_tree_head(7, b"\x00" * 32, 1, log_origin(db)), None)
+        store_head(db, stranger.sign_tree_head(7, b"\x00" * 32, 1, log_origin(db)), None)
     db.close()
     assert main(["--db", db_url, "audit", "verify"]) == 1
     assert "not signed by the log key" in capsys.readouterr().err

@@ -13,7 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from datetime import datetime, timedelta, timezone
+from datetime import timedelta, timezone
 from pathlib import Path
 
 import pytest
@@ -22,7 +22,7 @@ from tests.audit_tools import drop_triggers
 from tests.flights import write_m300_flight
 from sqlalchemy import text
 
-from authn.audit import NewEntry, _iso_db, append, db_label, entry_bytes, list_entries, merkle
+from authn.audit import NewEntry, append, db_label, leaf, list_entries, merkle
 from authn.audit.logkey import latest_head_path, sth_log_path
 from authn.cli import main
 from core.errors import SystemFault
@@ -78,12 +78,13 @@ def _recompute(conn, rows: dict[int, dict], first: int, last: int) -> None:
         if first > 1 else "0" * 64
     for seq in range(first, last + 1):
         r = rows[seq]
-        body = entry_bytes(seq, _iso_db(r["created_at"]), r["kind"], r["serial"], r["decision"], r["payload"], prev)
+        when = leaf.time_text(Database.from_db_time(r["created_at"]))
+        body = leaf.encode(seq, when, r["kind"], r["serial"], r["decision"], r["payload"], prev)
         digest = hashlib.sha256(body).hexdigest()
         conn.execute(text("UPDATE audit_log SET created_at = :c, kind = :k, serial = :s, decision = :d, payload = :p, "
-                          "prev_hash = :prev, entry_hash = :e, leaf_hash = :l WHERE seq = :seq"),
+                          "prev_hash = :prev, entry_hash = :e, leaf_hash = :l, leaf_bytes = :b WHERE seq = :seq"),
                      {"c": r["created_at"], "k": r["kind"], "s": r["serial"], "d": r["decision"], "p": r["payload"],
-                      "prev": prev, "e": digest, "l": merkle.leaf_hash(body).hex(), "seq": seq})
+                      "prev": prev, "e": digest, "l": merkle.leaf_hash(body).hex(), "b": body, "seq": seq})
         prev = digest
 
 
@@ -245,7 +246,7 @@ def test_a_time_rewritten_in_another_offset_fails(db_url: str, capsys) -> None:
     offset = timezone(-timedelta(hours=15 if pg else 23, minutes=59))  # PostgreSQL's widest offset is 15:59
     with get_engine(db_url).begin() as conn:
         before = conn.exec_driver_sql("SELECT created_at FROM audit_log WHERE seq = 6").scalar()
-        instant = datetime.fromisoformat(_iso_db(before))
+        instant = Database.from_db_time(before)
         shifted = instant.astimezone(offset).isoformat(timespec="microseconds")
         conn.execute(text("UPDATE audit_log SET created_at = :c WHERE seq = 6"), {"c": shifted})
         after = conn.exec_driver_sql("SELECT created_at FROM audit_log WHERE seq = 6").scalar()
