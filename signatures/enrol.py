@@ -56,7 +56,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -65,6 +65,11 @@ from signatures.errors import SignaturesError
 from signatures.impostors import N_OTHERS
 from signatures.profiles import UavProfile
 from signatures.radar import Preset
+
+if TYPE_CHECKING:
+    from signatures.calibration import Calibration
+    from signatures.dataset import Dataset
+    from signatures.openset import PhysicsCheck
 
 __all__ = ["CALIBRATION_GAIN", "CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS",
            "MIN_SEPARABLE_CLAIMS", "N_OTHERS", "N_SIM", "ONE_MODEL_BANDS",
@@ -723,7 +728,7 @@ class _Base:
     and the physical check of the waveform."""
 
     plist: tuple[UavProfile, ...]
-    sim: Any  # signatures.dataset.Dataset
+    sim: Dataset
     others: list[SiteSample]
     classes: tuple[str, ...]
     names: list[str]
@@ -736,7 +741,7 @@ class _Base:
     X_all: np.ndarray
     y_all: np.ndarray
     w_all: np.ndarray
-    phys: Any  # signatures.openset.PhysicsCheck
+    phys: PhysicsCheck
     jitter: float
     tip_bin: float
 
@@ -846,7 +851,7 @@ class _OpenSetVerdicts:
     unk_oth: np.ndarray
     fold_bands: dict[int, dict[str, Any]]
     all_bands: dict[str, Any] | None
-    phys: Any  # signatures.openset.PhysicsCheck, with the site's rate bands where measured
+    phys: PhysicsCheck  # with the site's rate bands where measured
 
 
 def _open_set(run: _Run, base: _Base, folds: _Folds) -> _OpenSetVerdicts:
@@ -883,7 +888,7 @@ class _Scores:
     dwell_scores: dict[tuple[str, str], list[DwellScore]]
     uncal_genuine: list[float]
     cal_genuine: list[float]
-    calibration: Any  # signatures.calibration's fitted calibration
+    calibration: Calibration
     choice: dict[str, dict[str, Any]]
     claimable: list[str]
 

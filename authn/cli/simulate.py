@@ -7,10 +7,16 @@ import re
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from core.parsing import first_error, parse_iso_time
+
+if TYPE_CHECKING:
+    from authn.scenario import Broadcast
+    from signatures.radar import Preset
+    from signatures.scene import Scene
 
 
 
@@ -235,7 +241,7 @@ def _check_request(req: SimulateRequest) -> None:
             raise SignaturesError(f"--rid-serial: {exc}") from None
 
 
-def _waveform(req: SimulateRequest):  # -> Preset
+def _waveform(req: SimulateRequest) -> Preset:
     """The preset with --chirps / --carrier applied, as a radar of --domain records it; refuses a
     --range beyond its reach."""
     from signatures.errors import SignaturesError
@@ -254,7 +260,7 @@ def _waveform(req: SimulateRequest):  # -> Preset
     return pre
 
 
-def _scene(req: SimulateRequest, pre):  # -> Scene
+def _scene(req: SimulateRequest, pre: Preset) -> Scene:
     """The scene asked for; an invalid value names its option."""
     from pydantic import ValidationError  # the Scene is a pydantic model (not on a check's path)
 
@@ -281,7 +287,7 @@ def _start(req: SimulateRequest) -> datetime:
     return parse_iso_time(req.start_time, "--start-time", error=SignaturesError)
 
 
-def _broadcast(req: SimulateRequest):  # -> Broadcast | None
+def _broadcast(req: SimulateRequest) -> Broadcast | None:
     """The Remote ID broadcast (--rid-*, signed with --sign-key), None without --rid-serial."""
     from authn.scenario import Broadcast
     from signatures.errors import SignaturesError
@@ -305,9 +311,9 @@ class _Flight:
     by the radial speed (a track), else every dwell is the scene itself (seed + i)."""
 
     req: SimulateRequest
-    pre: object  # Preset
-    scene: object  # Scene
-    broadcast: object  # Broadcast | None
+    pre: Preset
+    scene: Scene
+    broadcast: Broadcast | None
     start: datetime
     step_s: float
 
@@ -335,7 +341,7 @@ class _Flight:
             raise SignaturesError(f"--rid-*: {loc}: {msg}") from None
 
 
-def _run(req: SimulateRequest, pre, scene, broadcast, start: datetime) -> None:
+def _run(req: SimulateRequest, pre: Preset, scene: Scene, broadcast: Broadcast | None, start: datetime) -> None:
     """Simulate and write: one file, or --count scenes / --track dwells into the --out folder."""
     from signatures.recording import write_recording
 
