@@ -525,12 +525,11 @@ def enrol_cmd(
     bar = _progress_bar(console)
     read = _site_samples(todo, db, bar)
     folder = _added_to(read[0][1]) if add else None
-    base = load_classifier(path=folder).waveform if folder else None  # verified before its samples are reused
-    wf, samples, at = on_one_waveform(read, base)
+    before = load_classifier(path=folder) if folder else None  # verified before its samples are reused
+    wf, samples, at = on_one_waveform(read, before.waveform if before else None)
     carriers: dict[float, int] = {}
-    if folder is not None:
-        carriers = {float(k): int(v) for k, v in
-                    load_classifier(path=folder).card["enrolment"].get("carriers_hz", {}).items()}
+    if folder is not None and before is not None:
+        carriers = {float(k): int(v) for k, v in before.card["enrolment"].get("carriers_hz", {}).items()}
         known = {s.sha256 for s in previous_samples(folder)}
         duplicates += sum(s.sha256 in known for s in samples)  # already enrolled: the same flights again
         at = [f for s, f in zip(samples, at) if s.sha256 not in known]
@@ -557,7 +556,7 @@ def enrol_cmd(
             bar.update(task, description=phase, completed=frac)
 
         card = enrol(samples, profiles, wf, dest, EnrolOptions(
-            name=name, previous=folder and folder.name, seed=seed, workers=workers, n_sim=base_samples,
+            name=name, previous=folder.name if folder else None, seed=seed, workers=workers, n_sim=base_samples,
             progress=progress, sprt=Sprt(),  # track errors by the check's own test
             physics_bands=CALIBRATE[site_bands], score_calibration=CALIBRATE[calibrate], carriers=carriers))
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
