@@ -150,7 +150,7 @@ def enrol_site(db_url: str, flights: Path, name: str, base_samples: int, seed: i
     from authn.enrolment import on_one_waveform, site_sample
     from authn.sprt import Sprt
     from registry.dbapi import Database
-    from signatures.enrol import enrol
+    from signatures.enrol import EnrolOptions, enrol
     from signatures.inference import models_dir, set_active
     from signatures.profiles import shipped_profiles
 
@@ -159,8 +159,8 @@ def enrol_site(db_url: str, flights: Path, name: str, base_samples: int, seed: i
     wf, samples, at = on_one_waveform(read)
     carriers = {f: at.count(f) for f in set(at)}
     profiles = {**shipped_profiles(), **{p.slug: p for p in db.registered_profiles()}}
-    card = enrol(samples, profiles, wf, models_dir() / name, name=name, seed=seed, n_sim=base_samples, sprt=Sprt(),
-                 carriers=carriers)
+    card = enrol(samples, profiles, wf, models_dir() / name,
+                 EnrolOptions(name=name, seed=seed, n_sim=base_samples, sprt=Sprt(), carriers=carriers))
     set_active(wf.key, name)
     return card
 

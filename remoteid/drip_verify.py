@@ -267,31 +267,59 @@ def verify(messages: Iterable[Heard], key_for: Callable[[bytes], bytes | None], 
 def _verify(items: list[tuple[Message | None, bytes | None]], decoded: list[Message | None],
             key_for: Callable[[bytes], bytes | None], dwell_time: datetime, trusted: Mapping[bytes, bytes],
             skew_s: float) -> AuthResult:
+    """The verdict of the signed structures among `decoded`, link structures first (they may
+    supply the UA key that the others are verified with)."""
+    if dwell_time.tzinfo is None:
+        return AuthResult("invalid", reason="dwell time must be timezone-aware")
+    clock = _Clock(dwell_time.timestamp(), dwell_time.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                   skew_s)  # VNB / VNA are Unix times
+    structures = _structures(decoded)
+    if isinstance(structures, AuthResult):
+        return structures
+    subjects = _Subjects.of(items, decoded)
+    tally = _Tally()
+    for s in sorted(structures, key=lambda s: not isinstance(s, Link)):
+        refused = (_link(s, trusted, clock, tally) if isinstance(s, Link)
+                   else _signed(s, key_for, clock, subjects, tally))
+        if refused is not None:
+            return refused
+    return tally.result(tally.signer_det or structures[0].det.hex())
+
+
+def _sig_ok(key: bytes, sig: bytes, data: bytes) -> bool:
+    """Whether `sig` is the Ed25519 signature of `data` under the raw public key `key`."""
     from cryptography.exceptions import InvalidSignature
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-    def sig_ok(key: bytes, sig: bytes, data: bytes) -> bool:
-        try:
-            Ed25519PublicKey.from_public_bytes(bytes(key)).verify(sig, data)
-            return True
-        except (InvalidSignature, ValueError):
-            return False
+    try:
+        Ed25519PublicKey.from_public_bytes(bytes(key)).verify(sig, data)
+        return True
+    except (InvalidSignature, ValueError):
+        return False
 
-    if dwell_time.tzinfo is None:
-        return AuthResult("invalid", reason="dwell time must be timezone-aware")
-    now = dwell_time.timestamp()  # VNB / VNA are Unix times
-    at = dwell_time.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
-    def outside(s: Signed | Link) -> tuple[str, str] | None:
+@dataclass(frozen=True)
+class _Clock:
+    """The dwell's time (Unix seconds, and as text for reasons) and the clock skew allowed."""
+
+    now: float
+    at: str
+    skew_s: float
+
+    def outside(self, s: Signed | Link) -> tuple[str, str] | None:
         """(status, reason) of a verified signature outside its window, None inside it."""
-        window = f"valid {valid_time_text(s.vnb)} to {valid_time_text(s.vna)}, checked at {at}"
-        if now < s.vnb - skew_s:
+        window = f"valid {valid_time_text(s.vnb)} to {valid_time_text(s.vna)}, checked at {self.at}"
+        if self.now < s.vnb - self.skew_s:
             return "not-yet-valid", f"verified-but-not-yet-valid: DRIP {s.name} signature verifies ({window})"
-        if now > s.vna + skew_s:
+        if self.now > s.vna + self.skew_s:
             return "expired", f"verified-but-expired: DRIP {s.name} signature verifies ({window})"
         return None
 
-    structures = []
+
+def _structures(decoded: list[Message | None]) -> list[Signed | Link] | AuthResult:
+    """The DRIP signed structures (SAM) of the reassembled authentication messages, or the
+    verdict where there are none (`absent`) or one is malformed (`invalid`)."""
+    structures: list[Signed | Link] = []
     others = set()
     for am in reassemble(decoded):
         if am.reason or am.data is None:  # a message without its data says why
@@ -306,87 +334,115 @@ def _verify(items: list[tuple[Message | None, bytes | None]], decoded: list[Mess
     if not structures:
         kinds = ", ".join(str(t) for t in sorted(others))
         return AuthResult("absent", reason=f"authentication type {kinds} is not DRIP (not checked)")
+    return structures
 
-    # Subjects a signature may cover: the non-authentication messages actually decoded.
-    subjects: dict[bytes, list[int]] = {}
-    hashes: dict[bytes, list[int]] = {}
-    for i, (m, raw) in enumerate(items):
-        if m is None or isinstance(m, (AuthPage0, AuthPage)):
-            continue
-        raw = _raw_of(m, raw)
-        if raw is None:
-            continue
-        subjects.setdefault(raw, []).append(i)
-        hashes.setdefault(message_hash(raw), []).append(i)
 
-    def coverable(idx: list[int]) -> list[int]:
-        return [i for i in idx if isinstance(decoded[i], (BasicId, Location))]
+@dataclass(frozen=True)
+class _Subjects:
+    """What a signature may cover: the decoded non-authentication messages, by their bytes and
+    by their message hash (indices into the messages given)."""
 
-    learned: dict[bytes, bytes] = {}
-    verified: list[str] = []
-    covered: set[int] = set()
-    unknown: list[str] = []
-    early: list[tuple[str, str]] = []  # (status, reason) of verified signatures outside their window
-    late_types: list[str] = []
-    det_hex = structures[0].det.hex()
-    signer_det = None
-    for s in sorted(structures, key=lambda s: not isinstance(s, Link)):
-        if isinstance(s, Link):
-            hda_key = trusted.get(s.hda_det)
-            if hda_key is None:
-                unknown.append(f"DRIP link: HDA {s.hda_det.hex()} is not a trusted registry")
+    by_raw: dict[bytes, list[int]]
+    by_hash: dict[bytes, list[int]]
+    decoded: list[Message | None]
+
+    @classmethod
+    def of(cls, items: list[tuple[Message | None, bytes | None]], decoded: list[Message | None]) -> _Subjects:
+        by_raw: dict[bytes, list[int]] = {}
+        by_hash: dict[bytes, list[int]] = {}
+        for i, (m, raw) in enumerate(items):
+            if m is None or isinstance(m, (AuthPage0, AuthPage)):
                 continue
-            if not sig_ok(hda_key, s.signature, s.signed_bytes):
-                return AuthResult("invalid", reason="DRIP link: HDA signature does not verify",
-                                  det=s.ua_det.hex())
-            if not det_matches_key(s.ua_det, s.ua_key):
-                return AuthResult("invalid", reason="DRIP link: UA DET is not the DET of the UA key it carries",
-                                  det=s.ua_det.hex())
-            if (why := outside(s)) is not None:
-                early.append(why)
-                late_types.append("link")
+            raw = _raw_of(m, raw)
+            if raw is None:
                 continue
-            learned[s.ua_det] = s.ua_key
-            verified.append("link")
-            continue
-        key = key_for(s.det) if key_for is not None else None
-        key = key or learned.get(s.det)
-        if key is None:
-            unknown.append(f"DRIP {s.name}: no key for DET {s.det.hex()}")
-            continue
-        if not sig_ok(key, s.signature, s.signed_bytes):
-            return AuthResult("invalid", reason=f"DRIP {s.name}: signature does not verify",
-                              det=s.det.hex())
-        if s.sam_type == SAM_MANIFEST and not s.manifest_current_ok():
-            return AuthResult("invalid", det=s.det.hex(),
-                              reason="DRIP manifest: current manifest hash does not match its evidence")
-        if (why := outside(s)) is not None:
-            early.append(why)
-            late_types.append(s.name)
-            signer_det = signer_det or s.det.hex()
-            continue
-        carried = s.wrapped() if s.sam_type == SAM_WRAPPER else \
-            s.frame_messages() if s.sam_type == SAM_FRAME else None
-        if carried is not None:  # a Wrapper's messages, or a Frame of F3411 messages
-            for k, w in enumerate(carried):
-                idx = subjects.get(w)
-                if not idx:
-                    return AuthResult("invalid", det=s.det.hex(), reason=(
-                        f"DRIP {s.name}: signed message {k + 1} (type 0x{w[0] >> 4:X}) "
-                        "is not among the decoded messages"))
-                covered.update(coverable(idx))
-        elif s.sam_type == SAM_MANIFEST:
-            for h in s.manifest_hashes()[3]:
-                covered.update(coverable(hashes.get(h, [])))
-        verified.append(s.name)
-        signer_det = signer_det or s.det.hex()
+            by_raw.setdefault(raw, []).append(i)
+            by_hash.setdefault(message_hash(raw), []).append(i)
+        return cls(by_raw, by_hash, decoded)
 
-    det_hex = signer_det or det_hex
-    if early:  # a signature that verifies, outside its window: never `invalid`, never `valid`
-        status, reason = early[0]
-        return AuthResult(status, reason=reason, sam_types=tuple(dict.fromkeys(verified + late_types)),
-                          det=det_hex, details=tuple([r for _, r in early] + unknown))
-    if verified:
-        return AuthResult("valid", sam_types=tuple(dict.fromkeys(verified)), covered=tuple(sorted(covered)),
-                          det=det_hex, details=tuple(unknown))
-    return AuthResult("unknown-key", reason=unknown[0], det=det_hex, details=tuple(unknown))
+    def coverable(self, idx: list[int]) -> list[int]:
+        """The indices among `idx` whose coverage counts (Basic ID and Location messages)."""
+        return [i for i in idx if isinstance(self.decoded[i], (BasicId, Location))]
+
+
+@dataclass
+class _Tally:
+    """What the structures verified so far showed: UA keys learned from links, the SAM types
+    verified (and those verified outside their window), the messages covered, the keys missing."""
+
+    learned: dict[bytes, bytes] = field(default_factory=dict)
+    verified: list[str] = field(default_factory=list)
+    covered: set[int] = field(default_factory=set)
+    unknown: list[str] = field(default_factory=list)
+    early: list[tuple[str, str]] = field(default_factory=list)  # (status, reason) outside their window
+    late_types: list[str] = field(default_factory=list)
+    signer_det: str | None = None
+
+    def result(self, det_hex: str) -> AuthResult:
+        """The verdict: outside a window (never `invalid`, never `valid`), valid, or unknown-key."""
+        if self.early:
+            status, reason = self.early[0]
+            return AuthResult(status, reason=reason, sam_types=tuple(dict.fromkeys(self.verified + self.late_types)),
+                              det=det_hex, details=tuple([r for _, r in self.early] + self.unknown))
+        if self.verified:
+            return AuthResult("valid", sam_types=tuple(dict.fromkeys(self.verified)),
+                              covered=tuple(sorted(self.covered)), det=det_hex, details=tuple(self.unknown))
+        return AuthResult("unknown-key", reason=self.unknown[0], det=det_hex, details=tuple(self.unknown))
+
+
+def _link(s: Link, trusted: Mapping[bytes, bytes], clock: _Clock, tally: _Tally) -> AuthResult | None:
+    """Verify a DRIP Link under its trusted HDA key; inside its window it supplies the UA key.
+    Returns the `invalid` verdict where it fails, else None."""
+    hda_key = trusted.get(s.hda_det)
+    if hda_key is None:
+        tally.unknown.append(f"DRIP link: HDA {s.hda_det.hex()} is not a trusted registry")
+        return None
+    if not _sig_ok(hda_key, s.signature, s.signed_bytes):
+        return AuthResult("invalid", reason="DRIP link: HDA signature does not verify", det=s.ua_det.hex())
+    if not det_matches_key(s.ua_det, s.ua_key):
+        return AuthResult("invalid", reason="DRIP link: UA DET is not the DET of the UA key it carries",
+                          det=s.ua_det.hex())
+    if (why := clock.outside(s)) is not None:
+        tally.early.append(why)
+        tally.late_types.append("link")
+        return None
+    tally.learned[s.ua_det] = s.ua_key
+    tally.verified.append("link")
+    return None
+
+
+def _signed(s: Signed, key_for: Callable[[bytes], bytes | None] | None, clock: _Clock, subjects: _Subjects,
+            tally: _Tally) -> AuthResult | None:
+    """Verify a Wrapper, Manifest or Frame under its DET's key (the registry's, else one a link
+    supplied) and record the messages it covers. Returns the `invalid` verdict where it fails."""
+    key = key_for(s.det) if key_for is not None else None
+    key = key or tally.learned.get(s.det)
+    if key is None:
+        tally.unknown.append(f"DRIP {s.name}: no key for DET {s.det.hex()}")
+        return None
+    if not _sig_ok(key, s.signature, s.signed_bytes):
+        return AuthResult("invalid", reason=f"DRIP {s.name}: signature does not verify", det=s.det.hex())
+    if s.sam_type == SAM_MANIFEST and not s.manifest_current_ok():
+        return AuthResult("invalid", det=s.det.hex(),
+                          reason="DRIP manifest: current manifest hash does not match its evidence")
+    if (why := clock.outside(s)) is not None:
+        tally.early.append(why)
+        tally.late_types.append(s.name)
+        tally.signer_det = tally.signer_det or s.det.hex()
+        return None
+    carried = s.wrapped() if s.sam_type == SAM_WRAPPER else \
+        s.frame_messages() if s.sam_type == SAM_FRAME else None
+    if carried is not None:  # a Wrapper's messages, or a Frame of F3411 messages
+        for k, w in enumerate(carried):
+            idx = subjects.by_raw.get(w)
+            if not idx:
+                return AuthResult("invalid", det=s.det.hex(), reason=(
+                    f"DRIP {s.name}: signed message {k + 1} (type 0x{w[0] >> 4:X}) "
+                    "is not among the decoded messages"))
+            tally.covered.update(subjects.coverable(idx))
+    elif s.sam_type == SAM_MANIFEST:
+        for h in s.manifest_hashes()[3]:
+            tally.covered.update(subjects.coverable(subjects.by_hash.get(h, [])))
+    tally.verified.append(s.name)
+    tally.signer_det = tally.signer_det or s.det.hex()
+    return None

@@ -37,6 +37,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -655,15 +656,39 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
                 sub: np.ndarray | None = None, window: int = 0) -> list[F.FeatureResult]:
     """The features of the rows `live` (not all-zero; range offsets `offsets`) from their
     slow-time gates; `sub`: their sub-chirp bins of `window` samples, where the waveform has them."""
-    n = n_chirps
     slow = cube.slow[live]
-    size = slow.shape[2]
-    g_lo = cube.gate_lo[live]
-    peak_bin = cube.peak_bin[live]
+    gate = _gate_power(cube, live, slow, n_chirps, suppress, domain, fft_backend)
+    d = best._sum_last(gate.power)  # power.sum(axis=2) to the bit (the 5 gate bins left to right), ~8x faster
+    line = _line(d, best._sum_last(gate.raw_power), slow, gate.stationary, config, suppress, domain)
+    cols, body_hz = _moment_columns(cube, live, config, offsets, n_bins, domain, gate, d, line)
+    long_dwell = not quick and n_chirps * config.pri_s >= best.SPECTRAL_DWELL_S
+    if quick:
+        return _results(cube, live, config, fft_backend, cols, line.body_idx, None, long_dwell)
+    rotors = _flash_columns(cube, live, slow, config, n_bins, fft_backend, domain, sub, window, body_hz,
+                            long_dwell, cols)
+    return _results(cube, live, config, fft_backend, cols, line.body_idx, rotors, long_dwell)
+
+
+class _GatePower(NamedTuple):
+    """The slow-time gates' Doppler power (rows, Doppler bins, gate bins), before clutter
+    suppression too, the stationary power suppression removed, and detection in the gate."""
+
+    power: np.ndarray
+    raw_power: np.ndarray
+    stationary: np.ndarray
+    noise_bin: np.ndarray  # mean noise power per chirp in a range bin
+    noise_doppler: np.ndarray  # noise power per Doppler bin
+    detected: np.ndarray
+    snr_db: np.ndarray
+
+
+def _gate_power(cube: _Cube, live: np.ndarray, slow: np.ndarray, n: int, suppress: bool, domain: str,
+                fft_backend: str) -> _GatePower:
+    """The gates' Doppler spectra and noise levels; a CW channel detects on its Doppler bins."""
     dop = _fft_rows(slow, 1, rd.hann(n)[:, None], "doppler", fft_backend, lambda z: np.fft.fftshift(z, axes=1))
     power = _power(dop)
     if suppress:
-        raw_power, stationary = _unsuppressed(cube.mu[live], dop, power, g_lo, size)
+        raw_power, stationary = _unsuppressed(cube.mu[live], dop, power, cube.gate_lo[live], slow.shape[2])
     else:
         raw_power, stationary = power, np.zeros(live.size)
     noise_bin = median_last(cube.profile[live]).astype(np.float64)  # mean noise power per chirp in a bin
@@ -673,12 +698,21 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     else:
         noise_doppler = np.maximum(noise_bin * n * float(np.mean(rd.hann(n) ** 2)), _TINY)
         detected, snr_db = cube.detected[live], cube.snr_db[live]
+    return _GatePower(power, raw_power, stationary, noise_bin, noise_doppler, detected, snr_db)
 
-    bin_m = config.range_bin_m(n_bins)
-    dop_bin_hz = config.prf_hz / n
-    lam = config.doppler_wavelength_m(n_bins)
-    d = best._sum_last(power)  # power.sum(axis=2) to the bit (the 5 gate bins left to right), ~8x faster
-    d_raw = best._sum_last(raw_power)
+
+class _Line(NamedTuple):
+    """The body's Doppler line per row: its bin, its spread in bins, and whether it hovers."""
+
+    body_idx: np.ndarray
+    vel_std_bins: np.ndarray
+    hovering: np.ndarray
+
+
+def _line(d: np.ndarray, d_raw: np.ndarray, slow: np.ndarray, stationary: np.ndarray, config: RadarConfig,
+          suppress: bool, domain: str) -> _Line:
+    """Find the body's line in the Doppler power `d` (`d_raw`: before clutter suppression)."""
+    n = d.shape[1]
     centre = n // 2
     d_max = d.max(axis=1).astype(np.float64)
     d_med = median_last(d).astype(np.float64)
@@ -692,20 +726,33 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         flying = suppress & unmirrored & (stands_out | drifting)
         peak = np.where(flying, off, peak)
         hovering = suppress & ~flying & ((contrast < n / F.MOVING_LINE_BINS)
-                                         | (_symmetry(d, np.full(live.size, centre)) >= _symmetry(d, peak)))
+                                         | (_symmetry(d, np.full(d.shape[0], centre)) >= _symmetry(d, peak)))
     else:
         hovering = suppress & (stationary > d_max) & (contrast < n / F.MOVING_LINE_BINS)
     body_idx, vel_std_bins = _body_line(d, d_raw, d_med, centre, hovering, peak)
     if domain == "cw":  # an accelerating body's line, followed over sub-dwells: its mid-dwell Doppler
         body_idx = np.where(drifting, drift_idx, body_idx)
-    body_hz = (body_idx - centre) * dop_bin_hz
+    return _Line(body_idx, vel_std_bins, hovering)
+
+
+def _moment_columns(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.ndarray, n_bins: int,
+                    domain: str, gate: _GatePower, d: np.ndarray,
+                    line: _Line) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The features every row has, quick or not (range, velocity, the gate's spectral moments,
+    peaks, entropy, tip speed, detection), and the body's Doppler (Hz) the flash stage reads."""
+    n, size = d.shape[1], cube.slow.shape[2]
+    power, peak_bin, g_lo, body_idx = gate.power, cube.peak_bin[live], cube.gate_lo[live], line.body_idx
+    bin_m = config.range_bin_m(n_bins)
+    dop_bin_hz = config.prf_hz / n
+    lam = config.doppler_wavelength_m(n_bins)
+    body_hz = (body_idx - n // 2) * dop_bin_hz
     velocity = body_hz * lam / 2.0
-    vel_std = vel_std_bins * dop_bin_hz * lam / 2.0
+    vel_std = line.vel_std_bins * dop_bin_hz * lam / 2.0
     dwell = n * config.pri_s
-    snr = np.maximum(10.0 ** (snr_db / 10.0), 1e-3)
+    snr = np.maximum(10.0 ** (gate.snr_db / 10.0), 1e-3)
     range_mid = offsets + cube.peak_bin_frac[live] * bin_m
-    hover_bin = F.hover_range_bin(cube.profile[live], peak_bin, noise_bin)
-    range_est = np.where(hovering, offsets + hover_bin * bin_m, range_mid)
+    hover_bin = F.hover_range_bin(cube.profile[live], peak_bin, gate.noise_bin)
+    range_est = np.where(line.hovering, offsets + hover_bin * bin_m, range_mid)
     range_std = bin_m * (0.05 + 1.0 / np.sqrt(snr))
 
     rel_bins = np.mod(np.arange(n)[None, :] - body_idx[:, None] + n // 2, n) - n // 2
@@ -720,6 +767,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     mu_hz = np.sum(rel_hz * q_d, axis=1).astype(np.float64)
     dev = rel_hz - mu_hz.astype(np.float32)[:, None]
     std_hz = np.sqrt(np.maximum(np.sum(dev ** 2 * q_d, axis=1).astype(np.float64), 0.0))
+    d_max = d.max(axis=1).astype(np.float64)
     par_db = _db(d_max / np.maximum(d.mean(axis=1).astype(np.float64), _TINY))
     micro = np.abs(rel_bins) > F.BODY_BINS
     d_micro = np.where(micro, d, np.float32(0.0))
@@ -729,7 +777,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     spread = np.where(micro, (abs_hz - centroid.astype(np.float32)[:, None]) ** 2 * d, np.float32(0.0))
     bandwidth = np.sqrt(np.maximum(spread.sum(axis=1).astype(np.float64) / micro_power, 0.0))
     peak_db = _db(power.max(axis=(1, 2)).astype(np.float64)) + 20.0 * math.log10(2.0) * cube.log2_scale[live]
-    noise_gate = noise_doppler * size
+    noise_gate = gate.noise_doppler * size
     shift = (n // 2 - body_idx).astype(int)  # np.roll's truncation of a fractional shift
     rolled = np.take_along_axis(d, (np.arange(n)[None, :] - shift[:, None]) % n, axis=1)
     n_peaks = _count_peaks(rolled, noise_gate)
@@ -740,9 +788,7 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     entropy = -plogp.reshape(live.size, -1).sum(axis=1).astype(np.float64) / math.log(max(n * size, 2))
 
     occupied = _smooth(d, max(1, n // 256)) > (noise_gate * 10 ** (F.OCCUPANCY_DB / 10)).astype(np.float32)[:, None]
-    occupancy = occupied.mean(axis=1)
     tip, tip_std, aliased = _tip_speed(occupied, rel_bins, body_hz, config, dop_bin_hz)
-
     cols = dict(
         mean_range_m=range_mid + mu_r_rel, mean_doppler_mps=velocity + mu_hz * lam / 2.0,
         std_range_m=std_r, std_doppler_mps=std_hz * lam / 2.0, par_db=par_db,
@@ -750,73 +796,100 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
         num_peaks=n_peaks, energy_ratio=energy_ratio, entropy=entropy,
         range_m=range_est - velocity * dwell / 2.0, range_std_m=range_std,
         radial_velocity_mps=velocity, radial_velocity_std_mps=vel_std,
-        tip_speed_mps=tip, tip_speed_std_mps=tip_std, tip_aliased=aliased, doppler_occupancy=occupancy,
-        snr_db=np.maximum(snr_db, -100.0), detected=detected)
+        tip_speed_mps=tip, tip_speed_std_mps=tip_std, tip_aliased=aliased, doppler_occupancy=occupied.mean(axis=1),
+        snr_db=np.maximum(gate.snr_db, -100.0), detected=gate.detected)
     if domain == "cw":  # no range measured: range features are 0 by definition (docs/features.md)
         for name in ("mean_range_m", "std_range_m", "range_m", "range_std_m"):
             cols[name] = np.zeros(live.size)
-    # hundreds of flashes: the envelope spectrum resolves the rate, and counts the rotors visible
-    long_dwell = not quick and dwell >= best.SPECTRAL_DWELL_S
-    if quick:
-        seen = seen_std = np.zeros(live.size)
-        known = np.ones(live.size, dtype=bool)
-        body_idx = np.full(live.size, np.nan)
+    return cols, body_hz
+
+
+class _Rotors(NamedTuple):
+    """The rotors a row's flashes show (`feature_vector.physics_estimates`): seen, its spread,
+    and whether the count is known (not only a lower bound)."""
+
+    seen: np.ndarray
+    seen_std: np.ndarray
+    known: np.ndarray
+
+
+def _flash_columns(cube: _Cube, live: np.ndarray, slow: np.ndarray, config: RadarConfig, n_bins: int,
+                   fft_backend: str, domain: str, sub: np.ndarray | None, window: int, body_hz: np.ndarray,
+                   long_dwell: bool, cols: dict[str, np.ndarray]) -> _Rotors:
+    """Add the blade-flash features to `cols` (rate, rotors, blade length, cadence, envelope);
+    a long dwell's hundreds of flashes: the envelope spectrum resolves the rate, and counts the
+    rotors visible."""
+    size, bin_m = slow.shape[2], config.range_bin_m(n_bins)
+    peak_bin, g_lo = cube.peak_bin[live], cube.gate_lo[live]
+    if sub is not None:
+        per = best.periodicity_batch(best.flash_series_batch(sub, config, body_hz, bin_m * n_bins / window, window))
     else:
-        if sub is not None:
-            per = best.periodicity_batch(best.flash_series_batch(sub, config, body_hz, bin_m * n_bins / window,
-                                                                 window))
-        else:
-            per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
-        flash, flash_std, score = per.flash_rate_hz, per.flash_rate_std_hz, per.score
-        seen, seen_std = per.rotors_seen, per.rotors_seen_std
-        known = np.ones(live.size, dtype=bool)
-        width = int(min(3, size))  # the target's bin +- 1, inside the gate
-        centre_cols = _columns(slow, np.clip(peak_bin - g_lo - 1, 0, size - width), width)
-        if long_dwell:
-            train = best.spectral_flash_rate(centre_cols, config, body_hz)
-            flash, flash_std, score = train.rate_hz, train.rate_std_hz, train.score
-            seen, seen_std = train.rotors_seen, train.rotors_seen_std
-            known = train.rotors_known if train.rotors_known is not None else known
-            if domain == "cw":  # a periodic flash train is a target even where no Doppler line stands out
-                detected = np.asarray(detected, dtype=bool) | (score >= best.SPECTRAL_DETECT_SCORE)
-                cols["detected"] = detected
-        rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
-        if long_dwell:  # the tip's extent is read to within one of the rotor's lines (`tip_line_std`)
-            tip_std = np.where(aliased, tip_std, np.hypot(tip_std, tip_line_std(rotor, config.wavelength_m)))
-            cols["tip_speed_std_mps"] = tip_std
-        has_length = (rotor > 0) & (tip > 0) & ~aliased  # a lower-bound tip gives no length
-        with np.errstate(divide="ignore", invalid="ignore"):
-            length = np.where(has_length, tip / (2 * math.pi * rotor), 0.0)
-            length_std = np.where(has_length, length * np.hypot(tip_std / tip, rotor_std / rotor), 0.0)
-        win, hop = tf.stft_params(config, n)
-        cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend),
-                                                         fft_backend), flash)
-        env_win, env_hop = envelope.frames(config, n)
-        env_power, _ = _spectrogram(centre_cols, config, env_win, env_hop, fft_backend)
-        cols.update(zip(F.ENVELOPE_FEATURES, envelope.from_spectrogram(env_power, config, body_hz, env_hop).T))
-        cols.update(
-            flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std,
-            rotor_count=per.rotor_count, rotor_count_std=per.rotor_count_std, blade_length_m=length,
-            blade_length_std_m=length_std, flash_score=score, flash_count=per.n_events,
-            flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
+        per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
+    flash, flash_std, score = per.flash_rate_hz, per.flash_rate_std_hz, per.score
+    rotors = _Rotors(per.rotors_seen, per.rotors_seen_std, np.ones(live.size, dtype=bool))
+    width = int(min(3, size))  # the target's bin +- 1, inside the gate
+    centre_cols = _columns(slow, np.clip(peak_bin - g_lo - 1, 0, size - width), width)
+    if long_dwell:
+        train = best.spectral_flash_rate(centre_cols, config, body_hz)
+        flash, flash_std, score = train.rate_hz, train.rate_std_hz, train.score
+        rotors = _Rotors(train.rotors_seen, train.rotors_seen_std,
+                         train.rotors_known if train.rotors_known is not None else rotors.known)
+        if domain == "cw":  # a periodic flash train is a target even where no Doppler line stands out
+            cols["detected"] = np.asarray(cols["detected"], dtype=bool) | (score >= best.SPECTRAL_DETECT_SCORE)
+    _blade_columns(cols, flash, flash_std, config, long_dwell)
+    n = slow.shape[1]
+    win, hop = tf.stft_params(config, n)
+    cad_peak, cad_ratio = _cadence_features(_cadence(_spectrogram(slow, config, win, hop, fft_backend),
+                                                     fft_backend), flash)
+    env_win, env_hop = envelope.frames(config, n)
+    env_power, _ = _spectrogram(centre_cols, config, env_win, env_hop, fft_backend)
+    cols.update(zip(F.ENVELOPE_FEATURES, envelope.from_spectrogram(env_power, config, body_hz, env_hop).T))
+    cols.update(
+        flash_rate_hz=flash, flash_rate_std_hz=flash_std, rotor_count=per.rotor_count,
+        rotor_count_std=per.rotor_count_std, flash_score=score, flash_count=per.n_events,
+        flash_par_db=per.flash_par_db, cadence_peak_hz=cad_peak, cadence_harmonic_ratio=cad_ratio)
+    return rotors
+
+
+def _blade_columns(cols: dict[str, np.ndarray], flash: np.ndarray, flash_std: np.ndarray, config: RadarConfig,
+                   long_dwell: bool) -> None:
+    """Add the rotor rate (the flash rate over `est.BLADES_ASSUMED`) and the blade length (tip speed
+    over 2 pi times the rotor rate) to `cols`; a long dwell reads the tip to within one rotor line."""
+    tip, tip_std, aliased = cols["tip_speed_mps"], cols["tip_speed_std_mps"], cols["tip_aliased"]
+    rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
+    if long_dwell:  # the tip's extent is read to within one of the rotor's lines (`tip_line_std`)
+        tip_std = np.where(aliased, tip_std, np.hypot(tip_std, tip_line_std(rotor, config.wavelength_m)))
+        cols["tip_speed_std_mps"] = tip_std
+    has_length = (rotor > 0) & (tip > 0) & ~aliased  # a lower-bound tip gives no length
+    with np.errstate(divide="ignore", invalid="ignore"):
+        length = np.where(has_length, tip / (2 * math.pi * rotor), 0.0)
+        length_std = np.where(has_length, length * np.hypot(tip_std / tip, rotor_std / rotor), 0.0)
+    cols.update(rotor_rate_hz=rotor, rotor_rate_std_hz=rotor_std, blade_length_m=length,
+                blade_length_std_m=length_std)
+
+
+def _results(cube: _Cube, live: np.ndarray, config: RadarConfig, fft_backend: str, cols: dict[str, np.ndarray],
+             body_idx: np.ndarray, rotors: _Rotors | None, long_dwell: bool) -> list[F.FeatureResult]:
+    """One FeatureResult per live row: its features (0 where `cols` has none), gate, and, unless
+    quick (`rotors` None), its CNN patch maker and physics estimates."""
+    size = cube.slow.shape[2]
     zeros = np.zeros(live.size)
     table = np.stack([np.asarray(cols.get(name, zeros), dtype=np.float64) for name in F.FEATURE_NAMES],
                      axis=1).tolist()
-    detected_rows = np.asarray(detected, dtype=bool).tolist()
-    seen_rows, seen_std_rows = np.asarray(seen).tolist(), np.asarray(seen_std).tolist()
-    known_rows = np.asarray(known, dtype=bool).tolist()
-    gates = (g_lo + 0).tolist()
+    detected_rows = np.asarray(cols["detected"], dtype=bool).tolist()
+    gates = (cube.gate_lo[live] + 0).tolist()
+    if rotors is None:
+        return [F.FeatureResult(detected_rows[j], F.Features(*table[j]), F.no_patch, (gates[j], gates[j] + size))
+                for j in range(live.size)]
+    seen_rows, seen_std_rows = np.asarray(rotors.seen).tolist(), np.asarray(rotors.seen_std).tolist()
+    known_rows = np.asarray(rotors.known, dtype=bool).tolist()
     out = []
     for j, b in enumerate(live.tolist()):
-        feats = F.Features(*table[j])
-        if quick:
-            out.append(F.FeatureResult(detected_rows[j], feats, F.no_patch, (gates[j], gates[j] + size)))
-            continue
         make = _patch_maker(cube.patch_row, b, config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]),
                             fft_backend)
-        out.append(F.FeatureResult(detected_rows[j], feats, make, (gates[j], gates[j] + size),
+        out.append(F.FeatureResult(detected_rows[j], F.Features(*table[j]), make, (gates[j], gates[j] + size),
                                    physics=F.physics_estimates(seen_rows[j], seen_std_rows[j], long_dwell,
-                                                                     known_rows[j])))
+                                                               known_rows[j])))
     return out
 
 

@@ -967,27 +967,7 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     fundamental = np.where(own > SPECTRAL_TAG_LINE, harm, 0.0)  # candidates with a line of their own
     best = np.argmax(np.where(fundamental.max(axis=1, keepdims=True) > 0.0, fundamental, harm), axis=1)
     rows = np.arange(b_rows)
-    for _ in range(2):  # the lines a train's fundamental would make under the best: it was a harmonic
-        for order, under in SUBHARMONIC_LINES:
-            base = cand[best] / order
-            # a train's fundamental is about its strongest line (a single-peaked flash's harmonics
-            # fall off): lines under the best but far weaker than it are the sampling's, not a train's
-            # (compared in power, not whitened: the whitening floor under a strong line is raised by
-            # its own skirt, so a line 500x weaker than it whitened to a tenth of it)
-            own = _line(sum_power, cand[best].astype(float))
-            shown = ((np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
-                      & (_line(sum_power, base) * SPECTRAL_TAG_LINE >= own))
-                     | ((_line(sum_power, base) > own) & (_line(power, base) > SPECTRAL_TAG_LINE)  # over its harmonic
-                        & (_line(asym, base) <= SPECTRAL_TAG_LINE)))  # ... unless a tagged rotor's turn
-            best = np.where(shown & (base >= lo), np.clip(np.rint(base).astype(int) - lo, 0, cand.size - 1), best)
-    for order in (2, 3):  # the converse: a best whose own harmonics off the order-th are the sampling's
-        up = cand[best] * order
-        off = np.max([_line(sum_power, k * cand[best].astype(float)) for k in range(1, SPECTRAL_HARMONICS + 1)
-                      if k % order], axis=0)  # in power, as above
-        shown = ((_line(sum_power, up.astype(float)) > SPECTRAL_TAG_LINE * off)
-                 & (_line(power, up.astype(float)) > SPECTRAL_TAG_LINE)
-                 & (_line(asym, cand[best].astype(float)) <= SPECTRAL_TAG_LINE))
-        best = np.where(shown & (up <= hi), np.clip(up - lo, 0, cand.size - 1), best)
+    best = _octave_corrected(best, cand, lo, hi, power, sum_power, asym)
     inner = (best > 0) & (best < cand.size - 1)
     bi = np.clip(best, 1, cand.size - 2)
     a, m, c = (np.log(np.maximum(harm[rows, bi + j], 1e-300)) for j in (-1, 0, 1))
@@ -1012,6 +992,36 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
                      for b in range(b_rows)])
     return FlashTrain(rate, std, np.where(live, score, 0.0), seen, np.where(seen > 0.0, VISIBLE_STD, 0.0),
                       known | ~live)
+
+
+def _octave_corrected(best: np.ndarray, cand: np.ndarray, lo: int, hi: int, power: np.ndarray,
+                      sum_power: np.ndarray, asym: np.ndarray) -> np.ndarray:
+    """The best candidate (index into `cand`, bins `lo`..`hi`) of each row moved to the train's
+    fundamental where it was a harmonic of it (lines under it that a train's fundamental makes), or
+    up to the harmonic where it was a sub-harmonic (its own harmonics off that one the sampling's);
+    `spectral_flash_rate` says why."""
+    for _ in range(2):  # the lines a train's fundamental would make under the best: it was a harmonic
+        for order, under in SUBHARMONIC_LINES:
+            base = cand[best] / order
+            # a train's fundamental is about its strongest line (a single-peaked flash's harmonics
+            # fall off): lines under the best but far weaker than it are the sampling's, not a train's
+            # (compared in power, not whitened: the whitening floor under a strong line is raised by
+            # its own skirt, so a line 500x weaker than it whitened to a tenth of it)
+            own = _line(sum_power, cand[best].astype(float))
+            shown = ((np.all([_line(power, j * base) > SPECTRAL_TAG_LINE for j in under], axis=0)
+                      & (_line(sum_power, base) * SPECTRAL_TAG_LINE >= own))
+                     | ((_line(sum_power, base) > own) & (_line(power, base) > SPECTRAL_TAG_LINE)  # over its harmonic
+                        & (_line(asym, base) <= SPECTRAL_TAG_LINE)))  # ... unless a tagged rotor's turn
+            best = np.where(shown & (base >= lo), np.clip(np.rint(base).astype(int) - lo, 0, cand.size - 1), best)
+    for order in (2, 3):  # the converse: a best whose own harmonics off the order-th are the sampling's
+        up = cand[best] * order
+        off = np.max([_line(sum_power, k * cand[best].astype(float)) for k in range(1, SPECTRAL_HARMONICS + 1)
+                      if k % order], axis=0)  # in power, as above
+        shown = ((_line(sum_power, up.astype(float)) > SPECTRAL_TAG_LINE * off)
+                 & (_line(power, up.astype(float)) > SPECTRAL_TAG_LINE)
+                 & (_line(asym, cand[best].astype(float)) <= SPECTRAL_TAG_LINE))
+        best = np.where(shown & (up <= hi), np.clip(up - lo, 0, cand.size - 1), best)
+    return best
 
 
 def _turn_line(at: np.ndarray, asym: np.ndarray, diff_power: np.ndarray, sum_power: np.ndarray) -> np.ndarray:

@@ -133,155 +133,27 @@ def choose_cascade_threshold(p_ens: np.ndarray, p_cnn: np.ndarray, y: np.ndarray
 def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = None,
                  cache: Path | None | bool = None, progress: bool = False) -> dict[str, Any]:
     """Build the bundle of `cfg` in folder `out` (replaced); returns its card."""
-    from signatures import classifiers as clf
-    from signatures.cnn import export_cnn, torch_available, train_cnn
-    from signatures.inference import MEMBERS, Classifier, SvmArrays
-    from signatures.openset import MODES, OpenSet, fit_openset, physics_check
-    from signatures.scene import Scene
+    from signatures.inference import Classifier
 
-    common = dict(preset=cfg.preset, profiles=cfg.profiles, seed=cfg.seed, nuisance=cfg.nuisance)
-    train = generate(DatasetSpec(split="train", n=cfg.n_train, **common), featurizer,
-                     workers=cfg.workers, cache=cache, progress=progress)
-    val = generate(DatasetSpec(split="val", n=cfg.n_val, **common), featurizer,
-                   workers=cfg.workers, cache=cache, progress=progress)
-    # the temperature is fitted on returns with the nuisances no one simulator pins down (the
-    # validation returns themselves when training is randomised already)
-    cal_spec = {**common, "nuisance": cfg.nuisance or CALIBRATION_NUISANCE}
-    cal = generate(DatasetSpec(split="val", n=cfg.n_val, **cal_spec), featurizer, workers=cfg.workers,
-                   cache=cache, progress=progress)
-    y, yv = _codes(train), _codes(val)
-    n_cls = len(train.classes)
-    cols = [i for i, n in enumerate(train.feature_names) if n not in GEOMETRY_FEATURES + LEVEL_FEATURES]
-    Xt, Xv = train.X[:, cols], val.X[:, cols]
-    members = clf.fit_members(Xt, y, cfg.seed)
-    val_probs = [m.predict_proba(Xv) for m in members.values()]  # once: the weights, the SVM export, the open set
-    weights = clf.vote_weights(val_probs, yv)
-    beta = clf.bounded_temperature(clf.soft_vote(members, cal.X[:, cols], weights), _codes(cal))
-    uav = np.isin(train.y, [p.slug for p in cfg.profiles])
-    state_head = clf.fit_state_head(train.X[uav], train.moving[uav], cfg.seed)
-    wf = cfg.waveform
-    jitter = float(Scene.model_fields["rotor_rate_jitter"].default)
-    tip_bin = C / wf.config.carrier_hz / 2 / (wf.config.pri_s * wf.n_chirps)  # this waveform's Doppler bin
-    phys = physics_check(train.classes, {p.slug: p for p in cfg.profiles}, train.feature_names, jitter,
-                         tip_bin_mps=tip_bin, z=PHYS_Z, max_rel_tol=PHYS_MAX_REL_TOL,
-                         min_flash_score=PHYS_MIN_FLASH_SCORE)
-
-    tmp = Path(tempfile.mkdtemp(prefix=f".{wf.name}-", dir=out.parent if out.parent.exists() else None))
+    data = _Data.generate(cfg, featurizer, cache, progress)
+    fit = _fit(cfg, data)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{cfg.waveform.name}-",
+                                dir=out.parent if out.parent.exists() else None))
     try:
-        files = []
-        # kNN and forests as numpy arrays (classifiers.knn_arrays / forest_arrays), the SVM as ONNX
-        np.savez(tmp / "knn.npz", **clf.knn_arrays(members["knn"], Xt, y, n_cls))
-        np.savez(tmp / "rf.npz", **clf.forest_arrays(members["rf"], n_cls))
-        np.savez(tmp / "rf_state.npz", **clf.forest_arrays(state_head, 2))
-        np.savez(tmp / "svm.npz", **clf.svm_arrays(members["svm"], n_cls))
-        files += ["knn.npz", "rf.npz", "rf_state.npz", "svm.npz"]
-        svm_val = val_probs[list(members).index("svm")]
-        export_err = {"svm": round(float(np.max(np.abs(SvmArrays(tmp / "svm.npz").proba(Xv) - svm_val))), 6)}
-        pred_val = clf.weighted_vote(val_probs, weights).argmax(axis=1)
-        openset = fit_openset(train.X, y, n_cls, val.X, yv, pred_val, cfg.openset_quantile,
-                              class_cols=np.array(cols, dtype=np.int64), physics=phys, mode=cfg.openset_mode)
-        np.savez(tmp / "openset.npz", **openset.arrays())  # only the shipped mode's tests
-        files.append("openset.npz")
-        # every test, through the same float32 round trip as the shipped file: the card's
-        # validation numbers compare all modes
-        all_tests = OpenSet.from_arrays(openset.arrays(MODES))
-        cnn_card = None
-        if cfg.cnn and torch_available():
-            net, mean, std = train_cnn(train.rd, y, n_cls, cfg.seed, progress=progress)
-            export_cnn(net, train.rd.shape[1:], tmp / "cnn.onnx")
+        files, export_err, all_tests = _write_arrays(cfg, data, fit, tmp)
+        cnn_card = _train_cnn(cfg, data, fit, tmp, progress)
+        if cnn_card is not None:
             files.append("cnn.onnx")
-            cnn_card = {"input": "rd_patch", "shape": list(train.rd.shape[1:]), "input_mean": mean,
-                        "input_std": std, "epochs": 12}
-        card: dict[str, Any] = {
-            "preset": wf.name,
-            "radar": {**wf.config.to_dict(exclude=("range_offset_m",)),
-                      "n_chirps": wf.n_chirps, "n_samples": wf.n_samples},
-            "classes": list(train.classes),
-            "feature_names": list(train.feature_names),
-            "class_features": [train.feature_names[i] for i in cols],
-            "profiles": [p.to_dict(json=True) for p in cfg.profiles],
-            "training": {"seed": cfg.seed, "n_train": cfg.n_train, "n_val": cfg.n_val,
-                         "generator_version": GENERATOR_VERSION,
-                         "dataset": {**{k: v for k, v in DatasetSpec(split="train", n=1, **common).__dict__.items()
-                                        if k in ("snr_db", "max_elevation_deg", "clutter_fraction", "clutter_db")},
-                                     **({"randomisation": asdict(cfg.nuisance)} if cfg.nuisance else {})},
-                         "command": _command(cfg)},
-            "models": {"knn": "StandardScaler + KNeighborsClassifier(k=5, euclidean); shipped as knn.npz "
-                              "(scaler, standardised training set, labels), evaluated in numpy",
-                       "rf": "RandomForestClassifier(100 trees, min_samples_leaf=2)",
-                       "svm": "StandardScaler + OneVsRest(SVC(rbf, C=10, gamma=scale, Platt))",
-                       "state_head": "RandomForestClassifier(50 trees, min_samples_leaf=2) on hovering/moving, "
-                                     "UAV returns only; shipped as rf_state.npz"},
-            "ensemble": {"members": list(members), "voting": "soft, weights chosen on validation data",
-                         "weights": weights, "temperature_beta": round(beta, 9),
-                         "calibration": f"log-loss on {cfg.n_val} domain-randomised validation returns, "
-                                        f"inverse temperature bounded to {clf.BETA_RANGE[0]}..{clf.BETA_RANGE[1]}"},
-            "open_set": {"mode": cfg.openset_mode,
-                         "physics": {"method": PHYSICS_METHOD,
-                                     "z": PHYS_Z, "max_rel_tol": PHYS_MAX_REL_TOL,
-                                     "min_flash_score": PHYS_MIN_FLASH_SCORE, "rotor_rate_jitter": jitter,
-                                     "tip_bin_mps": round(tip_bin, 6), **_physics_card(phys)},
-                         "distance": {"method": "mean distance to 5 nearest training returns of the predicted "
-                                                "class, standardised type features",
-                                      "quantile": cfg.openset_quantile}},
-            "cnn": cnn_card,
-            "cascade": {"threshold": 0.0, "combine": "mean of ensemble and CNN probabilities"},
-            "export_max_abs_error": export_err,
-            "libraries": library_versions(),
-            "files": files,
-        }
-        if not wf.shipped:  # a shipped preset is named by `preset`; any other waveform is described here
-            card["waveform"] = _waveform_card(wf, cfg.profiles)
+        card = _card(cfg, data, fit, files, export_err, cnn_card)
         write_card(tmp, card)
         model = Classifier(tmp)
-        p_ens = model.ensemble_proba(val.X)
-        metrics = {m: _acc_f1(yv, model.member_proba(m, val.X).argmax(axis=1), n_cls) for m in MEMBERS}
-        metrics["ensemble"] = _acc_f1(yv, p_ens.argmax(axis=1), n_cls)
-        uav_v = np.isin(val.y, [p.slug for p in cfg.profiles])
-        metrics["state_accuracy"] = round(float(np.mean((model.moving_proba(val.X[uav_v]) >= 0.5)
-                                                        == val.moving[uav_v])), 6)
-        metrics["forest_max_abs_error"] = round(max(  # numpy forests vs scikit-learn
-            float(np.max(np.abs(members["rf"].predict_proba(Xv) - model.member_proba("rf", val.X)))),
-            float(np.max(np.abs(state_head.predict_proba(val.X[uav_v])[:, 1] - model.moving_proba(val.X[uav_v]))))),
-            6)
-        if model.has_cnn:
-            p_cnn = model.cnn_proba(val.rd)
-            card["cascade"]["threshold"] = choose_cascade_threshold(p_ens, p_cnn, yv)
-            metrics["cnn"] = _acc_f1(yv, p_cnn.argmax(axis=1), n_cls)
-            used = p_ens.max(axis=1) < card["cascade"]["threshold"]
-            p = p_ens.copy()
-            p[used] = 0.5 * (p[used] + p_cnn[used])
-            metrics["cascade"] = {**_acc_f1(yv, p.argmax(axis=1), n_cls),
-                                  "cnn_run_fraction": round(float(used.mean()), 6)}
-        pv = p_ens.argmax(axis=1)
-        hi = val.snr_db >= 10
-        osv: dict[str, Any] = {}
-        uk = None
-        if cfg.unknown_profiles and cfg.n_unknown_val:
-            uk = generate(DatasetSpec(split="val", n=cfg.n_unknown_val, include_non_uav=False,
-                                      **{**common, "profiles": cfg.unknown_profiles}),
-                          featurizer, workers=cfg.workers, cache=cache, progress=progress)
-            pu = model.ensemble_proba(uk.X).argmax(axis=1)
-        for mode in ("physics", "distance", "both"):
-            unk = all_tests.unknown(model._x(val.X), pv, mode)
-            sys_pred = np.where(unk, -1, pv)
-            row = {"known_false_rejection": round(float(unk.mean()), 6),
-                   "known_false_rejection_snr_ge_10": round(float(unk[hi].mean()), 6) if hi.any() else None,
-                   "system_macro_f1_snr_ge_10": _acc_f1(yv[hi], sys_pred[hi], n_cls)["macro_f1"] if hi.any() else None}
-            if uk is not None:
-                uu = all_tests.unknown(model._x(uk.X), pu, mode)
-                uhi = uk.snr_db >= 10
-                row["unknown_rejection"] = round(float(uu.mean()), 6)
-                row["unknown_rejection_snr_ge_10"] = round(float(uu[uhi].mean()), 6) if uhi.any() else None
-            osv[mode] = row
-        metrics["open_set"] = {"shipped_mode": cfg.openset_mode, **osv,
-                               "unknown_profiles": [p.slug for p in cfg.unknown_profiles] if uk is not None else []}
-        card["metrics"] = {"validation": metrics}
+        card["metrics"] = {"validation": _validation_metrics(cfg, data, fit, model, card, all_tests, featurizer,
+                                                             cache, progress)}
         if cfg.n_test:
             from signatures.evaluate import evaluate, test_summary
 
-            report = evaluate(model, cfg.test_snrs, cfg.n_test, cfg.seed + TEST_SEED_OFFSET, cfg.unknown_profiles,
-                              featurizer, cache=cache, progress=progress, workers=cfg.workers)
+            report = evaluate(model, cfg.test_snrs, cfg.n_test, cfg.seed + TEST_SEED_OFFSET,
+                              cfg.unknown_profiles, featurizer, cache=cache, progress=progress, workers=cfg.workers)
             card["metrics"]["test"] = test_summary(report)
         card["files"] = files
         write_card(tmp, card)
@@ -293,6 +165,223 @@ def train_bundle(cfg: TrainConfig, out: Path, featurizer: Featurizer | None = No
         if tmp.exists():
             shutil.rmtree(tmp)
     return card
+
+
+@dataclass(frozen=True)
+class _Data:
+    """The simulated returns of a training run: training, validation, and the domain-randomised
+    validation returns the temperature is fitted on; `common`: the dataset spec they share."""
+
+    train: Dataset
+    val: Dataset
+    cal: Dataset
+    common: dict[str, Any]
+
+    @classmethod
+    def generate(cls, cfg: TrainConfig, featurizer: Featurizer | None, cache: Path | None | bool,
+                 progress: bool) -> _Data:
+        common = dict(preset=cfg.preset, profiles=cfg.profiles, seed=cfg.seed, nuisance=cfg.nuisance)
+        train = generate(DatasetSpec(split="train", n=cfg.n_train, **common), featurizer,
+                         workers=cfg.workers, cache=cache, progress=progress)
+        val = generate(DatasetSpec(split="val", n=cfg.n_val, **common), featurizer,
+                       workers=cfg.workers, cache=cache, progress=progress)
+        # the temperature is fitted on returns with the nuisances no one simulator pins down (the
+        # validation returns themselves when training is randomised already)
+        cal_spec = {**common, "nuisance": cfg.nuisance or CALIBRATION_NUISANCE}
+        cal = generate(DatasetSpec(split="val", n=cfg.n_val, **cal_spec), featurizer, workers=cfg.workers,
+                       cache=cache, progress=progress)
+        return cls(train, val, cal, common)
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """What training fitted: the ensemble's members on the class features `cols` (their
+    validation probabilities, vote weights and temperature), the state head and the physical check."""
+
+    cols: list[int]
+    n_cls: int
+    members: dict[str, Any]
+    val_probs: list[np.ndarray]
+    weights: list[float]
+    beta: float
+    state_head: Any
+    phys: PhysicsCheck
+    jitter: float
+    tip_bin: float
+
+
+def _fit(cfg: TrainConfig, data: _Data) -> _Fit:
+    """Fit the ensemble's members, weigh them on validation data, calibrate the temperature, fit
+    the state head and set up the physical check of this waveform."""
+    from signatures import classifiers as clf
+    from signatures.openset import physics_check
+    from signatures.scene import Scene
+
+    train, val, cal = data.train, data.val, data.cal
+    cols = [i for i, n in enumerate(train.feature_names) if n not in GEOMETRY_FEATURES + LEVEL_FEATURES]
+    members = clf.fit_members(train.X[:, cols], _codes(train), cfg.seed)
+    val_probs = [m.predict_proba(val.X[:, cols]) for m in members.values()]  # once: weights, SVM export, open set
+    weights = clf.vote_weights(val_probs, _codes(val))
+    beta = clf.bounded_temperature(clf.soft_vote(members, cal.X[:, cols], weights), _codes(cal))
+    uav = np.isin(train.y, [p.slug for p in cfg.profiles])
+    state_head = clf.fit_state_head(train.X[uav], train.moving[uav], cfg.seed)
+    wf = cfg.waveform
+    jitter = float(Scene.model_fields["rotor_rate_jitter"].default)
+    tip_bin = C / wf.config.carrier_hz / 2 / (wf.config.pri_s * wf.n_chirps)  # this waveform's Doppler bin
+    phys = physics_check(train.classes, {p.slug: p for p in cfg.profiles}, train.feature_names, jitter,
+                         tip_bin_mps=tip_bin, z=PHYS_Z, max_rel_tol=PHYS_MAX_REL_TOL,
+                         min_flash_score=PHYS_MIN_FLASH_SCORE)
+    return _Fit(cols, len(train.classes), members, val_probs, weights, beta, state_head, phys, jitter, tip_bin)
+
+
+def _write_arrays(cfg: TrainConfig, data: _Data, fit: _Fit, tmp: Path) -> tuple[list[str], dict[str, float], Any]:
+    """Write the members, the state head and the open set into `tmp`: (files, the SVM's export
+    error, every open-set test through the shipped file's float32 round trip)."""
+    from signatures import classifiers as clf
+    from signatures.inference import SvmArrays
+    from signatures.openset import MODES, OpenSet, fit_openset
+
+    train, val = data.train, data.val
+    y, n_cls, members = _codes(train), fit.n_cls, fit.members
+    # kNN and forests as numpy arrays (classifiers.knn_arrays / forest_arrays), the SVM as ONNX
+    np.savez(tmp / "knn.npz", **clf.knn_arrays(members["knn"], train.X[:, fit.cols], y, n_cls))
+    np.savez(tmp / "rf.npz", **clf.forest_arrays(members["rf"], n_cls))
+    np.savez(tmp / "rf_state.npz", **clf.forest_arrays(fit.state_head, 2))
+    np.savez(tmp / "svm.npz", **clf.svm_arrays(members["svm"], n_cls))
+    files = ["knn.npz", "rf.npz", "rf_state.npz", "svm.npz"]
+    svm_val = fit.val_probs[list(members).index("svm")]
+    svm_err = np.max(np.abs(SvmArrays(tmp / "svm.npz").proba(val.X[:, fit.cols]) - svm_val))
+    export_err = {"svm": round(float(svm_err), 6)}
+    pred_val = clf.weighted_vote(fit.val_probs, fit.weights).argmax(axis=1)
+    openset = fit_openset(train.X, y, n_cls, val.X, _codes(val), pred_val, cfg.openset_quantile,
+                          class_cols=np.array(fit.cols, dtype=np.int64), physics=fit.phys, mode=cfg.openset_mode)
+    np.savez(tmp / "openset.npz", **openset.arrays())  # only the shipped mode's tests
+    files.append("openset.npz")
+    # every test, through the same float32 round trip as the shipped file: the card's
+    # validation numbers compare all modes
+    return files, export_err, OpenSet.from_arrays(openset.arrays(MODES))
+
+
+def _train_cnn(cfg: TrainConfig, data: _Data, fit: _Fit, tmp: Path, progress: bool) -> dict[str, Any] | None:
+    """Train and export the CNN (`cnn.onnx`) where asked and torch is there: its card entry, else None."""
+    from signatures.cnn import export_cnn, torch_available, train_cnn
+
+    if not (cfg.cnn and torch_available()):
+        return None
+    rd = data.train.rd
+    net, mean, std = train_cnn(rd, _codes(data.train), fit.n_cls, cfg.seed, progress=progress)
+    export_cnn(net, rd.shape[1:], tmp / "cnn.onnx")
+    return {"input": "rd_patch", "shape": list(rd.shape[1:]), "input_mean": mean, "input_std": std, "epochs": 12}
+
+
+def _card(cfg: TrainConfig, data: _Data, fit: _Fit, files: list[str], export_err: dict[str, float],
+          cnn_card: dict[str, Any] | None) -> dict[str, Any]:
+    """The bundle's card before its metrics: waveform, features, training, models, ensemble, open set."""
+    from signatures import classifiers as clf
+
+    wf, train, cols = cfg.waveform, data.train, fit.cols
+    dataset = {k: v for k, v in DatasetSpec(split="train", n=1, **data.common).__dict__.items()
+               if k in ("snr_db", "max_elevation_deg", "clutter_fraction", "clutter_db")}
+    card: dict[str, Any] = {
+        "preset": wf.name,
+        "radar": {**wf.config.to_dict(exclude=("range_offset_m",)),
+                  "n_chirps": wf.n_chirps, "n_samples": wf.n_samples},
+        "classes": list(train.classes),
+        "feature_names": list(train.feature_names),
+        "class_features": [train.feature_names[i] for i in cols],
+        "profiles": [p.to_dict(json=True) for p in cfg.profiles],
+        "training": {"seed": cfg.seed, "n_train": cfg.n_train, "n_val": cfg.n_val,
+                     "generator_version": GENERATOR_VERSION,
+                     "dataset": {**dataset, **({"randomisation": asdict(cfg.nuisance)} if cfg.nuisance else {})},
+                     "command": _command(cfg)},
+        "models": {"knn": "StandardScaler + KNeighborsClassifier(k=5, euclidean); shipped as knn.npz "
+                          "(scaler, standardised training set, labels), evaluated in numpy",
+                   "rf": "RandomForestClassifier(100 trees, min_samples_leaf=2)",
+                   "svm": "StandardScaler + OneVsRest(SVC(rbf, C=10, gamma=scale, Platt))",
+                   "state_head": "RandomForestClassifier(50 trees, min_samples_leaf=2) on hovering/moving, "
+                                 "UAV returns only; shipped as rf_state.npz"},
+        "ensemble": {"members": list(fit.members), "voting": "soft, weights chosen on validation data",
+                     "weights": fit.weights, "temperature_beta": round(fit.beta, 9),
+                     "calibration": f"log-loss on {cfg.n_val} domain-randomised validation returns, "
+                                    f"inverse temperature bounded to {clf.BETA_RANGE[0]}..{clf.BETA_RANGE[1]}"},
+        "open_set": {"mode": cfg.openset_mode,
+                     "physics": {"method": PHYSICS_METHOD,
+                                 "z": PHYS_Z, "max_rel_tol": PHYS_MAX_REL_TOL,
+                                 "min_flash_score": PHYS_MIN_FLASH_SCORE, "rotor_rate_jitter": fit.jitter,
+                                 "tip_bin_mps": round(fit.tip_bin, 6), **_physics_card(fit.phys)},
+                     "distance": {"method": "mean distance to 5 nearest training returns of the predicted "
+                                            "class, standardised type features",
+                                  "quantile": cfg.openset_quantile}},
+        "cnn": cnn_card,
+        "cascade": {"threshold": 0.0, "combine": "mean of ensemble and CNN probabilities"},
+        "export_max_abs_error": export_err,
+        "libraries": library_versions(),
+        "files": files,
+    }
+    if not wf.shipped:  # a shipped preset is named by `preset`; any other waveform is described here
+        card["waveform"] = _waveform_card(wf, cfg.profiles)
+    return card
+
+
+def _validation_metrics(cfg: TrainConfig, data: _Data, fit: _Fit, model: Any, card: dict[str, Any], all_tests: Any,
+                        featurizer: Featurizer | None, cache: Path | None | bool, progress: bool) -> dict[str, Any]:
+    """The written bundle (`model`) measured on the validation returns: each member, the ensemble, the state
+    head, the numpy forests against scikit-learn, the CNN cascade (its threshold set in `card`),
+    and the open set."""
+    from signatures.inference import MEMBERS
+
+    val, yv, n_cls = data.val, _codes(data.val), fit.n_cls
+    p_ens = model.ensemble_proba(val.X)
+    metrics = {m: _acc_f1(yv, model.member_proba(m, val.X).argmax(axis=1), n_cls) for m in MEMBERS}
+    metrics["ensemble"] = _acc_f1(yv, p_ens.argmax(axis=1), n_cls)
+    uav_v = np.isin(val.y, [p.slug for p in cfg.profiles])
+    metrics["state_accuracy"] = round(float(np.mean((model.moving_proba(val.X[uav_v]) >= 0.5)
+                                                    == val.moving[uav_v])), 6)
+    metrics["forest_max_abs_error"] = round(max(  # numpy forests vs scikit-learn
+        float(np.max(np.abs(fit.members["rf"].predict_proba(val.X[:, fit.cols]) - model.member_proba("rf", val.X)))),
+        float(np.max(np.abs(fit.state_head.predict_proba(val.X[uav_v])[:, 1] - model.moving_proba(val.X[uav_v]))))),
+        6)
+    if model.has_cnn:
+        p_cnn = model.cnn_proba(val.rd)
+        card["cascade"]["threshold"] = choose_cascade_threshold(p_ens, p_cnn, yv)
+        metrics["cnn"] = _acc_f1(yv, p_cnn.argmax(axis=1), n_cls)
+        used = p_ens.max(axis=1) < card["cascade"]["threshold"]
+        p = p_ens.copy()
+        p[used] = 0.5 * (p[used] + p_cnn[used])
+        metrics["cascade"] = {**_acc_f1(yv, p.argmax(axis=1), n_cls),
+                              "cnn_run_fraction": round(float(used.mean()), 6)}
+    uk = None
+    if cfg.unknown_profiles and cfg.n_unknown_val:
+        uk = generate(DatasetSpec(split="val", n=cfg.n_unknown_val, include_non_uav=False,
+                                  **{**data.common, "profiles": cfg.unknown_profiles}),
+                      featurizer, workers=cfg.workers, cache=cache, progress=progress)
+    metrics["open_set"] = {"shipped_mode": cfg.openset_mode, **_open_set_metrics(model, all_tests, val, yv, p_ens,
+                                                                                 uk, n_cls),
+                           "unknown_profiles": [p.slug for p in cfg.unknown_profiles] if uk is not None else []}
+    return metrics
+
+
+def _open_set_metrics(model: Any, all_tests: Any, val: Dataset, yv: np.ndarray, p_ens: np.ndarray,
+                      uk: Dataset | None, n_cls: int) -> dict[str, Any]:
+    """Each open-set mode on the validation returns (known false rejection, the system's macro F1
+    at SNR >= 10 dB) and, with `uk`, the returns of profiles never trained on (their rejection)."""
+    pv = p_ens.argmax(axis=1)
+    hi = val.snr_db >= 10
+    pu = model.ensemble_proba(uk.X).argmax(axis=1) if uk is not None else None
+    osv: dict[str, Any] = {}
+    for mode in ("physics", "distance", "both"):
+        unk = all_tests.unknown(model._x(val.X), pv, mode)
+        sys_pred = np.where(unk, -1, pv)
+        row = {"known_false_rejection": round(float(unk.mean()), 6),
+               "known_false_rejection_snr_ge_10": round(float(unk[hi].mean()), 6) if hi.any() else None,
+               "system_macro_f1_snr_ge_10": _acc_f1(yv[hi], sys_pred[hi], n_cls)["macro_f1"] if hi.any() else None}
+        if uk is not None:
+            uu = all_tests.unknown(model._x(uk.X), pu, mode)
+            uhi = uk.snr_db >= 10
+            row["unknown_rejection"] = round(float(uu.mean()), 6)
+            row["unknown_rejection_snr_ge_10"] = round(float(uu[uhi].mean()), 6) if uhi.any() else None
+        osv[mode] = row
+    return osv
 
 
 def _physics_card(phys: PhysicsCheck) -> dict[str, Any]:

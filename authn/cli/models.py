@@ -501,17 +501,14 @@ def enrol_cmd(
 
     Example: authn models enrol flights/ --labels flights/labels.csv
     """
-    import sys
-
     from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from authn.enrolment import on_one_waveform
     from authn.sprt import Sprt
     from registry.dbapi import Database
-    from signatures.enrol import EnrolError, bundle_name_ok, check_counts, default_name, enrol, previous_samples
-    from signatures.inference import active_bundle, load_classifier, models_dir, set_active
-    from signatures.profiles import shipped_profiles
+    from signatures.enrol import (EnrolError, EnrolOptions, bundle_name_ok, check_counts, default_name, enrol,
+                                  previous_samples)
+    from signatures.inference import load_classifier, models_dir, set_active
 
     t0 = time.perf_counter()
     if name is not None and not bundle_name_ok(name):
@@ -525,36 +522,21 @@ def enrol_cmd(
     todo = _distinct(_labelled(files, labels, db))
     duplicates = len(files) - len(todo)
     console = Console(stderr=True)
-    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                   TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True,
-                   disable=not sys.stderr.isatty())
+    bar = _progress_bar(console)
     read = _site_samples(todo, db, bar)
-    previous, base, carriers_before = None, None, {}
-    if add:
-        folder = active_bundle(read[0][1])
-        if folder is None:
-            raise EnrolError(f"--add: no active site bundle for {read[0][1].describe()} to add to "
-                             "(enrol without --add)")
-        previous = folder.name
-        base = load_classifier(path=folder).waveform  # verified before its samples are reused
-        carriers_before = {float(k): int(v) for k, v in
-                           load_classifier(path=folder).card["enrolment"].get("carriers_hz", {}).items()}
-    wf, samples, at = on_one_waveform(read, base)
-    if add:
+    folder = _added_to(read[0][1]) if add else None
+    before = load_classifier(path=folder) if folder else None  # verified before its samples are reused
+    wf, samples, at = on_one_waveform(read, before.waveform if before else None)
+    carriers: dict[float, int] = {}
+    if folder is not None and before is not None:
+        carriers = {float(k): int(v) for k, v in before.card["enrolment"].get("carriers_hz", {}).items()}
         known = {s.sha256 for s in previous_samples(folder)}
         duplicates += sum(s.sha256 in known for s in samples)  # already enrolled: the same flights again
         at = [f for s, f in zip(samples, at) if s.sha256 not in known]
         samples = previous_samples(folder) + [s for s in samples if s.sha256 not in known]
-    carriers = dict(carriers_before)
     for f in at:
         carriers[f] = carriers.get(f, 0) + 1
-    registered = {p.slug: p for p in db.registered_profiles()}  # the other side of the card's pairs too
-    for slug in sorted({s.model for s in samples}):
-        p = db.profile(slug)
-        if p is None:
-            raise EnrolError(f"unknown model {slug!r}: not a registered model profile (authn registry models)")
-        registered[slug] = p
-    profiles = {**shipped_profiles(), **registered}
+    profiles = _enrol_profiles(samples, db)
     check_counts(samples, profiles, duplicates)  # before any estimate or work
     name = name or default_name(wf)
     dest = models_dir() / name
@@ -573,11 +555,49 @@ def enrol_cmd(
         def progress(phase: str, frac: float) -> None:
             bar.update(task, description=phase, completed=frac)
 
-        card = enrol(samples, profiles, wf, dest, name=name, previous=previous, seed=seed, workers=workers,
-                     n_sim=base_samples, progress=progress, sprt=Sprt(),  # track errors by the check's own test
-                     physics_bands=CALIBRATE[site_bands], score_calibration=CALIBRATE[calibrate], carriers=carriers)
+        card = enrol(samples, profiles, wf, dest, EnrolOptions(
+            name=name, previous=folder.name if folder else None, seed=seed, workers=workers, n_sim=base_samples,
+            progress=progress, sprt=Sprt(),  # track errors by the check's own test
+            physics_bands=CALIBRATE[site_bands], score_calibration=CALIBRATE[calibrate], carriers=carriers))
     set_active(wf.key, name)  # only now: an interrupted enrolment leaves the previous bundle active
     _print_enrolment(card, dest, time.perf_counter() - t0, as_json, duplicates)
+
+
+def _progress_bar(console):  # -> rich.progress.Progress
+    """The enrolment's progress bar on stderr (none where stderr is not a terminal)."""
+    import sys
+
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True,
+                    disable=not sys.stderr.isatty())
+
+
+def _added_to(wf) -> Path:
+    """--add: the folder of the waveform's active site bundle."""
+    from signatures.enrol import EnrolError
+    from signatures.inference import active_bundle
+
+    folder = active_bundle(wf)
+    if folder is None:
+        raise EnrolError(f"--add: no active site bundle for {wf.describe()} to add to (enrol without --add)")
+    return folder
+
+
+def _enrol_profiles(samples: list, db) -> dict:  # slug -> UavProfile
+    """The profiles an enrolment knows: the shipped ones, every registered one (the other side of
+    the card's pairs too), and each enrolled model's registered profile (EnrolError if one is not)."""
+    from signatures.enrol import EnrolError
+    from signatures.profiles import shipped_profiles
+
+    registered = {p.slug: p for p in db.registered_profiles()}
+    for slug in sorted({s.model for s in samples}):
+        p = db.profile(slug)
+        if p is None:
+            raise EnrolError(f"unknown model {slug!r}: not a registered model profile (authn registry models)")
+        registered[slug] = p
+    return {**shipped_profiles(), **registered}
 
 
 def _estimate(wf, n_site: int, workers: int, n_sim: int, n_others: int = 0) -> float:

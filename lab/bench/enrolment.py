@@ -142,7 +142,7 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
     from authn.scenario import Broadcast
     from authn.sprt import Sprt
     from registry.dbapi import Database
-    from signatures.enrol import enrol
+    from signatures.enrol import EnrolOptions, enrol
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
@@ -174,8 +174,9 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
         suffix = " site bands" if bands else " calibrated" if cal else ""
         name = f"site-{k}{suffix}"
         folder = root / "models" / name.replace(" ", "-")
-        card = enrol([s for i, s in pool if i < k], shipped, pre, folder, name=name.replace(" ", "-"), seed=seed,
-                     n_sim=base_samples, sprt=Sprt(), physics_bands=bands, score_calibration=cal)
+        card = enrol([s for i, s in pool if i < k], shipped, pre, folder,
+                     EnrolOptions(name=name.replace(" ", "-"), seed=seed, n_sim=base_samples, sprt=Sprt(),
+                                  physics_bands=bands, score_calibration=cal))
         e = card["enrolment"]
         out["enrolments"][f"{k}{suffix}" if suffix else k] = {
             "seconds": round(time.perf_counter() - t0, 1), "confusable_pairs": e["confusable_pairs"],
