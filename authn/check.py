@@ -391,7 +391,8 @@ class RidCapture:
 @dataclass(frozen=True)
 class Batch:
     """What `Checker.decide` decided, in input order; `fault`: the SystemFault that stopped it
-    (its Failure is the last item, the returns after it were not checked)."""
+    (each return read and left undecided by it is a Failure, the last item one; the returns after
+    it were not checked)."""
 
     items: list[Outcome | Failure]
     fault: BaseException | None = None
@@ -582,7 +583,8 @@ class Checker:
         Bad input or a crash in one return is that return's Failure; a SystemFault (database,
         policy engine) stops the batch (`Batch.fault`). Batched timings are each return's share.
         `stop()` is asked before each return is read: once true, the returns read so far are
-        decided and the rest are left out of `Batch.items`."""
+        decided and the rest are left out of `Batch.items`. A SystemFault makes each return read
+        and not yet decided a Failure."""
         from core.errors import SystemFault
 
         done: dict[Key, Outcome | Failure] = {}
@@ -591,11 +593,16 @@ class Checker:
 
         def flush() -> None:
             decided, undecided = self._early(fronts)
-            fronts.clear()
             done.update(decided)
             pending = self._prepared(undecided)
             done.update({k: v for k, v in pending.items() if isinstance(v, Failure)})
             done.update(self._radar_batch({k: v for k, v in pending.items() if isinstance(v, _Pending)}))
+            fronts.clear()
+
+        def stopped(exc: SystemFault, *after: Failure) -> Batch:
+            """The batch stopped by `exc`: each return it left undecided is a Failure."""
+            done.update({k: Failure.of(f.file, f.claim.serial, exc) for k, f in fronts.items() if k not in done})
+            return Batch([done[j] for j in sorted(done)] + list(after), exc)
 
         for i, item in enumerate(items):
             if stop():
@@ -607,22 +614,22 @@ class Checker:
                         fronts[(i, j)] = front
                     else:
                         done[(i, j)] = front
-            except SystemFault as exc:  # what the policy decides without the radar is kept, as decided before
+            except SystemFault as exc:  # what the policy decides without the radar is still decided
                 try:
                     done.update(self._early(fronts)[0])
                 except SystemFault:
                     pass
-                return Batch([done[j] for j in sorted(done)] + [Failure.of(item.name, item.serial, exc)], exc)
+                return stopped(exc, Failure.of(item.name, item.serial, exc))
             last = next(reversed(fronts.values()), None)
             if last is not None and len(fronts) > 1 and len(fronts) >= _batch_size(last.rec):  # memory holds no more
                 try:
                     flush()
                 except SystemFault as exc:
-                    return Batch([done[j] for j in sorted(done)], exc)
+                    return stopped(exc)
         try:
             flush()
         except SystemFault as exc:
-            return Batch([done[j] for j in sorted(done)], exc)
+            return stopped(exc)
         self._non_cooperative(done, targets)
         return Batch([done[j] for j in sorted(done)])
 

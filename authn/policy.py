@@ -146,7 +146,10 @@ class PolicyEngine:
                             {"uid": site, "attrs": request["resource"], "parents": []}])[0]
 
     def _cedar(self, requests: list[dict[str, Any]], entities: list[dict[str, Any]]) -> list[Any]:
+        """Cedar's answers, one `is_authorized` call for one request, one batch call for many."""
         try:
+            if len(requests) == 1:
+                return [cedarpy.is_authorized(requests[0], self.policy_set, entities, schema=self.schema)]
             return cedarpy.is_authorized_batch(requests, self.policy_set, entities, schema=self.schema)
         except Exception as exc:  # noqa: BLE001 - cedarpy raises plain exceptions of several kinds
             raise SystemFault(f"policy engine: {_one_line(exc)}") from None
