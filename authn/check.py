@@ -470,7 +470,7 @@ class Checker:
                captured: bool = False, track: bool = False, heard: Broadcaster | None = None,
                sprt: Sprt | None = None) -> _Front:
         """Everything before the radar: the claim, the registry, DRIP, and the request of the policy
-        with the radar not run (decided per batch: `_early`).
+        with the radar not run (asked once per batch: `_early`).
         `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`), the
         messages of `heard` (its `remoteid.capture.Broadcaster`, None when nothing was heard)."""
         with timer.stage("remote_id"):
@@ -487,28 +487,6 @@ class Checker:
         evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth,
                             range_measured=rec.domain != "cw", sprt=sprt or self.sprt)
         return _Front(rec, claim, auth, evidence, evidence.policy_input(), file, digest, timer, track)
-
-    def _early(self, fronts: dict[Key, _Front]) -> dict[Key, Outcome | _Pending | Failure]:
-        """The policy with the radar not run, one Cedar call for all `fronts`: an Outcome where that
-        already decides, else what the radar stages need (`_prepare`). A SystemFault (the policy
-        engine, the database) propagates; any other error is that return's Failure."""
-        from core.errors import SystemFault
-
-        t0 = time.perf_counter()
-        results = self.policy.decide_many_without_evidence([f.request for f in fronts.values()])
-        _shares([f.timer for f in fronts.values()], "policy_registry", t0)
-        out: dict[Key, Outcome | _Pending | Failure] = {}
-        for (k, f), result in zip(fronts.items(), results):
-            if result is not None:
-                out[k] = Outcome.of(f.file, f.digest, result, f.evidence, f.timer, self.policy.sha256)
-                continue
-            try:
-                out[k] = self._prepare(f)
-            except SystemFault:
-                raise
-            except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
-                out[k] = Failure.of(f.file, f.claim.serial, exc)
-        return out
 
     def _prepare(self, f: _Front) -> _Pending:
         """What the radar stages of a return the registry did not decide need: the bundle of its
