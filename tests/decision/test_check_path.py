@@ -137,3 +137,38 @@ def test_a_policy_naming_the_site_is_asked_one_request_at_a_time(flight: Path, d
     batch = checker.decide([CheckInput.file(flight, s) for s in CLAIMS])
     assert len(calls) == len(CLAIMS) + sum(o.radar is not None for o in alone)
     assert [(o.decision, o.reasons) for o in batch.items] == [(o.decision, o.reasons) for o in alone]
+
+
+def _engine_fails_after_the_radar(monkeypatch) -> None:
+    """Cedar raises on any request made after the radar ran (the policy engine fails mid-batch)."""
+    real = cedarpy.is_authorized_batch
+
+    def failing(requests, *args, **kwargs):
+        if any(r["context"]["radar_run"] for r in requests):
+            raise RuntimeError("engine exploded")
+        return real(requests, *args, **kwargs)
+
+    monkeypatch.setattr(cedarpy, "is_authorized_batch", failing)
+
+
+def test_an_engine_fault_after_the_radar_fails_each_return_it_left(flight: Path, db: str, monkeypatch) -> None:
+    """Every return read is accounted for: decided before the fault, or a Failure (exit 3) to audit."""
+    checker = Checker(db)
+    _engine_fails_after_the_radar(monkeypatch)
+    batch = checker.decide([CheckInput.file(flight, s) for s in (M300, UNREGISTERED, M600)])
+    assert batch.fault is not None
+    assert [o.decision if isinstance(o, Outcome) else o.exit_code for o in batch.items] == [3, "reject", 3]
+
+
+def test_an_engine_fault_after_the_radar_exits_3_with_one_line(flight: Path, db: str, monkeypatch, capsys) -> None:
+    import sqlite3
+
+    from authn.cli import main
+
+    _engine_fails_after_the_radar(monkeypatch)
+    capsys.readouterr()
+    assert main(["--db", db, "check", str(flight), "--serial", M300, "--json"]) == 3
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("error: ") and "policy engine" in err and err.count("\n") == 1
+    rows = sqlite3.connect(db.removeprefix("sqlite:///")).execute("select kind from audit_log").fetchall()
+    assert rows == [("error",)]
