@@ -159,7 +159,7 @@ class PolicyEngine:
         gets its own site entity (`site#i`, which no policy can tell apart: `batchable`) and the
         claimed UAV's, shared by requests with the same facts. A request whose evaluation erred is
         asked again alone, so that its error text names the entities as a single check's does."""
-        if len(requests) == 1 or not self.batchable:
+        if len(requests) <= 1 or not self.batchable:
             return [self._authorize(r) for r in requests]
         entities: dict[tuple[str, str], dict[str, Any]] = {}
         asked = []
