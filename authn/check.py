@@ -11,12 +11,12 @@ the decision always comes from a complete `is_authorized` call over the evidence
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from authn.audit import AuditLog, NewEntry
 from core.digest import file_sha256
@@ -27,28 +27,67 @@ from authn.evidence import (Claim, Evidence, KinematicsEvidence, RadarEvidence, 
 from authn.kinematics import expected_from_radar, residuals, sanity
 from authn.policy import PolicyEngine
 
+if TYPE_CHECKING:
+    from authn.association import Association
+    from authn.kinematics import Expected
+    from authn.policy import PolicyResult
+    from authn.sprt import Sprt
+    from remoteid.capture import Broadcaster, CapturedMessage
+    from signatures.feature_vector import FeatureResult
+    from signatures.inference import Classifier, Prediction
+    from signatures.profiles import UavProfile
+    from signatures.recording import Recording
+    from signatures.verify import Verification
+
 RADAR_STAGES = ("radar_features", "classify", "kinematics")
+#: A return's place in a batch: (input, claim of that input: a capture names several drones)
+Key = tuple[int, int]
 
 
-@dataclass
+@dataclass(frozen=True)
 class Outcome:
-    """A decision and the typed evidence it was made on; rendered as `authn check --json`
-    (`to_json`) and as the audit payload (`audit_payload`) only at the edges."""
+    """A decision, the typed evidence it was made on and the Cedar request that made it
+    (`request`, as sent: what the audit keeps for `authn audit replay`). Frozen; the evidence's
+    JSON view is rendered once, at construction, and both `to_json` (what `authn check --json`
+    prints) and `audit_payload` are assembled from that one rendering."""
 
     file: str
     decision: str
-    reasons: list[str]
+    reasons: tuple[str, ...]
     evidence: Evidence
-    skipped: list[str]
-    timings_ms: dict[str, float]
+    skipped: tuple[str, ...]
+    timings_ms: Mapping[str, float]
     policy_sha256: str
     file_sha256: str
+    request: dict[str, Any]
     #: Cedar's evaluation errors (a non-empty list means the claim was rejected with `policy-error`)
-    policy_errors: list[str] = field(default_factory=list)
+    policy_errors: tuple[str, ...] = ()
     audit_id: int | None = None
     #: with a Remote ID capture: the return's radar targets that no claim explains
     #: (`Checker._non_cooperative`); None without a capture
-    non_cooperative: list[dict[str, float]] | None = None
+    non_cooperative: tuple[dict[str, float], ...] | None = None
+    #: (the evidence rendered, its report and `to_decide`): set at construction, carried by `recorded`
+    rendered: tuple[Evidence, dict[str, Any], dict[str, Any]] | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.rendered is None or self.rendered[0] is not self.evidence:
+            extra = {"to_decide": self.evidence.to_decide()} if self.decision == "inconclusive" else {}
+            object.__setattr__(self, "rendered", (self.evidence, self.evidence.report(), extra))
+
+    @classmethod
+    def of(cls, file: str, digest: str, result: PolicyResult, evidence: Evidence, timer: _Timer,
+           policy_sha256: str) -> "Outcome":
+        return cls(file=file, decision=result.decision, reasons=tuple(result.reasons), evidence=evidence,
+                   skipped=tuple(s for s in RADAR_STAGES if s not in timer.ms), timings_ms=dict(timer.ms),
+                   policy_sha256=policy_sha256, file_sha256=digest, request=result.request,
+                   policy_errors=tuple(result.errors))
+
+    def recorded(self, seq: int, audit_ms: float) -> "Outcome":
+        """This outcome as recorded: its audit entry and the audit's share of the time."""
+        return replace(self, audit_id=seq, timings_ms={**self.timings_ms, "audit": audit_ms})
+
+    def with_non_cooperative(self, targets: list[dict[str, float]]) -> "Outcome":
+        return replace(self, non_cooperative=tuple(dict(t) for t in targets))
 
     @property
     def serial(self) -> str:
@@ -62,27 +101,33 @@ class Outcome:
     def model_card_sha256(self) -> str | None:
         return self.evidence.radar.model_card_sha256 if self.evidence.radar else None
 
+    def _document(self, audited: bool) -> dict[str, Any]:
+        _, report, extra = self.rendered  # type: ignore[misc]
+        doc: dict[str, Any] = {"file": self.file, "decision": self.decision, "reasons": list(self.reasons),
+                               "dwell_start": report["dwell_start"], "claim": report["claim"],
+                               "registry": report["registry"], "radar": report["radar"],
+                               "kinematics": report["kinematics"], "remote_id": report["remote_id"],
+                               "skipped": list(self.skipped)}
+        if audited:
+            doc["timings_ms"] = dict(self.timings_ms)
+        doc.update(policy_sha256=self.policy_sha256, model_card_sha256=self.model_card_sha256,
+                   file_sha256=self.file_sha256, remote_id_auth=report["remote_id_auth"],
+                   policy_errors=list(self.policy_errors))
+        if audited:
+            doc["audit_id"] = self.audit_id
+        if self.non_cooperative is not None:
+            doc["non_cooperative"] = [dict(t) for t in self.non_cooperative]
+        doc.update(extra)
+        return doc
+
     def to_json(self) -> dict[str, Any]:
         """What `authn check --json` prints (docs/output.md)."""
-        report = self.evidence.report()
-        return {"file": self.file, "decision": self.decision, "reasons": list(self.reasons),
-                "dwell_start": report["dwell_start"], "claim": report["claim"], "registry": report["registry"],
-                "radar": report["radar"], "kinematics": report["kinematics"], "remote_id": report["remote_id"],
-                "skipped": list(self.skipped), "timings_ms": dict(self.timings_ms),
-                "policy_sha256": self.policy_sha256, "model_card_sha256": self.model_card_sha256,
-                "file_sha256": self.file_sha256, "remote_id_auth": report["remote_id_auth"],
-                "policy_errors": list(self.policy_errors), "audit_id": self.audit_id,
-                **({} if self.non_cooperative is None else {"non_cooperative": list(self.non_cooperative)}),
-                **({"to_decide": self.evidence.to_decide()} if self.decision == "inconclusive" else {})}
+        return self._document(audited=True)
 
     def audit_payload(self) -> dict[str, Any]:
         """The audit entry's payload: the JSON without timings and audit id, with the exact
         Cedar request (`authn audit replay` re-runs it)."""
-        doc = self.to_json()
-        doc.pop("audit_id")
-        doc.pop("timings_ms")
-        doc["policy_input"] = self.evidence.policy_input()
-        return doc
+        return {**self._document(audited=False), "policy_input": self.request}
 
 
 @dataclass(frozen=True)
@@ -128,7 +173,14 @@ class _Timer:
             self.ms[name] = round(self.ms.get(name, 0.0) + (time.perf_counter() - t0) * 1e3, 3)  # a stage may recur
 
 
-def _batch_size(rec: Any) -> int:
+def _shares(timers: Sequence[_Timer], name: str, t0: float) -> None:
+    """Each of `timers` its share of one call over all of them, begun at `t0`."""
+    share = round((time.perf_counter() - t0) * 1e3 / max(len(timers), 1), 3)
+    for t in timers:
+        t.ms[name] = share
+
+
+def _batch_size(rec: Recording) -> int:
     from signatures.features import batch_size
 
     return batch_size(rec.n_chirps, rec.n_samples)
@@ -146,27 +198,47 @@ def _issues(claim: Claim, auth: RemoteIdAuth, mid: datetime, rotorcraft: bool | 
     return issues
 
 
-@dataclass
-class _Pending:
-    """A check the registry facts did not decide: what its radar stages and final decision need."""
+@dataclass(frozen=True)
+class _Front:
+    """A check up to the policy with the radar not run: its evidence and that request, built once."""
 
-    rec: Any
+    rec: Recording
     claim: Claim
     auth: RemoteIdAuth
-    mid: datetime
     evidence: Evidence
-    classifier: Any
-    claimed: Any  # the registered model's profile (None: no profile)
-    expected: Any  # the radar-frame state the Remote ID predicts (None: no position)
-    gate: float | None  # range the features are gated at
+    request: dict[str, Any]
     file: str
     digest: str
     timer: _Timer
-    association: Any = None  # how the claim's target was chosen (`authn.association.Association`)
+    track: bool
+
+
+@dataclass(frozen=True)
+class _Pending:
+    """A check the registry facts did not decide: what its radar stages and final decision need."""
+
+    front: _Front
+    evidence: Evidence  # the front's, with the bundle's facts (preset, confusable models, separation)
+    classifier: Classifier
+    claimed: UavProfile | None  # the registered model's profile (None: no profile)
+    expected: Expected | None  # the radar-frame state the Remote ID predicts (None: no position)
+    association: Association  # how the claim's target was chosen; its `gate` is the range features are gated at
     #: a signed claim of a radar-confusable model: the registered models it is verified together with
-    group: tuple = ()
+    group: tuple[UavProfile, ...] = ()
     #: the other models registered at the site: the alternatives the claim must win against
-    alternatives: tuple = ()
+    alternatives: tuple[UavProfile, ...] = ()
+
+    @property
+    def rec(self) -> Recording:
+        return self.front.rec
+
+    @property
+    def timer(self) -> _Timer:
+        return self.front.timer
+
+    @property
+    def gate(self) -> float | None:
+        return self.association.gate
 
 
 def _flag(confusable: tuple[str, ...] | None) -> bool | None:
@@ -181,7 +253,7 @@ class CheckInput:
 
     name: str
     serial: str | None
-    load: Callable[[], tuple[Any, str]]
+    load: Callable[[], tuple[Recording, str]]
     #: a Remote ID capture heard beside the radar (`--rid-capture`): its messages replace the
     #: return's own, one claim per drone heard in the dwell's window (docs/remoteid.md)
     rid_capture: "RidCapture | None" = None
@@ -189,7 +261,7 @@ class CheckInput:
     #: card's track-level errors, the level the track decides at
     track: bool = False
     #: this check's error targets (`authn.sprt.Sprt`; None: the Checker's)
-    sprt: Any = None
+    sprt: Sprt | None = None
 
     @classmethod
     def file(cls, path: str | Path, serial: str | None = None, rid_capture: "RidCapture | None" = None) -> "CheckInput":
@@ -199,7 +271,7 @@ class CheckInput:
         return cls(str(p), serial, lambda: (read_recording(p), file_sha256(p)), rid_capture)
 
     @classmethod
-    def recording(cls, rec: Any, serial: str | None = None, name: str = "", digest: str = "") -> "CheckInput":
+    def recording(cls, rec: Recording, serial: str | None = None, name: str = "", digest: str = "") -> "CheckInput":
         """An in-memory recording (benchmarks, the stress suite, uploads already read)."""
         return cls(name, serial, lambda: (rec, digest))
 
@@ -216,7 +288,7 @@ class RidCapture:
 
     name: str
     #: the CapturedMessages (remoteid.capture) of the packets in a time window; raises CaptureError
-    read: Callable[[tuple[datetime, datetime]], list[Any]]
+    read: Callable[[tuple[datetime, datetime]], list[CapturedMessage]]
     skew_s: float = 2.0
     max_drones: int = MAX_DRONES
     raise_with: str = "--max-drones"
@@ -233,7 +305,7 @@ class RidCapture:
         from remoteid.capture import extract
         from remoteid.errors import CaptureError
 
-        def read(window: tuple[datetime, datetime]) -> list[Any]:
+        def read(window: tuple[datetime, datetime]) -> list[CapturedMessage]:
             try:
                 return extract(data, window)
             except CaptureError as exc:  # name the upload, as read_capture names a file
@@ -241,7 +313,7 @@ class RidCapture:
 
         return cls(name, read, skew_s, max_drones, raise_with)
 
-    def heard(self, rec: Any) -> list[Any]:
+    def heard(self, rec: Recording) -> list[Broadcaster]:
         """The drones (`remoteid.capture.Broadcaster`) heard in the dwell's window, by UAS ID;
         nothing heard at all is bad input."""
         from core.errors import AuthnError
@@ -259,7 +331,7 @@ class RidCapture:
         return sorted(found, key=lambda b: b.uas_id)
 
     @staticmethod
-    def with_messages(rec: Any, b: Any) -> Any:
+    def with_messages(rec: Recording, b: Broadcaster) -> Recording:
         """The return with the messages of one drone heard (its own Remote ID replaced)."""
         from dataclasses import replace as dreplace
 
@@ -269,7 +341,7 @@ class RidCapture:
         return dreplace(rec, remote_id=rows, remote_id_time_s=np.asarray(b.heard_s, dtype=np.float64),
                         remote_id_source="capture")
 
-    def claims(self, rec: Any, serial: str | None) -> list[tuple[Any, str | None, Any]]:
+    def claims(self, rec: Recording, serial: str | None) -> list[tuple[Recording, str | None, Broadcaster | None]]:
         """(the return with one drone's messages, the serial to claim, the drone heard:
         `remoteid.capture.Broadcaster`) for each drone heard in the dwell's window; with `serial`,
         that drone only (no Remote ID at all when it was not heard, and no drone: rejected with
@@ -294,7 +366,7 @@ class RidCapture:
                             f"{self.max_drones} decisions per capture (raise it with {self.raise_with}, or "
                             "name one drone with a serial)")
 
-    def attach(self, rec: Any, serial: str | None = None) -> Any:
+    def attach(self, rec: Recording, serial: str | None = None) -> Recording:
         """The return with the messages of the one drone heard in its window (`authn import
         --rid-capture`); with several drones heard, `serial` must name one."""
         from core.errors import AuthnError
@@ -317,7 +389,8 @@ class RidCapture:
 @dataclass(frozen=True)
 class Batch:
     """What `Checker.decide` decided, in input order; `fault`: the SystemFault that stopped it
-    (its Failure is the last item, the returns after it were not checked)."""
+    (each return read and left undecided by it is a Failure, the last item one; the returns after
+    it were not checked)."""
 
     items: list[Outcome | Failure]
     fault: BaseException | None = None
@@ -329,7 +402,7 @@ class Checker:
 
     def __init__(self, db_url: str | None = None, policy_path: str | Path | None = None,
                  trusted_registries: dict[bytes, bytes] | None = None, model: str | Path | None = None,
-                 sprt: Any = None) -> None:
+                 sprt: Sprt | None = None) -> None:
         import h5py  # noqa: F401  every check opens an HDF5 file: load the library at start-up
 
         from registry.dbapi import Database
@@ -351,8 +424,9 @@ class Checker:
     # --- stages -------------------------------------------------------------------
 
     @staticmethod
-    def _verify(feats: Any, pred: Any, claimed: Any, rec: Any, classifier: Any = None, group: tuple = (),
-                alternatives: tuple = ()) -> Any:
+    def _verify(feats: FeatureResult, pred: Prediction, claimed: UavProfile | None, rec: Recording,
+                classifier: Classifier | None = None, group: tuple[UavProfile, ...] = (),
+                alternatives: tuple[UavProfile, ...] = ()) -> Verification | None:
         """1:1 verification of the return against the registered model's profile (None: no profile),
         with the claimed model's site bands and the site's score calibration where a site bundle
         has them; against the claim and `group` together (a signed claim of a radar-confusable
@@ -371,7 +445,7 @@ class Checker:
                       also=[(p, bands_from(card_bands, p.slug)) for p in group],
                       alternatives=[(p, bands_from(card_bands, p.slug)) for p in alternatives])
 
-    def _confusable_models(self, classifier: Any, model: str, tracks: bool = False) -> tuple[str, ...] | None:
+    def _confusable_models(self, classifier: Classifier, model: str, tracks: bool = False) -> tuple[str, ...] | None:
         """The models registered (active) at this site that the bundle's card says radar cannot tell
         from the registered `model`: a site card's single-dwell pairs (or its track pairs when
         `tracks`), a shipped card's measured separation; None for a card that says neither. One
@@ -390,10 +464,11 @@ class Checker:
             return ()
         return tuple(p for p in (self.db.profile(m) for m in others) if p is not None)
 
-    def _front(self, rec: Any, serial: str | None, file: str, digest: str, timer: _Timer,
-               captured: bool = False, track: bool = False, heard: Any = None, sprt: Any = None) -> Outcome | _Pending:
-        """Everything before the radar: the claim, the registry, DRIP, and the policy with the radar
-        not run. An Outcome when that already decides; otherwise what the radar stages need.
+    def _front(self, rec: Recording, serial: str | None, file: str, digest: str, timer: _Timer,
+               captured: bool = False, track: bool = False, heard: Broadcaster | None = None,
+               sprt: Sprt | None = None) -> _Front:
+        """Everything before the radar: the claim, the registry, DRIP, and the request of the policy
+        with the radar not run (asked once per batch: `_early`).
         `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`), the
         messages of `heard` (its `remoteid.capture.Broadcaster`, None when nothing was heard)."""
         with timer.stage("remote_id"):
@@ -409,40 +484,39 @@ class Checker:
             claim = claim.signed_only(auth.covered, rec.start_time, mid)
         evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth,
                             range_measured=rec.domain != "cw", sprt=sprt or self.sprt)
-        with timer.stage("policy_registry"):
-            result = self.policy.decide_without_evidence(claim.serial, evidence.principal(), evidence.resource(),
-                                                         evidence.context())
-        if result is not None:
-            return self._outcome(file, digest, result, evidence, timer)
+        return _Front(rec, claim, auth, evidence, evidence.policy_input(), file, digest, timer, track)
+
+    def _prepare(self, f: _Front) -> _Pending:
+        """What the radar stages of a return the registry did not decide need: the bundle of its
+        waveform, the registered model's physics and alternatives, the claim's own target."""
+        from authn.association import associate
         from signatures.inference import classifier_for
 
-        classifier = classifier_for(rec, self.model, file or "FILE")  # the bundle of the file's waveform
-        evidence.preset = classifier.preset
+        classifier = classifier_for(f.rec, self.model, f.file or "FILE")  # the bundle of the file's waveform
+        model, timer = f.evidence.registry.model, f.timer
         with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
-            claimed = self.db.profile(facts.model) if facts.model else None
-            alternatives = tuple(p for p in self.db.registered_profiles() if p.slug != facts.model)
-            single = self._confusable_models(classifier, facts.model)
-            over_tracks = self._confusable_models(classifier, facts.model, tracks=True)
-            evidence.radar_confusable, evidence.radar_confusable_track = _flag(single), _flag(over_tracks)
-            evidence.separation = classifier.separation_of(facts.model) if facts.model else {}
-            group = self._group(over_tracks if track else single, auth)
+            claimed = self.db.profile(model) if model else None
+            alternatives = tuple(p for p in self.db.registered_profiles() if p.slug != model)
+            single = self._confusable_models(classifier, model)
+            over_tracks = self._confusable_models(classifier, model, tracks=True)
+            evidence = replace(f.evidence, preset=classifier.preset, radar_confusable=_flag(single),
+                               radar_confusable_track=_flag(over_tracks),
+                               separation=classifier.separation_of(model) if model else {})
+            group = self._group(over_tracks if f.track else single, f.auth)
         expected = None  # at the first chirp, the time the radar's range estimate refers to
-        if claim.state is not None:
-            expected = expected_from_radar(claim.state, rec.site.lat_deg, rec.site.lon_deg, rec.site.alt_m,
-                                           rec.start_time)
-        from authn.association import associate
-
+        if f.claim.state is not None:
+            site = f.rec.site
+            expected = expected_from_radar(f.claim.state, site.lat_deg, site.lon_deg, site.alt_m, f.rec.start_time)
         with timer.stage("associate"):  # the claim's own target: position, then velocity (CW: none, docs/format.md)
-            assoc = associate(rec, expected, claim.state)
-        return _Pending(rec, claim, auth, mid, evidence, classifier, claimed, expected, assoc.gate, file, digest,
-                        timer, assoc, group, alternatives)
+            assoc = associate(f.rec, expected, f.claim.state)
+        return _Pending(f, evidence, classifier, claimed, expected, assoc, group, alternatives)
 
-    def _finish(self, p: _Pending, feats: Any, pred: Any) -> Outcome:
-        """The radar evidence from the features and the class, kinematics, the full policy decision."""
-        rec, claim, cw = p.rec, p.claim, p.rec.domain == "cw"
+    def _finish(self, p: _Pending, feats: FeatureResult, pred: Prediction | None) -> Evidence:
+        """The evidence with the radar's findings from the features and the class, and kinematics."""
+        rec, claim, cw = p.rec, p.front.claim, p.rec.domain == "cw"
         radar = RadarEvidence(gated=p.gate is not None, model_card_sha256=p.classifier.card_digest,
                               association=p.association)
-        if feats.detected:
+        if feats.detected and pred is not None:
             radar = replace(radar, model=pred.label, confidence=round(pred.confidence, 4), known=pred.known,
                             range_m=None if cw else round(float(feats.range_m), 3),
                             radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
@@ -457,17 +531,8 @@ class Checker:
                                 rec.config.doppler_bin_mps(rec.n_chirps),
                                 rec.config.measured_unambiguous_velocity_mps(rec.n_samples))
             kin = KinematicsEvidence(p.expected, res, range_measured=not cw)
-        evidence = p.evidence
-        evidence.radar, evidence.kinematics = radar, kin
-        evidence.remote_id_issues = _issues(claim, p.auth, p.mid, radar.rotorcraft)
-        with p.timer.stage("policy"):
-            result = self.policy.decide(claim.serial, evidence.principal(), evidence.resource(), evidence.context())
-        return self._outcome(p.file, p.digest, result, evidence, p.timer)
-
-    def _outcome(self, file: str, digest: str, result: Any, evidence: Evidence, timer: _Timer) -> Outcome:
-        return Outcome(file=file, decision=result.decision, reasons=list(result.reasons), evidence=evidence,
-                       skipped=[s for s in RADAR_STAGES if s not in timer.ms], timings_ms=timer.ms,
-                       policy_sha256=self.policy.sha256, file_sha256=digest, policy_errors=list(result.errors))
+        return replace(p.evidence, radar=radar, kinematics=kin,
+                       remote_id_issues=_issues(claim, p.front.auth, rec.mid_time, radar.rotorcraft))
 
     # --- the runner: every check goes through decide, and check records before it returns --
     def check(self, items: Sequence[CheckInput], stop: Callable[[], bool] = lambda: False, *,
@@ -481,73 +546,126 @@ class Checker:
         batch = self.decide(items, stop)
         if batch.fault is not None and not record_on_fault:
             raise batch.fault
-        self.record(batch.items, idempotency_key=idempotency_key)
-        return batch
+        ids, ms = self._append(batch.items, idempotency_key)
+        return replace(batch, items=[o.recorded(seq, ms) if isinstance(o, Outcome) else o
+                                     for o, seq in zip(batch.items, ids)])
 
     def decide(self, items: Sequence[CheckInput], stop: Callable[[], bool] = lambda: False) -> Batch:
-        """Decide many returns (no audit write), the radar stages batched: the returns that
-        need the radar share one batched feature extraction (`signatures.features.extract_many`,
-        grouped by waveform, as many cubes at once as `batch_size` allows in memory) and one
-        classifier call per bundle.
+        """Decide many returns (no audit write), batched: the policy with the radar not run is one
+        Cedar call for as many returns as memory holds, the returns that need the radar share one
+        batched feature extraction (`signatures.features.extract_many`, grouped by waveform, as
+        many cubes at once as `batch_size` allows in memory), one classifier call per bundle and
+        one Cedar call for their decisions.
         Bad input or a crash in one return is that return's Failure; a SystemFault (database,
-        policy engine) stops the batch (`Batch.fault`). Radar timings are each return's share.
+        policy engine) stops the batch (`Batch.fault`). Batched timings are each return's share.
         `stop()` is asked before each return is read: once true, the returns read so far are
-        decided and the rest are left out of `Batch.items`."""
+        decided and the rest are left out of `Batch.items`. A SystemFault makes each return read
+        and not yet decided a Failure."""
         from core.errors import SystemFault
 
-        done: dict[tuple[int, int], Outcome | Failure] = {}  # (input, claim of that input)
-        pending: dict[tuple[int, int], _Pending] = {}
+        done: dict[Key, Outcome | Failure] = {}
+        fronts: dict[Key, _Front] = {}
         targets: dict[int, tuple[list[dict[str, float]], float]] = {}  # capture input -> its targets, range bin
 
         def flush() -> None:
-            done.update(self._radar_batch(pending))
-            pending.clear()
+            decided, undecided = self._early(fronts)
+            done.update(decided)
+            pending = self._prepared(undecided)
+            done.update({k: v for k, v in pending.items() if isinstance(v, Failure)})
+            done.update(self._radar_batch({k: v for k, v in pending.items() if isinstance(v, _Pending)}))
+            fronts.clear()
+
+        def stopped(exc: SystemFault, *after: Failure) -> Batch:
+            """The batch stopped by `exc`: each return it left undecided is a Failure."""
+            done.update({k: Failure.of(f.file, f.claim.serial, exc) for k, f in fronts.items() if k not in done})
+            return Batch([done[j] for j in sorted(done)] + list(after), exc)
 
         for i, item in enumerate(items):
             if stop():
                 items = items[:i]
                 break
             try:
-                timer = _Timer()
-                with timer.stage("read"):
-                    rec, digest = item.load()
-                if item.rid_capture is None:
-                    fronts = [self._front(rec, item.serial, item.name, digest, timer, track=item.track,
-                                          sprt=item.sprt)]
-                else:  # one claim per drone heard: each its own decision (and audit entry)
-                    with timer.stage("rid_capture"):
-                        claims = item.rid_capture.claims(rec, item.serial)
-                    fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True, heard=b,
-                                          sprt=item.sprt)
-                              for j, (r, s, b) in enumerate(claims)]
-                    with timer.stage("non_cooperative"):
-                        targets[i] = self._targets(rec)
-                    shared = {k: v for k, v in timer.ms.items() if k in ("read", "rid_capture")}
-                    for f in fronts[1:]:  # the shared read is each claim's too
-                        (f.timer.ms if isinstance(f, _Pending) else f.timings_ms).update(shared)
-            except SystemFault as exc:
-                return Batch([done[j] for j in sorted(done)] + [Failure.of(item.name, item.serial, exc)], exc)
-            except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
-                fronts = [Failure.of(item.name, item.serial, exc)]
-            for j, front in enumerate(fronts):
-                if isinstance(front, _Pending):
-                    pending[(i, j)] = front
-                else:
-                    done[(i, j)] = front
-            if len(pending) > 1 and len(pending) >= _batch_size(rec):  # memory holds no more cubes
+                for j, front in enumerate(self._fronts(item, i, targets)):
+                    if isinstance(front, _Front):
+                        fronts[(i, j)] = front
+                    else:
+                        done[(i, j)] = front
+            except SystemFault as exc:  # what the policy decides without the radar is still decided
+                try:
+                    done.update(self._early(fronts)[0])
+                except SystemFault:
+                    pass
+                return stopped(exc, Failure.of(item.name, item.serial, exc))
+            last = next(reversed(fronts.values()), None)
+            if last is not None and len(fronts) > 1 and len(fronts) >= _batch_size(last.rec):  # memory holds no more
                 try:
                     flush()
                 except SystemFault as exc:
-                    return Batch([done[j] for j in sorted(done)], exc)
+                    return stopped(exc)
         try:
             flush()
         except SystemFault as exc:
-            return Batch([done[j] for j in sorted(done)], exc)
+            return stopped(exc)
         self._non_cooperative(done, targets)
         return Batch([done[j] for j in sorted(done)])
 
+    def _fronts(self, item: CheckInput, i: int,
+                targets: dict[int, tuple[list[dict[str, float]], float]]) -> list[_Front | Failure]:
+        """Read one input and gather what comes before the radar: one front per claim (a capture
+        names several drones, each its own decision); bad input or a crash is its Failure, a
+        SystemFault propagates."""
+        from core.errors import SystemFault
+
+        try:
+            timer = _Timer()
+            with timer.stage("read"):
+                rec, digest = item.load()
+            if item.rid_capture is None:
+                return [self._front(rec, item.serial, item.name, digest, timer, track=item.track, sprt=item.sprt)]
+            with timer.stage("rid_capture"):  # one claim per drone heard: each its own decision (and audit entry)
+                claims = item.rid_capture.claims(rec, item.serial)
+            fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True, heard=b,
+                                  sprt=item.sprt)
+                      for j, (r, s, b) in enumerate(claims)]
+            with timer.stage("non_cooperative"):
+                targets[i] = self._targets(rec)
+            shared = {k: v for k, v in timer.ms.items() if k in ("read", "rid_capture")}
+            for f in fronts[1:]:  # the shared read is each claim's too
+                f.timer.ms.update(shared)
+            return list(fronts)
+        except SystemFault:
+            raise
+        except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
+            return [Failure.of(item.name, item.serial, exc)]
+
+    def _early(self, fronts: dict[Key, _Front]) -> tuple[dict[Key, Outcome], dict[Key, _Front]]:
+        """The policy with the radar not run, one Cedar call for all `fronts`: (the Outcomes it
+        already decides, the fronts that need the radar). A SystemFault propagates."""
+        if not fronts:
+            return {}, {}
+        t0 = time.perf_counter()
+        results = self.policy.decide_many_without_evidence([f.request for f in fronts.values()])
+        _shares([f.timer for f in fronts.values()], "policy_registry", t0)
+        decided = {k: Outcome.of(f.file, f.digest, r, f.evidence, f.timer, self.policy.sha256)
+                   for (k, f), r in zip(fronts.items(), results) if r is not None}
+        return decided, {k: f for k, f in fronts.items() if k not in decided}
+
+    def _prepared(self, fronts: dict[Key, _Front]) -> dict[Key, _Pending | Failure]:
+        """`_prepare` of each front: a SystemFault propagates, any other error is that return's Failure."""
+        from core.errors import SystemFault
+
+        out: dict[Key, _Pending | Failure] = {}
+        for k, f in fronts.items():
+            try:
+                out[k] = self._prepare(f)
+            except SystemFault:
+                raise
+            except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
+                out[k] = Failure.of(f.file, f.claim.serial, exc)
+        return out
+
     @staticmethod
-    def _targets(rec: Any) -> tuple[list[dict[str, float]], float]:
+    def _targets(rec: Recording) -> tuple[list[dict[str, float]], float]:
         """The return's radar targets (`signatures.features.detections`: none for CW) and its
         range bin in metres."""
         from signatures.features import detections
@@ -556,7 +674,7 @@ class Checker:
         return found, rec.config.range_bin_m(rec.n_samples)
 
     @staticmethod
-    def _non_cooperative(done: dict[tuple[int, int], Any],
+    def _non_cooperative(done: dict[Key, Outcome | Failure],
                          targets: dict[int, tuple[list[dict[str, float]], float]]) -> None:
         """Report, on every decision of a return checked with a capture, its targets that no claim
         explains: none whose declared position matched the radar (range residual within
@@ -568,10 +686,9 @@ class Checker:
                     and abs(radar.range_m - target["range_m"]) <= 3 * bin_m)
 
         for i, (found, bin_m) in targets.items():
-            outs = [o for (k, _), o in done.items() if k == i and isinstance(o, Outcome)]
-            silent = [t for t in found if not any(explains(o, t, bin_m) for o in outs)]
-            for o in outs:
-                o.non_cooperative = [dict(t) for t in silent]
+            outs = {k: o for k, o in done.items() if k[0] == i and isinstance(o, Outcome)}
+            silent = [t for t in found if not any(explains(o, t, bin_m) for o in outs.values())]
+            done.update({k: o.with_non_cooperative(silent) for k, o in outs.items()})
 
     def decide_one(self, item: CheckInput) -> Outcome:
         """One decision, not recorded (benchmarks, tests); raises what stopped it."""
@@ -589,52 +706,53 @@ class Checker:
         """Decide one file, not recorded (benchmarks, tests)."""
         return self.decide_one(CheckInput.file(path, serial))
 
-    def evaluate_recording(self, rec: Any, serial: str | None = None, file: str = "", digest: str = "") -> Outcome:
+    def evaluate_recording(self, rec: Recording, serial: str | None = None, file: str = "",
+                           digest: str = "") -> Outcome:
         """Decide an in-memory recording, not recorded (benchmarks and the stress suite skip the file)."""
         return self.decide_one(CheckInput.recording(rec, serial, file, digest))
 
     @staticmethod
-    def _features_or_failure(p: _Pending) -> Any:
+    def _features_or_failure(p: _Pending) -> FeatureResult | Failure:
         from signatures.features import extract
 
         try:
             return extract(p.rec, expected_range_m=p.gate)
         except Exception as exc:  # noqa: BLE001 - this file's failure, not the batch's
-            return Failure.of(p.file, p.claim.serial, exc)
+            return Failure.of(p.front.file, p.front.claim.serial, exc)
 
-    def _radar_batch(self, pending: dict[Any, _Pending]) -> dict[Any, Outcome | Failure]:
-        """Features of every pending return in batches, classes per bundle, then each decision."""
-        import numpy as np
-
-        from core.errors import SystemFault
-
-        if not pending:
-            return {}
-        out: dict[Any, Outcome | Failure] = {}
+    def _features(self, pending: dict[Key, _Pending]) -> tuple[dict[Key, FeatureResult], dict[Key, Failure]]:
+        """Every pending return's features in one batch (each its share of the time); where the
+        batch fails, each return on its own, to find the file at fault."""
         keys = list(pending)
         t0 = time.perf_counter()
         try:
             if len(keys) == 1:  # one return: a batch of one on numpy's FFT (no scipy import)
                 from signatures.features import extract
 
-                feats = [extract(pending[keys[0]].rec, expected_range_m=pending[keys[0]].gate)]
+                feats: list[FeatureResult | Failure] = [extract(pending[keys[0]].rec,
+                                                                expected_range_m=pending[keys[0]].gate)]
             else:
                 from signatures.features import extract_many
 
-                feats = extract_many([pending[k].rec for k in keys], [pending[k].gate for k in keys])
+                feats = list(extract_many([pending[k].rec for k in keys], [pending[k].gate for k in keys]))
         except Exception:  # noqa: BLE001 - find the file at fault: each return on its own
             feats = [self._features_or_failure(pending[k]) for k in keys]
-            out = {k: f for k, f in zip(keys, feats) if isinstance(f, Failure)}
-            keys = [k for k, f in zip(keys, feats) if not isinstance(f, Failure)]
-            feats = [f for f in feats if not isinstance(f, Failure)]
-        share = (time.perf_counter() - t0) * 1e3 / max(len(keys), 1)
-        preds: dict[Any, Any] = {}
-        by_bundle: dict[int, list[Any]] = {}
-        for k, f in zip(keys, feats):
-            pending[k].timer.ms["radar_features"] = round(share, 3)
+        found = {k: f for k, f in zip(keys, feats) if not isinstance(f, Failure)}
+        _shares([pending[k].timer for k in found], "radar_features", t0)
+        return found, {k: f for k, f in zip(keys, feats) if isinstance(f, Failure)}
+
+    @staticmethod
+    def _classes(pending: dict[Key, _Pending], fmap: dict[Key, FeatureResult],
+                 failed: dict[Key, Failure]) -> dict[Key, Prediction]:
+        """One classifier call per bundle over the returns where a target was detected; a broken
+        bundle fails its returns (into `failed`), not the batch."""
+        import numpy as np
+
+        by_bundle: dict[int, list[Key]] = {}
+        for k, f in fmap.items():
             if f.detected:
                 by_bundle.setdefault(id(pending[k].classifier), []).append(k)
-        fmap = dict(zip(keys, feats))
+        preds: dict[Key, Prediction] = {}
         for ks in by_bundle.values():
             t0 = time.perf_counter()
             clf = pending[ks[0]].classifier
@@ -644,36 +762,50 @@ class Checker:
                                         # a bundle serves a band of carriers: its Hz features are rescaled
                                         np.array([pending[k].rec.config.carrier_hz for k in ks]))
             except Exception as exc:  # noqa: BLE001 - a broken bundle fails its returns, not the batch
-                out.update({k: Failure.of(pending[k].file, pending[k].claim.serial, exc) for k in ks})
+                failed.update({k: Failure.of(pending[k].front.file, pending[k].front.claim.serial, exc) for k in ks})
                 continue
-            share = round((time.perf_counter() - t0) * 1e3 / len(ks), 3)
-            for k, pred in zip(ks, rows):
-                preds[k] = pred
-                pending[k].timer.ms["classify"] = share
-        for k in keys:
-            p = pending[k]
-            if k in out:
+            _shares([pending[k].timer for k in ks], "classify", t0)
+            preds.update(zip(ks, rows))
+        return preds
+
+    def _radar_batch(self, pending: dict[Key, _Pending]) -> dict[Key, Outcome | Failure]:
+        """Features of every pending return in batches, classes per bundle, each return's evidence,
+        then one Cedar call for all their decisions."""
+        from core.errors import SystemFault
+
+        if not pending:
+            return {}
+        fmap, failed = self._features(pending)
+        preds = self._classes(pending, fmap, failed)
+        out: dict[Key, Outcome | Failure] = dict(failed)
+        finished: dict[Key, Evidence] = {}
+        for k, feats in fmap.items():
+            if k in failed:
                 continue
             try:
-                out[k] = self._finish(p, fmap[k], preds.get(k))
+                finished[k] = self._finish(pending[k], feats, preds.get(k))
             except SystemFault:
                 raise
             except Exception as exc:  # noqa: BLE001
-                out[k] = Failure.of(p.file, p.claim.serial, exc)
+                out[k] = Failure.of(pending[k].front.file, pending[k].front.claim.serial, exc)
+        t0 = time.perf_counter()
+        results = self.policy.decide_many([ev.policy_input() for ev in finished.values()])
+        _shares([pending[k].timer for k in finished], "policy", t0)
+        for (k, ev), result in zip(finished.items(), results):
+            f = pending[k].front
+            out[k] = Outcome.of(f.file, f.digest, result, ev, f.timer, self.policy.sha256)
         return out
 
     def record(self, outcomes: Sequence[Outcome | Failure], idempotency_key: str | None = None) -> list[int]:
         """Append decisions and failed checks in one transaction; raises DatabaseFault if it
         does not commit (the caller then prints no decision). With `idempotency_key`, a key
         that already committed writes nothing and returns that transaction's entry ids."""
+        return self._append(outcomes, idempotency_key)[0]
+
+    def _append(self, outcomes: Sequence[Outcome | Failure], idempotency_key: str | None) -> tuple[list[int], float]:
+        """`record`: (the entry ids, the audit's ms per entry)."""
         entries = [AuditLog.decision(o.serial, o.decision, o.audit_payload()) if isinstance(o, Outcome)
                    else o.entry(self.policy.sha256) for o in outcomes]
         t0 = time.perf_counter()
         written = AuditLog(self.db, self.policy.text).record(entries, idempotency_key=idempotency_key)
-        ms = round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)
-        ids = [e.seq for e in written]
-        for o, seq in zip(outcomes, ids):
-            if isinstance(o, Outcome):
-                o.audit_id = seq
-                o.timings_ms["audit"] = ms
-        return ids
+        return [e.seq for e in written], round((time.perf_counter() - t0) * 1e3 / max(len(entries), 1), 3)

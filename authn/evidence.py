@@ -320,9 +320,10 @@ class KinematicsEvidence:
         return doc
 
 
-@dataclass
+@dataclass(frozen=True)
 class Evidence:
-    """Everything one check gathered; `radar` is None while (or because) the radar did not run."""
+    """Everything one check gathered; `radar` is None while (or because) the radar did not run.
+    Frozen: each stage that learns more builds a new value (`dataclasses.replace`)."""
 
     claim: Claim
     registry: RegistryFacts

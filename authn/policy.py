@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -49,11 +50,19 @@ INCONCLUSIVE = "inconclusive"
 OUTCOMES = frozenset({"reject", INCONCLUSIVE})
 
 
+def policy_input(serial: str, principal: dict[str, Any], resource: dict[str, Any],
+                 context: dict[str, Any]) -> dict[str, Any]:
+    """One request as the audit keeps it (`policy_input`, what `authn audit replay` re-runs)."""
+    return {"serial": serial, "principal": principal, "resource": resource, "context": context}
+
+
 @dataclass(frozen=True)
 class PolicyResult:
     decision: str  # "accept" | "reject" | "inconclusive"
     reasons: list[str]
     errors: list[str] = field(default_factory=list)
+    #: the request Cedar evaluated (`policy_input`), the very value sent: the audit keeps it for replay
+    request: dict[str, Any] = field(default_factory=dict, compare=False)
 
 
 def _shipped(name: str) -> str:
@@ -76,6 +85,9 @@ class PolicyEngine:
     effects: dict[str, str]  # policy id (parser's) -> "permit" | "forbid"
     context_free_forbids: frozenset[str]  # forbids that read no context the radar can change
     inconclusive_forbids: frozenset[str] = frozenset()  # forbids annotated @outcome("inconclusive")
+    #: no policy names a RadarSite entity: one Cedar call may evaluate many requests, each with
+    #: its own site entity (`decide_many`)
+    batchable: bool = True
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> "PolicyEngine":
@@ -101,7 +113,8 @@ class PolicyEngine:
             schema = cedarpy.Schema.from_str(schema_text)
         except ValueError as exc:
             raise PolicyError(f"{source}: {_one_line(exc)}") from None
-        static = json.loads(cedarpy.policies_to_json_str(text)).get("staticPolicies", {})
+        parsed = json.loads(cedarpy.policies_to_json_str(text))
+        static = parsed.get("staticPolicies", {})
         effects = {pid: body["effect"] for pid, body in static.items()}
         context_free = frozenset(pid for pid, body in static.items()
                                  if body["effect"] == "forbid" and _context_read(body) <= PRE_RADAR_CONTEXT)
@@ -114,58 +127,77 @@ class PolicyEngine:
         digest = hashlib.sha256(text.encode()).hexdigest()
         return cls(text=text, sha256=digest, source=source, policy_set=policy_set, schema=schema,
                    effects=effects, context_free_forbids=context_free,
-                   inconclusive_forbids=frozenset(p for p, o in outcomes.items() if o == INCONCLUSIVE))
+                   inconclusive_forbids=frozenset(p for p, o in outcomes.items() if o == INCONCLUSIVE),
+                   batchable=not _names_site(parsed))
 
     # --- requests -----------------------------------------------------------------
-
-    @staticmethod
-    def _entities(serial: str, principal: dict[str, Any], resource: dict[str, Any]) -> list[dict]:
-        return [
-            {"uid": {"type": "Uav", "id": serial}, "attrs": principal, "parents": []},
-            {"uid": {"type": "RadarSite", "id": SITE_ID}, "attrs": resource, "parents": []},
-        ]
-
-    @staticmethod
-    def _request(serial: str, context: dict[str, Any] | None) -> dict[str, Any]:
-        req: dict[str, Any] = {"principal": {"type": "Uav", "id": serial}, "action": ACTION,
-                               "resource": {"type": "RadarSite", "id": SITE_ID}}
-        if context is not None:
-            req["context"] = context
-        return req
 
     def _reasons(self, diag: Any, effect: str) -> list[str]:
         """The @id names of the satisfied policies with this effect (parser ids without one)."""
         ids = diag.id_annotations_by_reason
         return sorted(ids.get(r, r) for r in diag.reasons if self.effects.get(r) == effect)
 
-    def _authorize(self, serial: str, principal: dict[str, Any], resource: dict[str, Any],
-                   context: dict[str, Any]) -> Any:
+    def _authorize(self, request: dict[str, Any]) -> Any:
         """One Cedar request; an exception from the engine itself is a system fault (exit 3)."""
+        uav = {"type": "Uav", "id": request["serial"]}
+        site = {"type": "RadarSite", "id": SITE_ID}
+        return self._cedar([{"principal": uav, "action": ACTION, "resource": site, "context": request["context"]}],
+                           [{"uid": uav, "attrs": request["principal"], "parents": []},
+                            {"uid": site, "attrs": request["resource"], "parents": []}])[0]
+
+    def _cedar(self, requests: list[dict[str, Any]], entities: list[dict[str, Any]]) -> list[Any]:
+        """Cedar's answers, one `is_authorized` call for one request, one batch call for many."""
         try:
-            return cedarpy.is_authorized(self._request(serial, context), self.policy_set,
-                                         self._entities(serial, principal, resource), schema=self.schema)
+            if len(requests) == 1:
+                return [cedarpy.is_authorized(requests[0], self.policy_set, entities, schema=self.schema)]
+            return cedarpy.is_authorized_batch(requests, self.policy_set, entities, schema=self.schema)
         except Exception as exc:  # noqa: BLE001 - cedarpy raises plain exceptions of several kinds
             raise SystemFault(f"policy engine: {_one_line(exc)}") from None
 
-    def _rejected_on_error(self, result: Any) -> PolicyResult | None:
+    def _authorize_many(self, requests: Sequence[dict[str, Any]]) -> list[Any]:
+        """Cedar's answers to many requests, in one call where the policies allow it: each request
+        gets its own site entity (`site#i`, which no policy can tell apart: `batchable`) and the
+        claimed UAV's, shared by requests with the same facts. A request whose evaluation erred is
+        asked again alone, so that its error text names the entities as a single check's does."""
+        if len(requests) <= 1 or not self.batchable:
+            return [self._authorize(r) for r in requests]
+        entities: dict[tuple[str, str], dict[str, Any]] = {}
+        asked = []
+        for i, r in enumerate(requests):
+            uav, site = {"type": "Uav", "id": r["serial"]}, {"type": "RadarSite", "id": f"{SITE_ID}#{i}"}
+            known = entities.setdefault(("Uav", r["serial"]), {"uid": uav, "attrs": r["principal"], "parents": []})
+            if known["attrs"] != r["principal"]:  # one serial, two sets of facts: one call each
+                return [self._authorize(r) for r in requests]
+            entities[("RadarSite", site["id"])] = {"uid": site, "attrs": r["resource"], "parents": []}
+            asked.append({"principal": uav, "action": ACTION, "resource": site, "context": r["context"]})
+        answers = self._cedar(asked, list(entities.values()))
+        return [self._authorize(r) if a.diagnostics.errors else a for r, a in zip(requests, answers)]
+
+    def _rejected_on_error(self, result: Any, request: dict[str, Any]) -> PolicyResult | None:
         """Cedar skips a policy whose condition errors, so an erroring forbid would let the claim
         through: any evaluation error rejects with `policy-error` (fail closed)."""
         errors = [_one_line(e) for e in result.diagnostics.errors]
         if not errors:
             return None
-        return PolicyResult("reject", [POLICY_ERROR, *self._reasons(result.diagnostics, "forbid")], errors)
+        return PolicyResult("reject", [POLICY_ERROR, *self._reasons(result.diagnostics, "forbid")], errors, request)
 
     def decide(self, serial: str, principal: dict[str, Any], resource: dict[str, Any],
                context: dict[str, Any]) -> PolicyResult:
         """The complete decision over all the evidence gathered."""
-        result = self._authorize(serial, principal, resource, context)
-        failed = self._rejected_on_error(result)
+        return self.decide_many([policy_input(serial, principal, resource, context)])[0]
+
+    def decide_many(self, requests: Sequence[dict[str, Any]]) -> list[PolicyResult]:
+        """`decide` for many requests (`policy_input` dicts), in one Cedar call where it can."""
+        return [self._final(r, a) for r, a in zip(requests, self._authorize_many(requests))]
+
+    def _final(self, request: dict[str, Any], result: Any) -> PolicyResult:
+        failed = self._rejected_on_error(result, request)
         if failed is not None:
             return failed
         if result.allowed:
-            return PolicyResult("accept", self._reasons(result.diagnostics, "permit"))
+            return PolicyResult("accept", self._reasons(result.diagnostics, "permit"), [], request)
         return PolicyResult(self._denied(result.diagnostics),
-                            self._reasons(result.diagnostics, "forbid") or ["default-deny"])
+                            self._reasons(result.diagnostics, "forbid") or ["default-deny"], [], request)
 
     def _denied(self, diag: Any) -> str:
         """A denial's decision: `inconclusive` where every forbid that fired says so, else reject."""
@@ -177,14 +209,31 @@ class PolicyEngine:
         """The decision with the radar not run (`context` says so), when it is final: a deny by a
         policy that reads no context (registry facts alone), or an evaluation error (the claim is
         rejected whatever the radar adds). Else None: the radar is needed."""
-        result = self._authorize(serial, principal, resource, context)
-        failed = self._rejected_on_error(result)
+        return self.decide_many_without_evidence([policy_input(serial, principal, resource, context)])[0]
+
+    def decide_many_without_evidence(self, requests: Sequence[dict[str, Any]]) -> list[PolicyResult | None]:
+        """`decide_without_evidence` for many requests, in one Cedar call where it can."""
+        return [self._early(r, a) for r, a in zip(requests, self._authorize_many(requests))]
+
+    def _early(self, request: dict[str, Any], result: Any) -> PolicyResult | None:
+        failed = self._rejected_on_error(result, request)
         if failed is not None:
             return failed
         final = self.context_free_forbids - self.inconclusive_forbids
         if result.allowed or not set(result.diagnostics.reasons) & final:
             return None
-        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid"))
+        return PolicyResult("reject", self._reasons(result.diagnostics, "forbid"), [], request)
+
+
+def _names_site(node: Any) -> bool:
+    """Whether a policy's JSON AST names a RadarSite entity (`RadarSite::"site"`)."""
+    if isinstance(node, dict):
+        if node.get("type") == "RadarSite" and "id" in node:
+            return True
+        return any(_names_site(v) for v in node.values())
+    if isinstance(node, list):
+        return any(_names_site(v) for v in node)
+    return False
 
 
 def _context_read(node: Any) -> set[str]:

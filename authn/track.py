@@ -40,10 +40,9 @@ and the skipped ones.
 
 from __future__ import annotations
 
-import copy
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -292,13 +291,12 @@ def _track_evidence(outcomes: list[Any], sprt: Sprt | None = None) -> Any:
     """The evidence the track request is built on: the latest dwell's claim, registry and Remote
     ID authentication; the radar of the latest dwell that saw a target; the typical kinematics of
     the dwells (`_typical`); every Remote ID issue any dwell raised."""
-    ev = copy.copy(outcomes[-1].evidence)
+    last = outcomes[-1].evidence
     seen = [o.evidence.radar for o in outcomes if o.evidence.radar is not None and o.evidence.radar.detected]
-    ev.radar = seen[-1] if seen else outcomes[-1].evidence.radar
-    ev.kinematics = _typical([o.evidence.kinematics for o in outcomes if o.evidence.kinematics is not None])
-    ev.remote_id_issues = list(dict.fromkeys(i for o in outcomes for i in o.evidence.remote_id_issues))
-    ev.sprt = sprt or ev.sprt
-    return ev
+    return replace(last, radar=seen[-1] if seen else last.radar,
+                   kinematics=_typical([o.evidence.kinematics for o in outcomes if o.evidence.kinematics is not None]),
+                   remote_id_issues=list(dict.fromkeys(i for o in outcomes for i in o.evidence.remote_id_issues)),
+                   sprt=sprt or last.sprt)
 
 
 def _request(ev: Any, sprt: Sprt, increments: Sequence[Mapping[str, float]]) -> dict[str, Any]:
@@ -340,12 +338,10 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
         outcomes.append(o)
         terms.append(_term(o, sprt))
         if o.evidence.radar is None:  # the registry decided before any radar: final, whatever follows
-            ev = o.evidence
-            request = {"serial": ev.claim.serial, "principal": ev.principal(), "resource": ev.resource(),
-                       "context": ev.context()}
             from authn.policy import PolicyResult
 
-            result = PolicyResult(o.decision, list(o.reasons), list(o.policy_errors))
+            request = o.request  # the request that decided it, as sent
+            result = PolicyResult(o.decision, list(o.reasons), list(o.policy_errors), request)
             break
         if terms[-1].against is not None:
             increments.append(terms[-1].against)
@@ -353,6 +349,7 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
         request = _request(ev, sprt, increments)
         t1 = time.perf_counter()
         result = checker.policy.decide(claim, request["principal"], request["resource"], request["context"])
+        request = result.request
         timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
         judged = sum(1 for o in outcomes if o.evidence.kinematics is not None)
         liftable = GOES_ON | KINEMATIC if judged < KINEMATIC_DWELLS and len(outcomes) < len(dwells) else GOES_ON

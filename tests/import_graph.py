@@ -1,6 +1,7 @@
 """The import graph of our packages, drawn from the code (ast): an edge for every import of
 one of our modules, at module level and inside functions alike, so a loop closed by a
-deferred import is a cycle too. `tests/test_import_graph.py` fails on any cycle.
+deferred import is a cycle too (imports under `if TYPE_CHECKING:` never run: not edges).
+`tests/test_import_graph.py` fails on any cycle.
 
     python -m tests.import_graph            # each module and what it imports
     python -m tests.import_graph --dot      # the same as Graphviz (| dot -Tsvg > graph.svg)
@@ -29,10 +30,32 @@ def module_name(path: Path, root: Path = ROOT) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+def _type_checking(node: ast.AST) -> bool:
+    """`if TYPE_CHECKING:` (or `typing.TYPE_CHECKING`): a block only a type checker reads."""
+    test = node.test if isinstance(node, ast.If) else None
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def _run_time_nodes(tree: ast.AST) -> list[ast.AST]:
+    """Every node that may run: all but the bodies of `if TYPE_CHECKING:` (their `else` runs)."""
+    out: list[ast.AST] = []
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        out.append(node)
+        if _type_checking(node):
+            todo += node.orelse
+            continue
+        todo += list(ast.iter_child_nodes(node))
+    return out
+
+
 def _targets(path: Path, package: str) -> list[str]:
-    """Every module name an import in the file may mean (absolute, relative resolved)."""
+    """Every module name an import that runs in the file may mean (absolute, relative resolved);
+    imports under `if TYPE_CHECKING:` never run, so they close no cycle."""
     out: list[str] = []
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in _run_time_nodes(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             out += [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom):

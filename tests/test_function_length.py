@@ -12,11 +12,6 @@ ROOT = Path(__file__).resolve().parents[1]
 PRODUCT = ("core", "signatures", "remoteid", "registry", "authn")
 MAX_LINES = 100
 
-#: Functions being shrunk on other branches (issue 57): removed from this list once merged.
-ALLOWED = {
-    "authn/cli/check.py:check",
-}
-
 
 def _lengths(path: Path, root: Path = ROOT) -> list[tuple[str, int]]:
     """(path:qualified name, lines) of every function in `path`, methods and nested ones included."""
@@ -43,14 +38,8 @@ def _all_lengths() -> dict[str, int]:
 
 
 def test_no_product_function_is_over_the_limit() -> None:
-    long = {name: n for name, n in _all_lengths().items() if n > MAX_LINES and name not in ALLOWED}
+    long = {name: n for name, n in _all_lengths().items() if n > MAX_LINES}
     assert not long, "\n".join(f"{name}: {n} lines (at most {MAX_LINES})" for name, n in sorted(long.items()))
-
-
-def test_the_allow_list_names_only_long_functions_that_exist() -> None:
-    lengths = _all_lengths()
-    stale = sorted(name for name in ALLOWED if lengths.get(name, 0) <= MAX_LINES)
-    assert not stale, f"no longer over {MAX_LINES} lines (or gone): remove from ALLOWED: {stale}"
 
 
 def test_the_walk_finds_methods_and_nested_functions(tmp_path: Path) -> None:

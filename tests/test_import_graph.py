@@ -36,3 +36,17 @@ def test_the_command_prints_the_graph_and_its_cycles(capsys) -> None:
     assert capsys.readouterr().out.startswith("no cycle among ")
     assert import_graph.main(["--dot"]) == 0
     assert '"authn.check" -> "core.errors";' in capsys.readouterr().out
+
+
+def test_an_import_only_a_type_checker_reads_closes_no_cycle(tmp_path: Path) -> None:
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from pkg import b\n")
+    (pkg / "b.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg import a\n"
+                              "else:\n    import pkg.c\n")
+    (pkg / "c.py").write_text("import typing\nif typing.TYPE_CHECKING:\n    import pkg.b\n")
+    graph = import_graph.build(tmp_path, ("pkg",))
+    assert graph["pkg.b"] == {"pkg.c"}  # the else branch runs
+    assert graph["pkg.c"] == set()
+    assert import_graph.cycles(graph) == []

@@ -6,14 +6,18 @@ import csv
 import json
 import signal
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from authn.cli.output import DECISION_COLOURS, to_decide_line
 from authn.cli.signals import handled, interrupted
+
+if TYPE_CHECKING:
+    from authn.check import Outcome, RidCapture
 
 #: Files decided and recorded together (`Checker.check`: their radar stages batched, one audit
 #: transaction, then printed): the first chunk is small so results start soon, each next one
@@ -80,7 +84,7 @@ def _captures(path: Path) -> dict[str, Path]:
     return out
 
 
-def _print_outcome(o) -> None:
+def _print_outcome(o: Outcome) -> None:
     from datetime import datetime, timezone
 
     from rich.console import Console
@@ -228,15 +232,7 @@ def check(
         if not track_started:
             _record_failure(state.db_url, [Failure.of(str(f), serial, exc) for f in files])
         raise
-    if rid_capture is not None or captures:
-        from authn.check import RidCapture
-
-        def capture_of(p: Path):
-            c = captures.get(p.name, captures.get(str(p), rid_capture))
-            return None if c is None else RidCapture.file(c, rid_skew, max_drones)
-    else:
-        def capture_of(p: Path):
-            return None
+    capture_of = _capture_of(captures, rid_capture, rid_skew, max_drones)
     if cluster is not None:  # the engine is imported only here (a cold check never loads it)
         from authn.cluster.recheck import cli_recheck
 
@@ -248,6 +244,20 @@ def check(
                 capture_of(paths[0]), figures)
         return
     _batch(checker, paths, mapping, serial, as_json, capture_of, figures)
+
+
+def _capture_of(captures: dict[str, Path], rid_capture: Path | None, skew_s: float,
+                max_drones: int) -> Callable[[Path], RidCapture | None]:
+    """Which Remote ID capture a file is checked with: its row's in the claims CSV, else
+    `--rid-capture`, else none."""
+    if rid_capture is None and not captures:
+        return lambda p: None
+    from authn.check import RidCapture
+
+    def capture_of(p: Path) -> RidCapture | None:
+        c = captures.get(p.name, captures.get(str(p), rid_capture))
+        return None if c is None else RidCapture.file(c, skew_s, max_drones)
+    return capture_of
 
 
 def _track_setup(files: list[Path], claims, cluster, rid_capture, plot):

@@ -46,14 +46,14 @@ def demo(
     scenes = write_scenes(out, keys=keys)
     checker = Checker(ctx.obj.db_url)
     outcomes = [checker.evaluate(path, None if sc.broadcast else claimed_serial(sc, keys)) for sc, path in scenes]
-    checker.record(outcomes)
+    seqs = checker.record(outcomes)
     if as_json:
-        scenes_json = [{"seq": o.audit_id, "scene": sc.name, "file": str(path), "expected": sc.expected,
+        scenes_json = [{"seq": seq, "scene": sc.name, "file": str(path), "expected": sc.expected,
                         "decision": o.decision, "reasons": list(o.reasons),
                         "claimed": o.evidence.registry.model or o.evidence.registry.status,
                         "radar": None if o.radar is None else {"model": o.radar.model,
                                                               "confidence": o.radar.confidence}}
-                       for (sc, path), o in zip(scenes, outcomes)]
+                       for (sc, path), o, seq in zip(scenes, outcomes, seqs)]
         ok = all(s["decision"] == s["expected"] for s in scenes_json)
         typer.echo(json.dumps({"ok": ok, "out": str(out), "seconds": round(time.perf_counter() - t0, 3),
                                "scenes": scenes_json}, indent=2))
@@ -63,13 +63,13 @@ def demo(
         table.add_column(col, no_wrap=True)  # identifiers: never split
     table.add_column("reasons", overflow="fold")  # prose: wraps between reasons
     all_ok = True
-    for (sc, _path), o in zip(scenes, outcomes):
+    for (sc, _path), o, seq in zip(scenes, outcomes, seqs):
         ok = o.decision == sc.expected
         all_ok &= ok
         colour = DECISION_COLOURS.get(o.decision, "red")
         radar = "skipped" if o.radar is None else f"{o.radar.model} {o.radar.confidence or 0:.0%}"
         reg = o.evidence.registry
-        table.add_row(str(o.audit_id), sc.name, reg.model or reg.status, radar,
+        table.add_row(str(seq), sc.name, reg.model or reg.status, radar,
                       f"[{colour}]{o.decision}[/]" + ("" if ok else " [yellow](unexpected)[/]"),
                       ", ".join(o.reasons))
     print_table(table, console)

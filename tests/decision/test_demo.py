@@ -38,7 +38,7 @@ def test_scenes_decide_as_expected(tmp_path: Path) -> None:
     checker = Checker(db)
     for sc, path in scenes:
         o = checker.evaluate(path, None if sc.broadcast else claimed_serial(sc, keys))
-        assert (o.decision, o.reasons) == WANT[sc.name], sc.name
+        assert (o.decision, list(o.reasons)) == WANT[sc.name], sc.name
         if sc.name in IMPOSTORS:  # undecided, but the evidence so far is against the claim
             assert o.evidence.to_decide()["llr_nats"] < 0, sc.name
         if sc.serial == KEYED_M300:
