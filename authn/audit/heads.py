@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
-from authn.audit._internal.headrows import HEAD_COLUMNS, Signed, head_of, load_key
+from authn.audit._internal.headrows import HEAD_COLUMNS, KnownHead, Signed, head_of, load_key
 from authn.audit.entries import GENESIS, db_label
 from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, check_origin, \
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, scan_sth_log, sth_log_path, \
@@ -87,13 +87,6 @@ def accepted_keys(heads: Sequence[KnownHead], current: Ed25519PublicKey,
                 pending.remove(r)
                 grown = True
     return keys
-
-
-
-@dataclass(frozen=True)
-class KnownHead:
-    sth: SignedTreeHead
-    source: str  # "database" | "file PATH" | "witness W" | "--against FILE"
 
 
 

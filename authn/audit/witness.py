@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import authn.audit.merkle as merkle
-from core.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault, one_line
 from core.settings import current
 from authn.audit.logkey import SignedTreeHead, lines_from_end, parse_note
 
@@ -199,8 +199,38 @@ def open_witness(spec: str | None) -> WitnessStore | HttpWitness | None:
     return WitnessStore(spec)
 
 
+class Endpoint:
+    """The witness's two operations as HTTP answers (status, text); authn.audit.witness_http
+    carries them. `public_keys` is read on every add."""
+
+    def __init__(self, store: WitnessStore, public_keys: Sequence[Ed25519PublicKey]) -> None:
+        self.store = store
+        self.public_keys = public_keys
+
+    def checkpoints(self, origin: str) -> tuple[int, str]:
+        """200 and every head held for `origin` as JSON lines; 500 when the store cannot be read."""
+        try:
+            return 200, "".join(h.to_json() + "\n" for h in self.store.heads(origin))
+        except SystemFault as exc:
+            return 500, one_line(exc) + "\n"
+
+    def add(self, body: bytes) -> tuple[int, str]:
+        """200 when the head in an add-checkpoint `body` is kept; 409 when it does not extend the
+        newest held, 400 when malformed or not the log's, 500 when the store cannot be written."""
+        try:
+            head, old, proof = parse_add_request(body)
+            self.store.add(head, old, proof, self.public_keys)
+        except Conflict as exc:
+            return 409, f"{exc}\n"
+        except AuthnError as exc:
+            return 400, f"{exc}\n"
+        except SystemFault as exc:
+            return 500, one_line(exc) + "\n"
+        return 200, "ok\n"
+
+
 def serve(store: WitnessStore, public_keys: Sequence[Ed25519PublicKey], host: str, port: int) -> None:
     """Run the witness endpoint until interrupted (authn.audit.witness_http: uvicorn, as `authn serve`)."""
     from authn.audit.witness_http import run
 
-    run(store, public_keys, host, port)
+    run(Endpoint(store, public_keys), host, port)

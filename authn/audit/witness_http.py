@@ -1,12 +1,12 @@
 """The witness endpoint over HTTP: an ASGI app (Starlette's request and response) run by
-uvicorn, the stack `authn serve` runs on, over one `WitnessStore` (authn.audit.witness).
+uvicorn, the stack `authn serve` runs on. What each operation answers is the endpoint's
+(authn.audit.witness.Endpoint); the transport's own answers are the routes and limits:
 
-- `GET /checkpoints?origin=O`: 200, every head held for O as JSON lines; 404 without an
-  origin or on another path.
-- `POST /add-checkpoint`: 200 `ok`; 409 with the reason when the head does not extend the
-  newest one held; 400 for a malformed request, a body over MAX_BODY_BYTES or without a
-  Content-Length, or another path.
-- Any other method: 501. A store that cannot be read or written: 500, one line.
+- `GET /checkpoints?origin=O`: the endpoint's `checkpoints(O)`; 404 without an origin or
+  on another path.
+- `POST /add-checkpoint`: the endpoint's `add(body)`; 400 for a body over MAX_BODY_BYTES or
+  without a Content-Length, or another path.
+- Any other method: 501.
 
 h11 never times out a request head, so the protocol here closes a connection that has not
 sent a complete head within REQUEST_TIMEOUT_S of opening (or of its first byte after a
@@ -19,8 +19,7 @@ import asyncio
 import os
 import socket
 import urllib.parse
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import uvicorn
 from starlette.concurrency import run_in_threadpool
@@ -28,11 +27,9 @@ from starlette.requests import ClientDisconnect, Request
 from starlette.responses import PlainTextResponse
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
-from authn.audit.witness import Conflict, WitnessStore, parse_add_request
-from core.errors import AuthnError, SystemFault, one_line
+from core.errors import SystemFault
 
 if TYPE_CHECKING:
-    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
     from starlette.types import Receive, Scope, Send
 
 MAX_BODY_BYTES = 1 << 16
@@ -43,12 +40,20 @@ def _text(status: int, body: str) -> PlainTextResponse:
     return PlainTextResponse(body, status_code=status)
 
 
-class WitnessApp:
-    """The witness's two routes over one store; `public_keys` is read on every add."""
+class Endpoint(Protocol):
+    """What the witness answers, as (status, text)."""
 
-    def __init__(self, store: WitnessStore, public_keys: Sequence[Ed25519PublicKey]) -> None:
-        self.store = store
-        self.public_keys = public_keys
+    def checkpoints(self, origin: str) -> tuple[int, str]: ...
+
+    def add(self, body: bytes) -> tuple[int, str]: ...
+
+
+class WitnessApp:
+    """The witness's two routes (ASGI) over an endpoint; its calls run in the thread pool
+    (they read and lock files)."""
+
+    def __init__(self, endpoint: Endpoint) -> None:
+        self.endpoint = endpoint
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -69,10 +74,7 @@ class WitnessApp:
         origin = query.get("origin", [""])[0]
         if request.scope.get("raw_path") != b"/checkpoints" or not origin:
             return _text(404, "GET /checkpoints?origin=ORIGIN\n")
-        try:
-            return _text(200, "".join(h.to_json() + "\n" for h in self.store.heads(origin)))
-        except SystemFault as exc:
-            return _text(500, one_line(exc) + "\n")
+        return _text(*self.endpoint.checkpoints(origin))
 
     async def _post(self, request: Request) -> PlainTextResponse | None:
         length = request.headers.get("content-length", "")
@@ -85,19 +87,7 @@ class WitnessApp:
             return _text(408, f"request body not received within {REQUEST_TIMEOUT_S:g} s\n")
         except ClientDisconnect:
             return None
-        return await run_in_threadpool(self._add, body)
-
-    def _add(self, body: bytes) -> PlainTextResponse:
-        try:
-            head, old, proof = parse_add_request(body)
-            self.store.add(head, old, proof, self.public_keys)
-        except Conflict as exc:
-            return _text(409, f"{exc}\n")
-        except AuthnError as exc:
-            return _text(400, f"{exc}\n")
-        except SystemFault as exc:
-            return _text(500, one_line(exc) + "\n")
-        return _text(200, "ok\n")
+        return _text(*await run_in_threadpool(self.endpoint.add, body))
 
 
 class HeadTimeoutH11(H11Protocol):
@@ -156,10 +146,10 @@ def listen(host: str, port: int) -> socket.socket:
         raise SystemFault(f"witness: cannot listen on {host}:{port} ({why})") from None
 
 
-def run(store: WitnessStore, public_keys: Sequence[Ed25519PublicKey], host: str, port: int) -> None:
-    """Serve the witness on host:port until interrupted."""
+def run(endpoint: Endpoint, host: str, port: int) -> None:
+    """Serve `endpoint` on host:port until interrupted."""
     sock = listen(host, port)
-    config = uvicorn.Config(WitnessApp(store, public_keys), http=HeadTimeoutH11, ws="none", lifespan="off",
+    config = uvicorn.Config(WitnessApp(endpoint), http=HeadTimeoutH11, ws="none", lifespan="off",
                             log_config=None, access_log=False)
     try:
         uvicorn.Server(config).run(sockets=[sock])

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from authn.audit.logkey import LogKey, SignedTreeHead
-from authn.audit.witness import WitnessStore, add_request
+from authn.audit.witness import Endpoint, WitnessStore, add_request
 from tests.service.server import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -145,7 +145,8 @@ def quick(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
 
     monkeypatch.setattr(wh, "REQUEST_TIMEOUT_S", 0.5)
     port = free_port()
-    threading.Thread(target=wh.run, args=(WitnessStore(tmp_path), [], "127.0.0.1", port), daemon=True).start()
+    threading.Thread(target=wh.run, args=(Endpoint(WitnessStore(tmp_path), []), "127.0.0.1", port),
+                     daemon=True).start()
     for _ in range(100):
         try:
             socket.create_connection(("127.0.0.1", port), timeout=1).close()
