@@ -25,6 +25,7 @@ Modules, each with one job:
     replay    re-decide an entry under the policy text it was decided with
     logkey    the Ed25519 log key and the checkpoint format
     witness   heads kept on another host, each proven to extend the last
+    witness_http  the witness served over HTTP (uvicorn, as `authn serve`)
     merkle    RFC 9162 hashing and proofs
     _internal what the modules share: stored rows, heads as rows (never imported outside the package)
 """

@@ -15,10 +15,13 @@ import base64
 import binascii
 import hashlib
 import json
-from typing import Any
+from typing import TYPE_CHECKING
 
 from authn.audit.logkey import LogKey, SignedTreeHead
 from core.parsing import loads_json
+
+if TYPE_CHECKING:
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 EDGE_CONTEXT = b"authn-edge/1\n"
 
@@ -34,11 +37,13 @@ def edge_json(key: LogKey, sth: SignedTreeHead, before_last: list[bytes]) -> str
     return json.dumps({"before_last": [h.hex() for h in before_last], "signature": sig})
 
 
-def signed_edge(text: Any, sth: SignedTreeHead, public_key: Any) -> list[bytes] | None:
+def signed_edge(text: object, sth: SignedTreeHead, public_key: Ed25519PublicKey) -> list[bytes] | None:
     """The edge stored with `sth`, when its signature by `public_key` binds it to that head;
     None for anything else (unsigned, an old list form, altered, another head's, malformed)."""
     from cryptography.exceptions import InvalidSignature
 
+    if not isinstance(text, (str, bytes)):
+        return None
     try:
         doc = loads_json(text)
         hashes = [bytes.fromhex(h) for h in doc["before_last"]]

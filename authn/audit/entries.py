@@ -6,6 +6,7 @@ recorded policy texts. What an entry's leaf bytes are: authn.audit.leaf.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -13,6 +14,7 @@ from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 from authn.audit._internal.rows import COLUMNS
+from core.errors import SystemFault
 from registry.dbapi import Database
 
 GENESIS = "0" * 64
@@ -42,9 +44,12 @@ class Entry:
 
 
 
-def _entry(row: tuple) -> Entry:
+def _entry(row: Sequence[Any]) -> Entry:
     seq, created, kind, serial, decision, payload, prev, digest, leaf, _ = row
-    return Entry(int(seq), Database.from_db_time(created), kind, serial, decision, json.loads(payload), prev,
+    when = Database.from_db_time(created)
+    if when is None:  # NOT NULL in the schema: only a damaged table has none
+        raise SystemFault(f"audit entry {seq} has no created_at; run `authn audit verify`")
+    return Entry(int(seq), when, kind, serial, decision, json.loads(payload), prev,
                  digest, leaf)
 
 
@@ -85,7 +90,8 @@ def list_entries(db: Database, *, since: datetime | None = None, decision: str |
                  serial: str | None = None, kind: str | None = None, limit: int | None = None) -> list[Entry]:
     """Entries in seq order, filtered. `since` compares instants (each stored time read as the
     instant it names, whatever its stored form), so it is applied here, not as text in SQL."""
-    where, params = [], {}
+    where: list[str] = []
+    params: dict[str, str | int] = {}
     for name, value in (("decision", decision), ("serial", serial), ("kind", kind)):
         if value is not None:
             where.append(f"{name} = :{name}")

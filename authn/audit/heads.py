@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
-from authn.audit._internal.headrows import HEAD_COLUMNS, Signed, head_of, load_key
+from authn.audit._internal.headrows import HEAD_COLUMNS, KnownHead, Signed, head_of, load_key
 from authn.audit.entries import GENESIS, db_label
 from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, check_origin, \
     create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, scan_sth_log, sth_log_path, \
@@ -28,6 +28,8 @@ from core.settings import current
 from registry.dbapi import Database
 
 if TYPE_CHECKING:
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
+
     from authn.audit.witness import HttpWitness, WitnessStore
 
 
@@ -69,7 +71,8 @@ def log_origin(db: Database, *, create: bool = False) -> str | None:
 
 
 
-def accepted_keys(heads: Sequence[KnownHead], current: Any, retired: Sequence[Any] = ()) -> list[Any]:
+def accepted_keys(heads: Sequence[KnownHead], current: Ed25519PublicKey,
+                  retired: Sequence[Ed25519PublicKey] = ()) -> list[Ed25519PublicKey]:
     """The current key, and each retired key that signed a head which a key already accepted
     signed too (the rotation head `authn audit rotate-key` signs with both): a retired key
     nobody handed over from is not accepted, whatever file lists it."""
@@ -84,13 +87,6 @@ def accepted_keys(heads: Sequence[KnownHead], current: Any, retired: Sequence[An
                 pending.remove(r)
                 grown = True
     return keys
-
-
-
-@dataclass(frozen=True)
-class KnownHead:
-    sth: SignedTreeHead
-    source: str  # "database" | "file PATH" | "witness W" | "--against FILE"
 
 
 
@@ -186,7 +182,8 @@ class HeadPlaces:
         if self.witness is not None:
             self.witness_add(signed.sth)
 
-    def witness_add(self, sth: SignedTreeHead, *cosigned: SignedTreeHead, keys: Sequence[Any] = ()) -> None:
+    def witness_add(self, sth: SignedTreeHead, *cosigned: SignedTreeHead,
+                    keys: Sequence[Ed25519PublicKey] = ()) -> None:
         """Give the witness `sth` with a consistency proof from the newest head it holds. A
         refusal is a fault (it holds history this log no longer has); an unreachable
         witness is only reported: the next periodic head carries the proof from where it is."""
@@ -202,7 +199,7 @@ class HeadPlaces:
         except Conflict as exc:
             raise SystemFault(f"witness {self.witness.name} refused the head of size {sth.tree_size}: {exc}") from None
         except SystemFault as exc:
-            print(f"authn: warning: {one_line(str(exc))}; the witness gets the next periodic head", file=sys.stderr)
+            print(f"authn: warning: {one_line(exc)}; the witness gets the next periodic head", file=sys.stderr)
 
 
 

@@ -29,18 +29,22 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from core.errors import AuthnError, SystemFault
 from core.parsing import loads_json
+from core.pem import PemError, private_key, public_key, raw_public
 from core.settings import current
 
 STH_FORMAT = "authn-sth/1"  # legacy heads: JSON, no origin
 CHECKPOINT_FORMAT = "authn-checkpoint/1"  # JSON carrying a C2SP checkpoint and its fields
 TIMESTAMP_EXTENSION = "authn-timestamp-ms"
 
+if TYPE_CHECKING:
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
-def canonical_json(obj: Any) -> str:
+
+def canonical_json(obj: object) -> str:
     """One byte-exact encoding: sorted keys, no spaces, UTF-8, finite numbers only."""
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
@@ -71,14 +75,11 @@ def key_id(public_raw: bytes) -> str:
 class LogKey:
     """A loaded Ed25519 private key (signs STHs) with its public half."""
 
-    def __init__(self, private: Any, path: Path) -> None:
-        from cryptography.hazmat.primitives import serialization
-
+    def __init__(self, private: Ed25519PrivateKey, path: Path) -> None:
         self._private = private
         self.path = path
         self.public_key = private.public_key()
-        self.public_raw = private.public_key().public_bytes(serialization.Encoding.Raw,
-                                                            serialization.PublicFormat.Raw)
+        self.public_raw = raw_public(self.public_key)
         self.key_id = key_id(self.public_raw)
         self._vouched: set[tuple[bytes, str]] = set()  # (signed bytes, signature) made or checked here
 
@@ -97,8 +98,6 @@ class LogKey:
     def load(cls, path: str | Path | None = None, *, create: bool = False) -> "LogKey":
         """The key at `path` (see key_path); generated there when absent only with `create`
         (the audit writer's decision: never for a log that already has signed heads)."""
-        from core.pem import PemError, private_key
-
         p = key_path(path)
         if not p.exists():
             if not create:
@@ -139,10 +138,8 @@ def retired_keys_path(key: Path) -> Path:
     return key.with_name(key.name + ".retired.pub.pem")
 
 
-def load_retired_keys(key: Path) -> list[Any]:
+def load_retired_keys(key: Path) -> list[Ed25519PublicKey]:
     """The retired public keys beside the key file (none: an empty list)."""
-    from core.pem import PemError, public_key
-
     path = retired_keys_path(key)
     try:
         text = path.read_bytes()
@@ -187,10 +184,8 @@ def create_key_file(p: Path) -> None:
             pass
 
 
-def load_public_key(path: str | Path) -> Any:
+def load_public_key(path: str | Path) -> Ed25519PublicKey:
     """An Ed25519 public key from a PEM file (public key, or the private key itself)."""
-    from core.pem import PemError, public_key
-
     p = Path(path)
     try:
         data = p.read_bytes()
@@ -201,12 +196,6 @@ def load_public_key(path: str | Path) -> Any:
     except PemError as exc:
         raise AuthnError(f"{p}: not a PEM Ed25519 public key" if exc.kind == "pem" else
                          f"{p}: not an Ed25519 key") from None
-
-
-def public_raw(public_key: Any) -> bytes:
-    from cryptography.hazmat.primitives import serialization
-
-    return public_key.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
 
 
 @dataclass(frozen=True)
@@ -260,7 +249,7 @@ class SignedTreeHead:
         return canonical_json(self.to_dict())
 
     @classmethod
-    def from_dict(cls, doc: Any, what: str = "signed tree head") -> "SignedTreeHead":
+    def from_dict(cls, doc: object, what: str = "signed tree head") -> "SignedTreeHead":
         try:
             if not isinstance(doc, dict) or doc.get("format") not in (STH_FORMAT, CHECKPOINT_FORMAT):
                 raise ValueError
@@ -304,11 +293,11 @@ class SignedTreeHead:
             raise AuthnError(f"{p}: cannot read signed tree head ({exc.strerror})") from None
         return cls.from_json(data, str(p))
 
-    def verify_signature(self, public_key: Any) -> bool:
+    def verify_signature(self, public_key: Ed25519PublicKey) -> bool:
         """Whether the signature is this key's over these fields (key id and key hash match)."""
         from cryptography.exceptions import InvalidSignature
 
-        raw = public_raw(public_key)
+        raw = raw_public(public_key)
         sig = base64.b64decode(self.signature)
         if self.origin is None:
             if key_id(raw) != self.log_key_id:
@@ -333,7 +322,7 @@ def note_key_hash(name: str, public_raw_key: bytes) -> bytes:
 _ORIGIN = re.compile(r"[^\s+\x00-\x1f\x7f]{1,256}")
 
 
-def check_origin(origin: Any) -> None:
+def check_origin(origin: object) -> None:
     """A note key name: non-empty UTF-8 without whitespace, '+' or control characters."""
     if not isinstance(origin, str) or not _ORIGIN.fullmatch(origin):
         raise ValueError(f"not a checkpoint origin: {origin!r}")

@@ -6,8 +6,9 @@ from __future__ import annotations
 import base64
 import binascii
 import hashlib
-from typing import Any
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
 from authn.audit._internal.headrows import load_key, when
@@ -19,11 +20,14 @@ from authn.audit.signer import checkpoint
 from core.errors import AuthnError
 from registry.dbapi import Database
 
+if TYPE_CHECKING:
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
+
 PROOF_FORMAT = "authn-inclusion-proof/2"
 PROOF_FORMAT_V1 = "authn-inclusion-proof/1"  # no leaf bytes: the entry's version 0 bytes rebuilt from its fields
 
 
-def _entry_doc(row: tuple) -> tuple[dict[str, Any], bytes]:
+def _entry_doc(row: Sequence[Any]) -> tuple[dict[str, Any], bytes]:
     """The entry's readable fields (created_at as its leaf bytes write it) and its leaf bytes."""
     body = stored_leaf(row)
     seq, created, kind, serial, decision, payload, prev_hash, entry_hash = row[:8]
@@ -71,7 +75,7 @@ def prove(db: Database, seq: int, sth: SignedTreeHead | None = None, *, log_key:
 
 
 
-def verify_proof(doc: Any, public_key: Any) -> str:
+def verify_proof(doc: object, public_key: Ed25519PublicKey) -> str:
     """Check an inclusion proof with only the log's public key; returns a one-line summary.
     Raises AuthnError naming what does not hold."""
     if not isinstance(doc, dict) or doc.get("format") not in (PROOF_FORMAT, PROOF_FORMAT_V1):
@@ -79,8 +83,8 @@ def verify_proof(doc: Any, public_key: Any) -> str:
     sth = SignedTreeHead.from_dict(doc.get("sth"), "proof's signed tree head")
     if not sth.verify_signature(public_key):
         raise AuthnError("the proof's signed tree head is not signed by this public key")
-    entry, index, size, path = doc.get("entry"), doc.get("leaf_index"), doc.get("tree_size"), doc.get("audit_path")
     try:
+        entry, index, size, path = doc["entry"], doc["leaf_index"], doc["tree_size"], doc["audit_path"]
         seq = entry["seq"]
         fields = (entry["created_at"], entry["kind"], entry["serial"], entry["decision"], entry["payload"],
                   entry["prev_hash"])
@@ -108,7 +112,7 @@ def verify_proof(doc: Any, public_key: Any) -> str:
             f"by key {sth.log_key_id[:16]}")
 
 
-def _proof_leaf(doc: dict[str, Any], seq: int, fields: tuple) -> bytes:
+def _proof_leaf(doc: dict[str, Any], seq: int, fields: tuple[str, str, str | None, str | None, str, str]) -> bytes:
     """The proved leaf bytes: as the proof carries them (base64), or, in a version 1 proof,
     rebuilt from the entry's fields in the version 0 encoding (ValueError when malformed)."""
     if doc["format"] == PROOF_FORMAT_V1:

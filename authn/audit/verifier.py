@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import authn.audit.merkle as merkle
 from authn.audit._internal.headrows import HEAD_COLUMNS, head_of, when
@@ -22,6 +22,9 @@ from authn.audit.heads import KnownHead, accepted_keys, log_origin
 from authn.audit.logkey import SignedTreeHead
 from core.errors import AuthnError
 from registry.dbapi import Database
+
+if TYPE_CHECKING:
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 @dataclass(frozen=True)
 class VerifyReport:
@@ -69,11 +72,12 @@ def _row_problem(row: Sequence[Any], expected: int, prev: str, body: bytes | Non
     return None
 
 
-def _signed(h: KnownHead, keys: Sequence[Any]) -> bool:
+def _signed(h: KnownHead, keys: Sequence[Ed25519PublicKey]) -> bool:
     return any(h.sth.verify_signature(k) for k in keys)
 
 
-def _pin(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size: int) -> tuple[int, int, str] | None:
+def _pin(db: Database, heads: Sequence[KnownHead], keys: Sequence[Ed25519PublicKey],
+         size: int) -> tuple[int, int, str] | None:
     """(g, m, label): the largest signed head size g whose root the recomputed log has below
     the smallest signed head size m whose root it has not (label: m's head), over every head
     in the database and those given; None when every signed head up to `size` holds."""
@@ -104,7 +108,7 @@ def _pin(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size: in
     return good, m, f"STH size {m} of {when(head.sth.timestamp)} ({head.source})"
 
 
-def _failure(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size: int,
+def _failure(db: Database, heads: Sequence[KnownHead], keys: Sequence[Ed25519PublicKey], size: int,
              local: tuple[int, str] | None, other: tuple[int, str] | None) -> tuple[int, str]:
     """The first bad entry and the one-line problem: the signed heads' pin when it is at or
     before the local break (the break is named too), else the break, else the head's own."""
@@ -122,7 +126,8 @@ def _failure(db: Database, heads: Sequence[KnownHead], keys: Sequence[Any], size
 
 
 def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | KnownHead] | None = None, *,
-           public_key: Any = None, retired: Sequence[Any] = (), require_signed_to_end: bool = False) -> VerifyReport:
+           public_key: Ed25519PublicKey | None = None, retired: Sequence[Ed25519PublicKey] = (),
+           require_signed_to_end: bool = False) -> VerifyReport:
     """Recompute the chain, every leaf hash (and compare the stored ones) and the Merkle root
     in one streaming pass.
 
@@ -139,7 +144,7 @@ def verify(db: Database, against: SignedTreeHead | Sequence[SignedTreeHead | Kno
         heads = [KnownHead(against, "given")]
     elif against is not None:
         heads = [h if isinstance(h, KnownHead) else KnownHead(h, "given") for h in against]
-    keys: list[Any] = []
+    keys: list[Ed25519PublicKey] = []
     if heads:
         if public_key is None:
             raise AuthnError("verify against a signed tree head needs the log's public key")

@@ -13,7 +13,7 @@ Two kinds, one store:
 - `DIR`: a folder (a mount of another host, ideally append-only): `WitnessStore` runs
   in the writer's process. A head published there is checked the same way.
 - `http(s)://HOST:PORT`: `authn audit witness serve --dir DIR --public-key LOG.pub`
-  on the other host, the same store behind two routes:
+  on the other host, the same store behind two routes (authn.audit.witness_http, on uvicorn):
   `POST /add-checkpoint` (body: "old <size>\\n", one base64 proof hash per line, a blank
   line, then the signed note; 200, or 409 with the witness's newest head when the proof
   fails) and `GET /checkpoints?origin=O` (every held head, JSON lines).
@@ -30,12 +30,15 @@ import hashlib
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import authn.audit.merkle as merkle
-from core.errors import AuthnError, SystemFault
+from core.errors import AuthnError, SystemFault, one_line
 from core.settings import current
 from authn.audit.logkey import SignedTreeHead, lines_from_end, parse_note
+
+if TYPE_CHECKING:
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 TIMEOUT_S = 5.0
 
@@ -74,7 +77,8 @@ class WitnessStore:
                 return held[0] if held else None
         return None
 
-    def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
+    def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes],
+            public_keys: Sequence[Ed25519PublicKey]) -> None:
         """Keep `head` if a key in `public_keys` signed it and `proof` proves it extends the
         newest head held for its origin (of size `old_size`); else Conflict / AuthnError."""
         import fcntl
@@ -130,7 +134,8 @@ class HttpWitness:
         held = self.heads(origin)
         return held[-1] if held else None
 
-    def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes], public_keys: Sequence[Any]) -> None:
+    def add(self, head: SignedTreeHead, old_size: int, proof: Sequence[bytes],
+            public_keys: Sequence[Ed25519PublicKey]) -> None:
         self._request("POST", "/add-checkpoint", add_request(head, old_size, proof))
 
     def _request(self, method: str, path: str, data: bytes | None) -> bytes:
@@ -194,50 +199,38 @@ def open_witness(spec: str | None) -> WitnessStore | HttpWitness | None:
     return WitnessStore(spec)
 
 
-def serve(store: WitnessStore, public_keys: Sequence[Any], host: str, port: int) -> None:
-    """Run the witness endpoint until interrupted (stdlib HTTP server, one thread per request)."""
-    import urllib.parse
-    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+class Endpoint:
+    """The witness's two operations as HTTP answers (status, text); authn.audit.witness_http
+    carries them. `public_keys` is read on every add."""
 
-    class Handler(BaseHTTPRequestHandler):
-        timeout = 10  # seconds a client may take to send its request
+    def __init__(self, store: WitnessStore, public_keys: Sequence[Ed25519PublicKey]) -> None:
+        self.store = store
+        self.public_keys = public_keys
 
-        def _answer(self, status: int, body: bytes) -> None:
-            self.send_response(status)
-            self.send_header("Content-Type", "text/plain; charset=utf-8")
-            self.send_header("Content-Length", str(len(body)))
-            self.end_headers()
-            self.wfile.write(body)
+    def checkpoints(self, origin: str) -> tuple[int, str]:
+        """200 and every head held for `origin` as JSON lines; 500 when the store cannot be read."""
+        try:
+            return 200, "".join(h.to_json() + "\n" for h in self.store.heads(origin))
+        except SystemFault as exc:
+            return 500, one_line(exc) + "\n"
 
-        def do_GET(self) -> None:  # http.server's name
-            url = urllib.parse.urlsplit(self.path)
-            origin = urllib.parse.parse_qs(url.query).get("origin", [""])[0]
-            if url.path != "/checkpoints" or not origin:
-                self._answer(404, b"GET /checkpoints?origin=ORIGIN\n")
-                return
-            self._answer(200, "".join(h.to_json() + "\n" for h in store.heads(origin)).encode())
+    def add(self, body: bytes) -> tuple[int, str]:
+        """200 when the head in an add-checkpoint `body` is kept; 409 when it does not extend the
+        newest held, 400 when malformed or not the log's, 500 when the store cannot be written."""
+        try:
+            head, old, proof = parse_add_request(body)
+            self.store.add(head, old, proof, self.public_keys)
+        except Conflict as exc:
+            return 409, f"{exc}\n"
+        except AuthnError as exc:
+            return 400, f"{exc}\n"
+        except SystemFault as exc:
+            return 500, one_line(exc) + "\n"
+        return 200, "ok\n"
 
-        def do_POST(self) -> None:
-            length = self.headers.get("Content-Length", "")
-            if self.path != "/add-checkpoint" or not length.isdigit() or int(length) > 1 << 16:
-                self._answer(400, b"POST /add-checkpoint with a body under 64 KiB\n")
-                return
-            try:
-                head, old, proof = parse_add_request(self.rfile.read(int(length)))
-                store.add(head, old, proof, public_keys)
-            except Conflict as exc:
-                self._answer(409, f"{exc}\n".encode())
-                return
-            except AuthnError as exc:
-                self._answer(400, f"{exc}\n".encode())
-                return
-            self._answer(200, b"ok\n")
 
-        def log_message(self, fmt: str, *args: Any) -> None:
-            pass
+def serve(store: WitnessStore, public_keys: Sequence[Ed25519PublicKey], host: str, port: int) -> None:
+    """Run the witness endpoint until interrupted (authn.audit.witness_http: uvicorn, as `authn serve`)."""
+    from authn.audit.witness_http import run
 
-    server = ThreadingHTTPServer((host, port), Handler)
-    try:
-        server.serve_forever()
-    finally:
-        server.server_close()
+    run(Endpoint(store, public_keys), host, port)

@@ -478,7 +478,8 @@ def test_checkpoint_note_is_a_c2sp_signed_note(db_url: str, tmp_path: Path, caps
     import base64
 
     from authn.cli import main
-    from authn.audit.logkey import note_key_hash, public_raw
+    from authn.audit.logkey import note_key_hash
+    from core.pem import raw_public as public_raw
 
     db = Database(db_url)
     append(db, [NewEntry("decision", "S", "accept", {"reasons": ["r"]}) for _ in range(3)])

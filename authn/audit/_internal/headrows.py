@@ -1,6 +1,6 @@
-"""Signed heads as the audit modules share them: a head's row in `audit_tree_heads`, the
-checks a trusted head must pass, the log key loaded once per file version, and a head's time
-as reports print it."""
+"""Signed heads as the audit modules share them: a head and where it was found, its row in
+`audit_tree_heads`, the checks a trusted head must pass, the log key loaded once per file
+version, and a head's time as reports print it."""
 
 from __future__ import annotations
 
@@ -8,19 +8,24 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, key_path
 from core.errors import SystemFault
 from registry.dbapi import Database
 
-if TYPE_CHECKING:
-    from authn.audit.heads import KnownHead
-
 HEAD_COLUMNS = "tree_size, timestamp_ms, root_hash, log_key_id, signature, origin"
 
 #: loaded log keys by path: (file version, key)
 KEYS: dict[Path, tuple[tuple[int, int] | None, LogKey]] = {}
+
+
+@dataclass(frozen=True)
+class KnownHead:
+    """A signed head and where it was found (authn.audit.heads gathers them)."""
+
+    sth: SignedTreeHead
+    source: str  # "database" | "file PATH" | "witness W" | "--against FILE"
 
 
 @dataclass(frozen=True)
@@ -62,7 +67,7 @@ def store_head(db: Database, sth: SignedTreeHead, edge: str | None) -> SignedTre
     return sth
 
 
-def check_head(h: "KnownHead", key: LogKey, origin: str, size_before: int) -> None:
+def check_head(h: KnownHead, key: LogKey, origin: str, size_before: int) -> None:
     """A trusted head must be this key's, name this log, and not be larger than the log."""
     if not key.vouches_for(h.sth):
         raise SystemFault(f"audit log: the signed head of size {h.sth.tree_size} ({h.source}) is not signed by "

@@ -32,7 +32,7 @@ class ColumnsAltered(MalformedRow):
     changed after the writer wrote both."""
 
 
-def utc_text(value: Any) -> str:
+def utc_text(value: object) -> str:
     """created_at from the stored value as "YYYY-MM-DDTHH:MM:SS.ffffff" (UTC): SQLite's text
     exactly as the writer stores it, or PostgreSQL's timestamptz (an instant). Any other
     representation, the same instant in another UTC offset included, raises MalformedRow."""
