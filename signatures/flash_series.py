@@ -262,7 +262,7 @@ def flashes_within_one_sample(rate_hz: float, decimation: int, wavelength_m: flo
 
 @dataclass(frozen=True)
 class FlashSeriesBatch:
-    """B flash series of equal length (row b: the reference's `flash_series` of return b)."""
+    """B flash series of equal length, one per gate (`flash_series_batch`)."""
 
     energy: np.ndarray  # float64 (B, n): flash energy above the noise, >= 0
     per_bin: np.ndarray  # float64 (B, n, bins): energy before the noise cut, per range bin
