@@ -35,10 +35,9 @@ import numpy as np
 from authn.process import tune
 from lab.bench import perf
 from lab.bench.batch import _median_ms, returns
-from signatures import flash as be
 from signatures import extraction as bf
-from signatures import estimators as est
 from signatures import features as F
+from signatures import flash_period, flash_series
 from signatures import rd
 from signatures import timefreq as tf
 from signatures.inference import load_classifier
@@ -46,8 +45,8 @@ from signatures.radar import get_preset
 from signatures.threads import one_blas_thread
 
 #: (module, function) wrapped in timers, reported under the function's name
-STAGES = ((bf, "_cube_stage"), (bf, "_subchirp_bins"), (be, "flash_series_batch"), (be, "periodicity_batch"),
-          (bf, "_spectrogram"), (bf, "_cadence"), (bf, "_slow_stage"))
+STAGES = ((bf, "_cube_stage"), (bf, "_subchirp_bins"), (flash_series, "flash_series_batch"),
+          (flash_period, "periodicity_batch"), (bf, "_spectrogram"), (bf, "_cadence"), (bf, "_slow_stage"))
 
 
 def _returns(preset: str, batch: int) -> tuple[list, list]:
@@ -122,7 +121,7 @@ def transforms(preset: str, batch: int, rounds: int) -> dict[str, float]:
     hann_slow = rd.hann(n).astype(np.float32)[:, None]
     win, hop = tf.stft_params(pre.config, n)
     frames = np.ascontiguousarray(np.lib.stride_tricks.sliding_window_view(gate, win, axis=1)[:, ::hop])
-    sub = est.subchirp_window(pre.config, k)
+    sub = flash_series.subchirp_window(pre.config, k)
 
     def cube_passes() -> None:
         np.subtract(cube, cube.mean(axis=1, keepdims=True), out=work)
@@ -133,7 +132,7 @@ def transforms(preset: str, batch: int, rounds: int) -> dict[str, float]:
 
     parts: dict[str, Callable[[], object]] = {"cube passes + range FFT": cube_passes}
     if sub:
-        basis = est.scaled_subchirp_basis(k, k // 4, sub, np.complex64)
+        basis = flash_series.scaled_subchirp_basis(k, k // 4, sub, np.complex64)
         parts["sub-chirp products"] = lambda: cube.reshape(-1, k) @ basis
     parts["Doppler FFT"] = lambda: sfft.fft(gate * hann_slow, axis=1, workers=1)
     parts["STFT"] = lambda: sfft.fft(frames, axis=-1, workers=1)

@@ -1,5 +1,5 @@
 """Blade-flash estimators (flash series + periodicity + rotor count) per batch of gates
-(`signatures.flash`), per batch size and preset.
+(`signatures.flash_series`, `signatures.flash_period`), per batch size and preset.
 
     python -m pytest benchmarks/test_bench_batch_estimators.py --benchmark-enable
 
@@ -15,7 +15,8 @@ import functools
 import numpy as np
 import pytest
 
-from signatures import flash as be
+from signatures.flash_period import periodicity_batch
+from signatures.flash_series import flash_series_batch
 from lab.flash_gates import simulated_gates
 
 pytestmark = pytest.mark.slow  # ~18 s to simulate the gates of both presets
@@ -48,7 +49,7 @@ def test_flash_estimators(benchmark, gates, size: int) -> None:
     benchmark.extra_info["returns"] = size  # per-return time = time / returns (--benchmark-json keeps it)
 
     def batched():
-        return be.periodicity_batch(be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
+        return periodicity_batch(flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
 
     result = benchmark(batched)
     assert len(result.n_events) == size

@@ -67,7 +67,7 @@ def rotors_alone(condition: Any, seed: int, false_alarm: float = FALSE_LINES,
     which rotor is which, the others' flashes in between) sees more at that false-alarm rate.
     `search`: Bonferroni over the count's searched rate offsets too (module docstring)."""
     import signatures.simulate as sim
-    from signatures.flash import flash_envelope
+    from signatures.flash_spectrum import flash_envelope
 
     scene, pre, sim_seed = condition.draw(seed)
     out = []

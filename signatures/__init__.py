@@ -4,8 +4,8 @@
   presets), `profiles` (airframe profiles).
 - Simulation: `scene`, `simulate`, `sampling` (random scenes for training and benchmarks).
 - Processing: `fft`, `rd` (range-Doppler), `timefreq` (spectrograms), `stats`,
-  `estimators` (blade-flash rate and the other physical estimates), `features` (the feature
-  vector), `views` (plots' data).
+  `flash_series`, `flash_period`, `flash_spectrum`, `rotor_lines` (blade flashes: flash rate, rotor
+  count and rotors seen), `features` (the feature vector), `views` (plots' data).
 - Classifiers: `dataset`, `training`, `classifiers`, `openset`, `cnn`,
   `modelcard`, `inference` (the shipped bundles at check time), `evaluate`, `accuracy`.
 """

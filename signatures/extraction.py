@@ -43,18 +43,16 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from signatures import envelope
-from signatures import estimators as est
 from signatures import feature_vector as F
-from signatures import flash as best
 from signatures import fft as _fft
+from signatures import flash_period, flash_series, flash_spectrum
 from signatures import rd
 from signatures import timefreq as tf
 from signatures.errors import SignaturesError
 from signatures.cube_scale import SAFE_EXPONENT, RowError, prepared
-from signatures.flash import median_last
 from signatures.radar import RadarConfig
 from signatures.recording import DOMAINS
-from signatures.stats import distinct, median
+from signatures.stats import distinct, median, median_last
 from signatures.threads import blas_on_one_thread, one_blas_thread
 
 __all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "batch_size", "detections", "extract", "extract_batch", "extract_iq",
@@ -320,7 +318,7 @@ def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected:
         results[b] = F.empty(config, n_chirps, n_bins, within[b])
     if live.size:
         offsets = np.array([configs[b].range_offset_m for b in live])
-        window = 0 if quick else est.subchirp_window(config, n_bins, domain)
+        window = 0 if quick else flash_series.subchirp_window(config, n_bins, domain)
         sub = _subchirp_bins(iq, live, cube.peak_bin[live], cube.log2_scale[live], labels, window) if window else None
         for b, r in zip(live, _slow_stage(cube, live, config, offsets, n_chirps, n_bins, suppress,
                                           fft_backend, domain, quick, sub, window)):
@@ -607,8 +605,8 @@ def _columns(x: np.ndarray, lo: np.ndarray, size: int) -> np.ndarray:
 
 def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarray, log2_scale: np.ndarray,
                    labels: list[int], window: int) -> np.ndarray:
-    """`estimators.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
-    windows, bins), with the single path's products (`estimators.scaled_subchirp_basis`).
+    """`flash_series.subchirp_bins` of the prepared rows `rows` at their peak bins, (rows, chirps,
+    windows, bins), with the single path's products (`flash_series.scaled_subchirp_basis`).
     `rd.prepare`'s power-of-two scale (the cube stage's `log2_scale`) rides on the basis, which
     is exact; a row that `prepared` would scale itself (not complex64, or beyond its safe
     exponent) goes through it. With BLAS on one thread the rows that share a peak bin and a
@@ -616,7 +614,7 @@ def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarr
     rounding: a BLAS kernel may order its sums by the product's height), else each row makes
     its own."""
     n_chirps = iq.shape[1]
-    out = np.empty((rows.size, n_chirps, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS), np.complex64)
+    out = np.empty((rows.size, n_chirps, flash_series.SUBCHIRP_WINDOWS, flash_series.SUBCHIRP_BINS), np.complex64)
     stack = blas_on_one_thread()
     shared: dict[tuple[int, int], list[int]] = {}
     for j, b in enumerate(rows.tolist()):
@@ -630,7 +628,7 @@ def _subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, peak_bin: np.ndarr
         else:
             xs, scale, _, _ = prepared(row[None], [labels[b]])
             x, s = xs[0], float(scale[0, 0, 0])
-        out[j] = est.subchirp_bins(x, int(peak_bin[j]), window, s)
+        out[j] = flash_series.subchirp_bins(x, int(peak_bin[j]), window, s)
     for (peak, exponent), js in shared.items():
         _stacked_subchirp_bins(iq, rows[js], np.asarray(js), peak, math.ldexp(1.0, -exponent), window, out)
     return out
@@ -641,7 +639,7 @@ def _stacked_subchirp_bins(iq: np.ndarray | _Stack, rows: np.ndarray, at: np.nda
     """The sub-chirp bins of complex64 rows `rows` sharing a peak bin and a scale into `out[at]`:
     cache-sized blocks of rows stacked into one (rows x chirps, samples) product each."""
     n_chirps, n_samples = iq.shape[1:]
-    basis = est.scaled_subchirp_basis(n_samples, peak_bin, window, np.complex64, scale)
+    basis = flash_series.scaled_subchirp_basis(n_samples, peak_bin, window, np.complex64, scale)
     step = max(1, _CUBE_BLOCK_BYTES // (8 * n_chirps * n_samples))
     for s in range(0, rows.size, step):
         part = rows[s:s + step].tolist()
@@ -658,10 +656,10 @@ def _slow_stage(cube: _Cube, live: np.ndarray, config: RadarConfig, offsets: np.
     slow-time gates; `sub`: their sub-chirp bins of `window` samples, where the waveform has them."""
     slow = cube.slow[live]
     gate = _gate_power(cube, live, slow, n_chirps, suppress, domain, fft_backend)
-    d = best._sum_last(gate.power)  # power.sum(axis=2) to the bit (the 5 gate bins left to right), ~8x faster
-    line = _line(d, best._sum_last(gate.raw_power), slow, gate.stationary, config, suppress, domain)
+    d = flash_series.sum_last_axis(gate.power)  # power.sum(axis=2) to the bit (bins left to right), ~8x faster
+    line = _line(d, flash_series.sum_last_axis(gate.raw_power), slow, gate.stationary, config, suppress, domain)
     cols, body_hz = _moment_columns(cube, live, config, offsets, n_bins, domain, gate, d, line)
-    long_dwell = not quick and n_chirps * config.pri_s >= best.SPECTRAL_DWELL_S
+    long_dwell = not quick and n_chirps * config.pri_s >= flash_spectrum.SPECTRAL_DWELL_S
     if quick:
         return _results(cube, live, config, fft_backend, cols, line.body_idx, None, long_dwell)
     rotors = _flash_columns(cube, live, slow, config, n_bins, fft_backend, domain, sub, window, body_hz,
@@ -822,7 +820,8 @@ def _flash_columns(cube: _Cube, live: np.ndarray, slow: np.ndarray, config: Rada
     size, bin_m = slow.shape[2], config.range_bin_m(n_bins)
     peak_bin, g_lo = cube.peak_bin[live], cube.gate_lo[live]
     if sub is not None:
-        per = best.periodicity_batch(best.flash_series_batch(sub, config, body_hz, bin_m * n_bins / window, window))
+        series = flash_series.flash_series_batch(sub, config, body_hz, bin_m * n_bins / window, window)
+        per = flash_period.periodicity_batch(series)
     else:
         per = _flash(slow, peak_bin - g_lo, config, body_hz, bin_m, n_bins)
     flash, flash_std, score = per.flash_rate_hz, per.flash_rate_std_hz, per.score
@@ -830,12 +829,13 @@ def _flash_columns(cube: _Cube, live: np.ndarray, slow: np.ndarray, config: Rada
     width = int(min(3, size))  # the target's bin +- 1, inside the gate
     centre_cols = _columns(slow, np.clip(peak_bin - g_lo - 1, 0, size - width), width)
     if long_dwell:
-        train = best.spectral_flash_rate(centre_cols, config, body_hz)
+        train = flash_spectrum.spectral_flash_rate(centre_cols, config, body_hz)
         flash, flash_std, score = train.rate_hz, train.rate_std_hz, train.score
         rotors = _Rotors(train.rotors_seen, train.rotors_seen_std,
                          train.rotors_known if train.rotors_known is not None else rotors.known)
         if domain == "cw":  # a periodic flash train is a target even where no Doppler line stands out
-            cols["detected"] = np.asarray(cols["detected"], dtype=bool) | (score >= best.SPECTRAL_DETECT_SCORE)
+            train_found = score >= flash_spectrum.SPECTRAL_DETECT_SCORE
+            cols["detected"] = np.asarray(cols["detected"], dtype=bool) | train_found
     _blade_columns(cols, flash, flash_std, config, long_dwell)
     n = slow.shape[1]
     win, hop = tf.stft_params(config, n)
@@ -853,10 +853,10 @@ def _flash_columns(cube: _Cube, live: np.ndarray, slow: np.ndarray, config: Rada
 
 def _blade_columns(cols: dict[str, np.ndarray], flash: np.ndarray, flash_std: np.ndarray, config: RadarConfig,
                    long_dwell: bool) -> None:
-    """Add the rotor rate (the flash rate over `est.BLADES_ASSUMED`) and the blade length (tip speed
+    """Add the rotor rate (the flash rate over `flash_period.BLADES_ASSUMED`) and the blade length (tip speed
     over 2 pi times the rotor rate) to `cols`; a long dwell reads the tip to within one rotor line."""
     tip, tip_std, aliased = cols["tip_speed_mps"], cols["tip_speed_std_mps"], cols["tip_aliased"]
-    rotor, rotor_std = flash / est.BLADES_ASSUMED, flash_std / est.BLADES_ASSUMED
+    rotor, rotor_std = flash / flash_period.BLADES_ASSUMED, flash_std / flash_period.BLADES_ASSUMED
     if long_dwell:  # the tip's extent is read to within one of the rotor's lines (`tip_line_std`)
         tip_std = np.where(aliased, tip_std, np.hypot(tip_std, tip_line_std(rotor, config.wavelength_m)))
         cols["tip_speed_std_mps"] = tip_std
@@ -906,7 +906,7 @@ def _off_clutter_line(d: np.ndarray, d_med: np.ndarray, centre: int,
                       pri_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """CW rows of Doppler power `d` (fftshifted, zero at `centre`): (the strongest bin outside the
     zero-Doppler line, whether it stands out, whether it is unmirrored, the line's reach in bins by
-    `flash.line_width_hz`); together they say whether that bin is a flying body's
+    `flash_spectrum.line_width_hz`); together they say whether that bin is a flying body's
     line: it stands out as a moving line does (peak over median at least n / MOVING_LINE_BINS) and
     has no mirror image about zero (MIRROR_DB over the strongest of the 5 bins there). Swaying
     clutter (vegetation) 20-40 dB over a target spreads over tens of Hz about zero, outshines the
@@ -915,7 +915,7 @@ def _off_clutter_line(d: np.ndarray, d_med: np.ndarray, centre: int,
     hovering rotor's lines come in mirror pairs (a blade's Doppler swings both ways in a turn)."""
     rows, n = d.shape
     r = np.arange(rows)
-    reach = best.line_width_hz(np.fft.ifftshift(d, axes=1).astype(np.float64), pri_s) * n * pri_s
+    reach = flash_spectrum.line_width_hz(np.fft.ifftshift(d, axes=1).astype(np.float64), pri_s) * n * pri_s
     outside = np.abs(np.arange(n) - centre)[None, :] > np.ceil(reach)[:, None]
     off = np.argmax(np.where(outside, d, 0), axis=1)
     line = d[r, off].astype(np.float64)
@@ -1126,22 +1126,22 @@ def _tip_speed(occupied: np.ndarray, rel_bins: np.ndarray, body_hz: np.ndarray, 
 
 
 def _flash(slow: np.ndarray, peak_rel: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
-           bin_m: float, n_bins: int) -> best.PeriodicityBatch:
+           bin_m: float, n_bins: int) -> flash_period.PeriodicityBatch:
     """The blade-flash estimators on each row's peak bin +- 1 (narrower at the gate's edge):
-    `signatures.flash` once per column count."""
+    `signatures.flash_series` and `signatures.flash_period` once per column count."""
     size = slow.shape[2]
     lo = np.maximum(0, peak_rel - 1)
     width = np.minimum(size, peak_rel + 2) - lo
     rows = slow.shape[0]
     fields = {name: np.zeros(rows, dtype=int if name == "n_events" else np.float64)
-              for name in (f.name for f in dataclass_fields(best.PeriodicityBatch))}
+              for name in (f.name for f in dataclass_fields(flash_period.PeriodicityBatch))}
     for w in distinct(width):
         sel = np.flatnonzero(width == w)
         cols = _columns(slow[sel], lo[sel], int(w))
-        per = best.periodicity_batch(best.flash_series_batch(cols, config, body_hz[sel], bin_m, n_bins))
+        per = flash_period.periodicity_batch(flash_series.flash_series_batch(cols, config, body_hz[sel], bin_m, n_bins))
         for name in fields:
             fields[name][sel] = getattr(per, name)
-    return best.PeriodicityBatch(**fields)
+    return flash_period.PeriodicityBatch(**fields)
 
 
 def _spectrogram(slow: np.ndarray, config: RadarConfig, win: int, hop: int,
@@ -1161,7 +1161,7 @@ def _stft_power(z: np.ndarray) -> np.ndarray:
     """fftshift(|z|^2 summed over the gate's columns) of (B, frames, columns, win) transforms:
     `timefreq.spectrogram`'s floats (the squares on the interleaved view, the columns added in
     order as numpy's sum over that axis), without its temporaries."""
-    p = best._power(z)
+    p = flash_series.squared_magnitude(z)
     acc = p[:, :, 0].copy()
     for j in range(1, p.shape[2]):
         acc += p[:, :, j]
@@ -1184,7 +1184,7 @@ def _cadence_features(cad: tuple[np.ndarray, np.ndarray], flash_hz: np.ndarray) 
     return at another scale) must not move a bin across the comb's edge."""
     spec, f = cad
     rows = spec.shape[0]
-    use = f >= est.FLASH_RATE_MIN_HZ
+    use = f >= flash_series.FLASH_RATE_MIN_HZ
     if not use.any():
         return np.zeros(rows), np.zeros(rows)
     used = spec[:, use]

@@ -7,7 +7,7 @@ each other: measured on the shared 2-core machine, the `paper` batch of 256 (fea
 classifier) took 0.97 ms per return with the default BLAS threads and 0.72 ms with one. The
 number of threads can also change a product's last bits (a complex (128-256 x 80) by (80 x 9)
 product differs between one and two threads, OpenBLAS 0.3.31), so a return's features would
-depend on its batch: products are kept too small to be split (`estimators.SUBCHIRP_BLOCK`).
+depend on its batch: products are kept too small to be split (`flash_series.SUBCHIRP_BLOCK`).
 
 On one thread a product's rows do not depend on how many rows it has (OpenBLAS 0.3.31, complex64,
 measured), so inside the block (`blas_on_one_thread()`) a batch may stack many rows into one

@@ -14,7 +14,7 @@ independent terms:
     projection, whatever the rotor rate. Over the claim's value it lies in `BLADE_BAND`: never
     above 1 (+5 %), while projection and noise only shrink it, so the test is an upper bound
     (tips too fast for the claimed blades).
-  - rotors: distinct flashes per flash period (`estimators.rotors_seen`, rate-invariant) over
+  - rotors: distinct flashes per flash period (`flash_period.rotors_seen`, rate-invariant) over
     the claim's rotor count lies in `ROTOR_BAND` (rotors flashing together count once, weak
     flashes are missed), blurred by the count's own 1/sqrt(flashes) and `ROTOR_REL_FLOOR`;
     under the alternative its log is uniform over `ROTOR_ALT_LOG_SPAN`. Left out below
@@ -107,8 +107,8 @@ SLIPS = (0.5, 2.0, 3.0)
 UNALIASED_SLIPS = (0.5,)
 #: Below this flash score the rate estimate is noise (the open set's own threshold).
 MIN_FLASH_SCORE = 1.0
-#: A long dwell's rate (the envelope spectrum's, `signatures.flash.spectral_flash_rate`) is a flash
-#: train from the score at which it is a detection (`flash.SPECTRAL_DETECT_SCORE`: 5x the highest that
+#: A long dwell's rate (the envelope spectrum's, `flash_spectrum.spectral_flash_rate`) is a flash
+#: train from the score at which it is a detection (`flash_spectrum.SPECTRAL_DETECT_SCORE`: 5x the highest that
 #: noise and clutter alone reach): wind-blown clutter lowers the score of a rate it leaves right
 #: (one knob at a time on the randomised world's CW hover, 20 scenes: score >= 1 in 19 -> 10, the rate
 #: right in 20 -> 20), and the period search's bar of 1 then left right rates unused.

@@ -390,7 +390,7 @@ SPREAD_BINS = (0.04, 0.08)
 def spread_table(rows: list[dict[str, Any]]) -> list[str]:
     """Per world and SNR: the flash rate read within 5 % of the truth, by how far the flown rotors'
     own rates spread (`true_rate_spread`). The period search matches one period to within
-    `signatures.estimators.TOL_FRACTION` in `paper`; a rotor that turns a few per cent off the
+    `signatures.flash_period.TOL_FRACTION` in `paper`; a rotor that turns a few per cent off the
     others flashes off that period."""
     lo, hi = SPREAD_BINS
     names = (f"< {100 * lo:g} %", f"{100 * lo:g}-{100 * hi:g} %", f">= {100 * hi:g} %")

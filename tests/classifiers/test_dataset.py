@@ -67,8 +67,8 @@ def test_cache_key_digests_the_sample_code() -> None:
     from signatures.code_digest import modules_reached
 
     reached = modules_reached((features.extract.__module__, *dataset.SAMPLE_CODE))
-    assert {"signatures.estimators", "signatures.rd", "signatures.timefreq", "signatures.simulate",
-            "signatures.sampling", "signatures.scene", "signatures.dataset"} <= set(reached)
+    assert {"signatures.flash_series", "signatures.flash_period", "signatures.rd", "signatures.timefreq",
+            "signatures.simulate", "signatures.sampling", "signatures.scene", "signatures.dataset"} <= set(reached)
 
 
 def test_split_is_a_property_of_the_block() -> None:

@@ -1,9 +1,12 @@
 """The single-return blade-flash estimators: the reference the array-first ones
-(`signatures.flash`) are tested against row by row, to the bit (tests/features/test_batch_estimators.py).
+(`signatures.flash_series`, `signatures.flash_period`) are tested against row by row, to the bit
+(tests/features/test_batch_estimators.py).
 
-Not product code: the product runs `signatures.flash` only; this is the straightforward
-per-return form of the same algorithm (docs in `signatures.estimators`), kept so that a change
-to the vectorised bookkeeping that alters any row is caught.
+Not product code: the product runs the array-first modules only (one return is a batch of one);
+this is the straightforward per-return form of the same algorithm (docs in those modules), kept
+so that a change to the vectorised bookkeeping that alters any row is caught. It shares the
+product's constants and primitives (matched filters, window sums, binomial LLR), not its
+bookkeeping.
 """
 
 from __future__ import annotations
@@ -13,16 +16,46 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from signatures.estimators import (
-    COHERENT_LEVEL, COHERENT_SHARE, EVENT_RADIUS, EVENT_TOL_FRACTION, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ,
-    FULL_VOTE_DB, HALF_LLR, HALF_SHARE_CAP, MIN_OVERLAP, MIN_VOTE_WEIGHT, NOISE_MADS,
-    POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT, SECOND_PERIOD_GAIN, SERIES_RATE_HZ, SKIRT_DB, SKIRT_REACH,
-    SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES)
-from signatures.estimators import (Estimate, FlashSeries, _binomial_llr, _matched_intervals, _peak_positions,
-                                   clutter_pass, flash_groups, flashes_within_one_sample, highpass_s, matched_filters,
-                                   rotors_seen, window_sums)
+from signatures.flash_period import (
+    COHERENT_LEVEL, COHERENT_SHARE, EVENT_TOL_FRACTION, FULL_VOTE_DB, GROUP_GAP_PERIODS, GROUP_GAP_SAMPLES,
+    HALF_LLR, HALF_SHARE_CAP, MIN_OVERLAP, MIN_VOTE_WEIGHT, POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT,
+    SECOND_PERIOD_GAIN, SKIRT_DB, SKIRT_REACH, SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION,
+    TOL_SAMPLES, binomial_llr, matched_intervals, peak_positions)
+from signatures.flash_series import (EVENT_RADIUS, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ, NOISE_MADS, SERIES_RATE_HZ,
+                                     FlashSeriesBatch, clutter_pass, flashes_within_one_sample, highpass_s,
+                                     matched_filters, window_sums)
 from signatures.radar import RadarConfig
 from signatures.stats import median
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A value with a one-sigma uncertainty (both finite; value 0 and std 0 when absent)."""
+
+    value: float
+    std: float
+
+
+@dataclass(frozen=True)
+class FlashSeries:
+    """One return's flash series (`flash_series`; `FlashSeriesBatch` holds B of them)."""
+
+    energy: np.ndarray  # float64 (n,), flash energy above the noise, >= 0
+    per_bin: np.ndarray  # float64 (n, bins): the energy before the noise cut, per range bin
+    rate_hz: float  # sample rate of the series
+    radius: int  # samples either side a flash can spread over
+    drift_bins_per_sample: float  # body range migration (bins per series sample)
+    threshold: float = 0.0  # detection level subtracted from the energy (median + NOISE_MADS MAD)
+    field: np.ndarray | None = None  # complex (chirps, positions): matched-filter outputs of the
+    # high-passed, body-demodulated bins (noise: unit variance per position)
+    decimation: int = 1  # chirps per series sample
+
+
+def series_row(batch: FlashSeriesBatch, b: int) -> FlashSeries:
+    """Row b of a batch as the single-return series (what `flash_series` gives for that return)."""
+    return FlashSeries(batch.energy[b], batch.per_bin[b], batch.rate_hz, batch.radius,
+                       float(batch.drift_bins_per_sample[b]), float(batch.threshold[b]),
+                       None if batch.field is None else batch.field[b].T, batch.decimation)
 
 
 def flash_series(slow: np.ndarray, config: RadarConfig, body_hz: float,
@@ -150,7 +183,7 @@ def flash_events(series: FlashSeries, radius: int,
     lo, hi = np.maximum(peaks - 1, 0), np.minimum(peaks + 1, e.size - 1)
     w = e[lo] + e[peaks] + e[hi]
     centroid = (lo * e[lo] + peaks * e[peaks] + hi * e[hi]) / np.maximum(w, 1e-300)
-    positions = _peak_positions(series.per_bin[peaks])
+    positions = peak_positions(series.per_bin[peaks])
     order = np.argsort(centroid)
     return centroid[order], positions[order]
 
@@ -294,8 +327,8 @@ def _rerank(coh: _Coherent, times: np.ndarray, weight: np.ndarray, lags: np.ndar
     cl = np.array(cands)
     found, made, chance = _coherent_checks(coh, times, weight, np.concatenate([cl, 2.0 * cl, cl / 2.0]), n)
     share = (found[:c] + found[c:2 * c]) / np.maximum(made[:c] + made[c:2 * c], 1e-12)
-    llr = (_binomial_llr(found[:c], made[:c], share, chance[:c])
-           + _binomial_llr(found[c:2 * c], made[c:2 * c], share, chance[c:2 * c]))
+    llr = (binomial_llr(found[:c], made[:c], share, chance[:c])
+           + binomial_llr(found[c:2 * c], made[c:2 * c], share, chance[c:2 * c]))
     best = int(np.argmax(np.array(scores) + RERANK_WEIGHT * share * llr))
     half = bool(cands[best] / 2.0 >= lags[0] and _half_is_period(
         found[best], made[best], found[2 * c + best], made[2 * c + best], chance[2 * c + best]))
@@ -310,7 +343,7 @@ def _half_is_period(found: float, made: float, found_h: float, made_h: float, ch
     if made <= 0.0 or made_h <= 0.0 or found_h < 1.0:
         return False
     s0 = min(found / made, HALF_SHARE_CAP)
-    llr = _binomial_llr(np.array([found_h]), np.array([made_h]), np.array([s0]), np.array([chance_h]))
+    llr = binomial_llr(np.array([found_h]), np.array([made_h]), np.array([s0]), np.array([chance_h]))
     return bool(llr[0] > HALF_LLR)
 
 
@@ -374,11 +407,11 @@ def periodicity(series: FlashSeries) -> Periodicity:
     else:
         lag0 = _event_half_rule(lags, vote, found_n, valid_n, lag0, fraction)
     diff = times[None, :] - times[:, None]  # (k, k): t_j - t_i
-    intervals, matched, mult = _matched_intervals(diff, lag0, fraction)  # the score's pairs
+    intervals, matched, mult = matched_intervals(diff, lag0, fraction)  # the score's pairs
     periods = intervals[matched]
     if fraction > TOL_FRACTION and periods.size:  # a wide search's plateau centre: refine, match closely
         refined = float(periods.mean())
-        narrow_intervals, narrow, _ = _matched_intervals(diff, refined, TOL_FRACTION)
+        narrow_intervals, narrow, _ = matched_intervals(diff, refined, TOL_FRACTION)
         if narrow.any():
             lag0, periods = refined, narrow_intervals[narrow]
     tol0 = TOL_SAMPLES + TOL_FRACTION * lag0
@@ -435,3 +468,25 @@ def rotor_count(per: Periodicity) -> Estimate:
     sizes = np.diff(np.concatenate([starts, starts[:1] + ph.size]))
     singletons = int(np.sum(sizes == 1))
     return Estimate(float(sizes.size), 0.5 * singletons)
+
+
+def flash_groups(times: np.ndarray, period: float) -> int:
+    """Distinct flashes among time-sorted events: a gap wider than GROUP_GAP_PERIODS of the
+    period (and GROUP_GAP_SAMPLES) starts a new one."""
+    if times.size == 0:
+        return 0
+    gap = max(GROUP_GAP_SAMPLES, GROUP_GAP_PERIODS * period)
+    return 1 + int(np.count_nonzero(np.diff(times) > gap))
+
+
+def rotors_seen(groups: int, period: float, n: int) -> Estimate:
+    """Rate-invariant rotor count: distinct flashes over the flash periods the dwell holds.
+
+    Each rotor flashes once per flash period (the period is the time between its blades passing
+    broadside), so flashes per period count the rotors whatever the rotor rate. Two rotors flashing
+    within the group gap count once and missed flashes not at all, so it undercounts a little;
+    its relative uncertainty is that of a count, 1 / sqrt(groups)."""
+    if groups <= 0 or period <= 0.0 or n <= 0:
+        return Estimate(0.0, 0.0)
+    value = groups * period / n
+    return Estimate(value, value / math.sqrt(groups))

@@ -1,5 +1,5 @@
-"""The array-first blade-flash estimators (`signatures.flash`) equal the single-return reference
-(tests/features/reference_flash.py) row by row, on simulated
+"""The array-first blade-flash estimators (`signatures.flash_series`, `signatures.flash_period`) equal
+the single-return reference (tests/features/reference_flash.py) row by row, on simulated
 gates of both shipped presets (airframes, birds, noise only; hovering and moving; -5..30 dB)
 and on edge cases (all zero, no events, one row, chirps shorter than the high-pass, 2 columns)."""
 
@@ -12,8 +12,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures import estimators as est
-from signatures import flash as be
+from signatures import flash_period, flash_series
+from signatures.flash_period import PeriodicityBatch, periodicity_batch
+from signatures.flash_series import flash_series_batch
 from signatures.errors import SignaturesError
 from signatures.radar import get_preset
 from lab.flash_gates import Gate, simulated_gates
@@ -48,11 +49,11 @@ def reference(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float, n_fft
 
 
 def assert_batch_matches(slow: np.ndarray, config, body_hz: np.ndarray, bin_m: float,
-                         n_fft: int) -> be.PeriodicityBatch:
+                         n_fft: int) -> PeriodicityBatch:
     """`periodicity_batch` against the single-return reference, row by row."""
     want = reference(slow, config, body_hz, bin_m, n_fft)
-    series = be.flash_series_batch(slow, config, body_hz, bin_m, n_fft)
-    for got in (be.periodicity_batch(series),):
+    series = flash_series_batch(slow, config, body_hz, bin_m, n_fft)
+    for got in (periodicity_batch(series),):
         for name in EXACT:
             np.testing.assert_array_equal(getattr(got, name), want[name], err_msg=name)
         for name in CONTINUOUS:
@@ -95,10 +96,10 @@ def test_flash_series_rows_are_the_single_series_to_the_bit(paper_gates):
     gates = three_columns(paper_gates)[:12]
     slow, body = stack(gates)
     g = gates[0]
-    series = be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft)
+    series = flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft)
     for b in range(len(gates)):
         one = ref.flash_series(slow[b], g.config, float(body[b]), g.range_bin_m, g.n_fft)
-        row = series.row(b)
+        row = ref.series_row(series, b)
         np.testing.assert_array_equal(row.energy, one.energy)
         np.testing.assert_array_equal(row.per_bin, one.per_bin)
         np.testing.assert_array_equal(row.field, one.field)
@@ -110,14 +111,14 @@ def test_row_order_and_batch_size_do_not_change_a_row(paper_gates):
     gates = three_columns(paper_gates)
     slow, body = stack(gates)
     g = gates[0]
-    whole = be.periodicity_batch(be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
+    whole = periodicity_batch(flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
     order = np.random.default_rng(3).permutation(len(gates))
-    shuffled = be.periodicity_batch(be.flash_series_batch(slow[order], g.config, body[order], g.range_bin_m,
+    shuffled = periodicity_batch(flash_series_batch(slow[order], g.config, body[order], g.range_bin_m,
                                                           g.n_fft))
     np.testing.assert_array_equal(shuffled.flash_rate_hz, whole.flash_rate_hz[order])
     np.testing.assert_array_equal(shuffled.rotor_count, whole.rotor_count[order])
     for b in (0, len(gates) // 2):  # B = 1: what a single check runs
-        one = be.periodicity_batch(be.flash_series_batch(slow[b:b + 1], g.config, body[b:b + 1],
+        one = periodicity_batch(flash_series_batch(slow[b:b + 1], g.config, body[b:b + 1],
                                                          g.range_bin_m, g.n_fft))
         assert one.flash_rate_hz[0] == whole.flash_rate_hz[b]
         assert one.n_events[0] == whole.n_events[b]
@@ -127,10 +128,11 @@ def test_small_chunks_give_the_same_rows(paper_gates, monkeypatch):
     gates = three_columns(paper_gates)[:10]
     slow, body = stack(gates)
     g = gates[0]
-    whole = be.periodicity_batch(be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
-    monkeypatch.setattr(be, "MEMORY_BUDGET_BYTES", 1)  # one row per chunk
-    monkeypatch.setattr(be, "CHUNK_BYTES", 1)
-    chunked = be.periodicity_batch(be.flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
+    whole = periodicity_batch(flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
+    monkeypatch.setattr(flash_series, "MEMORY_BUDGET_BYTES", 1)  # one row per chunk
+    monkeypatch.setattr(flash_period, "MEMORY_BUDGET_BYTES", 1)  # one row per group
+    monkeypatch.setattr(flash_series, "CHUNK_BYTES", 1)
+    chunked = periodicity_batch(flash_series_batch(slow, g.config, body, g.range_bin_m, g.n_fft))
     for name in EXACT + CONTINUOUS:
         np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
 
@@ -175,27 +177,27 @@ def test_decimated_coherent_path(paper_gates):
     """A PRF of 52 kHz decimates by 2 and still runs the coherent checks (flash within one PRI)."""
     base = get_preset("paper").config
     config = type(base)(**{**base.__dict__, "pri_s": 1.0 / 52_000.0, "ramp_s": 1.0 / 52_000.0})
-    dec = max(1, int(config.prf_hz // est.SERIES_RATE_HZ))
-    assert dec == 2 and config.prf_hz * est.flash_lobe_s(config.wavelength_m) <= 1.0
+    dec = max(1, int(config.prf_hz // flash_series.SERIES_RATE_HZ))
+    assert dec == 2 and config.prf_hz * flash_series.flash_lobe_s(config.wavelength_m) <= 1.0
     gates = three_columns(paper_gates)[:10]
     slow, body = stack(gates)
-    series = be.flash_series_batch(slow, config, body, gates[0].range_bin_m, gates[0].n_fft)
+    series = flash_series_batch(slow, config, body, gates[0].range_bin_m, gates[0].n_fft)
     assert series.field is not None and series.decimation == 2
     assert_batch_matches(slow, config, body, gates[0].range_bin_m, gates[0].n_fft)
 
 
 def test_wide_series_keeps_no_field(wide_gates):
     g = three_columns(wide_gates)[0]
-    series = be.flash_series_batch(g.slow[None], g.config, np.array([g.body_hz]), g.range_bin_m, g.n_fft)
+    series = flash_series_batch(g.slow[None], g.config, np.array([g.body_hz]), g.range_bin_m, g.n_fft)
     assert series.field is None and series.decimation == 6  # flashes span chirps: no coherent checks
 
 
 def test_bad_shapes_raise_one_line():
     config = get_preset("paper").config
     with pytest.raises(SignaturesError, match=r"B, chirps, \[windows,\] bins"):
-        be.flash_series_batch(np.zeros((600, 3), np.complex64), config, np.zeros(1), 0.1, 80)
+        flash_series_batch(np.zeros((600, 3), np.complex64), config, np.zeros(1), 0.1, 80)
     with pytest.raises(SignaturesError, match="body_hz"):
-        be.flash_series_batch(np.zeros((2, 600, 3), np.complex64), config, np.zeros(3), 0.1, 80)
+        flash_series_batch(np.zeros((2, 600, 3), np.complex64), config, np.zeros(3), 0.1, 80)
 
 
 @settings(max_examples=25, deadline=None)
@@ -225,6 +227,6 @@ def test_complex128_gates(paper_gates):
     gates = three_columns(paper_gates)[:10]
     slow, body = stack(gates)
     g = gates[0]
-    series = be.flash_series_batch(slow.astype(np.complex128), g.config, body, g.range_bin_m, g.n_fft)
+    series = flash_series_batch(slow.astype(np.complex128), g.config, body, g.range_bin_m, g.n_fft)
     assert series.field is not None and series.field.dtype == np.complex128
     assert_batch_matches(slow.astype(np.complex128), g.config, body, g.range_bin_m, g.n_fft)

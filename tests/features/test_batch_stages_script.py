@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from signatures import flash as be
+from signatures import flash_period
 from signatures import extraction as bf
 
 
@@ -26,7 +26,7 @@ def test_stages_add_up_and_the_batch_path_is_restored(bs):
     inner = ms["flash_series_batch"] + ms["periodicity_batch"] + ms["_spectrogram"] + ms["_cadence"]
     assert ms["rest of the slow stage"] == pytest.approx(ms["_slow_stage"] - inner)
     assert {name: getattr(mod, name) for mod, name in bs.STAGES} == before
-    assert bf._cube_stage is before["_cube_stage"] and be.periodicity_batch is before["periodicity_batch"]
+    assert bf._cube_stage is before["_cube_stage"] and flash_period.periodicity_batch is before["periodicity_batch"]
 
 
 @pytest.mark.parametrize("preset,sub", [("paper", True), ("wide", False)])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from signatures import extraction as bf
-from signatures import estimators as est
+from signatures import flash_series as est
 from signatures import threads
 from signatures.cube_scale import SAFE_EXPONENT
 
@@ -52,7 +52,7 @@ def test_same_products_on_one_thread():
 
 def test_stacked_subchirp_bins_are_the_row_by_row_products_to_float32_rounding():
     """On one BLAS thread the batch path stacks rows that share a peak bin and a scale into one
-    product; each row's bins are those of its own `estimators.subchirp_bins` call (what the
+    product; each row's bins are those of its own `flash_series.subchirp_bins` call (what the
     batch path makes row by row, and the single path makes) to within ULPS of the row's largest
     bin. Rows of 37 chirps: products whose height is not the single path's block of 64; one row
     beyond the safe exponent."""

@@ -1,4 +1,4 @@
-"""The flash series removes the clutter's line as well as the body's (`estimators.clutter_pass`).
+"""The flash series removes the clutter's line as well as the body's (`flash_series.clutter_pass`).
 
 A moving target's body line and the ground's clutter line are apart in Doppler. The slow-time
 mean's removal takes the static clutter, not the part that sways (vegetation); demodulated by the
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures import estimators as est
+from signatures import flash_series as est
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset

@@ -1,4 +1,5 @@
-"""Blade-flash estimator: matched filters and coherent partner checks (signatures.estimators)."""
+"""Blade-flash estimators: matched filters (signatures.flash_series), coherent partner checks and rotors seen
+(signatures.flash_period)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures import flash as est_batch
-from signatures import estimators as est
+from signatures import flash_period, flash_series
 from signatures import rd
 from signatures.radar import get_preset
 from signatures.threads import one_blas_thread
@@ -36,7 +36,7 @@ def _slow(n: int, flashes: list[tuple[int, float, float]], seed: int = 0) -> np.
 
 
 def test_matched_filters_give_unit_noise_and_the_scatterer_energy():
-    h = est.matched_filters(3, N_FFT)
+    h = flash_series.matched_filters(3, N_FFT)
     noise = _slow(20_000, [])
     power = np.abs(noise @ h.conj()) ** 2
     assert np.allclose(power.mean(axis=0), 1.0, atol=0.05)  # unit noise at every position
@@ -45,8 +45,8 @@ def test_matched_filters_give_unit_noise_and_the_scatterer_energy():
         tone = np.exp(2j * math.pi * position * k / N_FFT)[None, :].astype(np.complex64)
         bins = rd.range_fft(tone, suppress_clutter=False)[:, BINS]
         out = np.abs(bins @ h.conj())[0] ** 2
-        best = float(est.POSITION_STEP_BINS * int(np.argmax(out)) - 0.25 + 39.0)
-        assert abs(best - position) <= est.POSITION_STEP_BINS + 1e-9
+        best = float(flash_series.POSITION_STEP_BINS * int(np.argmax(out)) - 0.25 + 39.0)
+        assert abs(best - position) <= flash_series.POSITION_STEP_BINS + 1e-9
         # a unit tone's energy is N against unit noise; three Hann bins keep 80 % of it when
         # centred (all N bins would undo the window) and at least 63 % between grid positions
         assert 0.63 * N_FFT <= out.max() <= 0.8 * N_FFT * (1.0 + 1e-4)
@@ -108,9 +108,13 @@ def test_flash_groups_merge_a_split_flash_and_count_distinct_ones():
     """A blade of several scatterers flashes as a cluster of peaks: one flash. Flashes further
     apart than the gap (3 % of the period, at least 3 samples) are distinct."""
     period = 200.0
-    assert est.flash_groups(np.array([]), period) == 0
-    assert est.flash_groups(np.array([10.0, 12.0, 15.5]), period) == 1  # within 6 samples
-    assert est.flash_groups(np.array([10.0, 17.0, 100.0, 210.0]), period) == 4
+
+    def groups(times: list[float]) -> int:
+        return int(flash_period.flash_groups(np.array([times], dtype=float), np.array([period]))[0])
+
+    assert groups([]) == 0
+    assert groups([10.0, 12.0, 15.5]) == 1  # within 6 samples
+    assert groups([10.0, 17.0, 100.0, 210.0]) == 4
 
 
 def test_rotors_seen_counts_the_rotors_whatever_the_rotor_rate():
@@ -121,16 +125,36 @@ def test_rotors_seen_counts_the_rotors_whatever_the_rotor_rate():
             periods = 3
             phases = (np.arange(rotors) + 0.5) / rotors
             t = np.sort(np.concatenate([(phases + m) * period + split for m in range(periods) for split in (0, 1.5)]))
-            groups = est.flash_groups(t, period)
-            seen = est.rotors_seen(groups, period, int(periods * period))
+            groups = int(flash_period.flash_groups(t[None, :], np.array([period]))[0])
+            value, std = flash_period.rotors_seen(np.array([groups]), np.array([period]), int(periods * period))
             assert groups == rotors * periods
-            assert seen.value == np.float64(rotors) or abs(seen.value - rotors) < 1e-9
-            assert abs(seen.std - rotors / math.sqrt(groups)) < 1e-9
-    assert est.rotors_seen(0, 100.0, 600) == est.Estimate(0.0, 0.0)
+            assert value[0] == np.float64(rotors) or abs(value[0] - rotors) < 1e-9
+            assert abs(std[0] - rotors / math.sqrt(groups)) < 1e-9
+    value, std = flash_period.rotors_seen(np.array([0]), np.array([100.0]), 600)
+    assert (value[0], std[0]) == (0.0, 0.0)
+
+
+def test_rotors_seen_of_a_batch_is_the_reference_row_by_row():
+    """The product's rotors seen is array-first: each row of a batch (its own events and period) is
+    the per-return reference's count to the bit, one row as a batch of one included."""
+    rng = np.random.default_rng(5)
+    times = np.sort(rng.uniform(0.0, 1400.0, (40, 12)), axis=1)
+    times[:, 1::2] = times[:, ::2] + rng.uniform(0.0, 12.0, (40, 6))  # split flashes, some within the gap
+    times.sort(axis=1)
+    period = rng.uniform(60.0, 400.0, 40)
+    period[:3] = (0.0, -1.0, 80.0)  # no period: nothing seen
+    groups = flash_period.flash_groups(times, period)
+    value, std = flash_period.rotors_seen(groups, period, 1400)
+    for b in range(times.shape[0]):
+        want = ref.rotors_seen(ref.flash_groups(times[b], float(period[b])), float(period[b]), 1400)
+        assert groups[b] == ref.flash_groups(times[b], float(period[b]))
+        assert (value[b], std[b]) == (want.value, want.std)
+        one = flash_period.rotors_seen(groups[b:b + 1], period[b:b + 1], 1400)
+        assert (one[0][0], one[1][0]) == (want.value, want.std)
 
 
 def _coned_series(offsets: tuple[float, ...], period: float = 340.0, split: float = 8.0,
-                  n: int = 1400) -> est.FlashSeries:
+                  n: int = 1400) -> ref.FlashSeries:
     """An event-path series (no complex field, `wide`'s 25 kHz): rotors at `offsets` whose two
     blades flash alternately on time and `split` samples late (coned blades seen off the rotor
     plane: 2.4 % of the period here), one sample each, all at one range position."""
@@ -141,7 +165,7 @@ def _coned_series(offsets: tuple[float, ...], period: float = 340.0, split: floa
             t = int(round(off + k * period + (split if k % 2 else 0.0)))
             if t < n - 1:
                 e[t], per_bin[t] = 100.0, (10.0, 100.0, 10.0)
-    return est.FlashSeries(e, per_bin, 25_000.0, 2, 0.0, threshold=1.0)
+    return ref.FlashSeries(e, per_bin, 25_000.0, 2, 0.0, threshold=1.0)
 
 
 def test_event_search_tolerates_coned_blades_and_refines_the_period(monkeypatch):
@@ -153,13 +177,13 @@ def test_event_search_tolerates_coned_blades_and_refines_the_period(monkeypatch)
         per = ref.periodicity(s)
         assert abs(s.rate_hz / per.flash_rate.value - 340.0) <= 0.005 * 340.0
         assert 3.5 <= per.rotors_seen.value <= 4.5
-        batch = est_batch.periodicity_batch(est_batch.FlashSeriesBatch(
+        batch = flash_period.periodicity_batch(flash_series.FlashSeriesBatch(
             np.stack([s.energy] * 8), np.stack([s.per_bin] * 8),
             np.full(8, s.threshold), np.zeros(8), None, None,
             s.rate_hz, s.radius, 1))
         assert np.all(batch.flash_rate_hz == per.flash_rate.value)
         with monkeypatch.context() as m:
-            m.setattr(ref, "EVENT_TOL_FRACTION", est.TOL_FRACTION)
+            m.setattr(ref, "EVENT_TOL_FRACTION", flash_period.TOL_FRACTION)
             narrow = ref.periodicity(s)
         assert abs(s.rate_hz / narrow.flash_rate.value - 680.0) <= 2.0
 
@@ -172,19 +196,19 @@ def test_subchirp_bins_are_the_windows_fft_bins_whatever_the_scale(peak_bin, n, 
     chirp demodulated to `peak_bin`, at bins -1, 0, 1 (within float32 rounding of the largest);
     an exact power-of-two scale rides on the basis bit for bit, and the same products come out
     on one BLAS thread as on the default ones (the batch path runs on one)."""
-    window = est.subchirp_window(get_preset("paper").config, N_FFT)
+    window = flash_series.subchirp_window(get_preset("paper").config, N_FFT)
     rng = np.random.default_rng(seed)
     x = (rng.standard_normal((n, N_FFT)) + 1j * rng.standard_normal((n, N_FFT))).astype(np.complex64)
-    got = est.subchirp_bins(x, peak_bin, window)
+    got = flash_series.subchirp_bins(x, peak_bin, window)
     k = np.arange(N_FFT)
     xd = x.astype(np.complex128) * np.exp(-2j * math.pi * peak_bin * k / N_FFT)
     want = np.stack([np.fft.fft(xd[:, o:o + window] * rd.hann(window), axis=1)[:, [-1, 0, 1]]
-                     for o in est.subchirp_offsets(N_FFT, window)], axis=1)
-    assert got.shape == (n, est.SUBCHIRP_WINDOWS, est.SUBCHIRP_BINS) and got.dtype == np.complex64
+                     for o in flash_series.subchirp_offsets(N_FFT, window)], axis=1)
+    assert got.shape == (n, flash_series.SUBCHIRP_WINDOWS, flash_series.SUBCHIRP_BINS) and got.dtype == np.complex64
     assert np.max(np.abs(got - want)) <= 1e-5 * np.max(np.abs(want))
     scale = math.ldexp(1.0, exponent)
-    assert np.array_equal(est.subchirp_bins(x, peak_bin, window, scale),
-                          est.subchirp_bins(x * np.float32(scale), peak_bin, window))
+    assert np.array_equal(flash_series.subchirp_bins(x, peak_bin, window, scale),
+                          flash_series.subchirp_bins(x * np.float32(scale), peak_bin, window))
     with one_blas_thread():  # another thread count: the same products to float32 rounding
-        one = est.subchirp_bins(x, peak_bin, window)
+        one = flash_series.subchirp_bins(x, peak_bin, window)
     assert np.abs(one - got).max() <= 16 * np.finfo(np.float32).eps * np.abs(got).max()

@@ -1,7 +1,7 @@
 """Estimators on long, low-PRF CW dwells of a hovering quadcopter with tagged blades (the
 conditions of a real S-band radar: lab/accuracy.py CONDITIONS), in the training simulator and
 in the held-out world: the body reads ~0 m/s, the rotor rate comes from the flash train's
-envelope spectrum (signatures.flash.spectral_flash_rate), and a periodic train is a detection
+envelope spectrum (signatures.flash_spectrum.spectral_flash_rate), and a periodic train is a detection
 even where clutter suppression left no Doppler line. Shares measured on 20 seeded scenes; the
 figures in docs/features.md come from `authn features accuracy --condition ...`."""
 
@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lab.accuracy import evaluate_condition, feature_estimate
-from signatures import flash
+from signatures import flash_spectrum as flash
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import EXTRA_PRESETS
@@ -92,7 +92,7 @@ def test_spectral_rate_is_refined_below_a_bin():
 
 
 def _line_width(spec: np.ndarray, pri_s: float) -> np.ndarray:
-    """`flash.line_width_hz` of Doppler spectra (B, pulses, bins) summed over their bins."""
+    """`flash_spectrum.line_width_hz` of Doppler spectra (B, pulses, bins) summed over their bins."""
     return flash.line_width_hz((spec.real ** 2 + spec.imag ** 2).sum(axis=2), pri_s)
 
 

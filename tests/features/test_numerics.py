@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from signatures import estimators, rd
+from signatures import flash_series, rd
 from signatures.features import FEATURE_NAMES, extract_iq
 from signatures.radar import get_preset
 
@@ -83,7 +83,7 @@ def test_doppler_shift_moves_only_the_body(returns, monkeypatch):
     the shift and leaves the body-relative micro-Doppler features unchanged. The flash series'
     clutter pass is anchored at zero Doppler in the radar's frame, where clutter is, and a shift
     moves the return against it: off here, so the body-relative part is what is tested."""
-    monkeypatch.setattr(estimators, "CLUTTER_PASS_SHARE", math.inf)
+    monkeypatch.setattr(flash_series, "CLUTTER_PASS_SHARE", math.inf)
     rec = returns["m300_moving"]
     n = rec.n_chirps
     m = 40

@@ -167,7 +167,7 @@ def test_a_long_dwells_rate_is_read_from_the_score_that_detects_it() -> None:
     """A long dwell's envelope-spectrum rate (marked by its visible-rotor count) is a train from the
     CW detection's score, where the period search's needs 1: at 0.5 the long dwell's is read and
     verifies, the short dwell's abstains; under the detection's score both abstain."""
-    from signatures.flash import SPECTRAL_DETECT_SCORE
+    from signatures.flash_spectrum import SPECTRAL_DETECT_SCORE
     from signatures.verify import MIN_FLASH_SCORE, MIN_SPECTRAL_SCORE, min_flash_score
 
     assert MIN_SPECTRAL_SCORE == SPECTRAL_DETECT_SCORE < MIN_FLASH_SCORE

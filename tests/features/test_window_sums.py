@@ -1,4 +1,4 @@
-"""`estimators.window_sums`, the flash series' moving sums: exact windows, clipped ends, and
+"""`flash_series.window_sums`, the flash series' moving sums: exact windows, clipped ends, and
 rounding that follows a window's own samples rather than the dwell's history."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures.estimators import window_sums
+from signatures.flash_series import window_sums
 
 
 def _direct(z: np.ndarray, half: int) -> np.ndarray:

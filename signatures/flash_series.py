@@ -1,28 +1,17 @@
-"""The blade-flash estimators' algorithm, constants and shared primitives (the array-first
-implementation is `signatures.flash`): flash rate, rotor rate, rotor count, rotors seen.
+"""The flash-energy series of blade-flash gates, array-first: B gates of returns that share a radar
+configuration at once (one return is B = 1); the period search (`signatures.flash_period`) reads it.
 
 Blade flashes: a blade seen broadside returns all its length in phase for ~30 us
 (Chen's sinc); two opposite blades flash together, twice per turn, so one rotor
 flashes at 2 f_rot (2 blades assumed, as the shipped profiles have). The flash is an impulse
 in slow time whatever the Doppler does, so timing survives blade-tip aliasing.
 
-Pipeline: demodulate the target bins by the body Doppler, subtract a short
-moving average (removes body, hubs and clutter: everything slow; then again in the radar's
-frame for a moving target's clutter line, `clutter_pass`), pass the bins
-through whitened matched filters for a point scatterer at fractional range
-positions (a broadside blade sits at its hub's range) and keep the best
-position's energy -> flash-energy series e[n]; keep what stands out of the noise;
-find flash events (local maxima) and their range positions; score each
-candidate period L by how consistently the events repeat at +-L: every event
-whose partner window lies inside the dwell checks for a same-place event there,
-and the share of checks that succeed is tested against the chance share (a
-binomial log-likelihood ratio). All rotors of an airframe share the rate
-(phases differ), so at the true period every rotor's checks succeed, while an
-inter-rotor lag or a sub-multiple is refuted by the rotors that do not fit it. Flashes are treated as events, not
-weighted by energy: in the `paper` preset a two-blade flash (main lobe ~20 us)
-sampled once per 44 us PRI varies by up to ~20 dB with where it falls between
-chirps, and energy-weighted autocorrelations then lock onto the few strongest
-flashes of different rotors (inter-rotor lags).
+The series: demodulate the target bins by the body Doppler, subtract a short moving average
+(removes body, hubs and clutter: everything slow; then again in the radar's frame for a moving
+target's clutter line, `clutter_pass`), pass the bins through whitened matched filters for a point
+scatterer at fractional range positions (a broadside blade sits at its hub's range) and keep the
+best position's energy -> flash-energy series e[n]; keep what stands out of the noise (median +
+NOISE_MADS MADs).
 
 Sub-chirp windows: where a ramp lasts over twice a flash's main lobe (`paper`: 44 us
 against ~18 us), the flash is a burst inside the ramp, and the Hann window of the whole
@@ -41,17 +30,15 @@ adds three bins of (correlated) noise to one scatterer's energy; the whitened
 matched filter for the scatterer's position keeps its energy in those bins against
 one complex degree of freedom of noise, and the maximum over positions 1/4 bin
 apart loses little of it: at low SNR that margin decides whether a rotor's weakest
-flashes rise above the noise (accuracy figures in the README).
+flashes rise above the noise (accuracy figures in docs/estimators.md).
 
-Coherent partner checks: the flashes of one rotor come from the same hub, so they
-share its range position and, a period later, its carrier phase up to the
-sign of the sinc (the body Doppler is removed; wobble moves the hub little within a
-period). The event's matched-filter output, kept in phase with it, finds that
-rotor's weaker flashes below the energy threshold, while
-another rotor's flash (another hub range, a random phase) mostly fails it. These
-checks re-rank the best candidate periods of the event vote and decide whether half
-the chosen period is the period (in `paper` a flash one period later is often sampled
-between chirps and missed, so twice the period can win the event vote).
+Row b of `flash_series_batch` equals the straightforward per-return form of the series
+(tests/features/reference_flash.py, "the reference") applied to `slow[b]` and `body_hz[b]` to the
+bit (tests/features/test_batch_estimators.py): the reference's expressions with a batch axis in
+front (window sums, reductions and the matched-filter product along the same axes; the product
+stacked, so BLAS sees the reference's per-row shape), rows in cache-sized chunks (CHUNK_BYTES).
+Scratch memory stays under MEMORY_BUDGET_BYTES; the outputs grow with B (the matched-filter field,
+kept only where the coherent checks run: ~53 kB a row in `paper`).
 """
 
 from __future__ import annotations
@@ -62,8 +49,14 @@ from functools import lru_cache
 
 import numpy as np
 
+from signatures.errors import SignaturesError
 from signatures.radar import RadarConfig
 from signatures.rd import hann
+from signatures.stats import median_last
+
+__all__ = ["MEMORY_BUDGET_BYTES", "FlashSeriesBatch", "clutter_pass", "flash_lobe_s", "flash_series_batch",
+           "flashes_within_one_sample", "highpass_s", "matched_filters", "scaled_subchirp_basis",
+           "squared_magnitude", "subchirp_bins", "subchirp_window", "sum_last_axis", "window_sums"]
 
 #: Search range of the blade-flash rate (Hz): rotor rates 15-250 Hz with 2 blades.
 FLASH_RATE_MIN_HZ = 30.0
@@ -81,87 +74,19 @@ CLUTTER_PASS_SHARE = 0.25
 #: Flash energy must exceed the series median by this many (normal-scaled) MADs:
 #: ~1e-4 false flashes per sample for the chi-square noise of a few range bins.
 NOISE_MADS = 5.0
-#: Two flashes of one rotor lie within this many range bins of each other (after migration).
-POSITION_TOL_BINS = 0.3
-#: A period needs this share of the series overlapping itself.
-MIN_OVERLAP = 1.0 / 3.0
-#: Partner tolerance (series samples): TOL_SAMPLES + TOL_FRACTION * lag (timing +-0.5
-#: sample, per-rotor rate spread 0.5 % std).
-TOL_SAMPLES = 1.0
-TOL_FRACTION = 0.01
-#: The period search's tolerance where flashes span several chirps (no coherent checks:
-#: `wide`): per-rotor rates differ by a few percent, and coned blades seen off the rotor plane
-#: flash apart, alternately early and late by up to ~3 % of the period. The chosen lag (a
-#: plateau's centre) is then refined by the mean of the intervals matching its multiples, and
-#: the period is matched again within TOL_FRACTION: the search's margin would otherwise let
-#: other rotors' intervals bias the period. 3 % was chosen on the randomised world among 1-5 %
-#: (`wide` flash rate within 5 % at 0/10 dB: 88/85 -> 92/88 %, seed 9, and 87/89 -> 92/92 %, seed
-#: 21); its price in the training world: 3 of 450 returns read at twice the rate (docs/features.md).
-#: The coherent path keeps 1 % (3 % cost `paper` 3-6 points in its own world).
-EVENT_TOL_FRACTION = 0.03
-#: Events this many dB above the detection threshold vote fully; weaker ones (possibly
-#: noise) proportionally less, down to MIN_VOTE_WEIGHT.
-FULL_VOTE_DB = 10.0
-MIN_VOTE_WEIGHT = 0.2
-#: Half the chosen lag replaces it when at least this share (and SUBHARMONIC_MIN_FOUND)
-#: of its partner checks succeed. In `paper` a flash (~1 PRI) one period apart is
-#: sampled at another offset within the PRI and is often missed at 0 dB, while one two
-#: periods apart may be sampled alike (phantom4: period ~194.5 chirps), so twice the
-#: period can score above it; a chance half-period alignment of some rotors succeeds
-#: in fewer checks than the true period's.
-SUBHARMONIC_SHARE = 0.45
-#: Score weight of a same-place flash pair two periods apart (one period apart = 1).
-SECOND_PERIOD_GAIN = 0.3
-SUBHARMONIC_MIN_FOUND = 3
-#: ... unless the half's share falls below the lag's by more than this many standard errors
-#: (a chance alignment of some rotors repeats less reliably than the true period). Not 2: a
-#: rotor's weaker blade (unequal blades; coned ones seen off the rotor plane flash apart, each
-#: alone) flashes less reliably than the same blade a turn later, so a true half fails more
-#: checks than its double. 3 was chosen on the randomised world (`wide` flash rate within 5 %
-#: 81/80 -> 88/85 % at 0/10 dB, training world unchanged; docs/features.md).
-SUBHARMONIC_Z = 3.0
-#: Flash events: local maxima within +-EVENT_RADIUS series samples, and above the sinc
-#: skirt of every stronger event within SKIRT_REACH samples: SKIRT_DB - 20 log10(distance).
+#: Flash events are local maxima within +-EVENT_RADIUS series samples (the series' `radius`).
 EVENT_RADIUS = 2
-SKIRT_REACH = 12
-SKIRT_DB = -13.0
-BLADES_ASSUMED = 2
 #: Matched-filter positions: every POSITION_STEP_BINS from a quarter bin before the first
 #: target bin to a quarter bin after the last (hubs lie within about a bin of the body).
 POSITION_STEP_BINS = 0.25
-#: Coherent partner check: a partner is found where the event's matched-filter output, in
-#: phase with the event (1 degree of freedom), has a power that exceeds this many
-#: noise levels (noise alone: ~2.5 % of samples; the chance share is measured per series).
-COHERENT_LEVEL = 5.0
-#: The best RERANK_N candidate lags of the event vote are re-scored by
-#: vote + RERANK_WEIGHT x share x coherent log-likelihood ratio.
-RERANK_N = 10
-RERANK_WEIGHT = 2.0
-#: Half the lag replaces it when its coherent partner checks favour "found as often as at
-#: the lag" over chance by this log-likelihood ratio.
-HALF_LLR = 2.0
-#: The lag's found share is capped at this for that test (a lag found everywhere would
-#: otherwise make one miss at the half decisive).
-HALF_SHARE_CAP = 0.98
-#: The coherent hit must also hold this share of the best position's energy (phase agrees).
-COHERENT_SHARE = 0.5
 #: Main lobe of a two-blade flash (s): lambda / (2 v_tip), with v_tip this typical tip speed:
 #: ~18 us at 77 GHz, ~0.4 ms at 3.3 GHz (`flash_lobe_s`). The coherent checks run only where
 #: the PRI is longer: a flash is then seen in at most one chirp, or missed between two, and
 #: the energy events miss many partners.
 FLASH_TIP_MPS = 108.0
-#: Flash events kept per series (the strongest): MAX_EVENTS, and this many per second of
-#: dwell beyond it (64 in the `paper` and `wide` dwells of 26 and 51 ms; ~1,000 in 0.82 s).
-MAX_EVENTS = 64
-MAX_EVENTS_PER_S = 1200.0
 #: The high-pass spans at least this many flash lobes (`highpass_s`): at long wavelengths a
 #: flash outlasts HIGHPASS_S and the high-pass would remove it with the body.
 HIGHPASS_LOBES = 3.0
-#: Rotors seen: events closer than this share of the flash period (at least GROUP_GAP_SAMPLES)
-#: are one flash. A blade made of several scatterers flashes as a cluster of peaks, while one
-#: rotor flashes once per period and per-rotor rates differ by a few per cent.
-GROUP_GAP_PERIODS = 0.03
-GROUP_GAP_SAMPLES = 3.0
 #: Sub-chirp windows (module docstring): this many, each this share of the ramp, where a ramp
 #: lasts at least SUBCHIRP_MIN_LOBES flash lobes. Three windows of 0.6 ramp were the best of
 #: 40-64 % windows, 2-5 of them, on the randomised world (docs/features.md).
@@ -169,27 +94,11 @@ SUBCHIRP_WINDOWS = 3
 SUBCHIRP_SHARE = 0.6
 SUBCHIRP_MIN_LOBES = 2.0
 SUBCHIRP_BINS = 3
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """A value with a one-sigma uncertainty (both finite; value 0 and std 0 when absent)."""
-
-    value: float
-    std: float
-
-
-@dataclass(frozen=True)
-class FlashSeries:
-    energy: np.ndarray  # float64 (n,), flash energy above the noise, >= 0
-    per_bin: np.ndarray  # float64 (n, bins): the energy before the noise cut, per range bin
-    rate_hz: float  # sample rate of the series
-    radius: int  # samples either side a flash can spread over
-    drift_bins_per_sample: float  # body range migration (bins per series sample)
-    threshold: float = 0.0  # detection level subtracted from the energy (median + NOISE_MADS MAD)
-    field: np.ndarray | None = None  # complex (chirps, positions): matched-filter outputs of the
-    # high-passed, body-demodulated bins (noise: unit variance per position)
-    decimation: int = 1  # chirps per series sample
+#: Scratch memory one call aims to stay under (bytes): larger batches run in row chunks.
+MEMORY_BUDGET_BYTES = 256 * 2**20
+#: The flash series runs in row chunks of about this much scratch memory: arrays that stay in the
+#: CPU cache make the batched arithmetic ~1.5x faster than one pass over a large batch.
+CHUNK_BYTES = 32 * 2**20
 
 
 def subchirp_window(config: RadarConfig, n_samples: int, domain: str = "if") -> int:
@@ -286,31 +195,6 @@ def matched_filters(n_bins: int, n_fft: int) -> np.ndarray:
     return h
 
 
-def _peak_positions(profiles: np.ndarray) -> np.ndarray:
-    """Per row of (k, bins) energy profiles: the log-parabolic peak position (bins), the
-    argmax where it sits at the edge or the parabola does not open downwards."""
-    k = profiles.shape[0]
-    out = np.argmax(profiles, axis=1).astype(np.float64) if k else np.zeros(0)
-    if k == 0 or profiles.shape[1] < 3:
-        return out
-    idx = out.astype(int)
-    inner = (idx > 0) & (idx < profiles.shape[1] - 1)
-    if inner.any():
-        rows = np.flatnonzero(inner)
-        c = idx[rows]
-        a, b, d = (np.log(np.maximum(profiles[rows, c + off].astype(np.float64), 1e-300)) for off in (-1, 0, 1))
-        den = a - 2.0 * b + d
-        shift = np.minimum(np.maximum(0.5 * (a - d) / np.where(den < 0, den, -1.0), -0.5), 0.5)
-        out[rows] = np.where(den < 0, c + shift, c)
-    return out
-
-
-def max_events(dwell_s: float) -> int:
-    """Flash events kept per series: MAX_EVENTS, or MAX_EVENTS_PER_S of the dwell where longer
-    (a long dwell holds proportionally more flashes; a fixed cap would keep a few of them)."""
-    return max(MAX_EVENTS, math.ceil(MAX_EVENTS_PER_S * dwell_s))
-
-
 def flash_lobe_s(wavelength_m: float) -> float:
     """A flash's main lobe (s) at this wavelength: lambda / (2 FLASH_TIP_MPS)."""
     return wavelength_m / (2.0 * FLASH_TIP_MPS)
@@ -376,43 +260,211 @@ def flashes_within_one_sample(rate_hz: float, decimation: int, wavelength_m: flo
     return rate_hz * max(1, decimation) * flash_lobe_s(wavelength_m) <= 1.0
 
 
-def _binomial_llr(found: np.ndarray, made: np.ndarray, share: np.ndarray,
-                  chance: np.ndarray) -> np.ndarray:
-    """found of made checks at success share `share` against `chance`; 0 where share <= chance."""
-    s = np.minimum(np.maximum(share, 1e-9), 1.0 - 1e-9)
-    llr = found * np.log(s / chance) + (made - found) * np.log((1.0 - s) / (1.0 - chance))
-    return np.where((s > chance) & (made > 0.0), llr, 0.0)
+@dataclass(frozen=True)
+class FlashSeriesBatch:
+    """B flash series of equal length, one per gate (`flash_series_batch`)."""
+
+    energy: np.ndarray  # float64 (B, n): flash energy above the noise, >= 0
+    per_bin: np.ndarray  # float64 (B, n, bins): energy before the noise cut, per range bin
+    threshold: np.ndarray  # float64 (B,): detection level subtracted from the energy
+    drift_bins_per_sample: np.ndarray  # float64 (B,): body range migration
+    field: np.ndarray | None  # complex (B, positions, chirps); None where the coherent checks never run
+    field_peak: np.ndarray | None  # (B, chirps): the maximum over positions of |field|^2
+    rate_hz: float
+    radius: int
+    decimation: int
 
 
-def _matched_intervals(diff: np.ndarray, lag: float | np.ndarray,
-                       fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(intervals over their multiple, matched mask, multiples) of the event pairs (diff: t_j - t_i,
-    (k, k), or (rows, k, k) with `lag` broadcast against it, as the batch path calls it): matched
-    where the interval lies within TOL_SAMPLES + fraction x (multiple x lag) of a multiple of `lag`."""
-    mult = np.round(diff / lag)
-    matched = (diff > 0) & (mult >= 1) & (np.abs(diff - mult * lag) <= TOL_SAMPLES + fraction * mult * lag)
-    return diff / np.maximum(mult, 1), matched, mult
+def flash_series_batch(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarray,
+                       range_bin_m: float, n_fft: int) -> FlashSeriesBatch:
+    """The reference's `flash_series` of every row of `slow` (B, chirps, bins), or (B, chirps, windows,
+    bins) of sub-chirp windows, with its `body_hz[b]`."""
+    slow = np.asarray(slow)
+    body = np.asarray(body_hz, dtype=np.float64).reshape(-1)
+    if slow.ndim not in (3, 4) or body.size != slow.shape[0]:
+        raise SignaturesError(f"flash_series_batch needs slow (B, chirps, [windows,] bins) and body_hz (B,), got "
+                              f"{slow.shape} and {body.shape}")
+    b_rows, n, n_bins = slow.shape[0], slow.shape[1], slow.shape[-1]
+    windows = slow.shape[2] if slow.ndim == 4 else 1
+    dec = max(1, int(config.prf_hz // SERIES_RATE_HZ))
+    m = (n // dec) * dec
+    n_out = m // dec if m >= dec else n
+    filters = matched_filters(n_bins, n_fft)
+    n_pos = filters.shape[1]
+    # else `_coherent` never reads it
+    keep_field = flashes_within_one_sample(config.prf_hz / dec, dec, config.wavelength_m)
+    cdt = np.result_type(slow.dtype, np.complex64)
+    energy = np.empty((b_rows, n_out))
+    per_bin = np.empty((b_rows, n_out, n_bins))
+    threshold = np.empty(b_rows)
+    # positions x chirps: `_coherent` reads whole chirp rows of one position
+    field = np.empty((b_rows, n_pos, n), cdt) if keep_field else None
+    rdt = np.empty(0, cdt).real.dtype
+    field_peak = np.empty((b_rows, n), rdt) if keep_field else None
+    per_row = n * windows * (n_bins * cdt.itemsize * 10 + n_pos * (cdt.itemsize + 16))
+    step = max(1, min(MEMORY_BUDGET_BYTES, CHUNK_BYTES) // max(per_row, 1))
+    for a in range(0, b_rows, step):
+        sl = slice(a, min(a + step, b_rows))
+        y, peak = _series_rows(slow[sl], body[sl], config, n_fft, dec, energy[sl], per_bin[sl], threshold[sl])
+        if field is not None:
+            field[sl], field_peak[sl] = y.transpose(0, 2, 1), peak
+    drift = body * config.wavelength_m / 2.0 * config.pri_s * dec / range_bin_m
+    return FlashSeriesBatch(energy, per_bin, threshold, drift, field, field_peak, config.prf_hz / dec,
+                            EVENT_RADIUS, dec)
 
 
-def flash_groups(times: np.ndarray, period: float) -> int:
-    """Distinct flashes among time-sorted events: a gap wider than GROUP_GAP_PERIODS of the
-    period (and GROUP_GAP_SAMPLES) starts a new one."""
-    if times.size == 0:
-        return 0
-    gap = max(GROUP_GAP_SAMPLES, GROUP_GAP_PERIODS * period)
-    return 1 + int(np.count_nonzero(np.diff(times) > gap))
+def _series_rows(slow: np.ndarray, body: np.ndarray, config: RadarConfig, n_fft: int, dec: int,
+                 energy: np.ndarray, per_bin: np.ndarray,
+                 threshold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference's `flash_series` of a chunk of rows, written into the output views; returns the
+    matched-filter field and its power's maximum over positions per chirp. Same
+    expressions as the reference with a leading batch axis."""
+    g, n, n_bins = slow.shape[0], slow.shape[1], slow.shape[-1]
+    windows = slow.shape[2] if slow.ndim == 4 else 1
+    t = np.arange(n)
+    demod = np.exp((-2j * math.pi * body * config.pri_s)[:, None] * t).astype(np.complex64)
+    z0 = slow.reshape(g, n, windows * n_bins) * demod[:, :, None]
+    length = max(3, int(round(highpass_s(config.wavelength_m) / config.pri_s)) | 1)
+    if n > length:
+        clutter = clutter_pass(body, config.pri_s, length)
+        z = _clutter_pass(_highpass(z0, length), demod, length, clutter)
+        e1 = sum_last_axis(squared_magnitude(z))
+        # the reference compares with a Python float: in e1's dtype (NEP 50)
+        strong = e1 > _noise_level(e1).astype(e1.dtype)[:, None]
+        strong[:, 1:] |= strong[:, :-1].copy()
+        strong[:, :-1] |= strong[:, 1:].copy()
+        z = _clutter_pass(_highpass(z0, length, ~strong), demod, length, clutter, ~strong)
+    else:
+        z = z0 - z0.mean(axis=1, keepdims=True)
+    filters = matched_filters(n_bins, n_fft).conj().astype(z.dtype)
+    m = (n // dec) * dec
+    if slow.ndim == 4:  # each chirp: the window whose best position holds the most energy
+        y4 = (z.reshape(g, n * windows, n_bins) @ filters).reshape(g, n, windows, -1)  # the reference's product
+        best = _max_last(squared_magnitude(y4))  # the same floats as the reference's
+        pick = np.argmax(best, axis=2)
+        peak = np.take_along_axis(best, pick[:, :, None], axis=2)[:, :, 0]  # the picked window's maximum
+        at = (np.arange(g * n) * windows + pick.reshape(-1))  # a gather of the picked windows' rows
+        z = np.take(z.reshape(g * n * windows, n_bins), at, axis=0).reshape(g, n, n_bins)
+        y = np.take(y4.reshape(g * n * windows, -1), at, axis=0).reshape(g, n, -1)
+        py = None  # only decimated series need it, and windows run undecimated (`paper`)
+    else:
+        y = z @ filters  # (g, chirps, positions)
+        py = squared_magnitude(y)
+        peak = _max_last(py)
+    eb = squared_magnitude(z).astype(np.float64)
+    if m >= dec and dec > 1:
+        eb = eb[:, :m].reshape(g, -1, dec, n_bins).sum(axis=2)
+        py = (squared_magnitude(y) if py is None else py).astype(np.float64)
+        e = _max_last(py[:, :m].reshape(g, -1, dec, py.shape[2]).sum(axis=2))
+    else:  # the maximum of the float64 copies is the float64 copy of the maximum
+        e = peak.astype(np.float64)
+    level = _noise_level(e)
+    energy[:] = np.maximum(e - level[:, None], 0.0)
+    per_bin[:] = eb
+    threshold[:] = level
+    return y, peak
 
 
-def rotors_seen(groups: int, period: float, n: int) -> Estimate:
-    """Rate-invariant rotor count: distinct flashes over the flash periods the dwell holds.
+def _clutter_pass(z: np.ndarray, demod: np.ndarray, length: int, rows: np.ndarray,
+                  keep: np.ndarray | None = None) -> np.ndarray:
+    """Body-demodulated series z (rows, chirps, bins) with the rows where `rows` is True high-passed
+    in the radar's frame too (`clutter_pass`). After the body's pass: a strong body line
+    seen through the gaps of `keep` would leak into the radar frame's average at every flash."""
+    if not rows.any():
+        return z
+    every = bool(rows.all())  # then in place, without a gather and a scatter
+    d = (demod if every else demod[rows])[:, :, None]
+    w = z if every else z[rows]
+    w *= d.conj()
+    w = _highpass(w, length, None if keep is None else (keep if every else keep[rows]))
+    w *= d
+    if every:
+        return w
+    z[rows] = w
+    return z
 
-    Each rotor flashes once per flash period (the period is the time between its blades passing
-    broadside), so flashes per period count the rotors whatever the rotor rate. Two rotors flashing
-    within the group gap count once and missed flashes not at all, so it undercounts a little;
-    its relative uncertainty is that of a count, 1 / sqrt(groups)."""
-    if groups <= 0 or period <= 0.0 or n <= 0:
-        return Estimate(0.0, 0.0)
-    value = groups * period / n
-    return Estimate(value, value / math.sqrt(groups))
+
+def squared_magnitude(z: np.ndarray) -> np.ndarray:
+    """z.real ** 2 + z.imag ** 2 (the same floats), on the contiguous interleaved view."""
+    zz = np.ascontiguousarray(z)
+    sq = zz.view(zz.real.dtype)
+    sq = sq * sq
+    return sq[..., 0::2] + sq[..., 1::2]
 
 
+def sum_last_axis(x: np.ndarray) -> np.ndarray:
+    """x.sum(axis=-1) for a short last axis, added left to right as numpy reduces it there,
+    without numpy's per-row reduction overhead."""
+    if x.shape[-1] >= 8:
+        return x.sum(axis=-1)
+    out = x[..., 0].copy()
+    for j in range(1, x.shape[-1]):
+        out += x[..., j]
+    return out
+
+
+def _max_last(x: np.ndarray) -> np.ndarray:
+    """x.max(axis=-1) (exact in any order), one slice at a time."""
+    out = x[..., 0].copy()
+    for j in range(1, x.shape[-1]):
+        np.maximum(out, x[..., j], out=out)
+    return out
+
+
+def _noise_level(e: np.ndarray) -> np.ndarray:
+    """Per row of (rows, samples): the reference's `_noise_level` (median + NOISE_MADS MADs), float64."""
+    med = median_last(e)
+    mad = median_last(np.abs(e - med[:, None]))
+    return med.astype(np.float64) + NOISE_MADS * 1.4826 * mad.astype(np.float64)
+
+
+def _highpass(z: np.ndarray, length: int, keep: np.ndarray | None = None) -> np.ndarray:
+    """The reference's `_highpass` along axis 1 of (rows, chirps, bins), `keep` (rows, chirps)."""
+    g, n, n_bins = z.shape
+    half = length // 2
+    if keep is None:
+        zk = z
+    else:  # np.where(keep, z, 0) by zeroing the few chirps left out
+        zk = z.copy()
+        zk[~keep] = 0
+    sums = window_sums(zk, half, axis=1)
+    if keep is None:
+        t = np.arange(n)
+        count = (np.minimum(t + half + 1, n) - np.maximum(t - half, 0))[None, :]
+    else:
+        ck = np.zeros((g, n + 1), np.int64)
+        np.cumsum(keep, axis=1, out=ck[:, 1:])
+        count = _window_diff(ck, half, n)
+        bi, ti = np.nonzero(count < max(2, length // 2))
+        if bi.size:  # thin windows: the 4x longer one, summed for the rows that have them
+            rows, at = np.unique(bi, return_inverse=True)
+            sums[bi, ti] = window_sums(zk[rows], 2 * length, axis=1)[at, ti]
+            lo2, hi2 = np.maximum(ti - 2 * length, 0), np.minimum(ti + 2 * length + 1, n)
+            count[bi, ti] = ck[bi, hi2] - ck[bi, lo2]
+        count = np.maximum(count, 1)
+    return _minus_mean(z, sums, count)
+
+
+def _minus_mean(z: np.ndarray, sums: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """z - sums / count as the reference computes it (a complex array over a float32 count), in
+    place in `sums`. numpy divides by the complex (count + 0j) as Smith's algorithm does with a zero
+    ratio: both parts times the reciprocal 1 / count in z's real precision (the same floats but
+    for the sign of a zero real part, which nothing downstream reads); here on the interleaved
+    real view, two passes without temporaries instead of a complex division."""
+    rdt = z.real.dtype
+    recip = np.reciprocal(count.astype(np.float32).astype(rdt))
+    parts = sums.view(rdt).reshape(sums.shape + (2,))
+    np.multiply(parts, recip[:, :, None, None], out=parts)
+    return np.subtract(z, sums, out=sums)
+
+
+def _window_diff(c: np.ndarray, half: int, n: int) -> np.ndarray:
+    """c[:, hi] - c[:, lo] for hi = min(t + half + 1, n), lo = max(t - half, 0), t = 0..n-1: one
+    subtraction of shifted slices where neither end clips, the clipped windows apart."""
+    out = np.empty((c.shape[0], n) + c.shape[2:], c.dtype)
+    b = min(n, half + 1)  # t < b: lo = 0
+    a = max(b, n - half)  # t >= a: hi = n
+    np.subtract(c[:, b + half + 1:a + half + 1], c[:, b - half:a - half], out=out[:, b:a])
+    t = np.r_[0:b, a:n]
+    out[:, t] = c[:, np.minimum(t + half + 1, n)] - c[:, np.maximum(t - half, 0)]
+    return out
