@@ -5,7 +5,7 @@ measured to do, so a number keeps its command, date and software beside it in on
 A TOML file is one topic page: `title`, `intro`, and `[[result]]` tables, each with `title` (its
 heading and anchor), `commands` (exactly as run), `date`, `software` (the code it measured),
 `conditions` (machine, size, run time), `described` (the reference page, `page.md#anchor`) and
-`text` (the tables and figures as measured, markdown). `python -m lab.results docs` writes the
+`text` (the tables and figures as measured, markdown; links as from docs/). `python -m lab.results docs` writes the
 pages; tests/test_docs.py fails when they differ from what is on disk. Each page stays under the
 docs' 300 lines (`MAX_LINES`)."""
 
@@ -65,10 +65,9 @@ def topics(source: Path = SOURCE) -> list[Topic]:
 
 def _result(r: Result) -> list[str]:
     """A result's section: heading, commands, the stamp, then the numbers as measured."""
-    lines = [f"## {r.title}", "", "```bash", *r.commands, "```", "",
-             f"Measured {r.date}; {r.software}; {r.conditions}. What it measures: [{r.described}](../{r.described}).",
-             "", _RELATIVE.sub(r"](../\1)", r.text.strip()), ""]
-    return lines
+    stamp = f"Measured {r.date}; {r.software}; {r.conditions}. What it measures: [{r.described}]({r.described})."
+    return [f"## {r.title}", "", "```bash", *r.commands, "```", "",
+            _RELATIVE.sub(r"](../\1)", f"{stamp}\n\n{r.text.strip()}"), ""]
 
 
 def pages(source: Path = SOURCE) -> dict[str, str]:
