@@ -27,10 +27,10 @@ REPRODUCE = ROOT / "docs" / "reproduce.md"
 RESULTS = {ROOT / "docs" / name for name in pages()}
 #: a calendar date not part of an ISO 8601 timestamp (`2026-01-01T00:00:00Z` is an example value)
 DATE = re.compile(r"\b(?:19|20)\d\d-[01]\d-[0-3]\d\b(?!T)")
-#: code (a fenced block or an inline span): example commands and values, not stamps
-CODE = re.compile(r"```.*?```|`[^`\n]*`", re.S)
-#: dates that are facts of a format, not measurement stamps: F3411's epoch, the earliest start_time accepted
-FORMAT_DATES = {"2019-01-01", "2000-01-01"}
+#: code (a fenced block, an inline span, a help text's `Example:` line): example values, not stamps
+CODE = re.compile(r"```.*?```|`[^`\n]*`|^Example\b.*$", re.S | re.M)
+#: dates that are facts of a format, not measurement stamps: the Unix and F3411 epochs, the earliest start_time
+FORMAT_DATES = {"1970-01-01", "2019-01-01", "2000-01-01"}
 
 
 def test_readme_is_a_front_door() -> None:
