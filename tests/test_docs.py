@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from lab.results import COMMAND, anchor, pages
+from lab.results import COMMAND, anchor, pages, topics
 
 ROOT = Path(__file__).resolve().parents[1]
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
@@ -72,6 +72,21 @@ def test_links_into_the_results_pages_name_a_result() -> None:
             if frag not in headings.get(name, set()):
                 broken.append(f"{page.relative_to(ROOT)} -> {target}#{frag}")
     assert not broken, broken
+
+
+def _headings(page: Path) -> set[str]:
+    text = page.read_text()
+    return {anchor(h) for h in re.findall(r"^#+ (.+)$", text, re.M)} | set(re.findall(r'<a id="([^"]+)"', text))
+
+
+def test_every_result_names_the_reference_section_it_measures() -> None:
+    missing = []
+    for topic in topics():
+        for r in topic.results:
+            page, _, frag = r.described.partition("#")
+            if frag and frag not in _headings(ROOT / "docs" / page):
+                missing.append(f"{topic.name}: {r.title} -> {r.described}")
+    assert not missing, missing
 
 
 def test_every_relative_link_resolves() -> None:
