@@ -3,11 +3,14 @@ in lab/results/*.toml: the reference pages say what the system does and link her
 measured to do, so a number keeps its command, date and software beside it in one place.
 
 A TOML file is one topic page: `title`, `intro`, and `[[result]]` tables, each with `title` (its
-heading and anchor), `commands` (exactly as run), `date`, `software` (the code it measured),
-`conditions` (machine, size, run time), `described` (the reference page, `page.md#anchor`) and
-`text` (the tables and figures as measured, markdown; links as from docs/). `python -m lab.results docs` writes the
-pages; tests/test_docs.py fails when they differ from what is on disk. Each page stays under the
-docs' 300 lines (`MAX_LINES`)."""
+heading and anchor), `commands` (exactly as run; a line starting with `#` says how it was run
+where the command was not recorded), `date` (of the run, or "recorded DATE", the date of the
+commit that recorded it, where the run's was not written down), `software` (the code it
+measured), `conditions` (machine, size, run time), `described` (the reference section,
+`page.md#anchor`) and `text` (the tables and figures as measured, markdown, links as from
+docs/). `python -m lab.results docs` writes the pages; tests/test_docs.py fails when they differ
+from what is on disk. A topic page longer than the docs allow (`MAX_LINES`) is an error: split
+its TOML file."""
 
 from __future__ import annotations
 
@@ -65,7 +68,8 @@ def topics(source: Path = SOURCE) -> list[Topic]:
 
 def _result(r: Result) -> list[str]:
     """A result's section: heading, commands, the stamp, then the numbers as measured."""
-    stamp = f"Measured {r.date}; {r.software}; {r.conditions}. What it measures: [{r.described}]({r.described})."
+    stamp = (f"Date: {r.date}. Software: {r.software}. Conditions: {r.conditions}. "
+             f"What it measures: [{r.described}]({r.described}).")
     return [f"## {r.title}", "", "```bash", *r.commands, "```", "",
             _RELATIVE.sub(r"](../\1)", f"{stamp}\n\n{r.text.strip()}"), ""]
 
@@ -91,7 +95,10 @@ def pages(source: Path = SOURCE) -> dict[str, str]:
         for r in topic.results:
             body.extend(_result(r))
             index.append(f"| [{r.title}](results/{topic.name}.md#{anchor(r.title)}) | {r.date} |")
-        out[f"results/{topic.name}.md"] = "\n".join(body).rstrip() + "\n"
+        text = "\n".join(body).rstrip() + "\n"
+        if (n := text.count("\n")) > MAX_LINES:
+            raise ValueError(f"{topic.name}.toml makes {n} lines, over {MAX_LINES}: split it")
+        out[f"results/{topic.name}.md"] = text
     return {"results.md": "\n".join(index).rstrip() + "\n", **out}
 
 
