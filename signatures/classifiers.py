@@ -8,8 +8,9 @@ bounded range: on a set the vote classifies perfectly the maximum-likelihood
 temperature runs off to certainty, and no simulator earns that. Labels are integer
 codes into the card's class list, so the exported arrays line up with it column for column.
 
-Inference never imports this module: see `signatures.inference`, which owns what both sides
-share (`MEMBERS`, `calibrate`).
+Inference never imports this module: both sides vote and calibrate through `signatures.ensemble`
+(`MEMBERS`, `SoftVote`, `calibrate`), training with these pipelines as members, inference with the
+numpy members (`signatures.members`) built from the arrays exported here.
 """
 
 from __future__ import annotations
@@ -25,10 +26,10 @@ from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
-from signatures.inference import MEMBERS, calibrate
+from signatures.ensemble import MEMBERS, SoftVote, calibrate, weighted_vote
 
 __all__ = ["BETA_RANGE", "bounded_temperature", "fit_members", "fit_state_head", "forest_arrays", "knn_arrays",
-           "make_knn", "make_member", "make_rf", "make_svm", "soft_vote", "vote_weights", "weighted_vote"]
+           "make_knn", "make_member", "make_rf", "make_svm", "soft_vote", "svm_arrays", "vote_weights"]
 
 #: Inverse temperatures a calibration may choose from: 0.25 (a quarter as sure) to 8 (p ** 8).
 BETA_RANGE = (0.25, 8.0)
@@ -96,13 +97,8 @@ def vote_weights(probs: Sequence[np.ndarray], y_val: np.ndarray) -> list[float]:
 
 def soft_vote(members: dict[str, Pipeline], X: np.ndarray, weights: list[float]) -> np.ndarray:
     """The members' weighted mean probabilities: the ensemble's vote before calibration (members of
-    weight 0 are not run)."""
-    return weighted_vote([m.predict_proba(X) if w else 0.0 for w, m in zip(weights, members.values())], weights)
-
-
-def weighted_vote(probs: Sequence, weights: Sequence[float]) -> np.ndarray:
-    """The weighted mean of members' probabilities (members of weight 0 left out)."""
-    return sum(w * p for w, p in zip(weights, probs) if w) / float(sum(weights))
+    weight 0 are not run), by the `SoftVote` inference applies."""
+    return SoftVote(list(members.values()), weights).predict_proba(X)
 
 
 def bounded_temperature(proba: np.ndarray, y: np.ndarray) -> float:
@@ -128,7 +124,7 @@ def knn_arrays(model: Pipeline, X_train: np.ndarray, y_train: np.ndarray, n_clas
     `X_train`, `y_train`: what the pipeline was fitted on. The reference set is the pipeline's own
     scaler applied to it (exactly what the neighbour search stores at fit time), through public API.
     An ONNX kNN graph cost ~14 ms per return; the same vote in numpy costs tens of
-    microseconds (`signatures.inference.KnnArrays`), with no pickle and no scikit-learn.
+    microseconds (`signatures.members.KnnArrays`), with no pickle and no scikit-learn.
     """
     scaler, knn = model.steps[0][1], model.steps[-1][1]
     if len(X_train) != knn.n_samples_fit_ or len(y_train) != len(X_train):
@@ -143,7 +139,7 @@ def knn_arrays(model: Pipeline, X_train: np.ndarray, y_train: np.ndarray, n_clas
 def forest_arrays(model: Pipeline | RandomForestClassifier, n_classes: int) -> dict[str, np.ndarray]:
     """A fitted Random Forest as plain arrays (`rf.npz`): every tree's nodes in one table.
 
-    Evaluated in numpy (`signatures.inference.ForestArrays`): a cold check then never
+    Evaluated in numpy (`signatures.members.ForestArrays`): a cold check then never
     imports onnxruntime (~25 ms) nor opens its sessions (~9 ms each). Leaf values are
     class fractions in `n_classes` columns (classes the forest never saw stay 0).
     """
@@ -174,7 +170,7 @@ def svm_arrays(model: Pipeline, n_classes: int) -> dict[str, np.ndarray]:
     """A fitted one-vs-rest RBF SVM pipeline as plain arrays (`svm.npz`): the scaler, and per binary
     machine its support vectors, dual coefficients, intercept and Platt parameters (A, B).
 
-    Evaluated in numpy (`signatures.inference.SvmArrays`, libsvm's own probability steps), so that
+    Evaluated in numpy (`signatures.members.SvmArrays`, libsvm's own probability steps), so that
     a check whose ensemble weighs the SVM never imports onnxruntime (~100 ms of a cold start).
     """
     scaler, ovr = model.steps[0][1], model.steps[-1][1]

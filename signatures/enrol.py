@@ -857,7 +857,7 @@ class _OpenSetVerdicts:
 def _open_set(run: _Run, base: _Base, folds: _Folds) -> _OpenSetVerdicts:
     """Calibrate the out-of-fold probabilities and apply the open set (out of fold, with the site's
     bands where they are re-estimated)."""
-    from signatures.inference import calibrate
+    from signatures.ensemble import calibrate
 
     p_cal = calibrate(folds.p_oof, folds.beta)
     pred = p_cal.argmax(axis=1)

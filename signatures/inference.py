@@ -1,4 +1,4 @@
-"""Run a model bundle: onnxruntime + numpy only (no scikit-learn, no torch).
+"""Run a model bundle: numpy, plus onnxruntime only when the cascade runs the CNN (no scikit-learn, no torch).
 
 `load_classifier(preset)` verifies the bundle's digests against its card and keeps the
 result for the process (batch mode reuses it). `classifier_for(recording)` picks the bundle of
@@ -7,11 +7,12 @@ under `models_dir()`) whose card describes the same waveform; a site bundle (`au
 that `active.json` in `models_dir()` names for the waveform goes ahead of both. Where no bundle has
 the recording's exact carrier, the bundle of the nearest carrier within `signatures.carrier`'s band
 serves it, its Doppler-frequency features rescaled to the bundle's carrier (`predict(carrier_hz=)`).
-The kNN (`knn.npz`) and the Random Forests (`rf.npz`, `rf_state.npz`) are plain arrays evaluated in numpy, so the usual
-check never imports onnxruntime; the SVM and the CNN are ONNX files, opened on first use. `Classifier.predict` turns one
-feature vector (and optionally the RD patch) into a `Prediction`: calibrated soft-vote of
-kNN + RF + SVM, the CNN only when the ensemble is unsure (cascade), then open-set
-rejection (physical consistency with the predicted profile, see `signatures.openset`).
+Every model is an estimator with scikit-learn's `predict_proba` contract: the kNN, the forests and the
+SVM are plain arrays evaluated in numpy (`signatures.members`), combined by `signatures.ensemble`'s
+soft vote and temperature, the same code training weighs and calibrates them with; the CNN is an ONNX
+file, opened on first use. `Classifier.predict` turns one feature vector (and optionally the RD patch)
+into a `Prediction`: calibrated soft vote of kNN + RF + SVM, the CNN only when the ensemble is unsure
+(cascade), then open-set rejection (physical consistency with the predicted profile, see `signatures.openset`).
 """
 
 from __future__ import annotations
@@ -28,38 +29,26 @@ from typing import Any
 import numpy as np
 
 from signatures.calibration import calibration_of
+from signatures.ensemble import MEMBERS, SoftVote, Temperature
 from signatures.errors import SignaturesError
 from signatures.feature_vector import FEATURE_NAMES
+from signatures.members import OnnxCnn, load_member
 from signatures.modelcard import CARD_NAME, read_card
 from signatures.openset import OpenSet
 from signatures.profiles import NON_UAV_CLASSES, UNKNOWN
 from signatures.radar import (PRESETS, SERVES, TRAINABLE_DOMAINS, WAVEFORM_FIELDS, WAVEFORM_REL_TOL, Preset,
                               RadarConfig, get_preset, parse_waveform, recording_waveform, shipped_preset)
 
-__all__ = ["ACTIVE_FORMAT", "ACTIVE_NAME", "MEMBERS", "Classifier", "active_bundle", "active_map",
-           "set_active", "ForestArrays", "KnnArrays", "NoModelError", "Prediction", "bundle_dir",
-           "calibrate", "card_waveform", "classifier_for", "find_bundle", "load_classifier", "match_preset",
-           "mismatch_head",
-           "models_dir", "nearest_bundle", "user_bundles", "waveform_differences"]
+__all__ = ["ACTIVE_FORMAT", "ACTIVE_NAME", "MEMBERS", "Classifier", "NoModelError", "Prediction", "active_bundle",
+           "active_map", "bundle_dir", "card_waveform", "classifier_for", "find_bundle", "load_classifier",
+           "match_preset", "mismatch_head", "models_dir", "nearest_bundle", "set_active", "user_bundles",
+           "waveform_differences"]
 
 #: The file in `models_dir()` naming each waveform's active site bundle (waveform key -> folder name).
 ACTIVE_NAME = "active.json"
 ACTIVE_FORMAT = "uav-radar-authn/active-bundles/1"
-#: The ensemble's members, in the order of the card's `ensemble.weights` (training and inference).
-MEMBERS = ("knn", "rf", "svm")
 _LOADED: dict[str, "Classifier"] = {}
 _FOUND: dict[str, "Classifier"] = {}  # "models_dir:waveform key" -> the user bundle `classifier_for` picked
-
-
-def calibrate(avg_proba: np.ndarray, beta: float) -> np.ndarray:
-    """Temperature scaling, softmax(beta * log p): what scikit-learn's
-    `CalibratedClassifierCV(method="temperature")` computes on the averaged vote, so a bundle
-    ships one number (`ensemble.temperature_beta`) instead of a pickled calibrator. The 1e-12
-    keeps a class no member voted for finite (it stays the least likely)."""
-    z = beta * np.log(avg_proba + 1e-12)
-    z -= z.max(axis=1, keepdims=True)
-    e = np.exp(z)
-    return e / e.sum(axis=1, keepdims=True)
 
 
 class NoModelError(SignaturesError):
@@ -77,157 +66,6 @@ class Prediction:
     operational_state: str | None  # "hovering" / "moving" for multirotors, else None
     used_cnn: bool
     nearest: str = ""  # best known class even when the label is "unknown"
-
-
-def _arrays(path: Path, **kinds: Any) -> dict[str, Any]:
-    """The named members of an .npz (no pickle), each as its numpy dtype, or `int` for a scalar."""
-    with np.load(path, allow_pickle=False) as z:
-        return {k: int(z[k]) if kind is int else z[k].astype(kind) for k, kind in kinds.items()}
-
-
-class KnnArrays:
-    """k-nearest-neighbour vote from `knn.npz` (what KNeighborsClassifier.predict_proba computes)."""
-
-    def __init__(self, path: Path) -> None:
-        a = _arrays(path, mean=np.float64, scale=np.float64, refs=np.float64, labels=np.int64, k=int, n_classes=int)
-        self.mean, self.scale, self.refs, self.labels = a["mean"], a["scale"], a["refs"], a["labels"]
-        self.k, self.n_classes = a["k"], a["n_classes"]
-        self._ref_sq = np.sum(self.refs * self.refs, axis=1)
-        self._refs_m2 = -2.0 * self.refs  # exact: d2 below is the same floats as |r|^2 - 2 z.r
-
-    def proba(self, X: np.ndarray) -> np.ndarray:
-        Z = (np.asarray(X, dtype=np.float64) - self.mean) / self.scale
-        d2 = Z @ self._refs_m2.T
-        d2 += self._ref_sq  # + |z|^2: the same for every reference
-        k = min(self.k, len(self.refs))
-        nn = k_smallest(d2, k)
-        out = np.zeros((len(Z), self.n_classes))
-        np.add.at(out, (np.repeat(np.arange(len(Z)), k), self.labels[nn].ravel()), 1.0 / k)
-        return out.astype(np.float32)
-
-
-def k_smallest(d: np.ndarray, k: int) -> np.ndarray:
-    """Column indices of each row's k smallest values in `d` (rows, n), nearest first, ties by
-    index. A full selection (argpartition) over thousands of references costs ~4x this: every
-    block's minimum bounds the row's k-th smallest from above, so only the blocks whose minimum
-    is at or under the k-th smallest block minimum (a few more than k) are searched."""
-    n_rows, n = d.shape
-    block = max(16, math.isqrt(n))
-    n_blocks = n // block
-    if n_blocks < 2 * k:  # too few blocks to bound anything
-        return _k_smallest_full(d, k)
-    blocks = d[:, :n_blocks * block].reshape(n_rows, n_blocks, block)
-    mins = np.fmin.reduce(blocks, axis=2)  # NaN-blind: a block's NaN must not hide its smallest value
-    bound = np.partition(mins, k - 1, axis=1)[:, k - 1]
-    rb, bb = np.nonzero(mins <= bound[:, None])
-    r, j = np.nonzero(blocks[rb, bb] <= bound[rb, None])
-    r, c = rb[r], bb[r] * block + j
-    tr, tc = np.nonzero(d[:, n_blocks * block:] <= bound[:, None])  # the last, partial block
-    r, c = np.concatenate([r, tr]), np.concatenate([c, tc + n_blocks * block])
-    if np.any(np.bincount(r, minlength=n_rows) < k):  # NaN distances: no bound holds
-        return _k_smallest_full(d, k)
-    order = np.lexsort((c, d[r, c], r))  # by row, then value, then index
-    r, c = r[order], c[order]
-    return c[np.searchsorted(r, np.arange(n_rows))[:, None] + np.arange(k)]
-
-
-def _k_smallest_full(d: np.ndarray, k: int) -> np.ndarray:
-    """`k_smallest` by a full selection over every column."""
-    return np.argpartition(d, k - 1, axis=1)[:, :k]
-
-
-class ForestArrays:
-    """Random Forest vote from `rf.npz` (what RandomForestClassifier.predict_proba computes).
-
-    All trees advance one level per step for all rows at once; leaves point to themselves,
-    so `depth` steps land every row on its leaf in every tree.
-    """
-
-    def __init__(self, path: Path) -> None:
-        a = _arrays(path, feature=np.intp, threshold=np.float64, left=np.intp, right=np.intp, value=np.float32,
-                    roots=np.intp, depth=int)
-        self.feature, self.threshold, self.left, self.right = a["feature"], a["threshold"], a["left"], a["right"]
-        self.value, self.roots, self.depth = a["value"], a["roots"], a["depth"]
-        n = len(self.feature)
-        if not (len(self.threshold) == len(self.left) == len(self.right) == len(self.value) == n) or n == 0 \
-                or min(self.left.min(), self.right.min(), self.roots.min()) < 0 \
-                or max(self.left.max(), self.right.max(), self.roots.max()) >= n:
-            raise SignaturesError(f"{path}: inconsistent tree arrays")
-        #: node i's children side by side, (right, left): the next node is child[2 i + go_left],
-        #: one gather where np.where over both children took three
-        self._child = np.stack([self.right, self.left], axis=1).ravel()
-
-    def proba(self, X: np.ndarray) -> np.ndarray:
-        # scikit-learn compares float32 features with float64 thresholds
-        Z = np.ascontiguousarray(np.asarray(X, dtype=np.float32), dtype=np.float64)
-        if self.feature.max() >= Z.shape[1]:
-            raise SignaturesError(f"forest uses feature {self.feature.max()}, the vector has {Z.shape[1]}")
-        flat, row = Z.ravel(), (np.arange(len(Z)) * Z.shape[1])[:, None]  # Z[r, f] is flat[row[r] + f]
-        node = np.broadcast_to(self.roots, (len(Z), len(self.roots)))
-        for _ in range(self.depth):
-            go_left = flat[row + self.feature[node]] <= self.threshold[node]
-            node = self._child[2 * node + go_left]
-        return self.value[node].mean(axis=1)
-
-
-class SvmArrays:
-    """One-vs-rest RBF SVM from `svm.npz` (what OneVsRestClassifier(SVC(probability=True)).predict_proba
-    computes: each machine's decision value, libsvm's Platt sigmoid and two-class coupling, the
-    machines' positive probabilities normalised to sum to 1)."""
-
-    #: libsvm's bounds on a pairwise probability and its coupling's tolerance (eps 0.005 / k, k = 2)
-    MIN_PROB, EPS, MAX_ITER = 1e-7, 0.0025, 100
-
-    def __init__(self, path: Path) -> None:
-        a = _arrays(path, mean=np.float64, scale=np.float64, support=np.float64, starts=np.int64, dual=np.float64,
-                    intercept=np.float64, prob_a=np.float64, prob_b=np.float64, gamma=np.float64,
-                    classes=np.int64, n_classes=int)
-        self.mean, self.scale, self.support, self.starts = a["mean"], a["scale"], a["support"], a["starts"]
-        self.dual, self.intercept, self.a, self.b = a["dual"], a["intercept"], a["prob_a"], a["prob_b"]
-        self.gamma, self.classes, self.n_classes = a["gamma"], a["classes"], a["n_classes"]
-        m = len(self.intercept)
-        if not (len(self.starts) == m + 1 and self.starts[0] == 0 and self.starts[-1] == len(self.support)
-                == len(self.dual) and np.all(np.diff(self.starts) > 0) and len(self.classes) == m
-                and len(self.a) == len(self.b) == len(self.gamma) == m and m >= 2
-                and self.classes.min() >= 0 and self.classes.max() < self.n_classes):
-            raise SignaturesError(f"{path}: inconsistent SVM arrays")
-        self._sv_sq = np.sum(self.support * self.support, axis=1)
-        self._neg_gamma = -np.repeat(self.gamma, np.diff(self.starts))  # per support vector
-
-    def proba(self, X: np.ndarray) -> np.ndarray:
-        # the scaler as scikit-learn applies it to float32 rows (in their dtype)
-        Z = ((np.asarray(X, dtype=np.float32) - self.mean).astype(np.float32) / self.scale).astype(np.float32)
-        Z = Z.astype(np.float64)
-        d2 = np.maximum(np.sum(Z * Z, axis=1)[:, None] + self._sv_sq[None, :] - 2.0 * Z @ self.support.T, 0.0)
-        # every machine at once: its support vectors' kernel terms summed per machine
-        dec = np.add.reduceat(np.exp(d2 * self._neg_gamma) * self.dual, self.starts[:-1], axis=1) + self.intercept
-        pos = self._coupled((-dec * self.a + self.b).ravel()).reshape(dec.shape)
-        out = np.zeros((len(Z), self.n_classes))
-        out[:, self.classes] = pos / np.maximum(pos.sum(axis=1, keepdims=True), 1e-300)
-        return out.astype(np.float32)
-
-    @classmethod
-    def _coupled(cls, f_apb: np.ndarray) -> np.ndarray:
-        """P(positive class) of one machine from A f + B (f libsvm's decision value): libsvm's sigmoid,
-        clipped, then its pairwise coupling (`multiclass_probability`) iterated as libsvm does for k = 2."""
-        e = np.exp(-np.abs(f_apb))
-        r = np.clip(np.where(f_apb >= 0, e / (1.0 + e), 1.0 / (1.0 + e)), cls.MIN_PROB, 1.0 - cls.MIN_PROB)
-        r01, r10 = r, 1.0 - r  # r01: P(negative class, libsvm's first) over the pair
-        q = np.array([[r10 * r10, -r10 * r01], [-r10 * r01, r01 * r01]])  # (2, 2, rows)
-        p = np.full((2, len(r)), 0.5)
-        for _ in range(cls.MAX_ITER):
-            qp = np.einsum("tjn,jn->tn", q, p)
-            pqp = np.sum(p * qp, axis=0)
-            live = np.max(np.abs(qp - pqp), axis=0) >= cls.EPS
-            if not live.any():
-                break
-            for t in range(2):
-                diff = np.where(live, (-qp[t] + pqp) / q[t, t], 0.0)
-                p[t] += diff
-                pqp = (pqp + diff * (diff * q[t, t] + 2 * qp[t])) / (1 + diff) / (1 + diff)
-                qp = (qp + diff * q[t]) / (1 + diff)
-                p = p / (1 + diff)
-        return p[1]
 
 
 class Classifier:
@@ -257,6 +95,7 @@ class Classifier:
                          if names != list(FEATURE_NAMES) and set(names) <= set(FEATURE_NAMES) else None)
         self._files = set(c["files"])
         self._loaded: dict[str, Any] = {}  # model files open on first use (a CLI check needs few)
+        self._vote: Temperature | None = None
         self.has_cnn = "cnn.onnx" in self._files
         with np.load(self.folder / "openset.npz", allow_pickle=False) as z:
             self.openset = OpenSet.from_arrays({k: z[k] for k in z.files})
@@ -265,6 +104,7 @@ class Classifier:
         if len(self.weights) != len(MEMBERS):
             raise SignaturesError(f"{self.folder}: the card gives {len(self.weights)} ensemble weights, "
                                   f"one per member {MEMBERS} expected")
+        self._check_members()
         self.cascade_threshold = 0.0
         self._cnn_mean, self._cnn_std = 0.0, 1.0
         if self.has_cnn:
@@ -307,23 +147,36 @@ class Classifier:
         alternative ({}: not measured)."""
         return {b: nats for (a, b), (nats, _) in self.separation.items() if a == model}
 
-    def _model(self, name: str) -> Any:
-        """kNN, forest or SVM arrays (`name.npz`) or an onnxruntime session (`name.onnx`: the CNN, and
-        the SVM of bundles written before it shipped as arrays), opened once."""
-        if name not in self._loaded:
-            if f"{name}.npz" in self._files:
-                arrays = {"knn": KnnArrays, "svm": SvmArrays}.get(name, ForestArrays)
-                self._loaded[name] = arrays(self.folder / f"{name}.npz")
-            else:
-                import onnxruntime as ort
+    def _check_members(self) -> None:
+        """Every member the vote weighs is a numpy array file (`signatures.members`); an SVM exported
+        as ONNX (an older layout) is refused, not run through another implementation."""
+        legacy = sorted(f"{m}.onnx" for m in MEMBERS if f"{m}.onnx" in self._files)
+        if legacy:
+            raise SignaturesError(f"{self.folder}: {', '.join(legacy)} is a model format this version does not "
+                                  "read; rebuild the bundle with `authn models train`")
+        missing = [m for m, w in zip(MEMBERS, self.weights) if w and f"{m}.npz" not in self._files]
+        if missing or not any(self.weights):
+            raise SignaturesError(f"{self.folder}: the ensemble weighs {', '.join(missing) or 'no member'} "
+                                  "and the bundle does not ship it; rebuild it with `authn models train`")
 
-                opts = ort.SessionOptions()
-                opts.intra_op_num_threads = 1
-                opts.inter_op_num_threads = 1
-                opts.log_severity_level = 3
-                self._loaded[name] = ort.InferenceSession(str(self.folder / f"{name}.onnx"), opts,
-                                                          providers=["CPUExecutionProvider"])
+    def _model(self, name: str) -> Any:
+        """A member, the state head or the CNN (`signatures.members`), opened once."""
+        if name not in self._loaded:
+            if name == "cnn":
+                self._loaded[name] = OnnxCnn(self.folder / "cnn.onnx", self._cnn_mean, self._cnn_std,
+                                             len(self.classes))
+            elif f"{name}.npz" in self._files:
+                self._loaded[name] = load_member(self.folder / f"{name}.npz")
+            else:
+                raise SignaturesError(f"{self.folder}: this bundle ships no {name} model")
         return self._loaded[name]
+
+    def _ensemble(self) -> Temperature:
+        """The calibrated soft vote of the members the card weighs (each opened on first use)."""
+        if self._vote is None:
+            members = [self._model(m) if w else None for m, w in zip(MEMBERS, self.weights)]
+            self._vote = Temperature(SoftVote(members, self.weights), self.beta)
+        return self._vote
 
     # --- vectorised building blocks (evaluation uses these) --------------------------
     def _x(self, X: np.ndarray) -> np.ndarray:
@@ -337,25 +190,16 @@ class Classifier:
 
     def member_proba(self, name: str, X: np.ndarray) -> np.ndarray:
         """Probabilities of one member model ('knn', 'rf', 'svm'), columns in `classes` order."""
-        m = self._model(name)
-        Xc = self._x(X)[:, self._cols]
-        if isinstance(m, (KnnArrays, ForestArrays, SvmArrays)):
-            return m.proba(Xc)
-        return m.run(["probabilities"], {"X": Xc})[0]
+        return self._model(name).predict_proba(self._x(X)[:, self._cols])
 
     def ensemble_proba(self, X: np.ndarray) -> np.ndarray:
-        """Temperature-calibrated weighted mean of the three members."""
-        Xf = self._x(X)
-        avg = sum(w * self.member_proba(m, Xf) for m, w in zip(MEMBERS, self.weights) if w) / sum(self.weights)
-        return calibrate(avg.astype(np.float64), self.beta)
+        """Temperature-calibrated soft vote of the members (`signatures.ensemble`)."""
+        return self._ensemble().predict_proba(self._x(X)[:, self._cols])
 
     def cnn_proba(self, rd: np.ndarray) -> np.ndarray:
         if not self.has_cnn:
             raise SignaturesError("this model bundle has no CNN (train with --cnn)")
-        x = (np.asarray(rd, dtype=np.float32) - self._cnn_mean) / self._cnn_std
-        x = x.reshape(-1, 1, *x.shape[-2:])
-        logits = self._model("cnn").run(["logits"], {"rd": x})[0].astype(np.float64)
-        return calibrate(np.exp(logits - logits.max(axis=1, keepdims=True)), 1.0)
+        return self._model("cnn").predict_proba(rd)
 
     def cascade_proba(self, X: np.ndarray, rd: np.ndarray | Callable[[], np.ndarray] | None
                       ) -> tuple[np.ndarray, np.ndarray]:
@@ -373,7 +217,7 @@ class Classifier:
 
     def moving_proba(self, X: np.ndarray) -> np.ndarray:
         """P(moving) from the operational-state head."""
-        return self._model("rf_state").proba(self._x(X))[:, 1]
+        return self._model("rf_state").predict_proba(self._x(X))[:, 1]
 
     def unknown_mask(self, X: np.ndarray, pred: np.ndarray, mode: str | None = None) -> np.ndarray:
         """Open-set rejection of full feature vectors given their predicted class indices."""

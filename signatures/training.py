@@ -1,7 +1,7 @@
-"""Train a model bundle for one waveform: simulate, fit, calibrate, export ONNX, write the card.
+"""Train a model bundle for one waveform: simulate, fit, calibrate, export the arrays, write the card.
 
 Everything is seeded, so the same command rebuilds the same bundle (byte-identical
-ONNX files and card on the same library versions). Validation data (its own grid
+files and card on the same library versions). Validation data (its own grid
 blocks and seeds) weighs the ensemble's members, sets the open-set thresholds and the
 cascade threshold; the same blocks rendered with domain randomisation calibrate its
 temperature. With `n_test`, held-out test blocks (`signatures.evaluate`) measure the
@@ -238,21 +238,22 @@ def _write_arrays(cfg: TrainConfig, data: _Data, fit: _Fit, tmp: Path) -> tuple[
     """Write the members, the state head and the open set into `tmp`: (files, the SVM's export
     error, every open-set test through the shipped file's float32 round trip)."""
     from signatures import classifiers as clf
-    from signatures.inference import SvmArrays
+    from signatures.ensemble import weighted_vote
+    from signatures.members import SvmArrays
     from signatures.openset import MODES, OpenSet, fit_openset
 
     train, val = data.train, data.val
     y, n_cls, members = _codes(train), fit.n_cls, fit.members
-    # kNN and forests as numpy arrays (classifiers.knn_arrays / forest_arrays), the SVM as ONNX
+    # every member as numpy arrays (signatures.members reads them back)
     np.savez(tmp / "knn.npz", **clf.knn_arrays(members["knn"], train.X[:, fit.cols], y, n_cls))
     np.savez(tmp / "rf.npz", **clf.forest_arrays(members["rf"], n_cls))
     np.savez(tmp / "rf_state.npz", **clf.forest_arrays(fit.state_head, 2))
     np.savez(tmp / "svm.npz", **clf.svm_arrays(members["svm"], n_cls))
     files = ["knn.npz", "rf.npz", "rf_state.npz", "svm.npz"]
     svm_val = fit.val_probs[list(members).index("svm")]
-    svm_err = np.max(np.abs(SvmArrays(tmp / "svm.npz").proba(val.X[:, fit.cols]) - svm_val))
+    svm_err = np.max(np.abs(SvmArrays(tmp / "svm.npz").predict_proba(val.X[:, fit.cols]) - svm_val))
     export_err = {"svm": round(float(svm_err), 6)}
-    pred_val = clf.weighted_vote(fit.val_probs, fit.weights).argmax(axis=1)
+    pred_val = weighted_vote(fit.val_probs, fit.weights).argmax(axis=1)
     openset = fit_openset(train.X, y, n_cls, val.X, _codes(val), pred_val, cfg.openset_quantile,
                           class_cols=np.array(fit.cols, dtype=np.int64), physics=fit.phys, mode=cfg.openset_mode)
     np.savez(tmp / "openset.npz", **openset.arrays())  # only the shipped mode's tests
@@ -328,7 +329,7 @@ def _validation_metrics(cfg: TrainConfig, data: _Data, fit: _Fit, model: Any, ca
     """The written bundle (`model`) measured on the validation returns: each member, the ensemble, the state
     head, the numpy forests against scikit-learn, the CNN cascade (its threshold set in `card`),
     and the open set."""
-    from signatures.inference import MEMBERS
+    from signatures.ensemble import MEMBERS
 
     val, yv, n_cls = data.val, _codes(data.val), fit.n_cls
     p_ens = model.ensemble_proba(val.X)

@@ -172,7 +172,7 @@ def run(preset: str, snrs: tuple[float, ...] = (0.0, 10.0, 20.0), per_class: int
                             np.stack([f.rd_patch for f in rows]), rows)
     for name, _, cols, forest in retrained:
         rows = feats[name]
-        predictors[name] = (lambda X, rd, forest=forest: forest.proba(X),
+        predictors[name] = (lambda X, rd, forest=forest: forest.predict_proba(X),
                             np.stack([r.as_array() for r in rows])[:, cols], np.zeros((len(rows), 1)), rows)
     n_timed = min(len(data), 200)
     _, ctime = _interleaved({k: (lambda i, p=p: p[0](p[1][i:i + 1], p[2][i:i + 1])) for k, p in predictors.items()},
@@ -201,7 +201,7 @@ def _retrain(clf, preset: str, n_train: int) -> list[tuple[str, Callable, list[i
     on the bundle's training spec (its first `n_train` returns, same seed)."""
     from signatures.classifiers import forest_arrays, make_rf
     from signatures.dataset import DatasetSpec, generate
-    from signatures.inference import ForestArrays
+    from signatures.members import ForestArrays
     from signatures.profiles import UavProfile
     from signatures.training import GEOMETRY_FEATURES, LEVEL_FEATURES
 

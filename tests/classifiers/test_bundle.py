@@ -111,7 +111,7 @@ def test_forest_arrays_against_scikit_learn_on_random_data(tmp_path: Path) -> No
     from sklearn.ensemble import RandomForestClassifier
 
     from signatures.classifiers import forest_arrays
-    from signatures.inference import ForestArrays
+    from signatures.members import ForestArrays
 
     rng = np.random.default_rng(1)
     X = rng.normal(size=(400, 6)).astype(np.float32)
@@ -119,7 +119,7 @@ def test_forest_arrays_against_scikit_learn_on_random_data(tmp_path: Path) -> No
     rf = RandomForestClassifier(n_estimators=20, random_state=0).fit(X, y)
     np.savez(tmp_path / "rf.npz", **forest_arrays(rf, 5))  # one class never seen: column of zeros
     Xt = rng.normal(size=(300, 6)).astype(np.float32) * 3
-    p = ForestArrays(tmp_path / "rf.npz").proba(Xt)
+    p = ForestArrays(tmp_path / "rf.npz").predict_proba(Xt)
     np.testing.assert_allclose(p[:, :4], rf.predict_proba(Xt), atol=1e-6)
     assert np.all(p[:, 4] == 0)
 

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from sklearn.base import clone
 
 from signatures import classifiers as clf
-from signatures.inference import MEMBERS, calibrate
+from signatures.ensemble import MEMBERS, calibrate, weighted_vote
 from signatures.openset import fit_openset
 from signatures.training import choose_cascade_threshold
 
@@ -77,8 +77,8 @@ def test_vote_weights_come_from_the_members_validation_probabilities() -> None:
     wrong = np.roll(right, 1, axis=1)
     weights = clf.vote_weights([wrong, right], y)
     assert weights[1] > weights[0]
-    assert (clf.weighted_vote([wrong, right], weights).argmax(axis=1) == y).all()
-    assert np.allclose(clf.weighted_vote([wrong, right], [0.0, 2.0]), right)  # a member of weight 0 is left out
+    assert (weighted_vote([wrong, right], weights).argmax(axis=1) == y).all()
+    assert np.allclose(weighted_vote([wrong, right], [0.0, 2.0]), right)  # a member of weight 0 is left out
 
 
 def test_openset_rejects_an_unseen_cluster_and_keeps_known_ones() -> None:
@@ -102,14 +102,14 @@ def test_cascade_threshold_prefers_not_running_the_cnn_when_it_does_not_help() -
 
 
 def test_numpy_knn_matches_sklearn(tmp_path) -> None:
-    from signatures.inference import KnnArrays
+    from signatures.members import KnnArrays
 
     X, y = _blobs(400, CENTRES, 0)
     Xt, _ = _blobs(200, CENTRES, 1)
     m = clf._fit(clf.make_knn(), X, y)
     arrays = clf.knn_arrays(m, X, y, 4)
     np.savez(tmp_path / "knn.npz", **arrays)
-    np.testing.assert_allclose(KnnArrays(tmp_path / "knn.npz").proba(Xt), m.predict_proba(Xt), atol=1e-6)
+    np.testing.assert_allclose(KnnArrays(tmp_path / "knn.npz").predict_proba(Xt), m.predict_proba(Xt), atol=1e-6)
     # the exported references are the points the neighbour search indexed at fit time
     Zt = m[0].transform(Xt)
     dist, idx = m[-1].kneighbors(Zt, 5)

@@ -8,7 +8,7 @@ import pytest
 
 from signatures import classifiers as clf
 from signatures.errors import SignaturesError
-from signatures.inference import SvmArrays
+from signatures.members import SvmArrays
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +26,7 @@ def test_svm_arrays_match_scikit_learn(fitted, tmp_path) -> None:
     rng = np.random.default_rng(1)
     rows = np.vstack([X[:50], rng.normal(size=(50, 7)).astype(np.float32) * 30,
                       np.full((2, 7), 1e4, np.float32), np.full((1, 7), -1e4, np.float32)])  # far out: saturated
-    got, want = svm.proba(rows), model.predict_proba(rows)
+    got, want = svm.predict_proba(rows), model.predict_proba(rows)
     assert got.shape == (len(rows), 6) and np.all(got[:, 5] == 0.0)
     np.testing.assert_allclose(got[:, :5], want, atol=2e-6)  # float32 output
     np.testing.assert_allclose(got.sum(axis=1), 1.0, atol=1e-5)
