@@ -178,7 +178,7 @@ def test_openset_ships_only_its_mode_and_every_physics_parameter() -> None:
 def test_k_smallest_selects_what_a_full_partition_selects(rows, n, k, levels, nan_share, seed) -> None:
     """The block-minimum bound never drops a neighbour: the same k values per row as argpartition,
     with heavy ties (few levels) and NaN distances (which argpartition puts last)."""
-    from signatures.inference import k_smallest
+    from signatures.members import k_smallest
 
     k = min(k, n)
     rng = np.random.default_rng(seed)
@@ -192,7 +192,7 @@ def test_k_smallest_selects_what_a_full_partition_selects(rows, n, k, levels, na
 
 
 def test_k_smallest_sees_past_a_nan_in_a_block() -> None:
-    from signatures.inference import k_smallest
+    from signatures.members import k_smallest
 
     d = np.arange(400, dtype=float)[None, :] + 100.0
     d[0, 3], d[0, 5] = 0.5, np.nan  # the first block holds the smallest value and a NaN
