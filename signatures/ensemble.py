@@ -55,15 +55,13 @@ class SoftVote:
     def __init__(self, members: Sequence[ProbabilisticClassifier | None], weights: Sequence[float]) -> None:
         if len(members) != len(weights) or not any(weights):
             raise ValueError("a soft vote needs one weight per member, not all 0")
-        voting = [m for m, w in zip(members, weights) if w]
-        if any(m is None for m in voting):
+        self._voting = [(m, float(w)) for m, w in zip(members, weights) if w and m is not None]
+        if len(self._voting) != sum(1 for w in weights if w):
             raise ValueError("a member with a weight is missing")
-        self.members, self.weights = tuple(members), tuple(float(w) for w in weights)
-        self.classes_ = np.asarray(voting[0].classes_)  # type: ignore[union-attr]
+        self.classes_ = np.asarray(self._voting[0][0].classes_)
 
     def predict_proba(self, X: Any) -> np.ndarray:
-        return weighted_vote([m.predict_proba(X) if w else None  # type: ignore[union-attr]
-                              for m, w in zip(self.members, self.weights)], self.weights)
+        return weighted_vote([m.predict_proba(X) for m, _ in self._voting], [w for _, w in self._voting])
 
 
 class Temperature:

@@ -201,7 +201,8 @@ class OnnxCnn:
 
 
 #: The array member of each file stem ("rf" and "rf_state" are forests).
-_KINDS = {"knn": KnnArrays, "rf": ForestArrays, "rf_state": ForestArrays, "svm": SvmArrays}
+_KINDS: dict[str, type[KnnArrays] | type[ForestArrays] | type[SvmArrays]] = {
+    "knn": KnnArrays, "rf": ForestArrays, "rf_state": ForestArrays, "svm": SvmArrays}
 
 
 def load_member(path: Path) -> KnnArrays | ForestArrays | SvmArrays:
