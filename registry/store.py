@@ -41,16 +41,16 @@ profiles and no created_at/updated_at: use JSON for a backup or a migration.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
-
-from core.checked import Checked, Invalid
+from core.checked import Checked, Invalid, choice, moment, text
 from core.errors import BadInput
 from core.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
 from core.uasid import as_heard
@@ -70,9 +70,8 @@ Status = Literal["active", "revoked"]
 _HEX_KEY = re.compile(r"^[0-9a-fA-F]{64}$")
 
 
-def describe_validation_error(exc: ValidationError | Invalid) -> str:
-    """The first error of a pydantic ValidationError or a `core.checked.Invalid` as one line
-    (`field: reason`)."""
+def describe_validation_error(exc: Invalid) -> str:
+    """The first error of a `core.checked.Invalid` as one line (`field: reason`)."""
     loc, msg, _ = first_error(exc)
     return f"{loc}: {msg}" if loc else msg
 
@@ -92,83 +91,96 @@ def _iso_time(value: Any) -> Any:
     raise ValueError(f"{value!r} is not an ISO 8601 date/time string")
 
 
-class NewIdentity(BaseModel):
-    """A validated identity to register (CLI flags, one CSV row or one JSON record).
+def _utc_time(value: Any) -> datetime | None:
+    """A time of a record: ISO 8601 text or a datetime, naive read as UTC, held in UTC."""
+    when = _iso_time(value)
+    if when is None:
+        return None
+    if when.tzinfo is None:
+        when = when.replace(tzinfo=timezone.utc)  # naive input is read as UTC
+    if not in_utc_range(when):  # would overflow converting to UTC
+        raise ValueError("out of range (UTC times from 0001-01-02 to 9999-12-30)")
+    return when.astimezone(timezone.utc)
+
+
+def _public_key(value: Any) -> bytes | None:
+    """Text (JSON, CSV) is 64 hex digits ('' for none); bytes (a key file's) are the 32 raw bytes."""
+    if isinstance(value, str):
+        value = value.strip()
+        if not value:
+            return None
+        if not _HEX_KEY.match(value):
+            raise ValueError("expected 64 hex digits (a 32-byte Ed25519 public key)")
+        return bytes.fromhex(value)
+    if value is None:
+        return None
+    if not isinstance(value, (bytes, bytearray, memoryview)):
+        raise ValueError("Input should be a valid bytes")
+    key = bytes(value)
+    if len(key) != 32:
+        raise ValueError(f"Data should have at {'least' if len(key) < 32 else 'most'} 32 bytes")
+    return key
+
+
+def _rule(check: Callable[[Any], Any], default: Any = None) -> Any:
+    """A field `check` coerces or refuses (ValueError): core.checked runs each field's `check`."""
+    return dataclasses.field(default=default, metadata={"check": check})
+
+
+def _profile_value(value: Any) -> UavProfile:
+    if not isinstance(value, UavProfile):
+        raise ValueError("Input should be a UavProfile")
+    return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class NewIdentity(Checked):
+    """A validated identity to register (CLI flags, one CSV row, one JSON record, a service body).
 
     `status`, `created_at` and `updated_at` are for restoring an export; a new
     registration leaves them at their defaults (active, now).
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    serial: str = text()
+    id_type: IdType = choice("serial", "caa_registration", "utm_uuid", "specific_session", default="serial")
+    model: str = text(min_length=1, max_length=32)
+    operator_id: str | None = text(None, max_length=20, pattern=r"^[\x20-\x7e]+$", optional=True)
+    public_key: bytes | None = _rule(_public_key)
+    status: Status = choice("active", "revoked", default="active")
+    valid_from: datetime | None = _rule(_utc_time)
+    valid_until: datetime | None = _rule(_utc_time)
+    notes: str | None = text(None, max_length=NOTES_MAX, optional=True)
+    created_at: datetime | None = _rule(_utc_time)
+    updated_at: datetime | None = _rule(_utc_time)
 
-    serial: str
-    id_type: IdType = "serial"
-    model: str = Field(min_length=1, max_length=32)
-    operator_id: str | None = Field(default=None, max_length=20, pattern=r"^[\x20-\x7e]+$")
-    public_key: bytes | None = Field(default=None, min_length=32, max_length=32)
-    status: Status = "active"
-    valid_from: datetime | None = None
-    valid_until: datetime | None = None
-    notes: str | None = Field(default=None, max_length=NOTES_MAX)
-    created_at: datetime | None = None
-    updated_at: datetime | None = None
-
-    @field_validator("public_key", mode="before")
-    @classmethod
-    def _hex_key(cls, v: Any) -> Any:
-        if isinstance(v, str):  # text input (JSON, CSV) is hex; bytes come from key files
-            v = v.strip()
-            if not v:
-                return None
-            if not _HEX_KEY.match(v):
-                raise ValueError("expected 64 hex digits (a 32-byte Ed25519 public key)")
-            return bytes.fromhex(v)
-        return v
-
-    @field_validator("valid_from", "valid_until", "created_at", "updated_at", mode="before")
-    @classmethod
-    def _parse_time(cls, v: Any) -> Any:
-        return _iso_time(v)
-
-    @field_validator("valid_from", "valid_until", "created_at", "updated_at")
-    @classmethod
-    def _aware(cls, v: datetime | None) -> datetime | None:
-        if v is not None and v.tzinfo is None:
-            v = v.replace(tzinfo=timezone.utc)  # naive input is read as UTC
-        if v is not None and not in_utc_range(v):  # would overflow converting to UTC
-            raise ValueError("out of range (UTC times from 0001-01-02 to 9999-12-30)")
-        return v.astimezone(timezone.utc) if v is not None else None
-
-    @model_validator(mode="after")
-    def _check(self) -> "NewIdentity":
+    def _check(self) -> None:
         object.__setattr__(self, "serial", validate_uas_id(self.serial, self.id_type))
         start = self.valid_from or utcnow()
         if self.valid_until is not None and self.valid_until <= start:
             raise ValueError("valid_until must be after valid_from")
         if self.created_at and self.updated_at and self.updated_at < self.created_at:
             raise ValueError("updated_at must not be before created_at")
-        return self
 
 
-class IdentityRecord(BaseModel):
+@dataclass(frozen=True, kw_only=True)
+class IdentityRecord(Checked):
     """The registry's full record of an identity (operator, airframe profile, notes, times): what
-    the registry commands and the service show. A decision reads its subset, `facts`
-    (`registry.dbapi.IdentityFacts`, read straight from the database on the check path)."""
+    the registry commands and the service show (`to_dict(json=True)`: key as hex, times ISO 8601).
+    A decision reads its subset, `facts` (`registry.dbapi.IdentityFacts`, read straight from the
+    database on the check path)."""
 
-    model_config = ConfigDict(frozen=True, ser_json_bytes="hex")
-
-    serial: str
-    id_type: IdType
-    operator_id: str | None
-    model: str
-    profile: UavProfile
-    public_key: bytes | None
-    status: Status
-    valid_from: datetime
-    valid_until: datetime | None
-    created_at: datetime
-    updated_at: datetime
-    notes: str | None
+    serial: str = text()
+    id_type: IdType = choice("serial", "caa_registration", "utm_uuid", "specific_session")
+    operator_id: str | None = text(optional=True)
+    model: str = text()
+    profile: UavProfile = _rule(_profile_value, dataclasses.MISSING)
+    public_key: bytes | None = _rule(_public_key)
+    status: Status = choice("active", "revoked")
+    valid_from: datetime = moment()
+    valid_until: datetime | None = moment(optional=True)
+    created_at: datetime = moment()
+    updated_at: datetime = moment()
+    notes: str | None = text(optional=True)
 
     @property
     def facts(self) -> IdentityFacts:
@@ -377,7 +389,7 @@ def _parse_csv(text: str) -> list[tuple[str, NewIdentity]]:
                     valid_from=cells.get("valid_from") or None,
                     valid_until=cells.get("valid_until") or None,
                     notes=cells.get("notes") or None)
-            except ValidationError as exc:
+            except Invalid as exc:
                 raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
             except (RegistryError, ValueError) as exc:
                 raise RegistryError(f"{label}: {exc}") from None
@@ -388,15 +400,30 @@ def _parse_csv(text: str) -> list[tuple[str, NewIdentity]]:
     return rows
 
 
-class _Document(BaseModel):
-    """The top level of a JSON registry document; records are validated one by one."""
+#: The top level of a JSON registry document (besides `format`): each key's check, in order.
+_DOCUMENT_LISTS = ("profiles", "identities")
 
-    model_config = ConfigDict(extra="forbid")
 
-    format: str
-    exported_at: datetime | None = None
-    profiles: list[dict[str, Any]] = []
-    identities: list[dict[str, Any]] = []
+def _document(data: dict[str, Any]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The profiles and identities of a JSON registry document, its top level checked (records
+    are validated one by one); errors are worded as the records' are."""
+    try:
+        _utc_time(data.get("exported_at"))
+    except ValueError as exc:
+        raise RegistryError(f"exported_at: {exc}") from None
+    lists = []
+    for key in _DOCUMENT_LISTS:
+        items = data.get(key, [])
+        if not isinstance(items, list):
+            raise RegistryError(f"{key}: Input should be a valid list")
+        bad = next((i for i, item in enumerate(items) if not isinstance(item, dict)), None)
+        if bad is not None:
+            raise RegistryError(f"{key}.{bad}: Input should be a valid dictionary")
+        lists.append(items)
+    extra = next((k for k in data if k not in ("format", "exported_at", *_DOCUMENT_LISTS)), None)
+    if extra is not None:
+        raise RegistryError(f"{extra}: Extra inputs are not permitted")
+    return lists[0], lists[1]
 
 
 def _record_label(kind: str, i: int, raw: dict[str, Any], key: str) -> str:
@@ -404,12 +431,12 @@ def _record_label(kind: str, i: int, raw: dict[str, Any], key: str) -> str:
     return f"{kind}[{i}] ({key} {name})" if isinstance(name, str) and name else f"{kind}[{i}]"
 
 
-def _validated(model: type[BaseModel] | type[Checked], raw: Any, label: str) -> Any:
-    """One record of an import file through its model (pydantic, or a `core.checked` dataclass
-    such as UavProfile); errors name the record."""
+def _validated(model: type[Checked], raw: dict[str, Any], label: str) -> Any:
+    """One record of an import file through its `core.checked` dataclass (UavProfile,
+    NewIdentity); errors name the record."""
     try:
-        return model.from_dict(raw) if issubclass(model, Checked) else model.model_validate(raw)
-    except (ValidationError, Invalid) as exc:
+        return model.from_dict(raw)
+    except Invalid as exc:
         raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
     except (RegistryError, ValueError) as exc:
         raise RegistryError(f"{label}: {exc}") from None
@@ -428,20 +455,17 @@ def parse_json(text: str) -> RegistryImport:
                             "profiles and identities")
     if data.get("format") != REGISTRY_FORMAT:
         raise RegistryError(f"format: expected {REGISTRY_FORMAT!r}, found {data.get('format')!r}")
-    try:
-        doc = _Document.model_validate(data)
-    except ValidationError as exc:
-        raise RegistryError(describe_validation_error(exc)) from None
+    profiles, identities = _document(data)
     out = RegistryImport(format="json")
     seen_slugs: dict[str, str] = {}
-    for i, raw in enumerate(doc.profiles):
+    for i, raw in enumerate(profiles):
         label = _record_label("profiles", i, raw, "slug")
         p = _validated(UavProfile, raw, label)
         if p.slug in seen_slugs:
             raise RegistryError(f"{label}: slug {p.slug!r} repeats {seen_slugs[p.slug]}")
         seen_slugs[p.slug] = label
         out.profiles.append((label, p))
-    for i, raw in enumerate(doc.identities):
+    for i, raw in enumerate(identities):
         label = _record_label("identities", i, raw, "serial")
         new = _validated(NewIdentity, raw, label)
         out.identities.append((label, new))

@@ -39,22 +39,20 @@ def _default_valid_from() -> datetime:
 
 
 def _validated(cls, **fields):
-    """Build an input model (a pydantic one, or a `core.checked` dataclass such as UavProfile);
-    its first error becomes a one-line RegistryError."""
-    from pydantic import ValidationError
-
+    """Build a `core.checked` value (UavProfile, NewIdentity); its first error becomes a one-line
+    RegistryError."""
     from core.checked import Invalid
     from registry.errors import RegistryError
     from registry.store import describe_validation_error
 
     try:
         return cls(**fields)
-    except (ValidationError, Invalid) as exc:
+    except Invalid as exc:
         raise RegistryError(describe_validation_error(exc)) from None
 
 
 def _record_json(rec) -> dict:
-    return json.loads(rec.model_dump_json())
+    return rec.to_dict(json=True)
 
 
 def register_cmd(

@@ -144,7 +144,7 @@ class RevokeIn(BaseModel):
 
 
 def _record_json(rec: Any) -> dict[str, Any]:
-    return rec.model_dump(mode="json")
+    return rec.to_dict(json=True)
 
 
 def _audit_change(rt: Any, caller: Caller, action: str, serial: str, detail: dict[str, Any]) -> None:
@@ -188,7 +188,7 @@ def identities_list(request: Request, status: Literal["active", "revoked"] | Non
 async def identities_register(request: Request, body: IdentityIn,
                               caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
     """Register an identity (admins); the change is audited with the acting key's id."""
-    from pydantic import ValidationError
+    from core.checked import Invalid
     from core.errors import AuthnError
     from registry.dbapi import transaction
     from registry.store import NewIdentity, describe_validation_error, register_identity
@@ -196,7 +196,7 @@ async def identities_register(request: Request, body: IdentityIn,
     rt = runtime(request)
     try:
         new = NewIdentity(**body.model_dump(exclude_none=True))
-    except ValidationError as exc:
+    except Invalid as exc:
         raise AuthnError(describe_validation_error(exc)) from None
 
     def write() -> Any:

@@ -106,7 +106,7 @@ def populate(url: str) -> None:
 def snapshot(url: str) -> tuple[list[dict], list[dict]]:
     """Every field of every identity (with its profile) and every profile."""
     with transaction(url) as s:
-        return ([r.model_dump() for r in list_identities(s)],
+        return ([r.to_dict() for r in list_identities(s)],
                 [p.to_dict() for p in list_profiles(s)])
 
 
