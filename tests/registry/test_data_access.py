@@ -108,3 +108,16 @@ def test_sqlite_times_keep_four_digit_years(tmp_path: Path) -> None:
     stored = db.to_db_time(early)
     assert stored == "0001-01-02 01:04:05.000006"
     assert Database.from_db_time(stored) == early
+
+
+def test_the_stores_columns_are_the_models() -> None:
+    """The registry store's and the API keys' SQL name the columns the schema defines (the
+    store builds its statements from these tuples)."""
+    from authn.service import keys
+    from registry import store
+    from registry.models import Base
+
+    tables = Base.metadata.tables
+    assert set(store._PROFILE_COLUMNS) == set(tables["model_profiles"].columns.keys())
+    assert set(store._IDENTITY_COLUMNS) == set(tables["identities"].columns.keys()) - {"id"}
+    assert {c.strip() for c in keys._COLUMNS.split(",")} == set(tables["api_keys"].columns.keys()) - {"key_hash"}
