@@ -210,11 +210,10 @@ def _profile(row: tuple) -> UavProfile:
 def _record(row: tuple) -> IdentityRecord:
     n = len(_IDENTITY_COLUMNS)
     i = dict(zip(_IDENTITY_COLUMNS, row[:n]))
-    times = {c: Database.from_db_time(i[c]) for c in _TIMES}
-    return IdentityRecord(
-        serial=i["serial"], id_type=i["id_type"], operator_id=i["operator_id"], model=i["model_slug"],
-        profile=_profile(row[n:]), public_key=bytes(i["public_key"]) if i["public_key"] is not None else None,
-        status=i["status"], notes=i["notes"], **times)
+    return IdentityRecord.from_dict({
+        "serial": i["serial"], "id_type": i["id_type"], "operator_id": i["operator_id"], "model": i["model_slug"],
+        "profile": _profile(row[n:]), "public_key": bytes(i["public_key"]) if i["public_key"] is not None else None,
+        "status": i["status"], "notes": i["notes"], **{c: Database.from_db_time(i[c]) for c in _TIMES}})
 
 
 # ------------------------------------------------------------------ profiles
@@ -381,14 +380,14 @@ def _parse_csv(text: str) -> list[tuple[str, NewIdentity]]:
                 raise RegistryError(f"{label}: more fields than columns")
             cells = dict(zip(names, (c.strip() for c in raw)))
             try:
-                new = NewIdentity(
-                    serial=cells.get("serial", ""), id_type=cells.get("id_type") or "serial",
-                    model=cells.get("model", ""), operator_id=cells.get("operator_id") or None,
-                    public_key=cells.get("public_key") or None,
-                    status=cells.get("status") or "active",
-                    valid_from=cells.get("valid_from") or None,
-                    valid_until=cells.get("valid_until") or None,
-                    notes=cells.get("notes") or None)
+                new = NewIdentity.from_dict({
+                    "serial": cells.get("serial", ""), "id_type": cells.get("id_type") or "serial",
+                    "model": cells.get("model", ""), "operator_id": cells.get("operator_id") or None,
+                    "public_key": cells.get("public_key") or None,
+                    "status": cells.get("status") or "active",
+                    "valid_from": cells.get("valid_from") or None,
+                    "valid_until": cells.get("valid_until") or None,
+                    "notes": cells.get("notes") or None})
             except Invalid as exc:
                 raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
             except (RegistryError, ValueError) as exc:
