@@ -192,10 +192,15 @@ class Database:
         """One statement inside `write()`; with `what`, a constraint the row violates is bad
         input naming it (RegistryError `what: already registered` for a unique key), else a
         DatabaseFault like any driver error."""
-        self.execute_many(sql, [params or {}], what=what)
+        cur = self.connection().cursor()
+        try:
+            with self._faults("write"), self._refusals(what):
+                cur.execute(self._sql(sql), params or {})
+        finally:
+            cur.close()
 
     def execute_many(self, sql: str, rows: list[dict[str, Any]], *, what: str | None = None) -> None:
-        """One statement per parameter set (a bulk insert), errors as `execute`."""
+        """One data-changing statement per parameter set (a bulk insert), errors as `execute`."""
         if not rows:
             return
         cur = self.connection().cursor()
