@@ -83,10 +83,10 @@ SCENES = (
 def register_examples(db_url: str | None, keys: DemoKeys | None = None) -> None:
     """Idempotent: existing serials are left as they are. With `keys`, also the keyed M300
     (its DRIP session ID, the owner's public key): a new identity for every new key."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import NewIdentity, get_identity, register_identity, revoke_identity
 
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         if keys is not None and get_identity(s, keys.owner.session_id) is None:
             register_identity(s, NewIdentity(serial=keys.owner.session_id, id_type="specific_session", model="m300",
                                              operator_id="DEMO-OPERATOR", public_key=keys.owner.public_raw,

@@ -101,10 +101,10 @@ def write_raw(folder: Path, scenes: list[int], track_scene: int, track_dwells: i
 
 def register_site(db_url: str) -> None:
     """The drone's profile from its physics, and the site's four identities."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import NewIdentity, register_identity, register_profile
 
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         register_profile(s, DJI_QUAD)
         for model, serial in SERIALS.items():
             register_identity(s, NewIdentity(serial=serial, model=model, valid_from=VALID_FROM))

@@ -1,25 +1,22 @@
-"""Database engines and sessions; schema migrations applied on first use.
+"""Alembic's engine: schema migrations applied on first use (queries run in registry.dbapi).
 
-Any SQLAlchemy URL works (`--db` / AUTHN_DATABASE_URL); the default is a SQLite
-file in the user data directory. SQLite runs in WAL mode with foreign keys on,
-a busy timeout, and `BEGIN IMMEDIATE` transactions so that concurrent writers
-queue instead of failing. The first use of a database upgrades it to the
-newest Alembic revision under a lock (a file lock beside a SQLite file, a
-`pg_advisory_lock` on PostgreSQL) so that processes starting together do not
-race. SQLAlchemy and Alembic are imported here, never by `authn --help`.
+Alembic works through a SQLAlchemy engine, so this module holds one per URL (a SQLite file
+or PostgreSQL, `registry.urls`) for migrating and nothing else: the first use of a database
+upgrades it to the newest revision under a lock (a file lock beside a SQLite file, a
+`pg_advisory_lock` on PostgreSQL) so that processes starting together do not race. SQLite
+engines run in WAL mode (which the file keeps) with foreign keys on, a busy timeout and
+`BEGIN IMMEDIATE` transactions. Imported only to migrate (`registry.dbapi` hands a database
+that is not current here), never by a check of a current database.
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 from sqlalchemy import Connection, Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, DBAPIError
-from sqlalchemy.orm import Session, sessionmaker
 
 from registry.errors import DatabaseFault, RegistryError
 from registry.urls import announce_created, check_backend, prepare_sqlite, resolve_url, sqlite_file
@@ -185,16 +182,3 @@ def dispose_engines() -> None:
         for engine in _engines.values():
             engine.dispose()
         _engines.clear()
-
-
-@contextmanager
-def session_scope(url: str | None = None) -> Iterator[Session]:
-    """One transaction: commit on success, roll back on any exception."""
-    factory = sessionmaker(get_engine(url), expire_on_commit=False)
-    with factory() as session:
-        try:
-            yield session
-            session.commit()
-        except BaseException:
-            session.rollback()
-            raise

@@ -1,11 +1,11 @@
-"""Plain DB-API access for the per-check hot path: no SQLAlchemy import (~0.3 s).
+"""The one runtime data-access layer: DB-API on the driver itself, no SQLAlchemy (~0.23 s).
 
-`authn check` runs once per process, so start-up is its latency. It needs two
-things from the database: one identity row and one audit append. Those run here
-on the driver itself (stdlib `sqlite3` for SQLite files, `psycopg` for
-PostgreSQL) against the schema Alembic created. A database that is not at the
-current revision is handed once to `registry.db.get_engine`, which migrates it
-under its lock; everything else never imports SQLAlchemy or Alembic.
+`authn check` runs once per process, so start-up is its latency; every query of the product
+(the check's identity row, the registry store, API keys, the audit log) runs here on stdlib
+`sqlite3` for SQLite files and `psycopg` for PostgreSQL, against the schema Alembic created,
+with named `:param` placeholders on both. A database that is not at the current revision is
+handed once to `registry.db.get_engine`, which migrates it under its lock: SQLAlchemy and
+Alembic are imported for that and nothing else.
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ from registry.urls import announce_created, check_backend, prepare_sqlite, resol
 #: Seconds a writer waits for another's lock before the check fails as a system error (exit 3).
 LOCK_TIMEOUT_S = 30.0
 _NAMED = re.compile(r"(?<!:):([A-Za-z_]\w*)")
-SQLITE_TIME = "%Y-%m-%d %H:%M:%S.%f"  # what SQLAlchemy's DateTime stores in SQLite
 
 
 @dataclass(frozen=True)
@@ -40,6 +39,11 @@ class IdentityFacts:
     valid_from: datetime
     valid_until: datetime | None
     public_key: bytes | None = None  # raw Ed25519 host identity (DRIP), when registered with one
+
+
+def utcnow() -> datetime:
+    """Now, timezone-aware in UTC (what every stored time is)."""
+    return datetime.now(timezone.utc)
 
 
 def _first_line(exc: BaseException) -> str:
@@ -184,13 +188,47 @@ class Database:
         with self._faults("write"), conn.transaction():
             yield self
 
-    def execute(self, sql: str, params: dict[str, Any] | None = None) -> None:
+    def execute(self, sql: str, params: dict[str, Any] | None = None, *, what: str | None = None) -> None:
+        """One statement inside `write()`; with `what`, a constraint the row violates is bad
+        input naming it (RegistryError `what: already registered` for a unique key), else a
+        DatabaseFault like any driver error."""
         cur = self.connection().cursor()
         try:
-            with self._faults("write"):
+            with self._faults("write"), self._refusals(what):
                 cur.execute(self._sql(sql), params or {})
         finally:
             cur.close()
+
+    def execute_many(self, sql: str, rows: list[dict[str, Any]], *, what: str | None = None) -> None:
+        """One data-changing statement per parameter set (a bulk insert), errors as `execute`."""
+        if not rows:
+            return
+        cur = self.connection().cursor()
+        try:
+            with self._faults("write"), self._refusals(what):
+                cur.executemany(self._sql(sql), rows)
+        finally:
+            cur.close()
+
+    def _integrity_errors(self) -> tuple[type[BaseException], ...]:
+        if self.dialect == "sqlite":
+            return (sqlite3.IntegrityError,)
+        import psycopg
+
+        return (psycopg.IntegrityError,)
+
+    @contextmanager
+    def _refusals(self, what: str | None) -> Iterator[None]:
+        if what is None:
+            yield
+            return
+        try:
+            yield
+        except self._integrity_errors() as exc:
+            msg = _first_line(exc)
+            if "unique" in msg.lower() or "duplicate" in msg.lower():
+                raise RegistryError(f"{what}: already registered") from None
+            raise RegistryError(f"{what}: rejected by the database ({msg})") from None
 
     # --- values -----------------------------------------------------------------------
     def to_db_time(self, when: datetime) -> Any:
@@ -198,7 +236,8 @@ class Database:
             when = when.astimezone(timezone.utc)
         except OverflowError:  # 0001-01-01T00:00:00+23:59: before year 1 in UTC
             raise RegistryError(f"time {when.isoformat()} is out of range in UTC") from None
-        return when.replace(tzinfo=None).strftime(SQLITE_TIME) if self.dialect == "sqlite" else when
+        # SQLite: naive UTC text, `YYYY-MM-DD HH:MM:SS.ffffff` (four-digit years: ordered as text)
+        return when.replace(tzinfo=None).isoformat(" ", "microseconds") if self.dialect == "sqlite" else when
 
     @staticmethod
     def from_db_time(value: Any) -> datetime | None:
@@ -208,7 +247,7 @@ class Database:
             value = datetime.fromisoformat(value)
         return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else value.astimezone(timezone.utc)
 
-    # --- the check's one registry read ------------------------------------------------
+    # --- the check's registry reads ------------------------------------------------
     def identity(self, serial: str) -> IdentityFacts | None:
         rows = self.fetch("SELECT serial, id_type, model_slug, status, valid_from, valid_until, public_key "
                           "FROM identities WHERE serial = :serial", {"serial": serial})
@@ -244,3 +283,15 @@ class Database:
         name, rotors, arms, blades, length, rate, dist = rows[0]
         return UavProfile(slug=slug, name=name, rotors=rotors, arms=arms, blades_per_rotor=blades,
                           blade_length_m=length, rotor_rate_hz=rate, propeller_distance_m=dist)
+
+
+@contextmanager
+def transaction(url: str | None = None) -> Iterator[Database]:
+    """One write transaction on a connection of its own (a registry command, a service request):
+    committed when the block ends, rolled back with nothing kept on any exception."""
+    db = Database(url)
+    try:
+        with db.write():
+            yield db
+    finally:
+        db.close()

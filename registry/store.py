@@ -1,7 +1,7 @@
 """Registry queries: model profiles and identities, single and bulk (JSON and CSV).
 
-Functions take a Session and never commit: the caller's `session_scope` makes
-each command one transaction, so a failed bulk import writes nothing.
+Functions take a `registry.dbapi.Database` inside the caller's `registry.dbapi.transaction`
+and never commit: each command is one transaction, so a failed bulk import writes nothing.
 Everything is validated before anything is written.
 
 Bulk formats
@@ -41,25 +41,21 @@ profiles and no created_at/updated_at: use JSON for a backup or a migration.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
-from sqlalchemy import select
-from sqlalchemy.exc import DBAPIError, IntegrityError
-from sqlalchemy.orm import Session
-
-from core.checked import Checked, Invalid
+from core.checked import Checked, Invalid, choice, moment, text
 from core.errors import BadInput
 from core.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
 from core.uasid import as_heard
-from registry.dbapi import IdentityFacts
-from registry.errors import RegistryError
-from registry.models import Identity, ModelProfile, utcnow
+from registry.dbapi import Database, IdentityFacts, utcnow
+from registry.errors import DatabaseFault, RegistryError
 from registry.serials import validate_uas_id
 from signatures.profiles import UavProfile
 
@@ -74,9 +70,8 @@ Status = Literal["active", "revoked"]
 _HEX_KEY = re.compile(r"^[0-9a-fA-F]{64}$")
 
 
-def describe_validation_error(exc: ValidationError | Invalid) -> str:
-    """The first error of a pydantic ValidationError or a `core.checked.Invalid` as one line
-    (`field: reason`)."""
+def describe_validation_error(exc: Invalid) -> str:
+    """The first error of a `core.checked.Invalid` as one line (`field: reason`)."""
     loc, msg, _ = first_error(exc)
     return f"{loc}: {msg}" if loc else msg
 
@@ -96,83 +91,96 @@ def _iso_time(value: Any) -> Any:
     raise ValueError(f"{value!r} is not an ISO 8601 date/time string")
 
 
-class NewIdentity(BaseModel):
-    """A validated identity to register (CLI flags, one CSV row or one JSON record).
+def _utc_time(value: Any) -> datetime | None:
+    """A time of a record: ISO 8601 text or a datetime, naive read as UTC, held in UTC."""
+    when = _iso_time(value)
+    if when is None:
+        return None
+    if when.tzinfo is None:
+        when = when.replace(tzinfo=timezone.utc)  # naive input is read as UTC
+    if not in_utc_range(when):  # would overflow converting to UTC
+        raise ValueError("out of range (UTC times from 0001-01-02 to 9999-12-30)")
+    return when.astimezone(timezone.utc)
+
+
+def _public_key(value: Any) -> bytes | None:
+    """Text (JSON, CSV) is 64 hex digits ('' for none); bytes (a key file's) are the 32 raw bytes."""
+    if isinstance(value, str):
+        value = value.strip()
+        if not value:
+            return None
+        if not _HEX_KEY.match(value):
+            raise ValueError("expected 64 hex digits (a 32-byte Ed25519 public key)")
+        return bytes.fromhex(value)
+    if value is None:
+        return None
+    if not isinstance(value, (bytes, bytearray, memoryview)):
+        raise ValueError("Input should be a valid bytes")
+    key = bytes(value)
+    if len(key) != 32:
+        raise ValueError(f"Data should have at {'least' if len(key) < 32 else 'most'} 32 bytes")
+    return key
+
+
+def _rule(check: Callable[[Any], Any], default: Any = None) -> Any:
+    """A field `check` coerces or refuses (ValueError): core.checked runs each field's `check`."""
+    return dataclasses.field(default=default, metadata={"check": check})
+
+
+def _profile_value(value: Any) -> UavProfile:
+    if not isinstance(value, UavProfile):
+        raise ValueError("Input should be a UavProfile")
+    return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class NewIdentity(Checked):
+    """A validated identity to register (CLI flags, one CSV row, one JSON record, a service body).
 
     `status`, `created_at` and `updated_at` are for restoring an export; a new
     registration leaves them at their defaults (active, now).
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    serial: str = text()
+    id_type: IdType = choice("serial", "caa_registration", "utm_uuid", "specific_session", default="serial")
+    model: str = text(min_length=1, max_length=32)
+    operator_id: str | None = text(None, max_length=20, pattern=r"^[\x20-\x7e]+$", optional=True)
+    public_key: bytes | None = _rule(_public_key)
+    status: Status = choice("active", "revoked", default="active")
+    valid_from: datetime | None = _rule(_utc_time)
+    valid_until: datetime | None = _rule(_utc_time)
+    notes: str | None = text(None, max_length=NOTES_MAX, optional=True)
+    created_at: datetime | None = _rule(_utc_time)
+    updated_at: datetime | None = _rule(_utc_time)
 
-    serial: str
-    id_type: IdType = "serial"
-    model: str = Field(min_length=1, max_length=32)
-    operator_id: str | None = Field(default=None, max_length=20, pattern=r"^[\x20-\x7e]+$")
-    public_key: bytes | None = Field(default=None, min_length=32, max_length=32)
-    status: Status = "active"
-    valid_from: datetime | None = None
-    valid_until: datetime | None = None
-    notes: str | None = Field(default=None, max_length=NOTES_MAX)
-    created_at: datetime | None = None
-    updated_at: datetime | None = None
-
-    @field_validator("public_key", mode="before")
-    @classmethod
-    def _hex_key(cls, v: Any) -> Any:
-        if isinstance(v, str):  # text input (JSON, CSV) is hex; bytes come from key files
-            v = v.strip()
-            if not v:
-                return None
-            if not _HEX_KEY.match(v):
-                raise ValueError("expected 64 hex digits (a 32-byte Ed25519 public key)")
-            return bytes.fromhex(v)
-        return v
-
-    @field_validator("valid_from", "valid_until", "created_at", "updated_at", mode="before")
-    @classmethod
-    def _parse_time(cls, v: Any) -> Any:
-        return _iso_time(v)
-
-    @field_validator("valid_from", "valid_until", "created_at", "updated_at")
-    @classmethod
-    def _aware(cls, v: datetime | None) -> datetime | None:
-        if v is not None and v.tzinfo is None:
-            v = v.replace(tzinfo=timezone.utc)  # naive input is read as UTC
-        if v is not None and not in_utc_range(v):  # would overflow converting to UTC
-            raise ValueError("out of range (UTC times from 0001-01-02 to 9999-12-30)")
-        return v.astimezone(timezone.utc) if v is not None else None
-
-    @model_validator(mode="after")
-    def _check(self) -> "NewIdentity":
+    def _check(self) -> None:
         object.__setattr__(self, "serial", validate_uas_id(self.serial, self.id_type))
         start = self.valid_from or utcnow()
         if self.valid_until is not None and self.valid_until <= start:
             raise ValueError("valid_until must be after valid_from")
         if self.created_at and self.updated_at and self.updated_at < self.created_at:
             raise ValueError("updated_at must not be before created_at")
-        return self
 
 
-class IdentityRecord(BaseModel):
+@dataclass(frozen=True, kw_only=True)
+class IdentityRecord(Checked):
     """The registry's full record of an identity (operator, airframe profile, notes, times): what
-    the registry commands and the service show. A decision reads its subset, `facts`
-    (`registry.dbapi.IdentityFacts`, read straight from the database on the check path)."""
+    the registry commands and the service show (`to_dict(json=True)`: key as hex, times ISO 8601).
+    A decision reads its subset, `facts` (`registry.dbapi.IdentityFacts`, read straight from the
+    database on the check path)."""
 
-    model_config = ConfigDict(frozen=True, ser_json_bytes="hex")
-
-    serial: str
-    id_type: IdType
-    operator_id: str | None
-    model: str
-    profile: UavProfile
-    public_key: bytes | None
-    status: Status
-    valid_from: datetime
-    valid_until: datetime | None
-    created_at: datetime
-    updated_at: datetime
-    notes: str | None
+    serial: str = text()
+    id_type: IdType = choice("serial", "caa_registration", "utm_uuid", "specific_session")
+    operator_id: str | None = text(optional=True)
+    model: str = text()
+    profile: UavProfile = _rule(_profile_value, dataclasses.MISSING)
+    public_key: bytes | None = _rule(_public_key)
+    status: Status = choice("active", "revoked")
+    valid_from: datetime = moment()
+    valid_until: datetime | None = moment(optional=True)
+    created_at: datetime = moment()
+    updated_at: datetime = moment()
+    notes: str | None = text(optional=True)
 
     @property
     def facts(self) -> IdentityFacts:
@@ -181,114 +189,119 @@ class IdentityRecord(BaseModel):
                              self.valid_until, self.public_key)
 
 
-def _profile(row: ModelProfile) -> UavProfile:
-    return UavProfile(slug=row.slug, name=row.name, rotors=row.rotors, arms=row.arms,
-                      blades_per_rotor=row.blades_per_rotor, blade_length_m=row.blade_length_m,
-                      rotor_rate_hz=row.rotor_rate_hz, propeller_distance_m=row.propeller_distance_m)
+_PROFILE_COLUMNS = ("slug", "name", "rotors", "arms", "blades_per_rotor", "blade_length_m", "rotor_rate_hz",
+                    "propeller_distance_m")
+_IDENTITY_COLUMNS = ("serial", "id_type", "operator_id", "model_slug", "public_key", "status", "valid_from",
+                     "valid_until", "created_at", "updated_at", "notes")
+_TIMES = ("valid_from", "valid_until", "created_at", "updated_at")
+_SELECT_IDENTITY = ("SELECT " + ", ".join(f"i.{c}" for c in _IDENTITY_COLUMNS) + ", "
+                    + ", ".join(f"p.{c}" for c in _PROFILE_COLUMNS)
+                    + " FROM identities i JOIN model_profiles p ON p.slug = i.model_slug")
 
 
-def _record(row: Identity) -> IdentityRecord:
-    return IdentityRecord(
-        serial=row.serial, id_type=row.id_type, operator_id=row.operator_id, model=row.model_slug,
-        profile=_profile(row.profile), public_key=row.public_key, status=row.status,
-        valid_from=row.valid_from, valid_until=row.valid_until, created_at=row.created_at,
-        updated_at=row.updated_at, notes=row.notes)
+def _insert(table: str, columns: tuple[str, ...]) -> str:
+    return f"INSERT INTO {table} ({', '.join(columns)}) VALUES ({', '.join(':' + c for c in columns)})"
 
 
-def _flush(session: Session, what: str) -> None:
-    """Flush, turning constraint violations (e.g. a concurrent duplicate) into RegistryError."""
-    try:
-        session.flush()
-    except IntegrityError as exc:
-        session.rollback()
-        msg = str(exc.orig).strip().splitlines()[0] if exc.orig else "constraint violated"
-        if "unique" in msg.lower() or "duplicate" in msg.lower():
-            raise RegistryError(f"{what}: already registered") from None
-        raise RegistryError(f"{what}: rejected by the database ({msg})") from None
-    except DBAPIError as exc:
-        session.rollback()
-        raise RegistryError(f"{what}: database error ({str(exc.orig).splitlines()[0]})") from None
+def _profile(row: tuple) -> UavProfile:
+    return UavProfile(**dict(zip(_PROFILE_COLUMNS, row)))
+
+
+def _record(row: tuple) -> IdentityRecord:
+    n = len(_IDENTITY_COLUMNS)
+    i = dict(zip(_IDENTITY_COLUMNS, row[:n]))
+    return IdentityRecord.from_dict({
+        "serial": i["serial"], "id_type": i["id_type"], "operator_id": i["operator_id"], "model": i["model_slug"],
+        "profile": _profile(row[n:]), "public_key": bytes(i["public_key"]) if i["public_key"] is not None else None,
+        "status": i["status"], "notes": i["notes"], **{c: Database.from_db_time(i[c]) for c in _TIMES}})
 
 
 # ------------------------------------------------------------------ profiles
-def list_profiles(session: Session) -> list[UavProfile]:
+def list_profiles(db: Database) -> list[UavProfile]:
     """All model profiles, ordered by slug (the radar side reads these)."""
-    return [_profile(r) for r in session.scalars(select(ModelProfile).order_by(ModelProfile.slug))]
+    return [_profile(r) for r in db.fetch(f"SELECT {', '.join(_PROFILE_COLUMNS)} FROM model_profiles ORDER BY slug")]
 
 
-def custom_profiles(session: Session) -> list[UavProfile]:
+def custom_profiles(db: Database) -> list[UavProfile]:
     """Profiles that are not one of the shipped ones (what a CSV export cannot carry)."""
     from signatures.profiles import shipped_profiles
 
     shipped = shipped_profiles()
-    return [p for p in list_profiles(session) if shipped.get(p.slug) != p]
+    return [p for p in list_profiles(db) if shipped.get(p.slug) != p]
 
 
-def register_profile(session: Session, profile: UavProfile) -> UavProfile:
+def register_profile(db: Database, profile: UavProfile) -> UavProfile:
     """Add a new airframe; an existing slug is an error (profiles are never silently changed)."""
-    if session.get(ModelProfile, profile.slug) is not None:
+    if db.fetch("SELECT 1 FROM model_profiles WHERE slug = :slug", {"slug": profile.slug}):
         raise RegistryError(f"model {profile.slug!r}: already registered")
-    session.add(ModelProfile(**profile.to_dict()))
-    _flush(session, f"model {profile.slug!r}")
+    db.execute(_insert("model_profiles", _PROFILE_COLUMNS), profile.to_dict(), what=f"model {profile.slug!r}")
     return profile
 
 
 # ------------------------------------------------------------------ identities
-def _known_models(session: Session) -> set[str]:
-    return set(session.scalars(select(ModelProfile.slug)))
+def _known_models(db: Database) -> set[str]:
+    return {str(r[0]) for r in db.fetch("SELECT slug FROM model_profiles")}
 
 
-def _row(new: NewIdentity, now: datetime) -> Identity:
+def _row(db: Database, new: NewIdentity, now: datetime) -> dict[str, Any]:
+    """The identities row of `new` as insert parameters (times in the database's form)."""
     created = new.created_at or (min(now, new.updated_at) if new.updated_at else now)
-    return Identity(serial=new.serial, id_type=new.id_type, operator_id=new.operator_id,
-                    model_slug=new.model, public_key=new.public_key, status=new.status,
-                    valid_from=new.valid_from or now, valid_until=new.valid_until,
-                    created_at=created, updated_at=new.updated_at or created, notes=new.notes)
+    times = {"valid_from": new.valid_from or now, "valid_until": new.valid_until, "created_at": created,
+             "updated_at": new.updated_at or created}
+    return {"serial": new.serial, "id_type": new.id_type, "operator_id": new.operator_id, "model_slug": new.model,
+            "public_key": new.public_key, "status": new.status, "notes": new.notes,
+            **{k: db.to_db_time(v) if v is not None else None for k, v in times.items()}}
 
 
-def register_identity(session: Session, new: NewIdentity) -> IdentityRecord:
+def register_identity(db: Database, new: NewIdentity) -> IdentityRecord:
     """Add one identity; unknown model or duplicate serial raise RegistryError."""
-    if new.model not in _known_models(session):
+    if new.model not in _known_models(db):
         raise RegistryError(f"unknown model {new.model!r} (register it first with --rotors ...)")
-    if get_identity(session, new.serial) is not None:
+    if get_identity(db, new.serial) is not None:
         raise RegistryError(f"serial {new.serial}: already registered")
-    row = _row(new, utcnow())
-    session.add(row)
-    _flush(session, f"serial {new.serial}")
-    return _record(row)
+    db.execute(_insert("identities", _IDENTITY_COLUMNS), _row(db, new, utcnow()), what=f"serial {new.serial}")
+    return _written(db, new.serial)
 
 
-def get_identity(session: Session, serial: str) -> IdentityRecord | None:
+def _written(db: Database, serial: str) -> IdentityRecord:
+    """The identity this transaction has just written, read back as stored."""
+    rec = get_identity(db, serial)
+    if rec is None:  # rows are never deleted, and this transaction holds the write lock
+        raise DatabaseFault(f"serial {serial}: not found after writing it")
+    return rec
+
+
+def get_identity(db: Database, serial: str) -> IdentityRecord | None:
     """The identity registered under `serial`, read in its normal form (`core.uasid.as_heard`)."""
-    row = session.scalar(select(Identity).where(Identity.serial == as_heard(serial)))
-    return _record(row) if row else None
+    rows = db.fetch(_SELECT_IDENTITY + " WHERE i.serial = :serial", {"serial": as_heard(serial)})
+    return _record(rows[0]) if rows else None
 
 
-def list_identities(session: Session, status: str | None = None) -> list[IdentityRecord]:
-    q = select(Identity).order_by(Identity.serial)
-    if status is not None:
-        q = q.where(Identity.status == status)
-    return [_record(r) for r in session.scalars(q)]
+def list_identities(db: Database, status: str | None = None) -> list[IdentityRecord]:
+    """Every identity (or those with `status`), by serial."""
+    if status is None:
+        return [_record(r) for r in db.fetch(_SELECT_IDENTITY + " ORDER BY i.serial")]
+    return [_record(r) for r in db.fetch(_SELECT_IDENTITY + " WHERE i.status = :status ORDER BY i.serial",
+                                         {"status": status})]
 
 
-def revoke_identity(session: Session, serial: str, reason: str | None = None) -> IdentityRecord:
+def revoke_identity(db: Database, serial: str, reason: str | None = None) -> IdentityRecord:
     """Mark an identity revoked (kept for the audit trail, never deleted)."""
-    row = session.scalar(select(Identity).where(Identity.serial == as_heard(serial)))
-    if row is None:
+    rec = get_identity(db, serial)
+    if rec is None:
         raise RegistryError(f"serial {serial}: not registered")
-    if row.status == "revoked":
-        raise RegistryError(f"serial {row.serial}: already revoked")
-    notes = row.notes
+    if rec.status == "revoked":
+        raise RegistryError(f"serial {rec.serial}: already revoked")
+    notes = rec.notes
     if reason:
         notes = (f"{notes}\n" if notes else "") + f"revoked: {reason}"
         if len(notes) > NOTES_MAX:  # an export of it would not import again
-            raise RegistryError(f"serial {row.serial}: --reason would make the notes longer "
+            raise RegistryError(f"serial {rec.serial}: --reason would make the notes longer "
                                 f"than {NOTES_MAX} characters")
-    row.status = "revoked"
-    row.updated_at = utcnow()
-    row.notes = notes
-    _flush(session, f"serial {row.serial}")
-    return _record(row)
+    db.execute("UPDATE identities SET status = :status, updated_at = :now, notes = :notes WHERE serial = :serial",
+               {"status": "revoked", "now": db.to_db_time(utcnow()), "notes": notes, "serial": rec.serial},
+               what=f"serial {rec.serial}")
+    return _written(db, rec.serial)
 
 
 # ------------------------------------------------------------------ bulk import
@@ -367,15 +380,15 @@ def _parse_csv(text: str) -> list[tuple[str, NewIdentity]]:
                 raise RegistryError(f"{label}: more fields than columns")
             cells = dict(zip(names, (c.strip() for c in raw)))
             try:
-                new = NewIdentity(
-                    serial=cells.get("serial", ""), id_type=cells.get("id_type") or "serial",
-                    model=cells.get("model", ""), operator_id=cells.get("operator_id") or None,
-                    public_key=cells.get("public_key") or None,
-                    status=cells.get("status") or "active",
-                    valid_from=cells.get("valid_from") or None,
-                    valid_until=cells.get("valid_until") or None,
-                    notes=cells.get("notes") or None)
-            except ValidationError as exc:
+                new = NewIdentity.from_dict({
+                    "serial": cells.get("serial", ""), "id_type": cells.get("id_type") or "serial",
+                    "model": cells.get("model", ""), "operator_id": cells.get("operator_id") or None,
+                    "public_key": cells.get("public_key") or None,
+                    "status": cells.get("status") or "active",
+                    "valid_from": cells.get("valid_from") or None,
+                    "valid_until": cells.get("valid_until") or None,
+                    "notes": cells.get("notes") or None})
+            except Invalid as exc:
                 raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
             except (RegistryError, ValueError) as exc:
                 raise RegistryError(f"{label}: {exc}") from None
@@ -386,15 +399,30 @@ def _parse_csv(text: str) -> list[tuple[str, NewIdentity]]:
     return rows
 
 
-class _Document(BaseModel):
-    """The top level of a JSON registry document; records are validated one by one."""
+#: The top level of a JSON registry document (besides `format`): each key's check, in order.
+_DOCUMENT_LISTS = ("profiles", "identities")
 
-    model_config = ConfigDict(extra="forbid")
 
-    format: str
-    exported_at: datetime | None = None
-    profiles: list[dict[str, Any]] = []
-    identities: list[dict[str, Any]] = []
+def _document(data: dict[str, Any]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The profiles and identities of a JSON registry document, its top level checked (records
+    are validated one by one); errors are worded as the records' are."""
+    try:
+        _utc_time(data.get("exported_at"))
+    except ValueError as exc:
+        raise RegistryError(f"exported_at: {exc}") from None
+    lists = []
+    for key in _DOCUMENT_LISTS:
+        items = data.get(key, [])
+        if not isinstance(items, list):
+            raise RegistryError(f"{key}: Input should be a valid list")
+        bad = next((i for i, item in enumerate(items) if not isinstance(item, dict)), None)
+        if bad is not None:
+            raise RegistryError(f"{key}.{bad}: Input should be a valid dictionary")
+        lists.append(items)
+    extra = next((k for k in data if k not in ("format", "exported_at", *_DOCUMENT_LISTS)), None)
+    if extra is not None:
+        raise RegistryError(f"{extra}: Extra inputs are not permitted")
+    return lists[0], lists[1]
 
 
 def _record_label(kind: str, i: int, raw: dict[str, Any], key: str) -> str:
@@ -402,12 +430,12 @@ def _record_label(kind: str, i: int, raw: dict[str, Any], key: str) -> str:
     return f"{kind}[{i}] ({key} {name})" if isinstance(name, str) and name else f"{kind}[{i}]"
 
 
-def _validated(model: type[BaseModel] | type[Checked], raw: Any, label: str) -> Any:
-    """One record of an import file through its model (pydantic, or a `core.checked` dataclass
-    such as UavProfile); errors name the record."""
+def _validated(model: type[Checked], raw: dict[str, Any], label: str) -> Any:
+    """One record of an import file through its `core.checked` dataclass (UavProfile,
+    NewIdentity); errors name the record."""
     try:
-        return model.from_dict(raw) if issubclass(model, Checked) else model.model_validate(raw)
-    except (ValidationError, Invalid) as exc:
+        return model.from_dict(raw)
+    except Invalid as exc:
         raise RegistryError(f"{label}: {describe_validation_error(exc)}") from None
     except (RegistryError, ValueError) as exc:
         raise RegistryError(f"{label}: {exc}") from None
@@ -426,20 +454,17 @@ def parse_json(text: str) -> RegistryImport:
                             "profiles and identities")
     if data.get("format") != REGISTRY_FORMAT:
         raise RegistryError(f"format: expected {REGISTRY_FORMAT!r}, found {data.get('format')!r}")
-    try:
-        doc = _Document.model_validate(data)
-    except ValidationError as exc:
-        raise RegistryError(describe_validation_error(exc)) from None
+    profiles, identities = _document(data)
     out = RegistryImport(format="json")
     seen_slugs: dict[str, str] = {}
-    for i, raw in enumerate(doc.profiles):
+    for i, raw in enumerate(profiles):
         label = _record_label("profiles", i, raw, "slug")
         p = _validated(UavProfile, raw, label)
         if p.slug in seen_slugs:
             raise RegistryError(f"{label}: slug {p.slug!r} repeats {seen_slugs[p.slug]}")
         seen_slugs[p.slug] = label
         out.profiles.append((label, p))
-    for i, raw in enumerate(doc.identities):
+    for i, raw in enumerate(identities):
         label = _record_label("identities", i, raw, "serial")
         new = _validated(NewIdentity, raw, label)
         out.identities.append((label, new))
@@ -471,7 +496,7 @@ def _profile_difference(a: UavProfile, b: UavProfile) -> str:
     return "identical"
 
 
-def import_records(session: Session, data: RegistryImport, skip_existing: bool = False) -> ImportResult:
+def import_records(db: Database, data: RegistryImport, skip_existing: bool = False) -> ImportResult:
     """Write a validated import in the caller's single transaction, or nothing.
 
     Profiles: missing ones are added, identical registered ones accepted,
@@ -480,7 +505,7 @@ def import_records(session: Session, data: RegistryImport, skip_existing: bool =
     serials are left as they are and counted: a second import of a file is a no-op).
     Status and timestamps are kept as given (a revoked identity stays revoked).
     """
-    registered = {p.slug: p for p in list_profiles(session)}
+    registered = {p.slug: p for p in list_profiles(db)}
     added, existing = [], 0
     for label, p in data.profiles:
         have = registered.get(p.slug)
@@ -499,29 +524,29 @@ def import_records(session: Session, data: RegistryImport, skip_existing: bool =
     serials = [new.serial for _, new in data.identities]
     taken: set[str] = set()
     for i in range(0, len(serials), 500):  # stay below the bind-parameter limits
-        taken |= set(session.scalars(select(Identity.serial).where(
-            Identity.serial.in_(serials[i:i + 500]))))
+        chunk = {f"s{k}": s for k, s in enumerate(serials[i:i + 500])}
+        marks = ", ".join(":" + k for k in chunk)
+        taken |= {str(r[0]) for r in db.fetch(f"SELECT serial FROM identities WHERE serial IN ({marks})", chunk)}
     if taken and not skip_existing:
         raise RegistryError(f"serial {sorted(taken)[0]}: already registered "
                             f"({len(taken)} of the file's serials are)")
     new_ones = [new for _, new in data.identities if new.serial not in taken]
-    session.add_all(ModelProfile(**p.to_dict()) for p in added)
-    _flush(session, "import (profiles)")
+    db.execute_many(_insert("model_profiles", _PROFILE_COLUMNS), [p.to_dict() for p in added],
+                    what="import (profiles)")
     now = utcnow()
-    session.add_all(_row(new, now) for new in new_ones)
-    _flush(session, "import")
+    db.execute_many(_insert("identities", _IDENTITY_COLUMNS), [_row(db, new, now) for new in new_ones], what="import")
     return ImportResult(identities=len(new_ones), profiles_added=len(added),
                         profiles_existing=existing, identities_skipped=len(data.identities) - len(new_ones))
 
 
-def import_csv(session: Session, text: str) -> int:
+def import_csv(db: Database, text: str) -> int:
     """Register every row of a CSV file in the caller's single transaction, or none."""
-    return import_records(session, parse_import(text, "csv")).identities
+    return import_records(db, parse_import(text, "csv")).identities
 
 
-def import_json(session: Session, text: str) -> ImportResult:
+def import_json(db: Database, text: str) -> ImportResult:
     """Restore a JSON registry document in the caller's single transaction, or nothing."""
-    return import_records(session, parse_json(text))
+    return import_records(db, parse_json(text))
 
 
 # ------------------------------------------------------------------ export
@@ -529,33 +554,33 @@ def _iso(t: datetime | None) -> str | None:
     return t.astimezone(timezone.utc).isoformat() if t is not None else None
 
 
-def export_document(session: Session) -> dict[str, Any]:
+def export_document(db: Database) -> dict[str, Any]:
     """Every profile and every identity, every field: what `import_json` restores."""
     return {
         "format": REGISTRY_FORMAT,
         "exported_at": _iso(utcnow()),
-        "profiles": [p.to_dict() for p in list_profiles(session)],
+        "profiles": [p.to_dict() for p in list_profiles(db)],
         "identities": [{
             "serial": r.serial, "id_type": r.id_type, "model": r.model,
             "operator_id": r.operator_id,
             "public_key": r.public_key.hex() if r.public_key is not None else None,
             "status": r.status, "valid_from": _iso(r.valid_from), "valid_until": _iso(r.valid_until),
             "notes": r.notes, "created_at": _iso(r.created_at), "updated_at": _iso(r.updated_at),
-        } for r in list_identities(session)],
+        } for r in list_identities(db)],
     }
 
 
-def export_json(session: Session) -> str:
+def export_json(db: Database) -> str:
     """The JSON registry document as UTF-8 text (non-ASCII kept readable)."""
-    return json.dumps(export_document(session), indent=2, ensure_ascii=False) + "\n"
+    return json.dumps(export_document(db), indent=2, ensure_ascii=False) + "\n"
 
 
-def export_csv(session: Session) -> str:
+def export_csv(db: Database) -> str:
     """All identities in the CSV import format (no profiles, no created_at/updated_at)."""
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
-    for r in list_identities(session):
+    for r in list_identities(db):
         w.writerow([r.serial, r.id_type, r.model, r.operator_id or "",
                     _iso(r.valid_from), _iso(r.valid_until) or "", r.notes or "",
                     r.status, r.public_key.hex() if r.public_key is not None else ""])

@@ -78,17 +78,6 @@ def db_url(request, tmp_path):
         yield url
 
 
-@pytest.fixture
-def session(db_url):
-    """A session on a migrated database; the test commits what it wants kept."""
-    from sqlalchemy.orm import Session
-
-    from registry.db import get_engine
-
-    with Session(get_engine(db_url), expire_on_commit=False) as s:
-        yield s
-
-
 @pytest.fixture(autouse=True)
 def _audit_log_key(tmp_path_factory, monkeypatch):
     """The audit log key and its signed-tree-head file live in a per-session temporary

@@ -75,12 +75,11 @@ def test_new_identity_refuses_a_datetime_that_overflows_in_utc() -> None:
     """The service hands NewIdentity parsed datetimes, not text: same refusal."""
     from datetime import datetime, timedelta, timezone
 
-    from pydantic import ValidationError
-
+    from core.checked import Invalid
     from registry.store import NewIdentity
 
     early = datetime(1, 1, 1, tzinfo=timezone(timedelta(hours=23, minutes=59)))
-    with pytest.raises(ValidationError, match="out of range"):
+    with pytest.raises(Invalid, match="out of range"):
         NewIdentity(serial=SERIAL, model="m300", valid_from=early)
 
 

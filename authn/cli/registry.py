@@ -39,22 +39,20 @@ def _default_valid_from() -> datetime:
 
 
 def _validated(cls, **fields):
-    """Build an input model (a pydantic one, or a `core.checked` dataclass such as UavProfile);
-    its first error becomes a one-line RegistryError."""
-    from pydantic import ValidationError
-
+    """Build a `core.checked` value (UavProfile, NewIdentity); its first error becomes a one-line
+    RegistryError."""
     from core.checked import Invalid
     from registry.errors import RegistryError
     from registry.store import describe_validation_error
 
     try:
         return cls(**fields)
-    except (ValidationError, Invalid) as exc:
+    except Invalid as exc:
         raise RegistryError(describe_validation_error(exc)) from None
 
 
 def _record_json(rec) -> dict:
-    return json.loads(rec.model_dump_json())
+    return rec.to_dict(json=True)
 
 
 def register_cmd(
@@ -119,13 +117,13 @@ def register_cmd(
     elif new_profile is None:
         raise RegistryError("nothing to register: give --serial (and/or a new model's parameters)")
 
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import register_identity, register_profile
 
-    with session_scope(ctx.obj.db_url) as session:
+    with transaction(ctx.obj.db_url) as db:
         if new_profile is not None:
-            register_profile(session, new_profile)
-        rec = register_identity(session, new) if new is not None else None
+            register_profile(db, new_profile)
+        rec = register_identity(db, new) if new is not None else None
     if as_json:
         out = {"profile": new_profile.to_dict() if new_profile else None,
                "identity": _record_json(rec) if rec else None}
@@ -164,14 +162,14 @@ def list_cmd(
 
     Example: authn registry list --status active --json
     """
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.errors import RegistryError
     from registry.store import list_identities
 
     if status not in (None, "active", "revoked"):
         raise RegistryError(f"--status {status!r}: expected active or revoked")
-    with session_scope(ctx.obj.db_url) as session:
-        records = list_identities(session, status)
+    with transaction(ctx.obj.db_url) as db:
+        records = list_identities(db, status)
     if as_json:
         typer.echo(json.dumps([_record_json(r) for r in records], indent=2))
         return
@@ -190,12 +188,12 @@ def show_cmd(
 
     Example: authn registry show 1581F5FJD12345678901 --json
     """
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.errors import RegistryError
     from registry.store import get_identity
 
-    with session_scope(ctx.obj.db_url) as session:
-        rec = get_identity(session, serial)
+    with transaction(ctx.obj.db_url) as db:
+        rec = get_identity(db, serial)
     if rec is None:
         raise RegistryError(f"serial {serial}: not registered")
     if as_json:
@@ -228,11 +226,11 @@ def revoke_cmd(
 
     Example: authn registry revoke 1581F5FJD12345678901 --reason "reported stolen"
     """
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import revoke_identity
 
-    with session_scope(ctx.obj.db_url) as session:
-        rec = revoke_identity(session, serial, reason)
+    with transaction(ctx.obj.db_url) as db:
+        rec = revoke_identity(db, serial, reason)
     typer.echo(printable(f"revoked {rec.serial}"))
 
 
@@ -268,7 +266,7 @@ def import_cmd(
 
     Example: authn registry import fleet.csv
     """
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.errors import RegistryError
     from registry.store import import_records, parse_import
 
@@ -285,9 +283,9 @@ def import_cmd(
         data = parse_import(text, fmt)  # validate everything before touching the database
     except RegistryError as exc:
         raise RegistryError(f"{file}: {exc}") from None
-    with session_scope(ctx.obj.db_url) as session:
+    with transaction(ctx.obj.db_url) as db:
         try:
-            result = import_records(session, data, skip_existing=skip_existing)
+            result = import_records(db, data, skip_existing=skip_existing)
         except RegistryError as exc:
             raise RegistryError(f"{file}: {exc}") from None
     msg = f"imported {result.identities} identities from {file}"
@@ -321,7 +319,7 @@ def export_cmd(
 
     Example: authn registry export --format csv --out fleet.csv
     """
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.errors import RegistryError
     from registry.store import custom_profiles, export_csv, export_json
 
@@ -329,12 +327,12 @@ def export_cmd(
         fmt = "csv" if out is not None and out.suffix.lower() == ".csv" else "json"
     if fmt not in ("json", "csv"):
         raise RegistryError(f"--format {fmt!r}: expected json or csv")
-    with session_scope(ctx.obj.db_url) as session:
+    with transaction(ctx.obj.db_url) as db:
         if fmt == "json":
-            text = export_json(session)
+            text = export_json(db)
         else:
-            text = export_csv(session)
-            custom = [p.slug for p in custom_profiles(session)]
+            text = export_csv(db)
+            custom = [p.slug for p in custom_profiles(db)]
     if fmt == "csv" and custom:
         typer.echo(f"warning: CSV carries no model profiles; custom model(s) {', '.join(custom)} "
                    "must be registered before this file imports elsewhere (use --format json)",
@@ -357,11 +355,11 @@ def models_cmd(
 
     Example: authn registry models --json
     """
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import list_profiles
 
-    with session_scope(ctx.obj.db_url) as session:
-        profiles = list_profiles(session)
+    with transaction(ctx.obj.db_url) as db:
+        profiles = list_profiles(db)
     if as_json:
         typer.echo(json.dumps([p.to_dict() for p in profiles], indent=2))
         return

@@ -30,52 +30,52 @@ class ApiKeyInfo:
                 "revoked_at": self.revoked_at.isoformat() if self.revoked_at else None}
 
 
-def _info(row: Any) -> ApiKeyInfo:
-    return ApiKeyInfo(row.id, row.name, row.role, row.created_at, row.revoked_at)
+_COLUMNS = "id, name, role, created_at, revoked_at"
+
+
+def _info(row: tuple) -> ApiKeyInfo:
+    from registry.dbapi import Database
+
+    created_at, revoked_at = (Database.from_db_time(t) for t in row[3:5])
+    return ApiKeyInfo(int(row[0]), row[1], str(row[2]), created_at, revoked_at)  # type: ignore[arg-type]
 
 
 def create_key(db_url: str | None, role: str, name: str | None = None) -> tuple[ApiKeyInfo, str]:
     """A new key: its record and the token (returned once, never stored)."""
     from core.errors import AuthnError
-    from registry.db import session_scope
-    from registry.models import ApiKey, utcnow
+    from registry.dbapi import transaction, utcnow
 
     if role not in ROLES:
         raise AuthnError(f"--role: must be operator or admin, got {role!r}")
     if name is not None and not 1 <= len(name) <= 100:
         raise AuthnError("--name: 1 to 100 characters")
     token = TOKEN_PREFIX + secrets.token_urlsafe(32)
-    with session_scope(db_url) as s:
-        row = ApiKey(name=name, role=role, key_hash=token_hash(token), created_at=utcnow())
-        s.add(row)
-        s.flush()
-        return _info(row), token
+    with transaction(db_url) as db:
+        params = {"name": name, "role": role, "h": token_hash(token), "at": db.to_db_time(utcnow())}
+        db.execute("INSERT INTO api_keys (name, role, key_hash, created_at) VALUES (:name, :role, :h, :at)", params)
+        return _info(db.fetch(f"SELECT {_COLUMNS} FROM api_keys WHERE key_hash = :h", {"h": params["h"]})[0]), token
 
 
 def list_keys(db_url: str | None) -> list[ApiKeyInfo]:
-    from sqlalchemy import select
+    from registry.dbapi import transaction
 
-    from registry.db import session_scope
-    from registry.models import ApiKey
-
-    with session_scope(db_url) as s:
-        return [_info(r) for r in s.scalars(select(ApiKey).order_by(ApiKey.id))]
+    with transaction(db_url) as db:
+        return [_info(r) for r in db.fetch(f"SELECT {_COLUMNS} FROM api_keys ORDER BY id")]
 
 
 def revoke_key(db_url: str | None, key_id: int) -> ApiKeyInfo:
     from core.errors import AuthnError
-    from registry.db import session_scope
-    from registry.models import ApiKey, utcnow
+    from registry.dbapi import transaction, utcnow
 
-    with session_scope(db_url) as s:
-        row = s.get(ApiKey, key_id)
-        if row is None:
+    with transaction(db_url) as db:
+        rows = db.fetch(f"SELECT {_COLUMNS} FROM api_keys WHERE id = :id", {"id": key_id})
+        if not rows:
             raise AuthnError(f"no API key {key_id}")
-        if row.revoked_at is not None:
+        if rows[0][4] is not None:
             raise AuthnError(f"API key {key_id}: already revoked")
-        row.revoked_at = utcnow()
-        s.flush()
-        return _info(row)
+        db.execute("UPDATE api_keys SET revoked_at = :at WHERE id = :id",
+                   {"at": db.to_db_time(utcnow()), "id": key_id})
+        return _info(db.fetch(f"SELECT {_COLUMNS} FROM api_keys WHERE id = :id", {"id": key_id})[0])
 
 
 def lookup(db: Any, token: str) -> tuple[int, str] | None:

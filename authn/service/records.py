@@ -144,7 +144,7 @@ class RevokeIn(BaseModel):
 
 
 def _record_json(rec: Any) -> dict[str, Any]:
-    return rec.model_dump(mode="json")
+    return rec.to_dict(json=True)
 
 
 def _audit_change(rt: Any, caller: Caller, action: str, serial: str, detail: dict[str, Any]) -> None:
@@ -176,10 +176,10 @@ async def _audited_write(rt: Any, caller: Caller, action: str, serial: str, deta
 def identities_list(request: Request, status: Literal["active", "revoked"] | None = None,
                     _caller: Caller = Depends(require("read_registry"))) -> list[dict[str, Any]]:
     """Registered identities, by serial."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import list_identities
 
-    with session_scope(runtime(request).settings.db_url) as s:
+    with transaction(runtime(request).settings.db_url) as s:
         return [_record_json(r) for r in list_identities(s, status)]
 
 
@@ -188,19 +188,19 @@ def identities_list(request: Request, status: Literal["active", "revoked"] | Non
 async def identities_register(request: Request, body: IdentityIn,
                               caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
     """Register an identity (admins); the change is audited with the acting key's id."""
-    from pydantic import ValidationError
+    from core.checked import Invalid
     from core.errors import AuthnError
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import NewIdentity, describe_validation_error, register_identity
 
     rt = runtime(request)
     try:
         new = NewIdentity(**body.model_dump(exclude_none=True))
-    except ValidationError as exc:
+    except Invalid as exc:
         raise AuthnError(describe_validation_error(exc)) from None
 
     def write() -> Any:
-        with session_scope(rt.settings.db_url) as s:
+        with transaction(rt.settings.db_url) as s:
             return register_identity(s, new)
 
     rec = await _audited_write(rt, caller, "register", new.serial, {"model": new.model}, write)
@@ -211,10 +211,10 @@ async def identities_register(request: Request, body: IdentityIn,
 def identities_get(request: Request, serial: Annotated[str, Path(pattern=_SERIAL)],
                    _caller: Caller = Depends(require("read_registry"))) -> dict[str, Any]:
     """One identity with its declared airframe."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import get_identity
 
-    with session_scope(runtime(request).settings.db_url) as s:
+    with transaction(runtime(request).settings.db_url) as s:
         rec = get_identity(s, serial)
     if rec is None:
         raise HTTPException(404, f"serial {serial}: not registered")
@@ -227,14 +227,14 @@ async def identities_revoke(request: Request, serial: Annotated[str, Path(patter
                             body: RevokeIn | None = None,
                             caller: Caller = Depends(require("write_registry"))) -> dict[str, Any]:
     """Revoke an identity (admins); kept for the audit trail, never deleted; audited."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import get_identity, revoke_identity
 
     rt = runtime(request)
     reason = body.reason if body else None
 
     def write() -> Any:
-        with session_scope(rt.settings.db_url) as s:
+        with transaction(rt.settings.db_url) as s:
             if get_identity(s, serial) is None:
                 raise HTTPException(404, f"serial {serial}: not registered")
             return revoke_identity(s, serial, reason)
@@ -246,8 +246,8 @@ async def identities_revoke(request: Request, serial: Annotated[str, Path(patter
 @router.get("/profiles", tags=["registry"], responses=_AUTH)
 def profiles(request: Request, _caller: Caller = Depends(require("read_registry"))) -> list[dict[str, Any]]:
     """Airframe profiles that identities may declare."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import list_profiles
 
-    with session_scope(runtime(request).settings.db_url) as s:
+    with transaction(runtime(request).settings.db_url) as s:
         return [p.to_dict(json=True) for p in list_profiles(s)]

@@ -68,10 +68,10 @@ def cw_site_policy() -> str:
 def bench_registry(db_url: str) -> None:
     """The drone's profile from its physics, its identity and a Phantom 4's."""
     from lab.accuracy import DJI_QUAD
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import NewIdentity, register_identity, register_profile
 
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         register_profile(s, DJI_QUAD)
         register_identity(s, NewIdentity(serial=GENUINE_SERIAL, model=DJI_QUAD.slug, valid_from=VALID_FROM))
         register_identity(s, NewIdentity(serial=IMPOSTOR_SERIAL, model="phantom4", valid_from=VALID_FROM))

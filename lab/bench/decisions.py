@@ -69,10 +69,10 @@ def keyed_serial(slug: str) -> str:
 def register_identities(db_url: str, keys: "dict[str, UaKey] | None" = None) -> None:
     """An active and a revoked identity per shipped profile; with `keys` (slug -> key) also a
     keyed one per slug (`keyed_serial`) holding that key's public half."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import NewIdentity, register_identity, revoke_identity
 
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         for slug in shipped_profiles():
             for revoked in (False, True):
                 register_identity(s, NewIdentity(serial=bench_serial(slug, revoked), model=slug, valid_from=VALID_FROM))

@@ -23,12 +23,12 @@ def test_the_cw_site_policy_drops_one_forbid_and_validates() -> None:
 
 def test_the_bench_registry_holds_the_drone_from_its_physics(tmp_path) -> None:
     from lab.accuracy import DJI_QUAD
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import custom_profiles, get_identity
 
     db = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     bench_registry(db)
-    with session_scope(db) as s:
+    with transaction(db) as s:
         assert [p.slug for p in custom_profiles(s)] == [DJI_QUAD.slug]
         assert get_identity(s, GENUINE_SERIAL).model == DJI_QUAD.slug
         assert get_identity(s, IMPOSTOR_SERIAL).model == "phantom4"

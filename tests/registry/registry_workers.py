@@ -7,7 +7,7 @@ from proc_workers import run_in_processes  # noqa: F401  (re-exported for the te
 
 def register_many(url: str, serials: list[str], barrier) -> tuple[int, int]:
     """Register each serial; returns (registered, refused as duplicates)."""
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.errors import RegistryError
     from registry.store import NewIdentity, register_identity
 
@@ -15,7 +15,7 @@ def register_many(url: str, serials: list[str], barrier) -> tuple[int, int]:
     ok = dup = 0
     for s in serials:
         try:
-            with session_scope(url) as session:
+            with transaction(url) as session:
                 register_identity(session, NewIdentity(serial=s, model="m300", operator_id="OP-1"))
             ok += 1
         except RegistryError as exc:

@@ -12,7 +12,8 @@ from datetime import datetime, timezone
 
 import pytest
 
-from registry.db import dispose_engines, session_scope
+from registry.db import dispose_engines
+from registry.dbapi import transaction
 from registry.errors import RegistryError
 from registry.models import Identity, ModelProfile
 from registry.store import (
@@ -86,7 +87,7 @@ def new_db(request, tmp_path):
 
 def populate(url: str) -> None:
     """Every kind of record the export must carry."""
-    with session_scope(url) as s:
+    with transaction(url) as s:
         register_profile(s, X8)
         register_profile(s, H6)  # custom, used by no identity: still exported
         register_identity(s, NewIdentity(
@@ -98,14 +99,14 @@ def populate(url: str) -> None:
                                          notes=""))
         register_identity(s, NewIdentity(serial=S_UUID, id_type="utm_uuid", model="phantom4"))
         register_identity(s, NewIdentity(serial=S_SESSION, id_type="specific_session", model="x8"))
-    with session_scope(url) as s:
+    with transaction(url) as s:
         revoke_identity(s, S_REVOKED, "stolen, reported 2025-03-01")
 
 
 def snapshot(url: str) -> tuple[list[dict], list[dict]]:
     """Every field of every identity (with its profile) and every profile."""
-    with session_scope(url) as s:
-        return ([r.model_dump() for r in list_identities(s)],
+    with transaction(url) as s:
+        return ([r.to_dict() for r in list_identities(s)],
                 [p.to_dict() for p in list_profiles(s)])
 
 
@@ -113,13 +114,13 @@ def exported(new_db, export):
     """(a populated registry, an empty one, what `export` makes of the first)."""
     src, dst = new_db(), new_db()
     populate(src)
-    with session_scope(src) as s:
+    with transaction(src) as s:
         return src, dst, export(s)
 
 
 def test_json_round_trip_is_lossless(new_db):
     src, dst, text = exported(new_db, export_json)
-    with session_scope(dst) as s:
+    with transaction(dst) as s:
         result = import_json(s, text)
     assert (result.identities, result.profiles_added, result.profiles_existing) == (5, 2, 3)
     identities, profiles = snapshot(src)
@@ -130,7 +131,7 @@ def test_json_round_trip_is_lossless(new_db):
     assert by_serial[S_REVOKED]["updated_at"] > by_serial[S_REVOKED]["created_at"]
     assert by_serial[S_KEY]["public_key"] == KEY and by_serial[S_KEY]["notes"] == NOTES
     assert by_serial[S_KEY]["profile"] == X8.to_dict() and by_serial[S_CAA]["notes"] == ""
-    with session_scope(dst) as s:
+    with transaction(dst) as s:
         assert get_identity(s, S_REVOKED).status == "revoked"
         again = export_document(s)
     first = json.loads(text)
@@ -141,7 +142,7 @@ def test_json_round_trip_is_lossless(new_db):
 def test_json_document_shape(new_db):
     src = new_db()
     populate(src)
-    with session_scope(src) as s:
+    with transaction(src) as s:
         doc = json.loads(export_json(s))
     assert doc["format"] == "authn-registry/1" and set(doc) == {"format", "exported_at", "profiles",
                                                                   "identities"}
@@ -161,7 +162,7 @@ def test_csv_round_trip_keeps_status_and_key(new_db):
     src, dst, text = exported(new_db, export_csv)
     assert text.splitlines()[0] == ("serial,id_type,model,operator_id,valid_from,valid_until,notes,"
                                     "status,public_key")
-    with session_scope(dst) as s:
+    with transaction(dst) as s:
         register_profile(s, X8)  # CSV carries no profiles
         assert import_csv(s, text) == 5
     skip = {"created_at", "updated_at", "notes"}  # not in CSV; '' notes read back as none
@@ -169,7 +170,7 @@ def test_csv_round_trip_keeps_status_and_key(new_db):
     assert [{k: v for k, v in r.items() if k not in skip} for r in a] == \
         [{k: v for k, v in r.items() if k not in skip} for r in b]
     assert [r["notes"] or None for r in a] == [r["notes"] for r in b]
-    with session_scope(dst) as s:
+    with transaction(dst) as s:
         assert get_identity(s, S_REVOKED).status == "revoked"
         assert get_identity(s, S_KEY).public_key == KEY
 
@@ -177,7 +178,7 @@ def test_csv_round_trip_keeps_status_and_key(new_db):
 def test_csv_without_the_profile_fails_naming_json(new_db):
     src, dst, text = exported(new_db, export_csv)
     with pytest.raises(RegistryError, match=r"line \d+: unknown model 'x8' \(CSV carries no profiles"), \
-            session_scope(dst) as s:
+            transaction(dst) as s:
         import_csv(s, text)
     assert snapshot(dst)[0] == []
 
@@ -186,7 +187,7 @@ def test_old_csv_without_status_and_key_still_imports(new_db):
     db = new_db()
     old = ("serial,id_type,model,operator_id,valid_from,valid_until,notes\n"
            f"{S_KEY},serial,m300,OP-1,2024-01-01T00:00:00Z,,\"a, b\nc\"\n")
-    with session_scope(db) as s:
+    with transaction(db) as s:
         assert import_csv(s, old) == 1
         rec = get_identity(s, S_KEY)
     assert rec.status == "active" and rec.public_key is None and rec.notes == "a, b\nc"
@@ -194,15 +195,15 @@ def test_old_csv_without_status_and_key_still_imports(new_db):
 
 def test_existing_identical_profile_accepted_conflicting_refused_atomically(new_db):
     src, dst, doc = exported(new_db, export_document)
-    with session_scope(dst) as s:
+    with transaction(dst) as s:
         register_profile(s, X8)  # identical: fine
     changed = json.loads(json.dumps(doc))
     next(p for p in changed["profiles"] if p["slug"] == "m300")["rotor_rate_hz"] = 41.0
     with pytest.raises(RegistryError, match=r"^profiles\[1\] \(slug m300\): conflicts with the registered "
                                             r"model 'm300' \(rotor_rate_hz 41.0 in the file, 40.0 registered\)"), \
-            session_scope(dst) as s:
+            transaction(dst) as s:
         import_json(s, json.dumps(changed))
-    with session_scope(dst) as s:
+    with transaction(dst) as s:
         assert list_identities(s) == [] and "h6" not in {p.slug for p in list_profiles(s)}
         result = import_json(s, json.dumps(doc))
     assert (result.profiles_added, result.profiles_existing) == (1, 4)
@@ -212,14 +213,14 @@ def test_a_bad_last_record_writes_nothing(new_db):
     src, dst, doc = exported(new_db, export_document)
     doc["identities"].append({"serial": "1581F5FJD12345678909", "model": "nope"})
     with pytest.raises(RegistryError, match=r"identities\[5\] \(serial 1581F5FJD12345678909\): unknown model"), \
-            session_scope(dst) as s:
+            transaction(dst) as s:
         import_json(s, json.dumps(doc))
     assert snapshot(dst) == ([], [p.to_dict() for p in sorted(shipped_profiles().values(),
                                                                    key=lambda p: p.slug)])
-    with session_scope(dst) as s:  # already-registered serials: refused as a whole too
+    with transaction(dst) as s:  # already-registered serials: refused as a whole too
         register_identity(s, NewIdentity(serial=S_UUID, id_type="utm_uuid", model="m300"))
     doc["identities"].pop()
-    with pytest.raises(RegistryError, match=f"serial {S_UUID}: already registered"), session_scope(dst) as s:
+    with pytest.raises(RegistryError, match=f"serial {S_UUID}: already registered"), transaction(dst) as s:
         import_json(s, json.dumps(doc))
     assert [r["serial"] for r in snapshot(dst)[0]] == [S_UUID]
 
@@ -286,7 +287,7 @@ def test_csv_errors_including_a_missing_header(text, match):
 def test_csv_header_names_are_case_insensitive_and_status_key_columns_read(new_db):
     db = new_db()
     text = f"Serial,MODEL,Status,Public_Key\n{S_KEY},m300,revoked,{KEY.hex().upper()}\n"
-    with session_scope(db) as s:
+    with transaction(db) as s:
         assert import_csv(s, text) == 1
         rec = get_identity(s, S_KEY)
     assert rec.status == "revoked" and rec.public_key == KEY
@@ -294,11 +295,11 @@ def test_csv_header_names_are_case_insensitive_and_status_key_columns_read(new_d
 
 def test_revoke_reason_may_not_make_notes_unexportable(new_db):
     db = new_db()
-    with session_scope(db) as s:
+    with transaction(db) as s:
         register_identity(s, NewIdentity(serial=S_KEY, model="m300", notes="x" * 1990))
-    with pytest.raises(RegistryError, match="longer than 2000"), session_scope(db) as s:
+    with pytest.raises(RegistryError, match="longer than 2000"), transaction(db) as s:
         revoke_identity(s, S_KEY, "a long reason")
-    with session_scope(db) as s:
+    with transaction(db) as s:
         assert get_identity(s, S_KEY).status == "active"
 
 
@@ -379,12 +380,12 @@ def test_a_record_and_the_check_path_read_the_same_identity(tmp_path) -> None:
     """The registry's full record and the check path's raw read give one identity model
     (`registry.dbapi.IdentityFacts`): the decision's view of a record is its `facts`."""
     from registry.dbapi import Database
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import NewIdentity, get_identity, register_identity
 
     url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
-    with session_scope(url) as s:
+    with transaction(url) as s:
         register_identity(s, NewIdentity(serial="1581D5FKD229400R0V", model="m300", operator_id="OP-1"))
-    with session_scope(url) as s:
+    with transaction(url) as s:
         record = get_identity(s, "1581D5FKD229400R0V")
     assert Database(url).identity("1581D5FKD229400R0V") == record.facts

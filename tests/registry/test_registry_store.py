@@ -8,7 +8,8 @@ import pytest
 from sqlalchemy import text
 from sqlalchemy.exc import DBAPIError
 
-from registry.db import get_engine, session_scope
+from registry.db import get_engine
+from registry.dbapi import transaction
 from registry.errors import RegistryError
 from registry.keys import parse_public_key
 from registry.store import (
@@ -27,27 +28,28 @@ from signatures.profiles import UavProfile, shipped_profiles
 SERIAL = "1581F5FJD12345678901"
 
 
-def test_migration_seeds_exactly_the_shipped_profiles(session):
-    assert {p.slug: p for p in list_profiles(session)} == shipped_profiles()
+def test_migration_seeds_exactly_the_shipped_profiles(db_url):
+    with transaction(db_url) as db:
+        assert {p.slug: p for p in list_profiles(db)} == shipped_profiles()
 
 
 def test_register_get_revoke(db_url):
     key = bytes(range(32))
     until = datetime(2031, 1, 1, tzinfo=timezone.utc)
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         rec = register_identity(s, NewIdentity(serial=SERIAL.lower(), model="m600", operator_id="FIN87astrdge12k",
                                                public_key=key, valid_until=until, notes="survey"))
     assert rec.serial == SERIAL  # normalised to upper case
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         got = get_identity(s, SERIAL)
     assert got.profile == shipped_profiles()["m600"]
     assert got.public_key == key and got.valid_until == until and got.status == "active"
     assert got.created_at.tzinfo is not None and got.valid_from <= datetime.now(timezone.utc)
     assert got.valid_from <= datetime.now(timezone.utc) < got.valid_until
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         revoked = revoke_identity(s, SERIAL, "lost")
     assert revoked.status == "revoked" and "revoked: lost" in revoked.notes
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         assert get_identity(s, SERIAL).status == "revoked"
         assert [r.serial for r in list_identities(s, "revoked")] == [SERIAL]
         assert list_identities(s, "active") == []
@@ -58,21 +60,21 @@ def test_register_get_revoke(db_url):
 
 
 def test_duplicate_and_unknown_model_are_refused(db_url):
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         register_identity(s, NewIdentity(serial=SERIAL, model="m300"))
-    with pytest.raises(RegistryError, match="already registered"), session_scope(db_url) as s:
+    with pytest.raises(RegistryError, match="already registered"), transaction(db_url) as s:
         register_identity(s, NewIdentity(serial=SERIAL, model="m300"))
-    with pytest.raises(RegistryError, match="unknown model"), session_scope(db_url) as s:
+    with pytest.raises(RegistryError, match="unknown model"), transaction(db_url) as s:
         register_identity(s, NewIdentity(serial="1581F5FJD12345678902", model="nope"))
 
 
 def test_new_profile_then_identity(db_url):
     x8 = UavProfile(slug="x8", name="Octo X8", rotors=8, arms=4, blade_length_m=0.38,
                     rotor_rate_hz=45.0, propeller_distance_m=1.2)
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         register_profile(s, x8)
         register_identity(s, NewIdentity(serial=SERIAL, model="x8"))
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         assert get_identity(s, SERIAL).profile == x8
         with pytest.raises(RegistryError, match="already registered"):
             register_profile(s, x8)
@@ -136,9 +138,9 @@ FA3ABC1234,caa_registration,m600,OP-2,2024-06-01,,"note, with comma"
 
 
 def test_import_export_round_trip(db_url):
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         assert import_csv(s, CSV) == 3
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         out = export_csv(s)
         rec = get_identity(s, "FA3ABC1234")
     assert rec.id_type == "caa_registration" and rec.notes == "note, with comma"
@@ -160,18 +162,18 @@ def test_import_export_round_trip(db_url):
 ])
 def test_failed_import_writes_nothing(db_url, bad_row, match):
     text_ = CSV.splitlines()[0] + "\n" + "\n".join(CSV.splitlines()[1:3]) + "\n" + bad_row + "\n"
-    with pytest.raises(RegistryError, match=match), session_scope(db_url) as s:
+    with pytest.raises(RegistryError, match=match), transaction(db_url) as s:
         import_csv(s, text_)
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         assert list_identities(s) == []
 
 
 def test_import_refuses_already_registered_serials_atomically(db_url):
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         register_identity(s, NewIdentity(serial="1581F5FJD12345678902", model="m300"))
-    with pytest.raises(RegistryError, match="already registered"), session_scope(db_url) as s:
+    with pytest.raises(RegistryError, match="already registered"), transaction(db_url) as s:
         import_csv(s, CSV)
-    with session_scope(db_url) as s:
+    with transaction(db_url) as s:
         assert [r.serial for r in list_identities(s)] == ["1581F5FJD12345678902"]
 
 

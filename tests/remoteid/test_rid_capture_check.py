@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from authn.cli import main
-from registry.db import session_scope
+from registry.dbapi import transaction
 from registry.store import NewIdentity, register_identity
 from tests.registry_tools import register
 from signatures.recording import write_recording
@@ -70,7 +70,7 @@ def test_return_at_broadcast_position_is_accepted(world, capsys, tmp_path):
     decide), the return where the capture puts the drone is accepted; at the world's site (an M600
     registered too) and the default targets the same claim is inconclusive, refuted by nothing."""
     site = {"db": f"sqlite:///{tmp_path / 'm300-only.sqlite3'}"}
-    with session_scope(site["db"]) as s:
+    with transaction(site["db"]) as s:
         register_identity(s, NewIdentity(serial=SERIAL, model="m300", operator_id="TEST",
                                          valid_from=datetime(2020, 1, 1, tzinfo=timezone.utc)))
     code, out = _check(site, capsys, world["one"], "--rid-capture", str(BEACON), *LOOSE)

@@ -24,13 +24,13 @@ def tracks(tmp_path_factory, sqlite_db) -> dict[str, list[Path]]:
     from datetime import datetime, timezone
 
     from lab.bench.track import track_recordings
-    from registry.db import session_scope
+    from registry.dbapi import transaction
     from registry.store import NewIdentity, register_identity
     from signatures.profiles import shipped_profiles
     from signatures.recording import write_recording
     from signatures.scene import Scene
 
-    with session_scope(sqlite_db) as s:
+    with transaction(sqlite_db) as s:
         register_identity(s, NewIdentity(serial=P4, model="phantom4", operator_id="TEST",
                                          valid_from=datetime(2020, 1, 1, tzinfo=timezone.utc)))
     root = tmp_path_factory.mktemp("tracks")

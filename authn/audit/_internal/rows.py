@@ -18,7 +18,7 @@ PAGE = 5000
 _TEXT_COLUMNS = ("kind", "serial", "decision", "payload", "prev_hash", "entry_hash", "leaf_hash")
 _OPTIONAL = ("serial", "decision", "leaf_hash")
 
-#: created_at as the writer stores it in SQLite (Database.SQLITE_TIME, UTC): the only text accepted
+#: created_at as the writer stores it in SQLite (Database.to_db_time, UTC): the only text accepted
 _SQLITE_CANONICAL = re.compile(r"\d{4}-\d{2}-\d{2} \d{2}:\d{2}:\d{2}\.\d{6}")
 
 
