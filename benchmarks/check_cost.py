@@ -34,6 +34,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))  # this tree's code, ahead of any installed copy
 
 
 def _env(tmp: Path) -> dict[str, str]:
