@@ -14,6 +14,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from functools import partial
 from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -590,6 +591,7 @@ class Checker:
         done: dict[Key, Outcome | Failure] = {}
         fronts: dict[Key, _Front] = {}
         targets: dict[int, tuple[list[dict[str, float]], float]] = {}  # capture input -> its targets, range bin
+        rows = _Memo()  # rows per batch by cube shape: the available memory read once per call
 
         def flush() -> None:
             decided, undecided = self._early(fronts)
@@ -621,7 +623,8 @@ class Checker:
                     pass
                 return stopped(exc, Failure.of(item.name, item.serial, exc))
             last = next(reversed(fronts.values()), None)
-            if last is not None and len(fronts) > 1 and len(fronts) >= _batch_size(last.rec):  # memory holds no more
+            if last is not None and len(fronts) > 1 and len(fronts) >= rows(  # memory holds no more
+                    (last.rec.n_chirps, last.rec.n_samples), partial(_batch_size, last.rec)):
                 try:
                     flush()
                 except SystemFault as exc:
