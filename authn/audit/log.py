@@ -29,9 +29,9 @@ _EXAMPLE_KEY = (b"-----BEGIN PRIVATE KEY-----\nMC4CAQAwBQYDK2VwBCIEINTuctv5E1hK1
 def _prepare_signing() -> None:
     import importlib
 
-    from core.pem import private_key
-
     try:
+        from core.pem import private_key
+
         for name in SIGNING_MODULES:
             importlib.import_module(name)
         private_key(_EXAMPLE_KEY).sign(b"")
