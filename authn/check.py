@@ -14,11 +14,13 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from functools import partial
 from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from authn.audit import AuditLog, NewEntry
+from authn.audit.log import signing_warmed
 from core.digest import file_sha256
 from core.errors import EXIT_BAD_INPUT, describe, exit_code_for
 from core.uasid import as_heard
@@ -241,6 +243,19 @@ class _Pending:
         return self.association.gate
 
 
+class _Memo:
+    """Answers kept for one batch: each key's function runs once (a failure is not kept, so
+    each return that asks again raises its own error)."""
+
+    def __init__(self) -> None:
+        self._kept: dict[tuple, Any] = {}
+
+    def __call__(self, key: tuple, fn: Callable[[], Any]) -> Any:
+        if key not in self._kept:
+            self._kept[key] = fn()
+        return self._kept[key]
+
+
 def _flag(confusable: tuple[str, ...] | None) -> bool | None:
     """A `_confusable_models` answer as the policy's `radar_confusable` (None: not a site bundle)."""
     return None if confusable is None else bool(confusable)
@@ -455,14 +470,16 @@ class Checker:
         others = classifier.confusable_with(model, tracks) if model else ()
         return tuple(sorted(set(others) & self.db.registered_models())) if others else ()
 
-    def _group(self, others: tuple[str, ...] | None, auth: RemoteIdAuth) -> tuple:
+    @staticmethod
+    def _group(others: tuple[str, ...] | None, auth: RemoteIdAuth,
+               profile: Callable[[str], UavProfile | None]) -> tuple:
         """The profiles a claim is verified together with: where its DRIP signature is valid (the
         signature vouches for the exact identity), the registered models radar cannot tell from its
         own (`others`, at the level the check decides at), so that radar vouches for what it can
-        tell; () otherwise."""
+        tell; () otherwise. `profile`: a model's registered profile."""
         if auth.status != "valid" or not others:
             return ()
-        return tuple(p for p in (self.db.profile(m) for m in others) if p is not None)
+        return tuple(p for p in map(profile, others) if p is not None)
 
     def _front(self, rec: Recording, serial: str | None, file: str, digest: str, timer: _Timer,
                captured: bool = False, track: bool = False, heard: Broadcaster | None = None,
@@ -486,23 +503,31 @@ class Checker:
                             range_measured=rec.domain != "cw", sprt=sprt or self.sprt)
         return _Front(rec, claim, auth, evidence, evidence.policy_input(), file, digest, timer, track)
 
-    def _prepare(self, f: _Front) -> _Pending:
+    def _prepare(self, f: _Front, memo: _Memo) -> _Pending:
         """What the radar stages of a return the registry did not decide need: the bundle of its
-        waveform, the registered model's physics and alternatives, the claim's own target."""
+        waveform, the registered model's physics and alternatives, the claim's own target.
+        `memo`: the batch's answers so far (one bundle per waveform, one registry read per question)."""
         from authn.association import associate
         from signatures.inference import classifier_for
+        from signatures.radar import recording_waveform
 
-        classifier = classifier_for(f.rec, self.model, f.file or "FILE")  # the bundle of the file's waveform
+        classifier = memo(("bundle", recording_waveform(f.rec).key),  # the bundle of the file's waveform
+                          lambda: classifier_for(f.rec, self.model, f.file or "FILE"))
         model, timer = f.evidence.registry.model, f.timer
+
+        def profile(slug: str) -> UavProfile | None:
+            return memo(("profile", slug), lambda: self.db.profile(slug))
+
         with timer.stage("registry"):  # the registered model's physics, only now that the radar runs
-            claimed = self.db.profile(model) if model else None
-            alternatives = tuple(p for p in self.db.registered_profiles() if p.slug != model)
-            single = self._confusable_models(classifier, model)
-            over_tracks = self._confusable_models(classifier, model, tracks=True)
+            claimed = profile(model) if model else None
+            alternatives = tuple(p for p in memo(("active",), self.db.registered_profiles) if p.slug != model)
+            single, over_tracks = (memo(("confusable", id(classifier), model, t),
+                                        lambda t=t: self._confusable_models(classifier, model, tracks=t))
+                                   for t in (False, True))
             evidence = replace(f.evidence, preset=classifier.preset, radar_confusable=_flag(single),
                                radar_confusable_track=_flag(over_tracks),
                                separation=classifier.separation_of(model) if model else {})
-            group = self._group(over_tracks if f.track else single, f.auth)
+            group = self._group(over_tracks if f.track else single, f.auth, profile)
         expected = None  # at the first chirp, the time the radar's range estimate refers to
         if f.claim.state is not None:
             site = f.rec.site
@@ -566,6 +591,7 @@ class Checker:
         done: dict[Key, Outcome | Failure] = {}
         fronts: dict[Key, _Front] = {}
         targets: dict[int, tuple[list[dict[str, float]], float]] = {}  # capture input -> its targets, range bin
+        rows = _Memo()  # rows per batch by cube shape: the available memory read once per call
 
         def flush() -> None:
             decided, undecided = self._early(fronts)
@@ -597,7 +623,8 @@ class Checker:
                     pass
                 return stopped(exc, Failure.of(item.name, item.serial, exc))
             last = next(reversed(fronts.values()), None)
-            if last is not None and len(fronts) > 1 and len(fronts) >= _batch_size(last.rec):  # memory holds no more
+            if last is not None and len(fronts) > 1 and len(fronts) >= rows(  # memory holds no more
+                    (last.rec.n_chirps, last.rec.n_samples), partial(_batch_size, last.rec)):
                 try:
                     flush()
                 except SystemFault as exc:
@@ -655,9 +682,10 @@ class Checker:
         from core.errors import SystemFault
 
         out: dict[Key, _Pending | Failure] = {}
+        memo = _Memo()
         for k, f in fronts.items():
             try:
-                out[k] = self._prepare(f)
+                out[k] = self._prepare(f, memo)
             except SystemFault:
                 raise
             except Exception as exc:  # noqa: BLE001 - one bad or crashing return must not stop the batch
@@ -775,8 +803,9 @@ class Checker:
 
         if not pending:
             return {}
-        fmap, failed = self._features(pending)
-        preds = self._classes(pending, fmap, failed)
+        with signing_warmed():  # the audit's cryptography imported while the radar runs
+            fmap, failed = self._features(pending)
+            preds = self._classes(pending, fmap, failed)
         out: dict[Key, Outcome | Failure] = dict(failed)
         finished: dict[Key, Evidence] = {}
         for k, feats in fmap.items():
