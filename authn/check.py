@@ -35,11 +35,11 @@ if TYPE_CHECKING:
     from authn.policy import PolicyResult
     from authn.sprt import Sprt
     from remoteid.capture import Broadcaster, CapturedMessage
-    from signatures.feature_vector import FeatureResult
-    from signatures.inference import Classifier, Prediction
+    from signatures.dsp.feature_vector import FeatureResult
+    from signatures.classify.inference import Classifier, Prediction
     from signatures.profiles import UavProfile
     from signatures.recording import Recording
-    from signatures.verify import Verification
+    from signatures.classify.verify import Verification
 
 RADAR_STAGES = ("radar_features", "classify", "kinematics")
 #: A return's place in a batch: (input, claim of that input: a capture names several drones)
@@ -432,7 +432,7 @@ class Checker:
         #: None: its default error targets)
         self.sprt = sprt
         if model is not None:
-            from signatures.inference import load_classifier
+            from signatures.classify.inference import load_classifier
 
             load_classifier(path=model)  # a bad bundle stops here, not once per file
 
@@ -451,7 +451,7 @@ class Checker:
             return None
         from dataclasses import asdict
 
-        from signatures.verify import bands_from, verify
+        from signatures.classify.verify import bands_from, verify
 
         card_bands = getattr(classifier, "physics_bands", None)
         return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
@@ -508,7 +508,7 @@ class Checker:
         waveform, the registered model's physics and alternatives, the claim's own target.
         `memo`: the batch's answers so far (one bundle per waveform, one registry read per question)."""
         from authn.association import associate
-        from signatures.inference import classifier_for
+        from signatures.classify.inference import classifier_for
         from signatures.radar import recording_waveform
 
         classifier = memo(("bundle", recording_waveform(f.rec).key),  # the bundle of the file's waveform

@@ -25,7 +25,7 @@ from authn.scenario import Broadcast, Signing, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 IDENTITIES = (  # serial, model, status
     ("1581BDEM00000001", "m600", "active"),

@@ -3,11 +3,11 @@
 The recording is labelled (LABELS.csv, or its Remote ID serial's registered model) and its
 features are extracted as `authn check` extracts them: gated at the range its Remote ID
 declares, so the site bundle learns the features it will be asked about. Here, not in
-`signatures.enrol`, because labelling reads the registry and gating the Remote ID (layers).
+`signatures.train.enrol`, because labelling reads the registry and gating the Remote ID (layers).
 
 A carrier-stepped radar enrols as one waveform (`on_one_waveform`): its recordings' carriers
 within the carrier band of the middle one, their Doppler-frequency features put on that carrier
-as a check puts them (`signatures.carrier`).
+as a check puts them (`signatures.classify.carrier`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ def site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteS
     from authn.kinematics import expected_from_radar
     from core.errors import AuthnException
     from core.digest import file_sha256
-    from signatures.enrol import EnrolError, SiteSample
+    from signatures.train.enrol import EnrolError, SiteSample
     from signatures.features import extract
     from signatures.radar import recording_waveform
     from signatures.recording import read_recording
@@ -61,8 +61,8 @@ def site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteS
 
 def on_one_waveform(read: list, base=None):  # ([(SiteSample, Preset)], Preset | None) -> (Preset, samples, carriers)
     """The one waveform the recordings enrol as (`base` where given: the bundle `--add` extends;
-    else `signatures.carrier.band_waveform`), the samples with their feature vectors as a radar
-    of that waveform's carrier would have measured them (`signatures.carrier.normalise`: what a
+    else `signatures.classify.carrier.band_waveform`), the samples with their feature vectors as a radar
+    of that waveform's carrier would have measured them (`signatures.classify.carrier.normalise`: what a
     check does before the classifier sees them; the physics estimates, in rates and m/s, stay as
     measured, as the check's verification reads them), and each sample's carrier (Hz).
     A recording the waveform does not serve is an EnrolError naming the waveforms."""
@@ -70,8 +70,8 @@ def on_one_waveform(read: list, base=None):  # ([(SiteSample, Preset)], Preset |
 
     import numpy as np
 
-    from signatures.carrier import CARRIER_BAND_REL, band_waveform, carrier_ratio, normalise
-    from signatures.enrol import EnrolError
+    from signatures.classify.carrier import CARRIER_BAND_REL, band_waveform, carrier_ratio, normalise
+    from signatures.train.enrol import EnrolError
     from signatures.features import FEATURE_NAMES
 
     waveforms = {wf.key: wf for _, wf in read}

@@ -253,7 +253,7 @@ class RadarEvidence:
     operational_state: str | None = None
     nearest: str | None = None
     model_card_sha256: str | None = None
-    #: 1:1 verification against the claimed profile (`signatures.verify`); None when not run
+    #: 1:1 verification against the claimed profile (`signatures.classify.verify`); None when not run
     verification: Any = None
     #: how the claim's own target was chosen among the window's (`authn.association`); None: not run
     association: Any = None
@@ -363,7 +363,7 @@ class Evidence:
         v = self.radar.verification if self.radar is not None else None
         if v is None or not v.terms:
             return []
-        from signatures.verify import UNKNOWN
+        from signatures.classify.verify import UNKNOWN
 
         return [(sprt or self.test()).increments(v.against or {UNKNOWN: v.llr}, not v.physics_abstained)]
 

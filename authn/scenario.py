@@ -16,8 +16,8 @@ import numpy as np
 
 from signatures.radar import Preset
 from signatures.recording import Recording
-from signatures.scene import Scene
-from signatures.simulate import DEFAULT_START, Truth, simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import DEFAULT_START, Truth, simulate
 
 UA_TYPE_MULTIROTOR = 2
 

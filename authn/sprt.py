@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from core.errors import AuthnError
-from signatures.verify import UNKNOWN  # a bare (not per-alternative) LLR is against the background
+from signatures.classify.verify import UNKNOWN  # a bare (not per-alternative) LLR is against the background
 
 __all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION",
            "MAX_DWELLS_TO_DECIDE", "Sprt", "alternative_sums"]
@@ -140,7 +140,7 @@ class Sprt:
         present), in order: ("accept" | "reject" | "inconclusive", dwells used). What the default
         policy's radar rules decide on the request `decide_track` builds (the track LLR in
         centinats against the same rounded bounds), with no other forbid: the site enrolment's
-        track-level pairwise errors (`signatures.enrol`, cross-validated dwell LLRs) are computed
+        track-level pairwise errors (`signatures.train.enrol`, cross-validated dwell LLRs) are computed
         with it."""
         accept_cn, reject_cn = self.bounds_cn()
         increments: list[Mapping[str, float]] = []

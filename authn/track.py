@@ -28,7 +28,7 @@ beta (false reject), accept at LLR >= log((1 - beta) / alpha) and reject at LLR 
 A single check is a track of one dwell: the same test, bounds, cap and policy rules decide it
 (`Evidence.context` sends the same `track` record), so one dwell alone, capped below both default
 bounds, is `inconclusive` unless a signature or another forbid decides. Each dwell's LLR is the least
-over the alternatives registered at the site (`signatures.verify`); over a track the increments are
+over the alternatives registered at the site (`signatures.classify.verify`); over a track the increments are
 summed per alternative and the least sum counts (`Sprt.track_llr`).
 
 The per-dwell decisions are reported but decide nothing: the track decision is one complete

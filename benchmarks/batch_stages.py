@@ -35,14 +35,14 @@ import numpy as np
 from authn.process import tune
 from lab.bench import perf
 from lab.bench.batch import _median_ms, returns
-from signatures import extraction as bf
+from signatures.dsp import extraction as bf
 from signatures import features as F
-from signatures import flash_period, flash_series
-from signatures import rd
-from signatures import timefreq as tf
-from signatures.inference import load_classifier
+from signatures.dsp import flash_period, flash_series
+from signatures.dsp import rd
+from signatures.dsp import timefreq as tf
+from signatures.classify.inference import load_classifier
 from signatures.radar import get_preset
-from signatures.threads import one_blas_thread
+from signatures.dsp.threads import one_blas_thread
 
 #: (module, function) wrapped in timers, reported under the function's name
 STAGES = ((bf, "_cube_stage"), (bf, "_subchirp_bins"), (flash_series, "flash_series_batch"),

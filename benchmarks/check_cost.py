@@ -60,7 +60,7 @@ def floor(files: list[Path]) -> None:
     """Read + validate, hash and transform each file: the work no check of it avoids."""
     import numpy as np
 
-    from signatures import timefreq as tf
+    from signatures.dsp import timefreq as tf
     from signatures.recording import read_recording
 
     for f in files:

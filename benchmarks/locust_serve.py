@@ -79,7 +79,7 @@ def _returns(out: Path, n: int) -> list[Path]:
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     kinds = [("m300", M300), ("m600", M600), ("phantom4", M600)]
     paths = []

@@ -2,7 +2,7 @@
 
     python benchmarks/randomisation_ablation.py --preset paper --n 60
 
-For each knob of `signatures.sampling.NuisanceDistribution` (all others held at the plain
+For each knob of `signatures.sim.sampling.NuisanceDistribution` (all others held at the plain
 simulator's values) it simulates `n` returns of the three shipped airframes at 10 dB and counts
 (a) returns the shipped bundle labels as their own type, confidently (>= 0.6) and known, and
 (b) flash-rate estimates within 5 % of the simulated rate. The figures in docs/signal-model.md
@@ -17,11 +17,11 @@ from dataclasses import fields, replace
 import numpy as np
 
 from signatures.features import extract
-from signatures.inference import load_classifier
+from signatures.classify.inference import load_classifier
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.sampling import NuisanceDistribution, SceneDistribution, sample_scene
-from signatures.simulate import simulate
+from signatures.sim.sampling import NuisanceDistribution, SceneDistribution, sample_scene
+from signatures.sim.simulate import simulate
 
 #: The plain simulator as a NuisanceDistribution (every span a point).
 PLAIN = NuisanceDistribution(

@@ -195,7 +195,7 @@ def main() -> None:
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     db = f"sqlite:///{tmp / 'authn.sqlite3'}"
     register_examples(db)

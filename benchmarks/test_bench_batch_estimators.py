@@ -1,5 +1,5 @@
 """Blade-flash estimators (flash series + periodicity + rotor count) per batch of gates
-(`signatures.flash_series`, `signatures.flash_period`), per batch size and preset.
+(`signatures.dsp.flash_series`, `signatures.dsp.flash_period`), per batch size and preset.
 
     python -m pytest benchmarks/test_bench_batch_estimators.py --benchmark-enable
 
@@ -15,8 +15,8 @@ import functools
 import numpy as np
 import pytest
 
-from signatures.flash_period import periodicity_batch
-from signatures.flash_series import flash_series_batch
+from signatures.dsp.flash_period import periodicity_batch
+from signatures.dsp.flash_series import flash_series_batch
 from lab.flash_gates import simulated_gates
 
 pytestmark = pytest.mark.slow  # ~18 s to simulate the gates of both presets

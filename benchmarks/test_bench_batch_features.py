@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from lab.bench.perf import fft_floor
-from signatures import extraction as bf
-from signatures.dataset import DatasetSpec, draw_scene
+from signatures.dsp import extraction as bf
+from signatures.train.dataset import DatasetSpec, draw_scene
 from signatures.profiles import shipped_profiles
-from signatures.simulate import simulate
+from signatures.sim.simulate import simulate
 
 SIZES = {"paper": (1, 8, 64, 256), "wide": (1, 8, 32, 64)}
 

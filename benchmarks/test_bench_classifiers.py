@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures.inference import bundle_dir, load_classifier
+from signatures.classify.inference import bundle_dir, load_classifier
 
 PRESETS = [p for p in ("paper", "wide") if (bundle_dir(p) / "card.json").is_file()]
 NO_BUNDLE = pytest.param("none", marks=pytest.mark.skip(reason="no trained classifier bundle (authn models train)"))

@@ -16,7 +16,7 @@ from registry.dbapi import Database
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 PRINCIPAL = dict(registered=True, status="active", model="m300", id_type="serial", valid_from_s=0, has_key=False)
 SITE = dict(time_s=1_767_268_800, preset="paper")

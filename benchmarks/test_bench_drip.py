@@ -66,7 +66,7 @@ def recordings() -> dict[str, object]:
     from authn.scenario import Broadcast, Signing, simulate_flight
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     scene = Scene(profile=shipped_profiles()["m300"], range_m=420.0, radial_speed_mps=4.0, snr_db=15.0)
     out = {}

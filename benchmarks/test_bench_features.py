@@ -12,8 +12,8 @@ from lab.bench.pareto import extract_full_cube
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 
 @pytest.fixture(scope="module", params=["paper", "wide"])

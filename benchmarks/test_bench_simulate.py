@@ -6,8 +6,8 @@ import pytest
 
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 SCENES = {
     "m600-moving-clutter": dict(profile="m600", radial_speed_mps=6.0, clutter_db=15.0),

@@ -4,7 +4,7 @@ Renders the same identity claims as `authn bench --worlds-only` (genuine, type s
 shipped profiles, unseen airframes claiming a registered serial; `CLAIM_SCENES` at a fixed SNR) in
 three worlds: the training simulator, the same with a domain-randomisation draw per scene
 (`sampling.NuisanceDistribution`) and the held-out model. Each return's features and the shipped
-bundle's class probabilities are scored by `signatures.verify` as shipped and with parts of the
+bundle's class probabilities are scored by `signatures.classify.verify` as shipped and with parts of the
 evidence replaced by the truth, or left out:
 
     shipped                 measured estimates + classifier
@@ -41,11 +41,11 @@ from lab.bench.worlds import WORLD_CATEGORIES, _pair
 from lab.accuracy import WORLDS, render_in_world
 from signatures.features import extract
 from lab.heldout import unseen_profiles
-from signatures.inference import classifier_for
+from signatures.classify.inference import classifier_for
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import get_preset
-from signatures.sampling import sample_scene
-from signatures.verify import verify
+from signatures.sim.sampling import sample_scene
+from signatures.classify.verify import verify
 
 
 #: Seed offset between the dwells of one scene.

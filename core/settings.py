@@ -42,7 +42,7 @@ VARIABLES: tuple[Variable, ...] = (
              "`models` in the user data directory"),
     Variable("AUTHN_CACHE_DIR", "cache_dir", "cache of simulated training data sets",
              "`datasets` in the user cache directory"),
-    Variable("AUTHN_FFT", "fft", "default FFT backend of radar processing (`signatures.fft`)", "numpy",
+    Variable("AUTHN_FFT", "fft", "default FFT backend of radar processing (`signatures.dsp.fft`)", "numpy",
              choices=("numpy", "scipy")),
     Variable("AUTHN_LOG_KEY", "log_key", "the audit log's Ed25519 key file; `--log-key` wins",
              "`audit-log-key.pem` in the user data directory"),

@@ -28,8 +28,8 @@ from signatures.features import extract
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import Preset, get_preset
 from signatures.recording import Recording
-from signatures.scene import Scene
-from signatures.verify import ROTOR_BAND
+from signatures.sim.scene import Scene
+from signatures.classify.verify import ROTOR_BAND
 
 RATE_TOLERANCE = 0.05
 WORLDS = ("training", "randomised", "heldout")
@@ -71,10 +71,10 @@ def render_in_world(world: str, scene: Scene, preset, seed: int):
 
         rec, truth = heldout.simulate(scene, preset, seed)
         return rec, truth.rotor_rate_hz, truth.range_m, truth.radial_speed_mps
-    from signatures.simulate import simulate
+    from signatures.sim.simulate import simulate
 
     if world == "randomised":
-        from signatures.sampling import randomised
+        from signatures.sim.sampling import randomised
 
         scene = randomised(scene, np.random.default_rng(seed))
     rec, truth = simulate(scene, preset, seed=seed)
@@ -248,7 +248,7 @@ def feature_estimate(rec: Recording) -> Estimate:
 
     result = extract(rec)
     f = result.features
-    from signatures.verify import min_flash_score
+    from signatures.classify.verify import min_flash_score
 
     unknown = result.physics.get("rotors_unknown", 0.0) >= 0.5  # the count said it cannot tell
     return Estimate(bool(f.detected > 0), float(f.rotor_rate_hz), float(f.radial_velocity_mps),

@@ -11,12 +11,12 @@ from unittest import mock
 
 import numpy as np
 
-from signatures import flash_series
-from signatures.dataset import DatasetSpec, draw_scene
+from signatures.dsp import flash_series
+from signatures.train.dataset import DatasetSpec, draw_scene
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import RadarConfig
-from signatures.simulate import simulate
+from signatures.sim.simulate import simulate
 
 
 @dataclass(frozen=True)

@@ -150,8 +150,8 @@ def enrol_site(db_url: str, flights: Path, name: str, base_samples: int, seed: i
     from authn.enrolment import on_one_waveform, site_sample
     from authn.sprt import Sprt
     from registry.dbapi import Database
-    from signatures.enrol import EnrolOptions, enrol
-    from signatures.inference import models_dir, set_active
+    from signatures.train.enrol import EnrolOptions, enrol
+    from signatures.classify.inference import models_dir, set_active
     from signatures.profiles import shipped_profiles
 
     db = Database(db_url)

@@ -1,7 +1,7 @@
 """How far any honest rotor count can go on our simulator's long-dwell conditions (docs/features.md,
 "Long dwells").
 
-The check counts the rotors whose flashes stand above the noise (`signatures.rotor_lines`) at a 1 %
+The check counts the rotors whose flashes stand above the noise (`signatures.dsp.rotor_lines`) at a 1 %
 false-alarm rate. This oracle knows more than any count can: each rotor of a `lab.accuracy`
 condition scene is rendered *alone* (the body, its own blades, the scene's clutter and noise draws),
 and its flash envelope is folded at its *true* pattern rate over the whole dwell; it is visible
@@ -10,7 +10,7 @@ phase bins only). No count that must find the rates, tell the rotors apart and s
 rotors' flashes sees more.
 
 `--search` holds the oracle to the count's own threshold instead: Bonferroni over the phase bins
-*and* the rate offsets the count searches (`signatures.rotor_lines.searched_slopes`), the price of
+*and* the rate offsets the count searches (`signatures.dsp.rotor_lines.searched_slopes`), the price of
 not knowing the rates. That bounds any count that searches those rates at that false-alarm rate.
 
     python -m lab.rotor_lines --condition cw-hover-tagged --condition cw-idle-tagged --n 120
@@ -29,15 +29,15 @@ from typing import Any
 import numpy as np
 
 from lab.accuracy import CONDITIONS
-from signatures.rotor_lines import FALSE_LINES, phase_time, searched_slopes
+from signatures.dsp.rotor_lines import FALSE_LINES, phase_time, searched_slopes
 
 
 @contextlib.contextmanager
 def _one_rotor(keep: int) -> Iterator[dict[str, float]]:
-    """While open, `signatures.simulate` renders the body and rotor `keep` only (the other rotors'
+    """While open, `signatures.sim.simulate` renders the body and rotor `keep` only (the other rotors'
     columns zeroed, every random draw as before); the dict receives `scale`, the amplitude that puts
     the lone rotor back at its level in the whole scene (the simulator normalises the target's power)."""
-    import signatures.simulate as sim
+    import signatures.sim.simulate as sim
 
     original = sim._uav_amplitudes
     out: dict[str, float] = {}
@@ -66,8 +66,8 @@ def rotors_alone(condition: Any, seed: int, false_alarm: float = FALSE_LINES,
     (per rotor, Bonferroni over the bins) above the noise. No estimator that knows less (the rates,
     which rotor is which, the others' flashes in between) sees more at that false-alarm rate.
     `search`: Bonferroni over the count's searched rate offsets too (module docstring)."""
-    import signatures.simulate as sim
-    from signatures.flash_spectrum import flash_envelope
+    import signatures.sim.simulate as sim
+    from signatures.dsp.flash_spectrum import flash_envelope
 
     scene, pre, sim_seed = condition.draw(seed)
     out = []

@@ -265,7 +265,7 @@ class Database:
 
     def registered_profiles(self) -> list[UavProfile]:
         """The profiles of the models of the active identities, in one query: the alternatives a
-        claim is verified against (`signatures.verify`, `authn.check`)."""
+        claim is verified against (`signatures.classify.verify`, `authn.check`)."""
         rows = self.fetch("SELECT slug, name, rotors, arms, blades_per_rotor, blade_length_m, rotor_rate_hz, "
                           "propeller_distance_m FROM model_profiles WHERE slug IN "
                           "(SELECT model_slug FROM identities WHERE status = :s) ORDER BY slug", {"s": "active"})

@@ -111,7 +111,7 @@ class RadarConfig(Checked):
 #: range bins, or CW (no sweep). A bundle only serves recordings of its own domain.
 DOMAINS = ("if", "range", "cw")
 #: Domains a bundle can be trained for: the simulator writes IF cubes of the domain's equivalent
-#: waveform (`signatures.domain`) and `signatures.domain.as_recorded` turns them into range or CW.
+#: waveform (`signatures.sim.domain`) and `signatures.sim.domain.as_recorded` turns them into range or CW.
 TRAINABLE_DOMAINS = ("if", "range", "cw")
 #: The recorded domains a bundle of each domain serves. A range-domain cube is the range spectrum
 #: the IF pipeline computes first (the features skip only that FFT), so an IF bundle serves it;
@@ -127,7 +127,7 @@ WAVEFORM_FIELDS = ("carrier_hz", "bandwidth_hz", "ramp_s", "pri_s", "sample_rate
 #: many. The features are computed with the recording's own parameters (Hz, m/s); what a difference
 #: leaves is the features counted in bins, which move by about the relative difference: 0.1 % is
 #: an order below their scene-to-scene spread and 25 times inside the carrier band
-#: (`signatures.carrier.CARRIER_BAND_REL`, chosen on the same grounds).
+#: (`signatures.classify.carrier.CARRIER_BAND_REL`, chosen on the same grounds).
 WAVEFORM_REL_TOL = 1e-3
 
 

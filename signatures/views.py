@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from signatures import rd
-from signatures import timefreq as tf
+from signatures.dsp import rd
+from signatures.dsp import timefreq as tf
 from signatures.features import GATE_BINS, extract_iq
 
 

@@ -123,7 +123,7 @@ def test_tables_at_80_columns_never_split_identifiers(tmp_path: Path, capsys, mo
 # --- waveform guidance ------------------------------------------------------------------------
 
 def test_no_bundle_names_the_nearest_and_the_parameter_that_differs(tmp_path: Path, capsys) -> None:
-    from signatures.inference import NoModelError, find_bundle
+    from signatures.classify.inference import NoModelError, find_bundle
     from signatures.radar import PRESETS, waveform_of
 
     paper = PRESETS["paper"]

@@ -14,10 +14,10 @@ from pydantic import ValidationError
 
 from lab import heldout
 from lab.accuracy import CONDITIONS, DJI_QUAD, Estimate, evaluate_condition
-from signatures import rd
+from signatures.dsp import rd
 from signatures.radar import get_preset
-from signatures.scene import MultiScene, Scene
-from signatures.simulate import simulate, simulate_many
+from signatures.sim.scene import MultiScene, Scene
+from signatures.sim.simulate import simulate, simulate_many
 
 CW = get_preset("cw-sband")
 
@@ -86,7 +86,7 @@ def test_cw_preset_and_long_dwells() -> None:
 
 def test_clutter_to_signal_sets_the_clutter_power() -> None:
     """Clutter 30 dB over the target, in both worlds: its power is 1000x the target's (unit) power."""
-    from signatures.simulate import render
+    from signatures.sim.simulate import render
 
     scene = _scene(snr_db=10.0, clutter_to_signal_db=30.0)
     comps = render(scene, CW.config, CW.n_chirps, 1, seed=2)

@@ -13,8 +13,8 @@ import pytest
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import _ATTR_NAMES, _h5_attrs, read_recording, write_recording
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 #: other stored kinds of a format number: each must read as h5py reads it
 STORED = {"big-endian": np.array(1.5e9, dtype=">f8"), "float32": np.float32(0.25), "integer": np.int64(7),

@@ -32,7 +32,7 @@ def test_a_check_imports_no_optional_dependency(tmp_path: Path) -> None:
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     register_examples(url)

@@ -31,7 +31,7 @@ def test_a_cycle_closed_inside_a_function_is_found_and_named(tmp_path: Path) -> 
 def test_the_command_prints_the_graph_and_its_cycles(capsys) -> None:
     assert import_graph.main([]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert any(line.startswith("signatures.torch_cube: ") and "signatures.cube_scale" in line for line in lines)
+    assert any(line.startswith("signatures.dsp.torch_cube: ") and "signatures.dsp.cube_scale" in line for line in lines)
     assert import_graph.main(["--cycles"]) == 0
     assert capsys.readouterr().out.startswith("no cycle among ")
     assert import_graph.main(["--dot"]) == 0

@@ -161,7 +161,7 @@ def test_other_json_readers_refuse_deep_documents(tmp_path: Path, reader: str, d
             from signatures.importers.dca1000 import load_config
             load_config(path)
         else:
-            from signatures.modelcard import read_card
+            from signatures.classify.modelcard import read_card
             read_card(tmp_path)
 
 

@@ -1,4 +1,4 @@
-"""Domain randomisation (`signatures.scene.Nuisance`, `signatures.sampling.NuisanceDistribution`):
+"""Domain randomisation (`signatures.sim.scene.Nuisance`, `signatures.sim.sampling.NuisanceDistribution`):
 neutral defaults, the physics of each knob, and sane cubes for any draw."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.sampling import NuisanceDistribution, SceneDistribution, sample_nuisance, sample_scene
-from signatures.scene import Nuisance, Scene
-from signatures.simulate import simulate
+from signatures.sim.sampling import NuisanceDistribution, SceneDistribution, sample_nuisance, sample_scene
+from signatures.sim.scene import Nuisance, Scene
+from signatures.sim.simulate import simulate
 
 PAPER = get_preset("paper")
 WIDE = get_preset("wide")

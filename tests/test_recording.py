@@ -13,8 +13,8 @@ from signatures.errors import RecordingError
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import read_recording, write_recording
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 
 @pytest.fixture(scope="module")

@@ -58,7 +58,7 @@ def test_one_field_per_variable() -> None:
 
 
 def test_values_are_read_when_asked_not_at_import(monkeypatch: pytest.MonkeyPatch) -> None:
-    from signatures import fft
+    from signatures.dsp import fft
 
     monkeypatch.setenv("AUTHN_FFT", "scipy")
     assert fft.backend() == fft.resolve(None) == "scipy"

@@ -9,8 +9,8 @@ import pytest
 
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Scene
-from signatures.simulate import render, simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import render, simulate
 
 PROFILES = shipped_profiles()
 

@@ -54,7 +54,7 @@ def test_default_paths_point_into_the_session_folder(tmp_path_factory) -> None:
 
     from authn.audit.logkey import key_path
     from registry.urls import default_url, resolve_url
-    from signatures.dataset import cache_dir
+    from signatures.train.dataset import cache_dir
 
     root = _pinned_root()
     paths = {"HOME": Path.home(), "user_data_dir": platformdirs.user_data_dir("authn"),

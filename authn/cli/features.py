@@ -29,7 +29,7 @@ def show(
     """
     from signatures.features import FEATURE_NAMES, extract
     from signatures.recording import read_recording
-    from signatures.verify import PHYSICS_READS
+    from signatures.classify.verify import PHYSICS_READS
 
     rec = read_recording(file)
     res = extract(rec, expected_range_m=expected_range)

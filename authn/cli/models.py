@@ -69,11 +69,11 @@ def train(
     """
     from rich.console import Console
 
-    from signatures.dataset import DatasetSpec, progress_note
-    from signatures.eta import pace as timed_pace
-    from signatures.eta import seconds as eta_seconds
-    from signatures.sampling import NuisanceDistribution
-    from signatures.training import TrainConfig, default_samples, train_bundle
+    from signatures.train.dataset import DatasetSpec, progress_note
+    from signatures.train.eta import pace as timed_pace
+    from signatures.train.eta import seconds as eta_seconds
+    from signatures.sim.sampling import NuisanceDistribution
+    from signatures.train.training import TrainConfig, default_samples, train_bundle
 
     wf = _waveform(preset, like, radar_config)
     folder = _bundle_folder(out, wf, overwrite_shipped)
@@ -129,7 +129,7 @@ def train(
 LONG_S = 60.0
 
 
-def _why_slow(eta: float, total: int, n: int, pace) -> str:  # pace: signatures.eta.Pace
+def _why_slow(eta: float, total: int, n: int, pace) -> str:  # pace: signatures.train.eta.Pace
     """Why a training run takes over `LONG_S`: the simulation dominates (returns, pace, workers),
     and what shortens it; '' when it does not."""
     if eta < LONG_S:
@@ -162,7 +162,7 @@ def _bundle_folder(out: Path | None, wf, overwrite_shipped: bool) -> Path:
     """Where the bundle goes: never inside the installed package unless a maintainer replaces a
     shipped preset's bundle on purpose, never over a folder that is not a bundle."""
     from signatures.errors import SignaturesError
-    from signatures.inference import bundle_dir, models_dir
+    from signatures.classify.inference import bundle_dir, models_dir
 
     folder = out or models_dir() / wf.name
     shipped_root = bundle_dir(wf.name).parent.resolve()
@@ -217,8 +217,8 @@ def list_models(
     from rich.table import Table
 
     from authn.cli.output import print_table
-    from signatures.inference import bundle_dir, models_dir, user_bundles
-    from signatures.modelcard import CARD_NAME
+    from signatures.classify.inference import bundle_dir, models_dir, user_bundles
+    from signatures.classify.modelcard import CARD_NAME
     from signatures.radar import PRESETS
 
     rows = [(name, "shipped", bundle_dir(name), json.loads((bundle_dir(name) / CARD_NAME).read_text()))
@@ -254,7 +254,7 @@ def _mark_active(docs: list[dict]) -> None:
     """`active`: the bundle `authn check` picks for its waveform. A site bundle when `active.json`
     names it; a shipped or trained bundle when no site bundle is active for its waveform (of
     trained ones, the first by name)."""
-    from signatures.inference import active_map
+    from signatures.classify.inference import active_map
 
     active = active_map()
     taken: set[str] = set()
@@ -272,8 +272,8 @@ def _mark_active(docs: list[dict]) -> None:
 def _bundle_json(name: str, kind: str, folder: Path, card) -> dict:
     """One bundle of `models list --json`: a broken card is listed with its error, not a stop."""
     from signatures.errors import SignaturesError
-    from signatures.carrier import carrier_band_hz
-    from signatures.inference import card_waveform
+    from signatures.classify.carrier import carrier_band_hz
+    from signatures.classify.inference import card_waveform
     from signatures.profiles import NON_UAV_CLASSES
 
     doc: dict = {"name": name, "kind": kind, "folder": str(folder), "waveform": None, "carrier_band_hz": None,
@@ -315,9 +315,9 @@ def evaluate(
     Example: authn models evaluate --preset paper --snr 0,10,20 --json paper.json --plot plots/
     """
     from signatures.errors import SignaturesError
-    from signatures.evaluate import evaluate as run_eval
-    from signatures.evaluate import plot, write_json
-    from signatures.inference import load_classifier
+    from signatures.train.evaluate import evaluate as run_eval
+    from signatures.train.evaluate import plot, write_json
+    from signatures.classify.inference import load_classifier
     from signatures.profiles import load_profiles
 
     try:
@@ -394,7 +394,7 @@ def _print(report: dict) -> None:
 
 def _recording_files(paths: list[Path]) -> list[Path]:
     """The recordings named: files as given, directories' .h5/.hdf5/.npz files (recursively, sorted)."""
-    from signatures.enrol import EnrolError
+    from signatures.train.enrol import EnrolError
     from signatures.recording import recordings_in
 
     out: list[Path] = []
@@ -416,7 +416,7 @@ def _recording_files(paths: list[Path]) -> list[Path]:
 def _labelled(files: list[Path], labels: Path | None, db) -> list[tuple[Path, str | None]]:
     """(file, model) for each recording: from LABELS.csv (every recording needs a row, and every
     row's file must be among the recordings), else None: from its Remote ID serial, later."""
-    from signatures.enrol import EnrolError, read_labels
+    from signatures.train.enrol import EnrolError, read_labels
 
     if labels is None:
         return [(f, None) for f in files]
@@ -436,7 +436,7 @@ def _distinct(todo: list[tuple[Path, str | None]]) -> list[tuple[Path, str | Non
     out: a copy is the same flight, never a second one. The same bytes under two labels are bad
     input."""
     from core.digest import file_sha256
-    from signatures.enrol import EnrolError
+    from signatures.train.enrol import EnrolError
 
     first: dict[str, tuple[Path, str | None]] = {}
     kept = []
@@ -506,9 +506,9 @@ def enrol_cmd(
     from authn.enrolment import on_one_waveform
     from authn.sprt import Sprt
     from registry.dbapi import Database
-    from signatures.enrol import (EnrolError, EnrolOptions, bundle_name_ok, check_counts, default_name, enrol,
-                                  previous_samples)
-    from signatures.inference import load_classifier, models_dir, set_active
+    from signatures.train.enrol import (EnrolError, EnrolOptions, bundle_name_ok, check_counts, default_name, enrol,
+                                        previous_samples)
+    from signatures.classify.inference import load_classifier, models_dir, set_active
 
     t0 = time.perf_counter()
     if name is not None and not bundle_name_ok(name):
@@ -576,8 +576,8 @@ def _progress_bar(console):  # -> rich.progress.Progress
 
 def _added_to(wf) -> Path:
     """--add: the folder of the waveform's active site bundle."""
-    from signatures.enrol import EnrolError
-    from signatures.inference import active_bundle
+    from signatures.train.enrol import EnrolError
+    from signatures.classify.inference import active_bundle
 
     folder = active_bundle(wf)
     if folder is None:
@@ -588,7 +588,7 @@ def _added_to(wf) -> Path:
 def _enrol_profiles(samples: list, db) -> dict:  # slug -> UavProfile
     """The profiles an enrolment knows: the shipped ones, every registered one (the other side of
     the card's pairs too), and each enrolled model's registered profile (EnrolError if one is not)."""
-    from signatures.enrol import EnrolError
+    from signatures.train.enrol import EnrolError
     from signatures.profiles import shipped_profiles
 
     registered = {p.slug: p for p in db.registered_profiles()}
@@ -602,11 +602,11 @@ def _enrol_profiles(samples: list, db) -> dict:  # slug -> UavProfile
 
 def _estimate(wf, n_site: int, workers: int, n_sim: int, n_others: int = 0) -> float:
     """Seconds an enrolment takes on this machine: the base set's and the other profiles'
-    simulation at the pace timed on the worker pool (`signatures.eta`; nothing when cached), and
+    simulation at the pace timed on the worker pool (`signatures.train.eta`; nothing when cached), and
     the folds' and the bundle's forests, one of them timed on a small sample."""
-    from signatures.dataset import DatasetSpec
-    from signatures.enrol import CV_FOLDS, N_OTHERS
-    from signatures.eta import fit_seconds, pace, seconds
+    from signatures.train.dataset import DatasetSpec
+    from signatures.train.enrol import CV_FOLDS, N_OTHERS
+    from signatures.train.eta import fit_seconds, pace, seconds
     from signatures.features import FEATURE_NAMES
     from signatures.profiles import shipped_profiles
 
@@ -713,8 +713,8 @@ def use_cmd(
 
     Example: authn models use shipped
     """
-    from signatures.enrol import EnrolError
-    from signatures.inference import card_waveform, load_classifier, models_dir, set_active
+    from signatures.train.enrol import EnrolError
+    from signatures.classify.inference import card_waveform, load_classifier, models_dir, set_active
 
     if name == "shipped":
         set_active("*", None)

@@ -26,7 +26,7 @@ def plot(
 
     from signatures.errors import SignaturesError
     from signatures.recording import read_recording
-    from signatures.timefreq import mean_spectrogram
+    from signatures.dsp.timefreq import mean_spectrogram
     from signatures.views import views
 
     recs = [read_recording(f) for f in files]

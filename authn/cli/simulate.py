@@ -16,14 +16,14 @@ from core.parsing import first_error, parse_iso_time
 if TYPE_CHECKING:
     from authn.scenario import Broadcast
     from signatures.radar import Preset
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
 
 
 def _scene_for(model: str, profiles_file: Path | None, **kw: object):  # -> Scene
     from signatures.errors import SignaturesError
     from signatures.profiles import load_profiles
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     if model in ("bird", "none"):
         return Scene(kind=model, **kw)  # type: ignore[arg-type]
@@ -66,7 +66,7 @@ _OPTION_OF = {"range_m": "range", "radial_speed_mps": "speed", "snr_db": "snr",
 def _in_domain(pre, domain: str):  # (Preset, str) -> Preset
     """The preset's waveform as a radar of `domain` records it: range keeps the IF waveform (its
     range bins), CW keeps the carrier and the PRI with one sample per pulse."""
-    from signatures.domain import cw_config
+    from signatures.sim.domain import cw_config
     from signatures.errors import SignaturesError
     from signatures.radar import DOMAINS, waveform_of
 
@@ -323,7 +323,7 @@ class _Flight:
 
         from authn.scenario import simulate_flight
         from core.checked import Invalid
-        from signatures.domain import as_recorded
+        from signatures.sim.domain import as_recorded
         from signatures.errors import SignaturesError
 
         req, pre, moved = self.req, self.pre, self.scene

@@ -81,7 +81,7 @@ def n_workers(client: Any) -> int:
 @contextmanager
 def training_on(address: str) -> Iterator[None]:
     """Inside the block every training-set `generate` runs its chunks as tasks on the cluster."""
-    from signatures.dataset import chunks_on
+    from signatures.train.dataset import chunks_on
 
     with connect(address) as client, chunks_on(client.get_executor(retries=RETRIES)):
         yield

@@ -56,7 +56,7 @@ class Runtime:
 
 def _warm_classifiers() -> list[str]:
     """Load every shipped classifier now, so the first check of a waveform is not slow."""
-    from signatures.inference import PRESETS, load_classifier
+    from signatures.classify.inference import PRESETS, load_classifier
     from signatures.errors import SignaturesError
 
     loaded = []

@@ -52,7 +52,7 @@ def curve(preset: str, sizes: tuple[int, ...] = SIZES, distinct: int = 64, seed:
     from lab.bench import perf
     from signatures.features import batch_size, extract_many
     from signatures.features import extract
-    from signatures.inference import load_classifier
+    from signatures.classify.inference import load_classifier
 
     clf = load_classifier(preset)
     recs, gates = returns(preset, distinct, seed)
@@ -96,9 +96,9 @@ def accuracy(preset: str, per_class: int = 20, seed: int = 5) -> dict[str, objec
     and the largest feature difference between the two paths (relative to max(|value|, 1))."""
     from lab.bench import pareto
     from signatures.features import extract_many
-    from signatures.evaluate import metrics
+    from signatures.train.evaluate import metrics
     from signatures.features import extract
-    from signatures.inference import load_classifier
+    from signatures.classify.inference import load_classifier
 
     clf = load_classifier(preset)
     data = list(pareto._scenes(preset, SNRS, per_class, seed))

@@ -1,11 +1,11 @@
 """One bundle for a band of carriers, measured: the same scenes rendered at several
-carriers of one waveform, their features before and after `signatures.carrier.normalise`, and
+carriers of one waveform, their features before and after `signatures.classify.carrier.normalise`, and
 a bundle trained at the middle carrier classifying all of them.
 
     python -m lab.bench.carrier_band --model DIR --carriers 3.30e9,3.35e9,3.40e9 --n 300 --snr 20,29
 
 `--model`: a bundle (e.g. `authn models train --radar-config` of `cw-sband` at 3.35 GHz); its
-waveform, with each carrier in turn, renders the test-block scenes (`signatures.dataset`, seed
+waveform, with each carrier in turn, renders the test-block scenes (`signatures.train.dataset`, seed
 1000: never a training scene) with the same simulator seed, so a scene differs between carriers
 only by the carrier. Reported per feature: the median |change| between the outer carriers and
 the middle one, raw and normalised, over the feature's spread (std) across scenes (detected
@@ -27,11 +27,11 @@ import numpy as np
 
 def render(model_dir: str, carriers: tuple[float, ...], n: int, snr: float, seed: int = 1000):
     """(X per carrier: (len(carriers), n, features), labels): the test scenes at each carrier."""
-    from signatures.dataset import DatasetSpec, draw_scene
+    from signatures.train.dataset import DatasetSpec, draw_scene
     from signatures.features import extract
-    from signatures.inference import load_classifier
+    from signatures.classify.inference import load_classifier
     from signatures.profiles import shipped_profiles
-    from signatures.simulate import simulate
+    from signatures.sim.simulate import simulate
 
     clf = load_classifier(path=model_dir)
     wf = clf.waveform

@@ -30,8 +30,8 @@ from authn.scenario import Broadcast, Signing, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.sampling import SceneDistribution, sample_scene
-from signatures.scene import Scene
+from signatures.sim.sampling import SceneDistribution, sample_scene
+from signatures.sim.scene import Scene
 
 if TYPE_CHECKING:
     from authn.uakeys import UaKey

@@ -6,7 +6,7 @@ the shipped bundles were not built on, with enrolment and test scenes disjoint.
 A site's enrolment flights: `max(sizes)` recordings per shipped airframe at mixed SNR (0-20 dB),
 rendered in `--world` from their own random stream; the first k of each airframe build the
 site bundle of size k (the same code as the command: `authn.enrolment.site_sample`,
-`signatures.enrol.enrol`). Test claims come from another stream: genuine, type spoofs and
+`signatures.train.enrol.enrol`). Test claims come from another stream: genuine, type spoofs and
 unseen airframes (`lab.bench.worlds`), single dwells at each `--snr`, each checked by the real
 `Checker` with the shipped bundle and with every site bundle. Genuine claims of a model the
 site bundle calls radar-confusable with another registered one need a DRIP signature
@@ -112,7 +112,7 @@ def _type_readers(bundles: dict[str, Path | None], pool: list, sizes: tuple[int,
     random forest on the site's own k recordings per airframe alone ('plain forest k')."""
     from sklearn.ensemble import RandomForestClassifier
 
-    from signatures.inference import Classifier, bundle_dir
+    from signatures.classify.inference import Classifier, bundle_dir
 
     readers: dict[str, object] = {}
     for name, folder in bundles.items():
@@ -142,11 +142,11 @@ def _enrol_sizes(root: Path, sizes: tuple[int, ...], world: str, seed: int, base
     from authn.scenario import Broadcast
     from authn.sprt import Sprt
     from registry.dbapi import Database
-    from signatures.enrol import EnrolOptions, enrol
+    from signatures.train.enrol import EnrolOptions, enrol
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.sampling import sample_scene
+    from signatures.sim.sampling import sample_scene
 
     pre = get_preset("paper")
     shipped = shipped_profiles()
@@ -197,7 +197,7 @@ def _test_claims(seed: int, stream: int, snrs: tuple[float, ...], n: int, slugs:
     """The test claims of one random stream, disjoint from the enrolment stream ([seed, 1, ...]): for each
     SNR and category, n (snr, category, flown, claimed, scene, rng), the generator drawing on; a
     progress line after each SNR and category."""
-    from signatures.sampling import sample_scene
+    from signatures.sim.sampling import sample_scene
 
     for s_idx, snr in enumerate(snrs):
         for c_idx, cat in enumerate(WORLD_CATEGORIES):
@@ -305,7 +305,7 @@ def dwell_evidence(size: int, n: int, dwells: int, snrs: tuple[float, ...], worl
     from authn.sprt import Sprt
     from lab.bench.track import _pair as track_pair, icc, track_recordings
     from signatures.profiles import shipped_profiles
-    from signatures.sampling import sample_scene
+    from signatures.sim.sampling import sample_scene
 
     shipped = shipped_profiles()
     slugs = list(shipped)

@@ -35,7 +35,7 @@ def walks(tracks: int, dwells: int, snr: float, seed: int = 3) -> dict[tuple[str
     from lab.bench.track import track_recordings
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
-    from signatures.sampling import randomised, sample_scene
+    from signatures.sim.sampling import randomised, sample_scene
 
     sprt, pre = Sprt(), get_preset("paper")
     out: dict[tuple[str, str], list[list[float]]] = {}

@@ -26,8 +26,8 @@ from lab.bench.variants import (features_half, features_quarter, features_quarte
 from signatures.features import FEATURE_NAMES, QUICK_FEATURES, extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.sampling import SceneDistribution, sample_scene
-from signatures.simulate import simulate
+from signatures.sim.sampling import SceneDistribution, sample_scene
+from signatures.sim.simulate import simulate
 
 #: (name, feature mode, classifier) ; feature modes: gated at the known range, CFAR-detected, full cube
 CONFIGS = (
@@ -101,8 +101,8 @@ def _classify(clf, mode: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
 def extract_full_cube(rec, expected_range_m: float | None = None):
     """The ungated baseline: the range-Doppler map and the spectrogram of every range bin (what
     an implementation computes before looking at the target), then the features."""
-    from signatures import rd
-    from signatures import timefreq as tf
+    from signatures.dsp import rd
+    from signatures.dsp import timefreq as tf
     from signatures.features import extract
 
     spectrum = rd.range_fft(rd.prepare(rec.iq).iq)
@@ -139,8 +139,8 @@ def run(preset: str, snrs: tuple[float, ...] = (0.0, 10.0, 20.0), per_class: int
     """The grid on one held-out set; `n_train` returns train each retrained RF (0: none).
 
     Feature extraction and classification are timed interleaved across configurations."""
-    from signatures.evaluate import metrics
-    from signatures.inference import load_classifier
+    from signatures.train.evaluate import metrics
+    from signatures.classify.inference import load_classifier
 
     clf = load_classifier(preset)
     data = list(_scenes(preset, snrs, per_class, seed))
@@ -199,11 +199,11 @@ def _gate_of(label: str, rec, truth) -> float | None:
 def _retrain(clf, preset: str, n_train: int) -> list[tuple[str, Callable, list[int], object]]:
     """(name, featurizer, feature columns, forest) per RETRAINED configuration: an RF trained
     on the bundle's training spec (its first `n_train` returns, same seed)."""
-    from signatures.classifiers import forest_arrays, make_rf
-    from signatures.dataset import DatasetSpec, generate
-    from signatures.members import ForestArrays
+    from signatures.train.classifiers import forest_arrays, make_rf
+    from signatures.train.dataset import DatasetSpec, generate
+    from signatures.classify.members import ForestArrays
     from signatures.profiles import UavProfile
-    from signatures.training import GEOMETRY_FEATURES, LEVEL_FEATURES
+    from signatures.train.training import GEOMETRY_FEATURES, LEVEL_FEATURES
 
     profiles = tuple(UavProfile.from_dict(p) for p in clf.card["profiles"])
     seed = int(clf.card["training"]["seed"])

@@ -34,7 +34,7 @@ def fft_floor(preset: str, gate_bins: int = 5, repeats: int = 50, dwell_divisor:
     """The FFTs one gated check needs (range FFT of the cube, Doppler FFT of the gate, STFT of
     the gate), their flop count, and numpy's time for exactly those transforms; of the first
     1/`dwell_divisor` of the dwell when a configuration uses only that."""
-    from signatures import timefreq as tf
+    from signatures.dsp import timefreq as tf
 
     pre = get_preset(preset)
     n, k = max(1, pre.n_chirps // dwell_divisor), pre.n_samples

@@ -108,14 +108,14 @@ def _render(job: tuple) -> list[RenderedDwell]:
     from lab.bench.decisions import bench_serial
     from lab.bench.track import track_recordings
     from lab.bench.track_accuracy import _scene_and_draws
-    from signatures.extraction import extract
+    from signatures.dsp.extraction import extract
     from signatures.radar import get_preset
 
     world, snr, seed, p_idx, flies, i, k = job
     pre = get_preset("paper")
     scene, az, base = _scene_and_draws(seed, 0, snr, p_idx, i, flies)
     if world == "randomised":  # the training simulator, the scene's nuisances drawn once (a track repeats them)
-        from signatures.sampling import randomised
+        from signatures.sim.sampling import randomised
 
         scene = randomised(scene, np.random.default_rng([base, 41]))
     recs = track_recordings(scene, "paper", list(range(base, base + k)), bench_serial(flies), az,
@@ -275,7 +275,7 @@ class PairReach:
 def _without_envelope(d: RenderedDwell) -> list[float]:
     """The feature vector without the flash envelope's autocorrelation (what it was before that
     was added; `RenderedDwell.features` are in sorted name order)."""
-    from signatures.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
+    from signatures.dsp.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
 
     return [v for n, v in zip(sorted(FEATURE_NAMES), d.features) if n not in ENVELOPE_FEATURES]
 
@@ -419,7 +419,7 @@ def main(argv: list[str] | None = None) -> int:
                          "rendered and written to the first one absent")
     ap.add_argument("--json", help="write the rows to this file")
     a = ap.parse_args(argv)
-    from signatures.feature_vector import FEATURE_NAMES
+    from signatures.dsp.feature_vector import FEATURE_NAMES
 
     if a.track_dwells < 1:
         ap.error(f"--track-dwells {a.track_dwells}: at least 1")

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from signatures.verify import UNKNOWN
+from signatures.classify.verify import UNKNOWN
 
 #: A pair no 2 s track of back-to-back `paper` dwells decides (`lab.bench.reach.TRACK_DWELLS`) is one radar
 #: cannot separate: a claim of it needs a signature.
@@ -60,7 +60,7 @@ def _job(job: tuple) -> list[DwellClaim]:
     from lab.heldout import unseen_profiles
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
-    from signatures.sampling import randomised, sample_scene
+    from signatures.sim.sampling import randomised, sample_scene
 
     world, snr, preset, n, seed, w_idx, s_idx, targets = job
     shipped = list(shipped_profiles())
@@ -218,7 +218,7 @@ def write_card(preset: str, section: dict) -> Path:
     """Write `section` as the shipped `preset` bundle card's `separation` (the card's digest changes; its
     files' digests do not)."""
     import signatures.models as models
-    from signatures.modelcard import card_bytes
+    from signatures.classify.modelcard import card_bytes
 
     path = Path(models.__file__).parent / preset / "card.json"
     card = json.loads(path.read_text())

@@ -24,7 +24,7 @@ from authn.scenario import Broadcast, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import Recording, write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 SERIAL = bench_serial("m300")
 #: features from float32 transforms within this relative deviation (of max(|float64 value|, 1)) of
@@ -166,7 +166,7 @@ def _against_fft64(report: StressReport, label: str, rec: Recording) -> None:
     from dataclasses import astuple
 
     from signatures.features import FEATURE_NAMES, extract
-    from signatures.inference import NoModelError, classifier_for
+    from signatures.classify.inference import NoModelError, classifier_for
 
     single = extract(rec, fft_backend="scipy")
     double = extract(rec, fft_backend="numpy")

@@ -27,8 +27,8 @@ from lab.bench.decisions import CLAIM_SCENES, bench_serial, is_right, register_i
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import Recording
-from signatures.sampling import sample_scene
-from signatures.scene import Scene
+from signatures.sim.sampling import sample_scene
+from signatures.sim.scene import Scene
 
 #: Seconds between the starts of consecutive dwells of a track (a scanning radar's revisit).
 DWELL_SPACING_S = 1.0

@@ -9,7 +9,7 @@ simulator; and the per-dwell diagnosis of genuine claims (docs/tracks.md, "2 s t
     python -m lab.bench.track_accuracy --icc d.json [--first 5] [--rho-terms 0.3,0.4]
 
 Which pairs the physics can separate (`separable`): the claimed and the flown airframe's nominal
-blade-flash rates lie outside each other's `signatures.verify.RATE_BAND`, or their rotor counts
+blade-flash rates lie outside each other's `signatures.classify.verify.RATE_BAND`, or their rotor counts
 differ by 2 or more. Claimed models are the shipped profiles (the bench registry's); flown ones
 the shipped and `lab.heldout.unseen_profiles()`. Rows holding pairs that `lab.bench.reach` shows
 no rule separates (`OUT_OF_REACH`) are printed again without them. Nothing here trains or tunes
@@ -37,7 +37,7 @@ import numpy as np
 from lab.bench.decisions import CLAIM_SCENES, bench_serial, is_right
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import get_preset
-from signatures.sampling import sample_scene
+from signatures.sim.sampling import sample_scene
 
 #: A track: 2 s of a target, its dwells back to back.
 TRACK_SECONDS = 2.0
@@ -57,7 +57,7 @@ def separable(flown: UavProfile, claimed: UavProfile) -> list[str]:
     each nominal blade-flash rate lies outside the other's RATE_BAND (flown rotors turn at 0.8-1.2x
     nominal, so the bands of the two do not hold each other's nominal), "rotors" when the rotor
     counts differ by 2 or more (rotors seen is counted within `ROTOR_BAND` of the claim)."""
-    from signatures.verify import RATE_BAND
+    from signatures.classify.verify import RATE_BAND
 
     fa, fb = flown.blade_flash_rate_hz, claimed.blade_flash_rate_hz
     why = []
@@ -125,8 +125,8 @@ def _scene_and_draws(seed: int, world_idx: int, snr: float, pair_idx: int, i: in
 def _split_terms(features: dict[str, float], claimed: UavProfile, verification: dict | None,
                  max_tip: float) -> dict[str, float | None]:
     """The physics term taken apart: rate alone, what the rotors-seen ratio adds, what the blade
-    ratio adds (`signatures.verify._physics` on the estimates with the others masked)."""
-    from signatures.verify import _physics
+    ratio adds (`signatures.classify.verify._physics` on the estimates with the others masked)."""
+    from signatures.classify.verify import _physics
 
     def phys(f: dict[str, float]) -> float | None:
         r = _physics(f, claimed, max_tip)
@@ -335,7 +335,7 @@ def _mean(xs: list[float]) -> str:
 
 def diagnosis_table(rows: list[dict[str, Any]]) -> list[str]:
     """Per world, SNR (and flown airframe): what the estimates and terms of genuine dwells were."""
-    from signatures.verify import RATE_BAND, ROTOR_BAND
+    from signatures.classify.verify import RATE_BAND, ROTOR_BAND
 
     lines = ["| world | SNR dB | flown | dwells | accepted alone | physics ran | f in band of nominal "
              "| f half / double | f within 5 % of true | true f / nominal "
@@ -390,7 +390,7 @@ SPREAD_BINS = (0.04, 0.08)
 def spread_table(rows: list[dict[str, Any]]) -> list[str]:
     """Per world and SNR: the flash rate read within 5 % of the truth, by how far the flown rotors'
     own rates spread (`true_rate_spread`). The period search matches one period to within
-    `signatures.flash_period.TOL_FRACTION` in `paper`; a rotor that turns a few per cent off the
+    `signatures.dsp.flash_period.TOL_FRACTION` in `paper`; a rotor that turns a few per cent off the
     others flashes off that period."""
     lo, hi = SPREAD_BINS
     names = (f"< {100 * lo:g} %", f"{100 * lo:g}-{100 * hi:g} %", f">= {100 * hi:g} %")
@@ -410,7 +410,7 @@ def spread_table(rows: list[dict[str, Any]]) -> list[str]:
 
 
 class Variant(NamedTuple):
-    """A what-if variant, evaluated offline on the diagnosis dwells: constants of `signatures.verify`
+    """A what-if variant, evaluated offline on the diagnosis dwells: constants of `signatures.classify.verify`
     to override, the classifier clip (None: the classifier term dropped), the rotors term kept, the
     track correlation rho, and the flash rate read right (the simulation's true blade-flash rate in
     place of the estimate: an oracle that bounds what a better rate estimator alone could give)."""
@@ -452,7 +452,7 @@ def _variant_llr(r: dict[str, Any], consts: dict[str, Any], clip: float | None, 
     term re-clipped (clipping is monotone, so the stored, clipped term can be clipped further).
     `true_rate`: the flash rate is the flown airframe's true blade-flash rate (twice its mean rotor
     rate), read in every dwell that ran the radar at the estimate's relative std (3 % where none)."""
-    from signatures import verify as V
+    from signatures.classify import verify as V
 
     saved = {k: getattr(V, k) for k in consts}
     try:
@@ -563,7 +563,7 @@ def what_if_pair_table(rows: list[dict[str, Any]], names: tuple[str, ...] = PAIR
     return lines
 
 
-#: The terms a dwell's verification LLR is the sum of (`signatures.verify`), and their sum.
+#: The terms a dwell's verification LLR is the sum of (`signatures.classify.verify`), and their sum.
 TERMS = ("physics", "classifier", "total")
 
 

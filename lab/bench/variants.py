@@ -2,7 +2,7 @@
 on: a shorter dwell (the first 1/2, 1/3 or 1/4 of the chirps) and the quick tier.
 
 Each is a named module-level function because the training-set cache key names the featurizer
-(`signatures.dataset.feature_version`): renaming or moving one regenerates its training set.
+(`signatures.train.dataset.feature_version`): renaming or moving one regenerates its training set.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ equal error rate).
 
 The score is the one the Cedar policy thresholds: the log-likelihood ratio of "the claimed
 airframe" against "some other airframe" that `authn.check` computes for every detected target
-with `signatures.verify` and reports as `radar.verification.llr`. `verification_score` reads it
+with `signatures.classify.verify` and reports as `radar.verification.llr`. `verification_score` reads it
 back from a check's radar evidence; a claim the check could not verify scores `UNVERIFIED`.
 `rotor_evidence` says whether the score had the rotors' physics in it.
 """
@@ -30,7 +30,7 @@ def verification_score(radar: dict[str, Any] | None) -> float:
 
 def rotor_evidence(radar: dict[str, Any] | None) -> bool:
     """Whether the check saw the rotors: its physics term ran (a blade-flash rate with a flash
-    score of at least `signatures.verify.MIN_FLASH_SCORE`). Without it a claim rests on the
+    score of at least `signatures.classify.verify.MIN_FLASH_SCORE`). Without it a claim rests on the
     classifier alone, so the world reports split "no rotor modulation seen" (the signal or the
     flash detector) from "seen and misjudged" (the verification)."""
     verification = (radar or {}).get("verification") or {}

@@ -1,7 +1,7 @@
 """Identity claims checked in two worlds: the training simulator and the held-out model.
 
 The same scenes (geometry, SNR, clutter, Remote ID, simulator seed) are rendered once by
-`signatures.simulate` (the world the classifiers were fitted to) and once by
+`signatures.sim.simulate` (the world the classifiers were fitted to) and once by
 `lab.heldout` (a different signal model they never saw), and each return is checked
 by the real `Checker` against the bench registry (`lab.bench.decisions`). Claims:
 genuine (a registered serial, its true airframe), type spoofs (a serial registered as one
@@ -29,8 +29,8 @@ from authn.scenario import Broadcast, remote_id_rows, simulate_flight
 from signatures.profiles import UavProfile, shipped_profiles
 from signatures.radar import Preset, get_preset
 from signatures.recording import Recording, write_recording
-from signatures.sampling import sample_scene
-from signatures.scene import Scene
+from signatures.sim.sampling import sample_scene
+from signatures.sim.scene import Scene
 
 WORLDS = ("training", "heldout")
 WORLD_CATEGORIES = ("genuine", "type_spoof", "unseen")

@@ -1,7 +1,7 @@
 """A second, independent FMCW return model, for testing only (docs/signal-model.md, "Held-out model").
 
-The classifiers are fitted to `signatures.simulate`; this package renders the same scenes
-(`signatures.scene.Scene`, same presets, same file format, same SNR definition) with
+The classifiers are fitted to `signatures.sim.simulate`; this package renders the same scenes
+(`signatures.sim.scene.Scene`, same presets, same file format, same SNR definition) with
 different physics and shares no simulation code with it, so that a benchmark on its returns
 measures how far the fitted models carry to a world they never saw. Nothing may be trained
 or tuned on it. Airframes never trained on ship as `unseen_profiles()`.
@@ -19,7 +19,7 @@ import numpy as np
 
 from dataclasses import replace
 
-from signatures import rd
+from signatures.dsp import rd
 from signatures.errors import SignaturesError
 from lab.heldout.airframe import AirframeTruth, uav_points
 from lab.heldout.bird import BirdTruth, bird_points
@@ -28,7 +28,7 @@ from lab.heldout.synthesis import if_cube
 from signatures.profiles import UavProfile, parse_profiles
 from signatures.radar import C, Preset, RadarConfig
 from signatures.recording import RadarSite, Recording
-from signatures.scene import MultiScene, Scene
+from signatures.sim.scene import MultiScene, Scene
 
 HELDOUT_VERSION = "2"
 #: Chirps synthesised at a time: every shipped dwell (<= 8192) is one chunk, a long CW dwell several.

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from signatures.profiles import UavProfile
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lab.heldout.airframe import Points, line_of_sight_in_body
-from signatures.scene import BirdParams, Scene
+from signatures.sim.scene import BirdParams, Scene
 
 
 @dataclass(frozen=True)

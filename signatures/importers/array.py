@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from signatures.domain import cw_config, range_config
+from signatures.sim.domain import cw_config, range_config
 from signatures.errors import SignaturesError
 from signatures.importers.dwell import Dwell, analytic_half_rate, radar_config
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from signatures.profiles import load_profiles, shipped_profiles
-from signatures.training import TrainConfig, train_bundle
+from signatures.train.training import TrainConfig, train_bundle
 from tests.classifiers.standin import standin_extract
 
 ENROL = Path(__file__).resolve().parents[2] / "signatures" / "data" / "enrol_example.json"

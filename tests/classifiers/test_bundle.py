@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from signatures.inference import Classifier, NoModelError, load_classifier, match_preset
+from signatures.classify.inference import Classifier, NoModelError, load_classifier, match_preset
 from core.digest import file_sha256
-from signatures.modelcard import ModelIntegrityError, read_card
+from signatures.classify.modelcard import ModelIntegrityError, read_card
 from signatures.radar import get_preset
-from signatures.training import train_bundle
+from signatures.train.training import train_bundle
 from tests.classifiers.conftest import tiny_config
 from tests.classifiers.standin import standin_extract
 
@@ -58,8 +58,8 @@ def test_missing_file_is_refused(tiny_bundle: Path, tmp_path: Path) -> None:
 
 
 def test_predict_one_return(tiny_bundle: Path) -> None:
-    from signatures.scene import Scene
-    from signatures.simulate import simulate
+    from signatures.sim.scene import Scene
+    from signatures.sim.simulate import simulate
     from signatures.profiles import shipped_profiles
 
     clf = load_classifier(path=tiny_bundle)
@@ -110,8 +110,8 @@ def test_numpy_forests_match_scikit_learn(tiny_bundle: Path) -> None:
 def test_forest_arrays_against_scikit_learn_on_random_data(tmp_path: Path) -> None:
     from sklearn.ensemble import RandomForestClassifier
 
-    from signatures.classifiers import forest_arrays
-    from signatures.members import ForestArrays
+    from signatures.train.classifiers import forest_arrays
+    from signatures.classify.members import ForestArrays
 
     rng = np.random.default_rng(1)
     X = rng.normal(size=(400, 6)).astype(np.float32)
@@ -137,7 +137,7 @@ def test_enrolled_profile_needs_no_code(tmp_path: Path, cache_dir: Path) -> None
 
 
 def test_inference_imports_neither_sklearn_nor_torch(tiny_bundle: Path) -> None:
-    code = ("import sys, numpy as np; from signatures.inference import load_classifier; "
+    code = ("import sys, numpy as np; from signatures.classify.inference import load_classifier; "
             f"c = load_classifier(path={str(tiny_bundle)!r}); c.predict(np.zeros(c.n_features), np.zeros((32, 32))); "
             "bad = [m for m in ('sklearn', 'torch') if m in sys.modules]; assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
@@ -159,7 +159,7 @@ def test_bundle_of_another_layout_is_refused_not_guessed(tiny_bundle: Path, tmp_
     """No code default stands in for a value the bundle lacks: an open-set file without its
     tolerance parameters (an older layout) is refused with a rebuild hint."""
     from signatures.errors import SignaturesError
-    from signatures.modelcard import write_card
+    from signatures.classify.modelcard import write_card
 
     old = tmp_path / "old"
     shutil.copytree(tiny_bundle, old)

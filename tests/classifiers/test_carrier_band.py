@@ -11,12 +11,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from signatures.carrier import CARRIER_BAND_REL, carrier_band_hz, carrier_ratio, normalise
+from signatures.classify.carrier import CARRIER_BAND_REL, carrier_band_hz, carrier_ratio, normalise
 from signatures.features import FEATURE_NAMES
-from signatures.inference import NoModelError, classifier_for, find_bundle, load_classifier, waveform_differences
+from signatures.classify.inference import (NoModelError, classifier_for, find_bundle, load_classifier,
+                                           waveform_differences)
 from signatures.profiles import shipped_profiles
 from signatures.radar import PRESETS, C, get_preset, waveform_of
-from signatures.training import TrainConfig, train_bundle
+from signatures.train.training import TrainConfig, train_bundle
 from tests.classifiers.standin import standin_extract
 
 PAPER = PRESETS["paper"]

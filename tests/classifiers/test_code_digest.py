@@ -1,4 +1,4 @@
-"""`signatures.code_digest`: a cache key that follows the code, not its comments or docstrings."""
+"""`signatures.train.code_digest`: a cache key that follows the code, not its comments or docstrings."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from signatures.code_digest import code_digest, modules_reached
+from signatures.train.code_digest import code_digest, modules_reached
 
 
 @pytest.fixture
@@ -37,7 +37,7 @@ def package(tmp_path: Path, monkeypatch):
 
 
 def _digest(package: Path) -> str:
-    from signatures import code_digest as module
+    from signatures.train import code_digest as module
 
     module._digest.cache_clear()  # the files change under the same names within one process
     return code_digest(["dg_pkg.root"], packages=["dg_pkg"])
@@ -67,5 +67,5 @@ def test_a_changed_statement_changes_it(package, edit) -> None:
 
 
 def test_shipped_featurizer_digest_is_stable_within_a_process() -> None:
-    roots = ["signatures.features", "signatures.simulate"]
+    roots = ["signatures.features", "signatures.sim.simulate"]
     assert code_digest(roots) == code_digest(list(reversed(roots)))

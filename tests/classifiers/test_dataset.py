@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from signatures.dataset import (BLOCK_M, Dataset, DatasetError, DatasetSpec, block_split, draw_scene, feature_version,
-                                generate)
+from signatures.train.dataset import (BLOCK_M, Dataset, DatasetError, DatasetSpec, block_split, draw_scene,
+                                      feature_version, generate)
 from signatures.profiles import shipped_profiles
 from tests.classifiers.standin import standin_extract
 
@@ -49,7 +49,9 @@ def test_scene_draws_are_pinned() -> None:
 def test_cache_key_names_versions_and_code(monkeypatch) -> None:
     """The featurizer's key part follows its name, FEATURE_VERSION, SIMULATOR_VERSION and the
     digest of the code the samples come from."""
-    from signatures import code_digest, features, simulate
+    from signatures.train import code_digest
+    from signatures import features
+    from signatures.sim import simulate
 
     base = feature_version(features.extract)
     assert feature_version(features.extract) == base and feature_version(standin_extract) != base
@@ -63,12 +65,13 @@ def test_cache_key_names_versions_and_code(monkeypatch) -> None:
 
 def test_cache_key_digests_the_sample_code() -> None:
     """The digest reaches the estimators (imported by the featurizer), the simulator and the sampler."""
-    from signatures import dataset, features
-    from signatures.code_digest import modules_reached
+    from signatures.train import dataset
+    from signatures import features
+    from signatures.train.code_digest import modules_reached
 
     reached = modules_reached((features.extract.__module__, *dataset.SAMPLE_CODE))
-    assert {"signatures.flash_series", "signatures.flash_period", "signatures.rd", "signatures.timefreq",
-            "signatures.simulate", "signatures.sampling", "signatures.scene", "signatures.dataset"} <= set(reached)
+    assert {"signatures.dsp.flash_series", "signatures.dsp.flash_period", "signatures.dsp.rd", "signatures.dsp.timefreq",
+            "signatures.sim.simulate", "signatures.sim.sampling", "signatures.sim.scene", "signatures.train.dataset"} <= set(reached)
 
 
 def test_split_is_a_property_of_the_block() -> None:

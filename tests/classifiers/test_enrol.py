@@ -19,7 +19,7 @@ import pytest
 
 from authn.cli import main
 from authn.policy import PolicyEngine
-from signatures.enrol import _calibration_pays
+from signatures.train.enrol import _calibration_pays
 from tests.decision.test_policy import ACTIVE, GOOD, SITE, sprt_record
 from tests.classifiers.conftest import own_models
 
@@ -36,7 +36,7 @@ def _make_site(folder: Path, n: int, seed: int = 11) -> None:
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.sampling import sample_scene
+    from signatures.sim.sampling import sample_scene
 
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
@@ -69,7 +69,7 @@ def _one_line_error(capsys) -> str:
 
 
 def _active() -> dict:
-    from signatures.inference import active_map
+    from signatures.classify.inference import active_map
 
     return active_map()
 
@@ -115,7 +115,7 @@ def test_enrol_register_check_uses_the_site_bundle(site: dict, capsys) -> None:
     capsys.readouterr()
     main(["check", str(flights / "phantom4-00.h5"), "--json"])
     out = json.loads(capsys.readouterr().out)
-    from signatures.modelcard import read_card
+    from signatures.classify.modelcard import read_card
 
     assert out["model_card_sha256"] == read_card(folder)[1]  # decided with the site bundle
     assert out["reasons"] != ["unregistered"]
@@ -140,7 +140,7 @@ def test_confusable_pair_needs_a_signature(site: dict, capsys, monkeypatch) -> N
     """A pair the card calls confusable, both registered: an unsigned claim is rejected with
     radar-confusable-unsigned; with only one of the pair registered, the rule stays silent."""
     from authn.check import Checker, _flag
-    from signatures.inference import load_classifier
+    from signatures.classify.inference import load_classifier
 
     clf = load_classifier(path=site["models"] / "site-a")  # the instance the check will use
     monkeypatch.setattr(clf, "confusable_pairs", (("m300", "m600"),))
@@ -162,7 +162,7 @@ def _signed_m300(key, serial: str, dwells: int, seed: int = 5) -> list:
     from lab.bench.decisions import CLAIM_SCENES
     from lab.bench.track import track_recordings
     from signatures.profiles import shipped_profiles
-    from signatures.sampling import sample_scene
+    from signatures.sim.sampling import sample_scene
 
     scene = sample_scene(np.random.default_rng(seed), shipped_profiles()["m300"], replace(CLAIM_SCENES, snr_db=20.0))
     bc = Broadcast(serial=serial, signing=Signing(private_key=key.private_raw, det=key.det))
@@ -179,7 +179,7 @@ def test_a_signed_claim_of_a_confusable_model_is_verified_as_the_group(site: dic
     from authn import uakeys
     from authn.check import CheckInput, Checker
     from authn.track import Dwell, decide_track
-    from signatures.inference import load_classifier
+    from signatures.classify.inference import load_classifier
 
     main(["models", "use", "site-a"])
     clf = load_classifier(path=site["models"] / "site-a")
@@ -218,9 +218,9 @@ def test_a_track_check_uses_the_track_figure(site: dict, capsys, monkeypatch, tr
     from authn.track import Dwell, decide_track
     from lab.bench.decisions import CLAIM_SCENES
     from lab.bench.track import track_recordings
-    from signatures.inference import load_classifier
+    from signatures.classify.inference import load_classifier
     from signatures.profiles import shipped_profiles
-    from signatures.sampling import sample_scene
+    from signatures.sim.sampling import sample_scene
 
     main(["models", "use", "site-a"])
     clf = load_classifier(path=site["models"] / "site-a")
@@ -244,7 +244,7 @@ def test_too_few_claims_never_show_a_pair_separable() -> None:
     """A pair the cross-validation saw no false accept in is separable only with enough claims to
     bound its rate (under 10 % at 95 %: 29); with fewer it is radar-confusable at both levels,
     whatever its tracks say, so that enrolling fewer recordings never asks for fewer signatures."""
-    from signatures.enrol import MIN_SEPARABLE_CLAIMS, _single_confusable, _track_confusable
+    from signatures.train.enrol import MIN_SEPARABLE_CLAIMS, _single_confusable, _track_confusable
 
     assert MIN_SEPARABLE_CLAIMS == 29 and 1 - 0.9 ** 29 >= 0.95 > 1 - 0.9 ** 28
     clean_tracks = {"false_accept_rate": 0.0, "false_accepts": 0, "claims": 800, "dwells": 8}
@@ -263,7 +263,7 @@ def test_track_errors_separate_a_pair_single_dwells_cannot() -> None:
     confusable for single-dwell checks and not for track checks. Too few dwells for a full track
     keep the single-dwell verdict; scores that keep accepting stay confusable over tracks."""
     from authn.track import Sprt
-    from signatures.enrol import TRACK_DWELLS, _pair_tracks, _track_confusable, track_rates
+    from signatures.train.enrol import TRACK_DWELLS, _pair_tracks, _track_confusable, track_rates
 
     impostor = [(0.5, True)] * 5 + [(-1.5, True)] * 15
     sd = {"false_accept_rate": 0.25, "false_accepts": 10, "claims": 40}
@@ -382,7 +382,7 @@ def test_interrupted_enrolment_leaves_the_previous_bundle_active(site: dict, cap
     def crash(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("signatures.modelcard.write_card", crash)
+    monkeypatch.setattr("signatures.classify.modelcard.write_card", crash)
     flights = site["flights"]
     try:  # SIGINT half way: typer turns KeyboardInterrupt into exit 130
         rc = main(["models", "enrol", str(flights), "--labels", str(flights / "labels.csv"), "--name", "site-b", *BASE])
@@ -410,11 +410,11 @@ def test_add_extends_the_active_enrolment(site: dict, tmp_path: Path, capsys) ->
     assert card["enrolment"]["previous"] == "site-a" and list(_active().values()) == ["site-c"]
     bands = card["enrolment"]["bands"]  # --site-bands: each model's bands from its recordings, today's the prior
     assert set(bands) == {"m300", "m600", "phantom4"} and all(0 < b["rate"][0] < b["rate"][1] for b in bands.values())
-    from signatures.inference import load_classifier
-    from signatures.verify import bands_from
+    from signatures.classify.inference import load_classifier
+    from signatures.classify.verify import bands_from
 
     assert bands_from(load_classifier(path=site["models"] / "site-c").physics_bands, "m300") is not None
-    from signatures.calibration import calibration_of  # --calibrate: the check verifies with it
+    from signatures.classify.calibration import calibration_of  # --calibrate: the check verifies with it
 
     assert card["enrolment"]["calibration"]["applied"] is True and doc["calibration"]["applied"] is True
     assert calibration_of(load_classifier(path=site["models"] / "site-c")) is not None

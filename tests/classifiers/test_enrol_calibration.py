@@ -1,5 +1,5 @@
-"""The site's score calibration (`signatures.calibration`): fitted on cross-validated verification
-terms, stored in the card, applied by `signatures.verify` only where a site bundle applies it.
+"""The site's score calibration (`signatures.classify.calibration`): fitted on cross-validated verification
+terms, stored in the card, applied by `signatures.classify.verify` only where a site bundle applies it.
 
 Synthetic terms only: the enrolment end to end (the card's `calibration`, `--calibrate`, a check
 with it) is in test_enrol.py.
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from authn.track import Sprt
-from signatures.calibration import Calibration, RawTerms, calibration_of, fit
-from signatures.enrol import CALIBRATION_GAIN, CONFUSABLE_ERROR, _calibration_pays, _separation
+from signatures.classify.calibration import Calibration, RawTerms, calibration_of, fit
+from signatures.train.enrol import CALIBRATION_GAIN, CONFUSABLE_ERROR, _calibration_pays, _separation
 from signatures.errors import SignaturesError
 from signatures.profiles import shipped_profiles
-from signatures.verify import CLASSIFIER_CLIP, verify
+from signatures.classify.verify import CLASSIFIER_CLIP, verify
 
 M300 = shipped_profiles()["m300"]
 #: a clean M300 return: its own flash rate, a confident flash score, four rotors of its four
@@ -103,7 +103,7 @@ def test_without_calibration_verify_is_unchanged() -> None:
 
 
 def test_shipped_bundle_applies_no_calibration() -> None:
-    from signatures.inference import load_classifier
+    from signatures.classify.inference import load_classifier
 
     assert calibration_of(load_classifier(preset="paper")) is None
 

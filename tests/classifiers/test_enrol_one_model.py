@@ -67,7 +67,7 @@ def _track(checker, k: int, claimed: str):
 
 
 def test_one_airframe_enrols_with_one_command_across_its_carriers(site: dict, card: dict) -> None:
-    from signatures.inference import active_map
+    from signatures.classify.inference import active_map
 
     e = card["enrolment"]
     assert e["counts"] == {DJI: N_ENROL}
@@ -94,7 +94,7 @@ def test_one_airframe_enrols_with_one_command_across_its_carriers(site: dict, ca
 def test_genuine_tracks_are_accepted_on_evidence_alone(site: dict, card: dict, monkeypatch) -> None:
     """An unseen hovering track of the drone is accepted; with the physics and classifier terms
     taken from every dwell (whatever else the bundle holds: calibration, bands) it never is."""
-    import signatures.verify as sv
+    import signatures.classify.verify as sv
 
     checker = _checker(site)
     assert _track(checker, 1, DJI).decision == "accept"
@@ -136,8 +136,8 @@ def test_carriers_outside_one_band_do_not_enrol_as_one() -> None:
     from dataclasses import replace
 
     from authn.enrolment import on_one_waveform
-    from signatures.carrier import band_waveform
-    from signatures.enrol import EnrolError, SiteSample
+    from signatures.classify.carrier import band_waveform
+    from signatures.train.enrol import EnrolError, SiteSample
     from signatures.features import FEATURE_NAMES
     from signatures.radar import get_preset, waveform_of
 

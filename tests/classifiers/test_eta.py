@@ -1,5 +1,5 @@
 """Training and enrolment estimates come from a timed calibration on the worker pool that does the
-work (`signatures.eta`), not from a constant or a one-process pace divided by the worker count: the
+work (`signatures.train.eta`), not from a constant or a one-process pace divided by the worker count: the
 formula, with a fake clock and a fake pool (no timing is asserted)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from concurrent.futures import Future
 
 import pytest
 
-from signatures.eta import Pace, pace, scale, seconds
+from signatures.train.eta import Pace, pace, scale, seconds
 
 
 class _Pool:
@@ -32,7 +32,7 @@ class _Pool:
 
 
 def test_the_pace_is_the_pool_s_wall_time_per_return_after_a_warm_up() -> None:
-    from signatures.dataset import DatasetSpec
+    from signatures.train.dataset import DatasetSpec
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
 

@@ -8,10 +8,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sklearn.base import clone
 
-from signatures import classifiers as clf
-from signatures.ensemble import MEMBERS, calibrate, weighted_vote
-from signatures.openset import fit_openset
-from signatures.training import choose_cascade_threshold
+from signatures.train import classifiers as clf
+from signatures.classify.ensemble import MEMBERS, calibrate, weighted_vote
+from signatures.classify.openset import fit_openset
+from signatures.train.training import choose_cascade_threshold
 
 
 def _blobs(n: int, centres: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +102,7 @@ def test_cascade_threshold_prefers_not_running_the_cnn_when_it_does_not_help() -
 
 
 def test_numpy_knn_matches_sklearn(tmp_path) -> None:
-    from signatures.members import KnnArrays
+    from signatures.classify.members import KnnArrays
 
     X, y = _blobs(400, CENTRES, 0)
     Xt, _ = _blobs(200, CENTRES, 1)
@@ -120,7 +120,7 @@ def test_numpy_knn_matches_sklearn(tmp_path) -> None:
 
 
 def test_physics_check_rejects_wrong_rotor_rates_and_abstains_when_unsure() -> None:
-    from signatures.openset import PHYS_FEATURES, physics_check
+    from signatures.classify.openset import PHYS_FEATURES, physics_check
     from signatures.profiles import shipped_profiles
 
     prof = shipped_profiles()
@@ -144,7 +144,7 @@ def test_physics_check_rejects_wrong_rotor_rates_and_abstains_when_unsure() -> N
 
 def test_openset_ships_only_its_mode_and_every_physics_parameter() -> None:
     from signatures.errors import SignaturesError
-    from signatures.openset import PHYS_FEATURES, OpenSet, PhysicsCheck, physics_check
+    from signatures.classify.openset import PHYS_FEATURES, OpenSet, PhysicsCheck, physics_check
     from signatures.profiles import shipped_profiles
 
     classes = ("m600", "m300", "phantom4", "bird", "none")
@@ -178,7 +178,7 @@ def test_openset_ships_only_its_mode_and_every_physics_parameter() -> None:
 def test_k_smallest_selects_what_a_full_partition_selects(rows, n, k, levels, nan_share, seed) -> None:
     """The block-minimum bound never drops a neighbour: the same k values per row as argpartition,
     with heavy ties (few levels) and NaN distances (which argpartition puts last)."""
-    from signatures.members import k_smallest
+    from signatures.classify.members import k_smallest
 
     k = min(k, n)
     rng = np.random.default_rng(seed)
@@ -192,7 +192,7 @@ def test_k_smallest_selects_what_a_full_partition_selects(rows, n, k, levels, na
 
 
 def test_k_smallest_sees_past_a_nan_in_a_block() -> None:
-    from signatures.members import k_smallest
+    from signatures.classify.members import k_smallest
 
     d = np.arange(400, dtype=float)[None, :] + 100.0
     d[0, 3], d[0, 5] = 0.5, np.nan  # the first block holds the smallest value and a NaN

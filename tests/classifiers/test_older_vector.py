@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from signatures.errors import SignaturesError
-from signatures.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
+from signatures.dsp.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
 from signatures.features import extract
-from signatures.inference import Classifier
-from signatures.training import train_bundle
+from signatures.classify.inference import Classifier
+from signatures.train.training import train_bundle
 from tests.classifiers.conftest import tiny_config
 from tests.classifiers.standin import StandinResult
 from tests.features.conftest import sim

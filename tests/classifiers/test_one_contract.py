@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from signatures import classifiers as clf
-from signatures.ensemble import MEMBERS, SoftVote, Temperature
+from signatures.train import classifiers as clf
+from signatures.classify.ensemble import MEMBERS, SoftVote, Temperature
 from signatures.errors import SignaturesError
-from signatures.inference import Classifier, load_classifier
-from signatures.members import load_member
-from signatures.modelcard import read_card, write_card
+from signatures.classify.inference import Classifier, load_classifier
+from signatures.classify.members import load_member
+from signatures.classify.modelcard import read_card, write_card
 
 #: The shipped bundles' outputs on 40 simulated returns each, recorded with the code before the
 #: members shared this contract (features, 8 RD patches, every member, the ensemble, the CNN, the

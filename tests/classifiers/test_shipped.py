@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures.inference import bundle_dir, load_classifier
-from signatures.modelcard import read_card
+from signatures.classify.inference import bundle_dir, load_classifier
+from signatures.classify.modelcard import read_card
 
 
 @pytest.mark.parametrize("preset", ["paper", "wide"])
@@ -20,7 +20,7 @@ def test_shipped_bundle_passes_its_digest_check(preset: str) -> None:
 
 @pytest.mark.parametrize("preset", ["paper", "wide"])
 def test_shipped_bundle_classifies_fresh_returns(preset: str) -> None:
-    from signatures.dataset import DatasetSpec, generate
+    from signatures.train.dataset import DatasetSpec, generate
     from signatures.profiles import UavProfile
 
     clf = load_classifier(preset)
@@ -40,7 +40,7 @@ def test_shipped_ensemble_never_imports_onnxruntime(preset: str) -> None:
     import sys
 
     assert any(load_classifier(p).weights[2] > 0.0 for p in ("paper", "wide"))
-    code = ("import sys, numpy as np; from signatures.inference import load_classifier; "
+    code = ("import sys, numpy as np; from signatures.classify.inference import load_classifier; "
             f"c = load_classifier({preset!r}); c.predict(np.zeros(c.n_features)); "
             "assert 'onnxruntime' not in sys.modules, 'onnxruntime imported'")
     subprocess.run([sys.executable, "-c", code], check=True)
@@ -48,7 +48,7 @@ def test_shipped_ensemble_never_imports_onnxruntime(preset: str) -> None:
 
 @pytest.mark.parametrize("preset", ["paper", "wide"])
 def test_shipped_openset_holds_what_inference_reads_and_every_tuned_value(preset: str) -> None:
-    from signatures.openset import PhysicsCheck
+    from signatures.classify.openset import PhysicsCheck
 
     folder = bundle_dir(preset)
     card = read_card(folder)[0]

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures import classifiers as clf
+from signatures.train import classifiers as clf
 from signatures.errors import SignaturesError
-from signatures.members import SvmArrays
+from signatures.classify.members import SvmArrays
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ import pytest
 
 from authn.cli import main, output
 from authn.demo import register_examples
-from signatures.inference import bundle_dir
+from signatures.classify.inference import bundle_dir
 from signatures.radar import recording_waveform
 from signatures.recording import read_recording
 from tests.classifiers.conftest import own_models

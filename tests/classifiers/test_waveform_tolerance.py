@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from signatures.inference import NoModelError, find_bundle, waveform_differences
+from signatures.classify.inference import NoModelError, find_bundle, waveform_differences
 from signatures.radar import WAVEFORM_REL_TOL, get_preset, waveform_of
 
 CW = get_preset("cw-sband")
@@ -52,7 +52,7 @@ def test_a_mismatch_message_starts_with_the_parameter_that_differs(tmp_path: Pat
 
 
 def test_an_active_site_bundle_made_at_5000_1_hz_serves_a_5000_0_hz_dwell(tmp_path: Path, monkeypatch) -> None:
-    from signatures.inference import active_bundle, set_active
+    from signatures.classify.inference import active_bundle, set_active
 
     monkeypatch.setenv("AUTHN_MODELS_DIR", str(tmp_path))
     bundle = _clocked(5000.1)

@@ -13,12 +13,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures.dataset import GENERATOR_VERSION, DatasetError, DatasetSpec, generate
+from signatures.train.dataset import GENERATOR_VERSION, DatasetError, DatasetSpec, generate
 from signatures.errors import SignaturesError
-from signatures.inference import NoModelError, classifier_for, find_bundle, load_classifier
+from signatures.classify.inference import NoModelError, classifier_for, find_bundle, load_classifier
 from signatures.profiles import shipped_profiles
 from signatures.radar import PRESETS, C, get_preset, load_waveform, parse_waveform, waveform_of
-from signatures.training import TrainConfig, train_bundle
+from signatures.train.training import TrainConfig, train_bundle
 from tests.classifiers.standin import standin_extract
 
 PAPER = get_preset("paper")
@@ -136,7 +136,7 @@ def test_a_cw_waveform_has_one_sample_per_pulse() -> None:
 def test_cw_and_range_training_sets_are_simulated_in_their_domain() -> None:
     """A CW waveform's returns are CW cubes (no range: the range features are 0); a range
     waveform's are the IF pipeline's range spectra (the same features as the IF cube's)."""
-    from signatures.domain import cw_config
+    from signatures.sim.domain import cw_config
 
     cw = waveform_of(cw_config(PAPER.config.carrier_hz, PAPER.config.pri_s), 600, 1, "cw")
     data = generate(DatasetSpec(preset=cw, profiles=PROFILES, split="train", n=6), workers=1, cache=False)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from distributed import get_task_stream
 
-from signatures.dataset import DatasetSpec, _ARRAYS, chunks_on, generate
+from signatures.train.dataset import DatasetSpec, _ARRAYS, chunks_on, generate
 from signatures.profiles import shipped_profiles
 
 

@@ -14,7 +14,7 @@ from registry.dbapi import Database
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 PROCS, PER_PROC = 4, 250
 

@@ -31,7 +31,7 @@ from authn.scenario import Broadcast, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 M300 = "1581BDEM00000002"
 N_GOOD, N_BAD = 90, 10

@@ -14,7 +14,7 @@ from authn.scenario import Broadcast, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 from tests.remoteid.capture_tools import heard_at
 
 SERIAL = "1581BDEM00000002"

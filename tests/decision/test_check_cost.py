@@ -78,7 +78,7 @@ def test_a_batch_asks_the_registry_and_the_bundle_finder_once(flight: tuple[str,
     """Six returns of one waveform and one registered model: one bundle lookup and one read of
     the site's active models, not six; each decision as the return decided alone (the
     features of a batch come from other FFTs than one return's: `Checker._features`)."""
-    import signatures.inference as inference
+    import signatures.classify.inference as inference
     from authn.check import CheckInput, Checker
     from registry.dbapi import Database
 

@@ -22,7 +22,7 @@ from authn.scenario import Broadcast, simulate_flight
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 M600, M300 = "1581BDEM00000001", "1581BDEM00000002"
 LOOSE = ("--false-accept", "0.02", "--false-reject", "0.02")  # +-3.89 nats: one dwell can decide
@@ -170,7 +170,7 @@ def test_cold_check_imports_only_what_it_needs(setup, serial: str, radar_modules
     _, db, files = setup
     code = ("import sys; from authn.cli import main; code = main(sys.argv[1:]); "
             f"print('IMPORTS', code, sorted(m for m in sys.modules if m in {HEAVY!r} or m.split('.')[0] in {HEAVY!r}), "
-            "'signatures.features' in sys.modules, 'signatures.inference' in sys.modules)")
+            "'signatures.features' in sys.modules, 'signatures.classify.inference' in sys.modules)")
     proc = subprocess.run([sys.executable, "-c", code, "--db", db, "check", str(files["genuine"]), "--serial",
                            serial, "--json"], capture_output=True, text=True, timeout=120)
     line = next((x for x in proc.stdout.splitlines() if x.startswith("IMPORTS ")), proc.stdout[-300:] + proc.stderr)

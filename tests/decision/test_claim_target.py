@@ -31,7 +31,7 @@ from authn.scenario import Broadcast, simulate_flight
 from authn.track import Sprt
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import BirdParams, Scene
+from signatures.sim.scene import BirdParams, Scene
 
 M300 = "1581BDEM00000002"
 WINDOW_M = 360.0  # every recording of a scene shares this range window (paper: 360-440 m)

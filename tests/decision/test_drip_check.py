@@ -193,7 +193,7 @@ def test_a_link_from_a_trusted_registry_delivers_the_key(world: dict, tmp_path: 
     from remoteid.drip import encode_link
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     hda, ua = generate(hda=2), generate()
     now = datetime.now(timezone.utc)
@@ -227,7 +227,7 @@ def test_a_valid_signature_by_someone_else_does_not_count(world: dict, tmp_path:
     from remoteid.drip import encode_link
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     hda, attacker = generate(hda=3), generate()
     now = datetime.now(timezone.utc)

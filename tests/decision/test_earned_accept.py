@@ -16,7 +16,7 @@ from authn.cli import main
 from authn.track import Sprt
 from core.errors import EXIT_INCONCLUSIVE, exit_code_of, worst
 from signatures.profiles import UavProfile, shipped_profiles
-from signatures.verify import UNKNOWN, verify
+from signatures.classify.verify import UNKNOWN, verify
 from tests.registry_tools import register
 
 P = shipped_profiles()
@@ -35,7 +35,7 @@ def _dwell(folder: Path, flies: str, serial: str, seed: int, name: str = "dwell.
     from authn.scenario import Broadcast, simulate_flight
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     sc = Scene(kind="uav", profile=P[flies], range_m=420.0, radial_speed_mps=3.0, snr_db=snr, elevation_deg=10.0)
     rec, _ = simulate_flight(sc, get_preset("paper"), seed, Broadcast(serial=serial), azimuth_deg=40.0,

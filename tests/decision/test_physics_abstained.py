@@ -1,6 +1,6 @@
 """No acceptance on the classifier alone (docs/policies.md).
 
-Where the physics term abstains (no usable blade-flash rate: signatures/verify.py), the classifier
+Where the physics term abstains (no usable blade-flash rate: signatures/classify/verify.py), the classifier
 may count against a claim but never carries it: the sequential test counts such a dwell only against
 the claim (`authn.sprt.Sprt.increment`), for one dwell as for a track, signed or not. In the
 simulated worlds the shipped classifier never favours a claim whose rotors went unseen (it calls
@@ -26,11 +26,11 @@ from authn.scenario import Broadcast, simulate_flight
 from authn.track import DWELL_CAP_NATS, Sprt
 from registry.dbapi import IdentityFacts
 from signatures.features import extract
-from signatures.inference import classifier_for
+from signatures.classify.inference import classifier_for
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Scene
-from signatures.verify import MIN_FLASH_SCORE, verify
+from signatures.sim.scene import Scene
+from signatures.classify.verify import MIN_FLASH_SCORE, verify
 
 M300 = "1581BDEM00000002"
 START = datetime.now(timezone.utc).replace(microsecond=0)

@@ -97,7 +97,7 @@ def test_the_track_eer_follows_the_random_effects_model() -> None:
 
 def test_the_vector_without_the_envelope_drops_exactly_its_features() -> None:
     from lab.bench.reach import RenderedDwell, _without_envelope
-    from signatures.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
+    from signatures.dsp.feature_vector import ENVELOPE_FEATURES, FEATURE_NAMES
 
     names = sorted(FEATURE_NAMES)
     d = RenderedDwell("heldout", 10.0, "m300", 0, [float(i) for i in range(len(names))], [])

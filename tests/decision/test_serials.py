@@ -15,7 +15,7 @@ from core.uasid import SerialError, as_heard, normalise
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 LOWER = "1581a0000000080"
 UPPER = LOWER.upper()

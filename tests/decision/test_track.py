@@ -19,7 +19,7 @@ from authn.track import DWELL_CAP_NATS, KINEMATIC_DWELLS, Sprt
 from lab.bench.track import icc, track_recordings
 from signatures.profiles import shipped_profiles
 from signatures.recording import read_header, read_recording, write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 from tests.decision.test_policy import ACTIVE, GOOD, SITE
 from tests.lab_plugin import needs_lab
 from tests.registry_tools import register

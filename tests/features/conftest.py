@@ -6,8 +6,8 @@ import pytest
 
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 
 def sim(kind: str = "uav", model: str | None = "m300", preset: str = "paper", seed: int = 1, **kw):

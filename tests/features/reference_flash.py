@@ -1,5 +1,5 @@
 """The single-return blade-flash estimators: the reference the array-first ones
-(`signatures.flash_series`, `signatures.flash_period`) are tested against row by row, to the bit
+(`signatures.dsp.flash_series`, `signatures.dsp.flash_period`) are tested against row by row, to the bit
 (tests/features/test_batch_estimators.py).
 
 Not product code: the product runs the array-first modules only (one return is a batch of one);
@@ -16,16 +16,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from signatures.flash_period import (
-    COHERENT_LEVEL, COHERENT_SHARE, EVENT_TOL_FRACTION, FULL_VOTE_DB, GROUP_GAP_PERIODS, GROUP_GAP_SAMPLES,
-    HALF_LLR, HALF_SHARE_CAP, MIN_OVERLAP, MIN_VOTE_WEIGHT, POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT,
-    SECOND_PERIOD_GAIN, SKIRT_DB, SKIRT_REACH, SUBHARMONIC_MIN_FOUND, SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION,
-    TOL_SAMPLES, binomial_llr, matched_intervals, peak_positions)
-from signatures.flash_series import (EVENT_RADIUS, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ, NOISE_MADS, SERIES_RATE_HZ,
-                                     FlashSeriesBatch, clutter_pass, flashes_within_one_sample, highpass_s,
-                                     matched_filters, window_sums)
+from signatures.dsp.flash_period import (COHERENT_LEVEL, COHERENT_SHARE, EVENT_TOL_FRACTION, FULL_VOTE_DB,
+                                         GROUP_GAP_PERIODS, GROUP_GAP_SAMPLES, HALF_LLR, HALF_SHARE_CAP, MIN_OVERLAP,
+                                         MIN_VOTE_WEIGHT, POSITION_TOL_BINS, RERANK_N, RERANK_WEIGHT,
+                                         SECOND_PERIOD_GAIN, SKIRT_DB, SKIRT_REACH, SUBHARMONIC_MIN_FOUND,
+                                         SUBHARMONIC_SHARE, SUBHARMONIC_Z, TOL_FRACTION, TOL_SAMPLES, binomial_llr,
+                                         matched_intervals, peak_positions)
+from signatures.dsp.flash_series import (EVENT_RADIUS, FLASH_RATE_MAX_HZ, FLASH_RATE_MIN_HZ, NOISE_MADS, SERIES_RATE_HZ,
+                                         FlashSeriesBatch, clutter_pass, flashes_within_one_sample, highpass_s,
+                                         matched_filters, window_sums)
 from signatures.radar import RadarConfig
-from signatures.stats import median
+from signatures.dsp.stats import median
 
 
 @dataclass(frozen=True)

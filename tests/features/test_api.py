@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures import envelope
-from signatures import feature_vector as F
+from signatures.dsp import envelope
+from signatures.dsp import feature_vector as F
 from signatures.errors import SignaturesError
 from signatures.features import FEATURE_NAMES, PATCH_SHAPE, extract, extract_iq
 

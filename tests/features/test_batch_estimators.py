@@ -1,4 +1,4 @@
-"""The array-first blade-flash estimators (`signatures.flash_series`, `signatures.flash_period`) equal
+"""The array-first blade-flash estimators (`signatures.dsp.flash_series`, `signatures.dsp.flash_period`) equal
 the single-return reference (tests/features/reference_flash.py) row by row, on simulated
 gates of both shipped presets (airframes, birds, noise only; hovering and moving; -5..30 dB)
 and on edge cases (all zero, no events, one row, chirps shorter than the high-pass, 2 columns)."""
@@ -12,9 +12,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures import flash_period, flash_series
-from signatures.flash_period import PeriodicityBatch, periodicity_batch
-from signatures.flash_series import flash_series_batch
+from signatures.dsp import flash_period, flash_series
+from signatures.dsp.flash_period import PeriodicityBatch, periodicity_batch
+from signatures.dsp.flash_series import flash_series_batch
 from signatures.errors import SignaturesError
 from signatures.radar import get_preset
 from lab.flash_gates import Gate, simulated_gates

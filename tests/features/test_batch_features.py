@@ -1,4 +1,4 @@
-"""The batched feature front end (`signatures.extraction`) gives the single-return path's
+"""The batched feature front end (`signatures.dsp.extraction`) gives the single-return path's
 results row by row, on either FFT backend (the single path run with the same `fft_backend`):
 the cube stage's outputs to float32 rounding; same detection, gate and counts, every feature within
 REL of max(|value|, 1) (the slow-time stage sums in another order), the same CNN patch."""
@@ -14,15 +14,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lab.bench.stress import cases
-from signatures import extraction as bf
-from signatures import feature_vector as FV
+from signatures.dsp import extraction as bf
+from signatures.dsp import feature_vector as FV
 from signatures import features as F
-from signatures import rd
-from signatures.dataset import DatasetSpec, draw_scene
-from signatures.domain import as_recorded
+from signatures.dsp import rd
+from signatures.train.dataset import DatasetSpec, draw_scene
+from signatures.sim.domain import as_recorded
 from signatures.errors import SignaturesError
 from signatures.profiles import shipped_profiles
-from signatures.simulate import simulate
+from signatures.sim.simulate import simulate
 
 REL = 1e-5
 BACKENDS = ("numpy", "scipy")
@@ -369,14 +369,14 @@ def test_torch_stays_optional(paper, monkeypatch):
 
     config = paper[0][1].config
     iq = np.stack([r.iq for _, r in paper[:4]])
-    monkeypatch.setitem(sys.modules, "signatures.torch_cube", None)  # its import now fails
+    monkeypatch.setitem(sys.modules, "signatures.dsp.torch_cube", None)  # its import now fails
     monkeypatch.delattr(signatures, "torch_cube", raising=False)
     auto = bf.extract_batch(iq, config, device="auto")
     for b, res in enumerate(bf.extract_batch(iq, config)):
         assert np.array_equal(res.as_array(), auto[b].as_array())
     with pytest.raises(SignaturesError, match="device 'cpu' needs torch"):
         bf.extract_batch(iq, config, device="cpu")
-    code = ("import sys, numpy as np; from signatures import extraction as bf; "
+    code = ("import sys, numpy as np; from signatures.dsp import extraction as bf; "
             "from signatures.radar import get_preset; "
             "bf.extract_batch(np.ones((4, 64, 16), np.complex64), get_preset('paper').config); "
             "assert 'torch' not in sys.modules, 'torch imported'")
@@ -400,7 +400,7 @@ def test_a_constant_cube_gives_the_same_counts_however_it_is_batched_or_rounded(
     hold only rounding, whose pattern varies with the batch's memory layout): alone, batched
     among real returns at any position, moved by a few ulps, or on one BLAS thread, it gives the
     all-zero cube's result."""
-    from signatures.threads import one_blas_thread
+    from signatures.dsp.threads import one_blas_thread
 
     rec = paper[0][1]
     const = np.full_like(rec.iq, 3 - 2j)

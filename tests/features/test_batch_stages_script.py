@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from signatures import flash_period
-from signatures import extraction as bf
+from signatures.dsp import flash_period
+from signatures.dsp import extraction as bf
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""`signatures.threads.one_blas_thread`: one BLAS thread inside, the same products to float32
+"""`signatures.dsp.threads.one_blas_thread`: one BLAS thread inside, the same products to float32
 rounding, the original limits back after (nested and overlapping blocks included);
 `blas_on_one_thread` says so, and on one thread the batch path's stacked sub-chirp products are
 the single path's to within `ULPS` float32 ulps of the row's largest bin.
@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures import extraction as bf
-from signatures import flash_series as est
-from signatures import threads
-from signatures.cube_scale import SAFE_EXPONENT
+from signatures.dsp import extraction as bf
+from signatures.dsp import flash_series as est
+from signatures.dsp import threads
+from signatures.dsp.cube_scale import SAFE_EXPONENT
 
 #: float32 ulps (of a row's largest magnitude) a product may move by between thread counts or
 #: stack heights: a 48-term complex sum accumulated in another order

@@ -1,4 +1,4 @@
-"""The torch cube stage (`signatures.torch_cube`, `extract_batch(..., device=...)`) gives the
+"""The torch cube stage (`signatures.dsp.torch_cube`, `extract_batch(..., device=...)`) gives the
 numpy path's results to float32 rounding: same detection, gate and counts, every feature within
 REL of max(|value|, 1) (the batch tests' `assert_same`; measured: <= 2.4e-6 on these returns), the
 CNN patch within 1e-5; its cube-stage arrays within CUBE_REL of their row's largest value."""
@@ -10,9 +10,9 @@ import pytest
 
 torch = pytest.importorskip("torch", reason="torch is not installed (the cnn extra: pip install -e '.[cnn]')")
 
-from signatures import extraction as bf  # noqa: E402
-from signatures import torch_cube  # noqa: E402
-from signatures.domain import as_recorded  # noqa: E402
+from signatures.dsp import extraction as bf  # noqa: E402
+from signatures.dsp import torch_cube  # noqa: E402
+from signatures.sim.domain import as_recorded  # noqa: E402
 from signatures.errors import SignaturesError  # noqa: E402
 
 from .test_batch_features import assert_same, drawn_fixture  # noqa: E402

@@ -10,12 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signatures import flash_series as est
+from signatures.dsp import flash_series as est
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Nuisance, Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Nuisance, Scene
+from signatures.sim.simulate import simulate
 
 PAPER = get_preset("paper")
 

@@ -9,8 +9,8 @@ import pytest
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 
 @pytest.mark.parametrize("preset", ["paper", "wide"])

@@ -1,4 +1,4 @@
-"""The flash envelope's autocorrelation (`signatures.envelope`): it finds a flash train's period
+"""The flash envelope's autocorrelation (`signatures.dsp.envelope`): it finds a flash train's period
 at any PRF, is independent of the return's scale, and stays finite and bounded on any input."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures import envelope
+from signatures.dsp import envelope
 from signatures.radar import RadarConfig, get_preset
 
 
@@ -85,7 +85,7 @@ def test_an_all_zero_or_constant_return_gives_zeros():
 def test_the_feature_paths_spectrogram_gives_the_reference_values(backend: str) -> None:
     """The feature path feeds its own batched float32 STFT to `from_spectrogram`; it agrees with
     the float64 reference, moving body lines included."""
-    from signatures.extraction import _spectrogram
+    from signatures.dsp.extraction import _spectrogram
 
     config = get_preset("paper").config
     x = np.concatenate([_flash_train(config, 600, p * 1e-3, seed=i) for i, p in enumerate((7.0, 11.0, 14.0))])

@@ -1,5 +1,5 @@
-"""Blade-flash estimators: matched filters (signatures.flash_series), coherent partner checks and rotors seen
-(signatures.flash_period)."""
+"""Blade-flash estimators: matched filters (signatures.dsp.flash_series), coherent partner checks and rotors seen
+(signatures.dsp.flash_period)."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures import flash_period, flash_series
-from signatures import rd
+from signatures.dsp import flash_period, flash_series
+from signatures.dsp import rd
 from signatures.radar import get_preset
-from signatures.threads import one_blas_thread
+from signatures.dsp.threads import one_blas_thread
 from tests.features import reference_flash as ref
 
 N_FFT = 80  # fast-time samples per chirp (the paper preset's)

@@ -2,8 +2,8 @@
 scenes are pinned per version.
 
 Cached training sets are keyed on `signatures.features.FEATURE_VERSION` and
-`signatures.simulate.SIMULATOR_VERSION`, not on the source code
-(`signatures.dataset.feature_version`). A change to the numbers without a version bump would
+`signatures.sim.simulate.SIMULATOR_VERSION`, not on the source code
+(`signatures.train.dataset.feature_version`). A change to the numbers without a version bump would
 silently reuse stale cached datasets; these tests fail instead.
 
 Golden values are stored rounded to 4 significant digits and compared with a relative tolerance
@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from signatures.features import FEATURE_NAMES, FEATURE_VERSION, extract
-from signatures.scene import Nuisance
-from signatures.simulate import SIMULATOR_VERSION
+from signatures.sim.scene import Nuisance
+from signatures.sim.simulate import SIMULATOR_VERSION
 from tests.features.conftest import sim
 
 RTOL = 1e-3
@@ -86,7 +86,7 @@ GOLDEN_FEATURES[("5", "2")] = {**GOLDEN_FEATURES[("4", "2")],
                                    1.0),
 }
 
-# FEATURE_VERSION 6 appends the flash envelope's autocorrelation (signatures.envelope); the other 34 unchanged
+# FEATURE_VERSION 6 appends the flash envelope's autocorrelation (signatures.dsp.envelope); the other 34 unchanged
 GOLDEN_FEATURES[("6", "2")] = {
     "m300_moving": (400.3, 5.989, 0.8364, 6.711, 23.19, 5509.0, 3224.0, 90.63, 2.0, 0.7077, 0.508, 400.1,
         0.1001, 6.001, 0.006323, 79.74, 0.2028, 39.87, 0.1014, 4.0, 0.0, 16.1, 0.0, 0.0, 0.0, 1.0, 5.3, 9.0,
@@ -269,7 +269,7 @@ def test_simulator_matches_its_version() -> None:
     moved = {k: m for k in golden if (m := _moved(SIMULATOR_SUMMARY, got[k], golden[k]))}
     assert not moved, (
         f"the simulator's returns of a fixed, seeded scene changed without a version bump: {moved}. "
-        "Bump SIMULATOR_VERSION in signatures/simulate.py (cached training sets are keyed on it) and add "
+        "Bump SIMULATOR_VERSION in signatures/sim/simulate.py (cached training sets are keyed on it) and add "
         f"GOLDEN_SIMULATOR[<new version>] = {new} here (and the GOLDEN_FEATURES entry the feature test asks for).")
 
 

@@ -1,5 +1,5 @@
 """`authn features show` prints the physics the decision's verification compares with the claim
-(`signatures.verify.PHYSICS_READS`, which is every estimate `verify` reads), and labels the
+(`signatures.classify.verify.PHYSICS_READS`, which is every estimate `verify` reads), and labels the
 `rotor_count` feature, which verification does not read, as a classifier input only."""
 
 from __future__ import annotations
@@ -7,13 +7,13 @@ from __future__ import annotations
 import json
 
 from authn.cli import main
-from signatures import verify as V
+from signatures.classify import verify as V
 from signatures.features import FEATURE_NAMES, extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import write_recording
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 
 class _Reads(dict):

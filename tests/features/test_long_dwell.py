@@ -1,7 +1,7 @@
 """Estimators on long, low-PRF CW dwells of a hovering quadcopter with tagged blades (the
 conditions of a real S-band radar: lab/accuracy.py CONDITIONS), in the training simulator and
 in the held-out world: the body reads ~0 m/s, the rotor rate comes from the flash train's
-envelope spectrum (signatures.flash_spectrum.spectral_flash_rate), and a periodic train is a detection
+envelope spectrum (signatures.dsp.flash_spectrum.spectral_flash_rate), and a periodic train is a detection
 even where clutter suppression left no Doppler line. Shares measured on 20 seeded scenes; the
 figures in docs/features.md come from `authn features accuracy --condition ...`."""
 
@@ -18,18 +18,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lab.accuracy import evaluate_condition, feature_estimate
-from signatures import flash_spectrum as flash
+from signatures.dsp import flash_spectrum as flash
 from signatures.features import extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import EXTRA_PRESETS
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 pytestmark = pytest.mark.slow  # ~20 s: 160 simulated 0.82 s dwells
 
 
 #: Levels measured on these 20 seeded scenes (docs/features.md has 40-scene rows). The rotor count
-#: is of the rotors visible above the noise (`signatures.rotor_lines`), a lower bound: it never
+#: is of the rotors visible above the noise (`signatures.dsp.rotor_lines`), a lower bound: it never
 #: counts more than the rotors (noise is no rotor), and it sees at least one in most scenes; untagged
 #: rotors sit near the floor in 0.82 s, so "all four" is not asked (`lab.rotor_lines` shows no count
 #: could see them all at this false-alarm rate).

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from signatures import flash_series, rd
+from signatures.dsp import flash_series, rd
 from signatures.features import FEATURE_NAMES, extract_iq
 from signatures.radar import get_preset
 

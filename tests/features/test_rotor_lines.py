@@ -1,4 +1,4 @@
-"""The long-dwell rotor count (`signatures.rotor_lines`): noise makes no rotor, each rotor that
+"""The long-dwell rotor count (`signatures.dsp.rotor_lines`): noise makes no rotor, each rotor that
 stands above the noise is one line, and the count does not depend on the envelope's scale; the
 extraction marks it a lower bound on long dwells only; `lab.rotor_lines`'s oracle bound."""
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures.rotor_lines import searched_slopes, visible_rotors
+from signatures.dsp.rotor_lines import searched_slopes, visible_rotors
 
 PRF = 5000.0
 
@@ -85,7 +85,7 @@ def test_a_simulated_quad_whose_crossings_made_two_more_rotors_is_four(monkeypat
     it the count reads the 4."""
     import math
 
-    import signatures.rotor_lines as rl
+    import signatures.dsp.rotor_lines as rl
     from lab.accuracy import CONDITIONS, render_condition
     from signatures.features import extract
 
@@ -119,7 +119,7 @@ def test_the_count_does_not_depend_on_the_envelope_scale(log2_scale: int) -> Non
 def test_the_oracle_sees_each_tagged_rotor_alone_and_restores_the_simulator() -> None:
     """Scene 37 of cw-hover-tagged (our simulator, 10 dB) tags all four rotors: each, rendered alone
     and folded at its true rate, stands far above the noise; the simulator is itself again after."""
-    import signatures.simulate as sim
+    import signatures.sim.simulate as sim
     from lab.accuracy import CONDITIONS
     from lab.rotor_lines import rotors_alone
 
@@ -148,8 +148,8 @@ def test_the_searching_oracle_pays_the_counts_threshold() -> None:
 def test_a_long_dwell_marks_its_count_a_lower_bound_and_a_short_one_does_not() -> None:
     from signatures.features import extract
     from signatures.radar import EXTRA_PRESETS, get_preset
-    from signatures.scene import Scene
-    from signatures.simulate import simulate
+    from signatures.sim.scene import Scene
+    from signatures.sim.simulate import simulate
 
     from lab.accuracy import DJI_QUAD
 

@@ -1,4 +1,4 @@
-"""`signatures.stats.median` equals `np.median` on finite input (it only avoids importing numpy.ma)."""
+"""`signatures.dsp.stats.median` equals `np.median` on finite input (it only avoids importing numpy.ma)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from signatures.stats import median
+from signatures.dsp.stats import median
 
 
 @settings(max_examples=60, deadline=None)
@@ -27,7 +27,7 @@ def test_empty_is_an_error() -> None:
 @settings(max_examples=100, deadline=None)
 @given(values=st.lists(st.integers(-50, 50), min_size=1, max_size=40), q=st.floats(0, 100))
 def test_quantile_and_distinct_are_numpys(values, q):
-    from signatures.stats import distinct, quantile
+    from signatures.dsp.stats import distinct, quantile
 
     assert quantile(np.array(values), q) == pytest.approx(float(np.percentile(values, q)), abs=1e-9)
     assert distinct(np.array(values)) == np.unique(values).tolist()

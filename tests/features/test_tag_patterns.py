@@ -1,7 +1,7 @@
 """A quad's tag patterns on a long CW dwell (issue 54): the envelope estimator on synthetic flash
 trains of four two-blade rotors with 10000000, 10101010, 11000000 and 11111111 tagged (rotor by
-rotor), and the rotor count that says it does not know (signatures.flash_spectrum.spectral_flash_rate,
-signatures.rotor_lines.count_known; docs/long-dwells.md)."""
+rotor), and the rotor count that says it does not know (signatures.dsp.flash_spectrum.spectral_flash_rate,
+signatures.dsp.rotor_lines.count_known; docs/long-dwells.md)."""
 
 from __future__ import annotations
 
@@ -12,14 +12,14 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from signatures import flash_spectrum as flash
-from signatures import rotor_lines
+from signatures.dsp import flash_spectrum as flash
+from signatures.dsp import rotor_lines
 from signatures.features import extract, physics_estimates
 from signatures.profiles import shipped_profiles
 from signatures.radar import EXTRA_PRESETS
-from signatures.scene import Scene
-from signatures.simulate import simulate
-from signatures.verify import _physics
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
+from signatures.classify.verify import _physics
 
 PATTERNS = ("10000000", "10101010", "11000000", "11111111")
 CONFIG = EXTRA_PRESETS["cw-sband"].config

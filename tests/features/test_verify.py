@@ -1,4 +1,4 @@
-"""1:1 verification (`signatures.verify`): physics against the claimed profile, rate-invariant
+"""1:1 verification (`signatures.classify.verify`): physics against the claimed profile, rate-invariant
 where it should be, the classifier's say bounded, a new profile verifiable without retraining."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from signatures.profiles import UavProfile, shipped_profiles
-from signatures.verify import CLASSIFIER_CLIP, MIN_FLASH_GROUPS, RATE_BAND, TERM_FLOOR, verify
+from signatures.classify.verify import CLASSIFIER_CLIP, MIN_FLASH_GROUPS, RATE_BAND, TERM_FLOOR, verify
 
 P = shipped_profiles()
 WIDE_MAX_TIP = 156.0  # the wide preset's unambiguous velocity: tips never alias there
@@ -76,7 +76,7 @@ def test_rotors_seen_weigh_against_airframes_whose_rates_and_tips_agree() -> Non
 
 
 def _visible(count: float) -> dict[str, float]:
-    """A long dwell's count of the rotors visible above the noise (`signatures.rotor_lines`)."""
+    """A long dwell's count of the rotors visible above the noise (`signatures.dsp.rotor_lines`)."""
     return {"rotors_seen": count, "rotors_seen_std": 1.0, "rotors_lower_bound": 1.0}
 
 
@@ -130,7 +130,7 @@ def test_the_classifier_term_is_bounded_and_only_for_its_own_classes() -> None:
 def test_a_classifier_that_gives_no_number_counts_against_the_claim(claim: str) -> None:
     """Fail closed: a NaN probability (a broken bundle) takes the classifier term to -clip, calibrated
     or not, where clipping NaN would have made it +clip."""
-    from signatures.calibration import CLASSIFIER_CLIP as CALIBRATION_CLIP, Calibration
+    from signatures.classify.calibration import CLASSIFIER_CLIP as CALIBRATION_CLIP, Calibration
 
     probs = {"m600": math.nan, "m300": math.nan, "phantom4": 0.0, "bird": 0.0, "none": 0.0}
     assert verify({}, P[claim], probs).terms == {"classifier": -CLASSIFIER_CLIP}
@@ -167,8 +167,8 @@ def test_a_long_dwells_rate_is_read_from_the_score_that_detects_it() -> None:
     """A long dwell's envelope-spectrum rate (marked by its visible-rotor count) is a train from the
     CW detection's score, where the period search's needs 1: at 0.5 the long dwell's is read and
     verifies, the short dwell's abstains; under the detection's score both abstain."""
-    from signatures.flash_spectrum import SPECTRAL_DETECT_SCORE
-    from signatures.verify import MIN_FLASH_SCORE, MIN_SPECTRAL_SCORE, min_flash_score
+    from signatures.dsp.flash_spectrum import SPECTRAL_DETECT_SCORE
+    from signatures.classify.verify import MIN_FLASH_SCORE, MIN_SPECTRAL_SCORE, min_flash_score
 
     assert MIN_SPECTRAL_SCORE == SPECTRAL_DETECT_SCORE < MIN_FLASH_SCORE
     long_dwell = {**_seen(P["m300"]), **_visible(4.0)}
@@ -240,9 +240,9 @@ def test_site_bands_default_to_todays_and_narrow_or_widen_with_site_data() -> No
     a card's bands read back; too few recordings keep the prior."""
     import math
 
-    from signatures.enrol import BAND_PRIOR_WEIGHT, _band
+    from signatures.train.enrol import BAND_PRIOR_WEIGHT, _band
     from signatures.profiles import shipped_profiles
-    from signatures.verify import RATE_BAND, ROTOR_BAND, Bands, bands_from, verify
+    from signatures.classify.verify import RATE_BAND, ROTOR_BAND, Bands, bands_from, verify
 
     prof = shipped_profiles()["m300"]
     feats = {"flash_rate_hz": prof.blade_flash_rate_hz * 1.1, "flash_rate_std_hz": 1.0, "flash_score": 5.0,

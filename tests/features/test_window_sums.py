@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signatures.flash_series import window_sums
+from signatures.dsp.flash_series import window_sums
 
 
 def _direct(z: np.ndarray, half: int) -> np.ndarray:

@@ -52,7 +52,7 @@ def base_recording():
     from authn.scenario import Broadcast, simulate_flight
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     scene = Scene(profile=shipped_profiles()["m300"], range_m=300.0, radial_speed_mps=3.0, snr_db=10.0)
     rec, _ = simulate_flight(scene, get_preset("paper"), 7, Broadcast(serial=SERIAL))

@@ -19,7 +19,7 @@ from lab.heldout import render, simulate, unseen_profiles
 from lab.heldout.synthesis import bessel_j, if_cube
 from signatures.profiles import load_profiles, shipped_profiles
 from signatures.radar import C, get_preset
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 
 PACKAGE = Path(__file__).resolve().parents[2] / "signatures" / "heldout"
 
@@ -140,9 +140,9 @@ def test_removing_noise_leaves_the_target_bit_identical() -> None:
 
 
 def test_shares_no_code_with_the_training_simulator() -> None:
-    """No module of the package imports signatures.simulate (or its sampler and datasets), and
+    """No module of the package imports signatures.sim.simulate (or its sampler and datasets), and
     importing the package does not load them."""
-    banned = {"signatures.simulate", "signatures.sampling", "signatures.dataset", "signatures.domain"}
+    banned = {"signatures.sim.simulate", "signatures.sim.sampling", "signatures.train.dataset", "signatures.sim.domain"}
     for path in PACKAGE.glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
             names = []

@@ -12,8 +12,8 @@ from authn.cli import main
 from authn.demo import register_examples
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 M300 = "1581BDEM00000002"  # registered as an M300 by register_examples
 

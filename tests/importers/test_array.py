@@ -16,12 +16,12 @@ import pytest
 import scipy.io
 
 from authn.scenario import Broadcast, simulate_flight
-from signatures.domain import cw_config, range_config, to_domain
+from signatures.sim.domain import cw_config, range_config, to_domain
 from signatures.features import FEATURE_NAMES, extract
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import read_recording, write_recording
-from signatures.scene import Scene
+from signatures.sim.scene import Scene
 from tests.importers.conftest import M300, check_json, site_args
 
 #: Range-domain features equal the IF pipeline's to this (relative or absolute): the same range
@@ -50,7 +50,7 @@ def paper_classifier(monkeypatch):
     """Serve the shipped paper classifier for any waveform. For a range-domain file with the
     paper's numbers that is exact (its features are the IF pipeline's); which bundle the
     product picks for non-IF domains by itself belongs to the classifier-selection code."""
-    from signatures import inference
+    from signatures.classify import inference
 
     clf = inference.load_classifier("paper")
     monkeypatch.setattr(inference, "classifier_for", lambda *a, **k: clf)
@@ -68,7 +68,7 @@ def test_to_domain_is_pure_and_exact(scene_rec) -> None:
     cw = to_domain(scene_rec.iq, scene_rec.config, "cw")
     assert np.array_equal(scene_rec.iq, before)
     assert to_domain(scene_rec.iq, scene_rec.config, "if") is scene_rec.iq
-    from signatures import rd
+    from signatures.dsp import rd
 
     assert np.array_equal(rng, rd.range_fft(scene_rec.iq, suppress_clutter=False))
     assert cw.shape == (scene_rec.n_chirps, 1) and np.array_equal(cw[:, 0], scene_rec.iq[:, 0])

@@ -17,8 +17,8 @@ from remoteid.codec import split_raw
 from signatures.profiles import shipped_profiles
 from signatures.radar import get_preset
 from signatures.recording import RadarSite, Recording
-from signatures.scene import Scene
-from signatures.simulate import simulate
+from signatures.sim.scene import Scene
+from signatures.sim.simulate import simulate
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "remoteid-captures"
 BEACON = DATA / "odid_wifi_bcn_sample.pcap"

@@ -77,7 +77,7 @@ def test_a_signature_not_yet_valid_is_rejected_with_its_own_reason(world: dict, 
     from authn.uakeys import load
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     key = load(world["key"])
     scene = Scene(profile=shipped_profiles()["m300"], range_m=500.0, radial_speed_mps=3.0, snr_db=20.0)

@@ -106,7 +106,7 @@ def flight(out: Path, name: str, flies: str, serial: str | None, offset: float =
     from signatures.profiles import shipped_profiles
     from signatures.radar import get_preset
     from signatures.recording import write_recording
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     sc = Scene(kind="uav", profile=shipped_profiles().get(flies), snr_db=20.0, range_m=400.0,
                radial_speed_mps=3.0, elevation_deg=10.0)

@@ -28,7 +28,7 @@ def tracks(tmp_path_factory, sqlite_db) -> dict[str, list[Path]]:
     from registry.store import NewIdentity, register_identity
     from signatures.profiles import shipped_profiles
     from signatures.recording import write_recording
-    from signatures.scene import Scene
+    from signatures.sim.scene import Scene
 
     with transaction(sqlite_db) as s:
         register_identity(s, NewIdentity(serial=P4, model="phantom4", operator_id="TEST",

@@ -1,0 +1,2 @@
+"""Radar signal processing, array-first: range-Doppler, time-frequency, the blade-flash
+estimators and the feature vector they fill (`signatures.features` is its public front)."""

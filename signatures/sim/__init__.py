@@ -1,0 +1,1 @@
+"""The signal model: simulated scenes, their dechirped IF cubes, random scenes, other radar domains."""
