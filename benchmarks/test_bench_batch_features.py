@@ -1,4 +1,4 @@
-"""Batched feature extraction (`signatures.batch_features.extract_batch`): time per return
+"""Batched feature extraction (`signatures.dsp.extraction.extract_batch`): time per return
 against batch size, both presets, both FFT backends, the whole extraction and its cube stage
 (scaling, clutter suppression, range FFT, profile, detection, gating) alone, beside the FFT
 floor of one return (`lab.bench.perf.fft_floor`).

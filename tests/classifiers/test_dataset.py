@@ -70,8 +70,9 @@ def test_cache_key_digests_the_sample_code() -> None:
     from signatures.train.code_digest import modules_reached
 
     reached = modules_reached((features.extract.__module__, *dataset.SAMPLE_CODE))
-    assert {"signatures.dsp.flash_series", "signatures.dsp.flash_period", "signatures.dsp.rd", "signatures.dsp.timefreq",
-            "signatures.sim.simulate", "signatures.sim.sampling", "signatures.sim.scene", "signatures.train.dataset"} <= set(reached)
+    assert {"signatures.dsp.flash_series", "signatures.dsp.flash_period", "signatures.dsp.rd",
+            "signatures.dsp.timefreq", "signatures.sim.simulate", "signatures.sim.sampling", "signatures.sim.scene",
+            "signatures.train.dataset"} <= set(reached)
 
 
 def test_split_is_a_property_of_the_block() -> None:
