@@ -1,17 +1,17 @@
 """The layers of docs/architecture.md hold: every import between our packages, at module
-level or inside a function, goes down (or stays within a layer), and the module-level
-graph has no cycles (imports inside functions are deferred on purpose: they may close a
-loop within a layer, never cross upwards). The laboratory (`lab`, the authn-lab distribution)
-sits above the whole product, its command line included: the product never imports it, not
-even by name through importlib (its commands reach `authn` as entry-point plugins)."""
+level or inside a function, goes down (or stays within a layer); cycles are
+tests/test_import_graph.py's, which finds them through imports inside functions too. The
+laboratory (`lab`, the authn-lab distribution) sits above the whole product, its command line
+included: the product never imports it, not even by name through importlib (its commands
+reach `authn` as entry-point plugins)."""
 
 from __future__ import annotations
 
 import ast
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("core", "signatures", "remoteid", "registry", "authn", "lab")
+from tests.import_graph import PACKAGES, ROOT, module_name
+
 
 #: bottom to top; a module belongs to the longest prefix listed
 LAYERS = (
@@ -26,13 +26,8 @@ LAYERS = (
 PRODUCT = ("core", "signatures", "remoteid", "registry", "authn")
 
 
-def _module_name(path: Path) -> str:
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-
-
 def _modules() -> dict[str, Path]:
-    return {_module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
+    return {module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
 
 
 def _imports(path: Path, module_level: bool) -> list[str]:
@@ -81,28 +76,6 @@ def layer_of(module: str) -> int:
     return level
 
 
-def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
-    state: dict[str, int] = {}
-    stack: list[str] = []
-
-    def visit(node: str) -> list[str] | None:
-        state[node] = 1
-        stack.append(node)
-        for nxt in sorted(graph[node]):
-            if state.get(nxt) == 1:
-                return stack[stack.index(nxt):] + [nxt]
-            if nxt not in state and (found := visit(nxt)):
-                return found
-        stack.pop()
-        state[node] = 2
-        return None
-
-    for node in sorted(graph):
-        if node not in state and (found := visit(node)):
-            return found
-    return None
-
-
 def test_every_module_has_a_layer() -> None:
     assert all(layer_of(m) >= 0 for m in _modules())
 
@@ -141,17 +114,6 @@ def test_lab_import_check_finds_planted_imports(tmp_path: Path) -> None:
         found = _lab_imports({"authn.cli.planted": planted})
         assert found and all(line.startswith("authn.cli.planted -> lab.") for line in found), (source, found)
     assert _lab_imports({"lab.cli.planted": planted}) == []  # the lab may import itself
-
-
-def test_no_import_cycles() -> None:
-    graph = _graph()
-    assert len(graph) > 50
-    assert _cycle(graph) is None, " -> ".join(_cycle(graph))
-
-
-def test_cycle_detection_finds_a_planted_cycle() -> None:
-    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}
-    assert _cycle(graph) == ["a", "b", "c", "a"]
 
 
 def test_cli_modules_do_not_import_the_cli_package() -> None:
