@@ -50,21 +50,21 @@ class Settings:
 
     def to_env(self) -> dict[str, str]:
         """The settings as environment variables for worker processes (`core.settings` names them)."""
-        values = {"serve_max_upload_bytes": self.max_upload_bytes, "serve_max_batch_files": self.max_batch_files,
-                  "serve_max_drones": self.max_drones, "serve_upload_timeout_s": self.upload_timeout_s,
-                  "serve_max_body_bytes": self.max_body_bytes, "serve_body_timeout_s": self.body_timeout_s,
-                  "serve_trusted_proxies": self.trusted_proxies,
-                  "serve_trusted_proxy_header": self.trusted_proxy_header,
-                  "serve_db_url": self.db_url, "serve_policy": self.policy_path, "serve_figures_dir": self.figures_dir}
-        return {name_of(field): str(value) for field, value in values.items() if value is not None}
+        values = {env: getattr(self, field) for field, env in _ENV_FIELDS}
+        return {name_of(env): str(value) for env, value in values.items() if value is not None}
 
     @classmethod
     def from_env(cls) -> "Settings":
         """What `to_env` wrote (a worker process's settings), from `core.settings`."""
         env = current()
-        return cls(db_url=env.serve_db_url or env.database_url, policy_path=env.serve_policy,
-                   max_upload_bytes=env.serve_max_upload_bytes, max_batch_files=env.serve_max_batch_files,
-                   max_drones=env.serve_max_drones, upload_timeout_s=env.serve_upload_timeout_s,
-                   max_body_bytes=env.serve_max_body_bytes, body_timeout_s=env.serve_body_timeout_s,
-                   trusted_proxy_header=env.serve_trusted_proxy_header,
-                   trusted_proxies=env.serve_trusted_proxies, figures_dir=env.serve_figures_dir)
+        values = {field: getattr(env, name) for field, name in _ENV_FIELDS}
+        return cls(**{**values, "db_url": env.serve_db_url or env.database_url})
+
+
+#: Each field and the `core.settings` field that carries it to worker processes.
+_ENV_FIELDS = (("db_url", "serve_db_url"), ("policy_path", "serve_policy"),
+               ("max_upload_bytes", "serve_max_upload_bytes"), ("max_batch_files", "serve_max_batch_files"),
+               ("max_drones", "serve_max_drones"), ("upload_timeout_s", "serve_upload_timeout_s"),
+               ("max_body_bytes", "serve_max_body_bytes"), ("body_timeout_s", "serve_body_timeout_s"),
+               ("trusted_proxy_header", "serve_trusted_proxy_header"),
+               ("trusted_proxies", "serve_trusted_proxies"), ("figures_dir", "serve_figures_dir"))
