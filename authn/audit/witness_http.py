@@ -8,7 +8,7 @@ uvicorn, the stack `authn serve` runs on. What each operation answers is the end
   without a Content-Length, or another path.
 - Any other method: 501.
 
-h11 never times out a request head, so the protocol here closes a connection that has not
+h11 never times out a request head, so the shared head timeout (authn.http_head) closes a connection that has not
 sent a complete head within REQUEST_TIMEOUT_S of opening (or of its first byte after a
 keep-alive pause); a body not received within as long again is answered 408.
 """
@@ -25,8 +25,8 @@ import uvicorn
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect, Request
 from starlette.responses import PlainTextResponse
-from uvicorn.protocols.http.h11_impl import H11Protocol
 
+from authn.http_head import HeadTimedH11
 from core.errors import SystemFault
 
 if TYPE_CHECKING:
@@ -90,50 +90,12 @@ class WitnessApp:
         return _text(*await run_in_threadpool(self.endpoint.add, body))
 
 
-class HeadTimeoutH11(H11Protocol):
-    """uvicorn's h11 protocol, closing a connection that is waiting for a request head
-    (new, or after a keep-alive pause once a byte came) for REQUEST_TIMEOUT_S."""
+class WitnessH11(HeadTimedH11):
+    """The shared head timeout at REQUEST_TIMEOUT_S (read when a timer is armed, so a test may
+    shorten it)."""
 
-    _timer: asyncio.TimerHandle | None = None
-    _waiting = True
-
-    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]  # as uvicorn's: it narrows the transport
-        super().connection_made(transport)
-        self._arm()
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        self._cancel()
-        super().connection_lost(exc)
-
-    def data_received(self, data: bytes) -> None:
-        if self._waiting and self._timer is None:
-            self._arm()
-        super().data_received(data)
-
-    def handle_events(self) -> None:
-        cycle = self.cycle
-        super().handle_events()
-        if self.cycle is not cycle:  # a head was parsed
-            self._waiting = False
-            self._cancel()
-
-    def on_response_complete(self) -> None:
-        self._waiting = True  # before uvicorn parses a pipelined next request
-        super().on_response_complete()
-
-    def _arm(self) -> None:
-        self._cancel()
-        self._timer = self.loop.call_later(REQUEST_TIMEOUT_S, self._expire)
-
-    def _cancel(self) -> None:
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
-
-    def _expire(self) -> None:
-        self._timer = None
-        if self._waiting and not self.transport.is_closing():
-            self.transport.close()
+    def head_timeout_s(self) -> float:
+        return REQUEST_TIMEOUT_S
 
 
 def listen(host: str, port: int) -> socket.socket:
@@ -149,7 +111,7 @@ def listen(host: str, port: int) -> socket.socket:
 def run(endpoint: Endpoint, host: str, port: int) -> None:
     """Serve `endpoint` on host:port until interrupted."""
     sock = listen(host, port)
-    config = uvicorn.Config(WitnessApp(endpoint), http=HeadTimeoutH11, ws="none", lifespan="off",
+    config = uvicorn.Config(WitnessApp(endpoint), http=WitnessH11, ws="none", lifespan="off",
                             log_config=None, access_log=False)
     try:
         uvicorn.Server(config).run(sockets=[sock])

@@ -40,7 +40,8 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import h11
-from uvicorn.protocols.http.h11_impl import H11Protocol
+
+from authn.http_head import HeadTimedH11
 
 log = logging.getLogger("authn.service")
 
@@ -259,8 +260,9 @@ def current() -> ConnectionGuard | None:
     return _GUARD
 
 
-class GuardedH11Protocol(H11Protocol):
-    """uvicorn's h11 protocol with a request-head timeout, registered with this worker's guard.
+class GuardedH11Protocol(HeadTimedH11):
+    """uvicorn's h11 protocol with a request-head timeout, registered with this worker's guard
+    (which holds the waiting state).
 
     uvicorn's own `limit_concurrency` (open connections + tasks) is off: the guard counts
     connections, `RequestLimit` counts requests."""
@@ -272,61 +274,38 @@ class GuardedH11Protocol(H11Protocol):
         assert guard is not None, "connections.configure() before serving"
         self.guard = guard
         self.limit_concurrency = None
-        self.head_timer: asyncio.TimerHandle | None = None
-        self.head_bytes = 0
+
+    def head_timeout_s(self) -> float:
+        return self.guard.limits.header_timeout_s
+
+    def is_waiting(self) -> bool:
+        return self.guard.is_waiting(self)
+
+    def set_waiting(self, waiting: bool) -> None:
+        if waiting:
+            self.guard.set_waiting(self)
+        else:
+            self.guard.set_active(self)
 
     def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
         super().connection_made(transport)
         addr = self.client[0] if self.client else ""
         if not self.guard.admit(self, addr):
+            self.cancel_head_timer()
             transport.close()
-            return
-        self._arm_head_timer()
 
     def connection_lost(self, exc: Exception | None) -> None:
-        self._cancel_head_timer()
         self.guard.release(self)
         super().connection_lost(exc)
 
-    def data_received(self, data: bytes) -> None:
-        if self.guard.is_waiting(self):
-            self.head_bytes += len(data)
-            if self.head_timer is None:  # the first byte after a keep-alive pause
-                self._arm_head_timer()
-        super().data_received(data)
-
-    def handle_events(self) -> None:
-        cycle = self.cycle
-        super().handle_events()
-        if self.cycle is not cycle:  # a request head was parsed: the request now counts, not the socket
-            self._cancel_head_timer()
-            self.head_bytes = 0
-            self.guard.set_active(self)
-
-    def on_response_complete(self) -> None:
-        if not self.transport.is_closing():
-            self.guard.set_waiting(self)  # before uvicorn parses a pipelined next request
-        super().on_response_complete()
-
     def evict(self) -> None:
         """The guard needs the room: close this waiting connection."""
-        self._cancel_head_timer()
+        self.cancel_head_timer()
         if not self.transport.is_closing():
             self.transport.close()
 
-    def _arm_head_timer(self) -> None:
-        self._cancel_head_timer()
-        self.head_timer = self.loop.call_later(self.guard.limits.header_timeout_s, self._head_timeout)
-
-    def _cancel_head_timer(self) -> None:
-        if self.head_timer is not None:
-            self.head_timer.cancel()
-            self.head_timer = None
-
-    def _head_timeout(self) -> None:
-        self.head_timer = None
-        if self.transport.is_closing() or not self.guard.is_waiting(self):
-            return
+    def head_expired(self) -> None:
+        """Count it, and close with a 408 if part of a head had arrived."""
         self.guard.counts["header_timeouts"] += 1
         self.guard.release(self)
         if self.head_bytes and self.conn.our_state is h11.IDLE:
