@@ -2,9 +2,9 @@
 
 The typed values a check builds (Remote ID messages, the radar configuration and site, UAV
 profiles) are `Checked` dataclasses: each field declares its constraint (`number`, `integer`,
-`text`, `data`, `choice`, `moment`) and `__post_init__` enforces it, coercing as a lax
-validator would (an int for a float field, an integral float or numeric string for an int
-field); a class's rules across fields go in `_check`. A violation raises `Invalid`, a
+`text`, `data`, `choice`, `moment`, or `rule` with a check of its own) and `__post_init__`
+enforces it, coercing as a lax validator would (an int for a float field, an integral float or
+numeric string for an int field); a class's rules across fields go in `_check`. A violation raises `Invalid`, a
 ValueError carrying the field (`loc`), the reason (`msg`, worded as pydantic words it) and the
 input. Standard library only: importing it costs nothing, unlike pydantic (~90 ms).
 
@@ -22,7 +22,7 @@ import re
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, Callable, ClassVar, Self
 
-__all__ = ["Checked", "Invalid", "choice", "data", "integer", "moment", "number", "text"]
+__all__ = ["Checked", "Invalid", "choice", "data", "integer", "moment", "number", "rule", "text"]
 
 _MISSING = dataclasses.MISSING
 
@@ -112,11 +112,12 @@ def _bounds(value: Any, ge: Any, gt: Any, le: Any, lt: Any, multiple_of: Any) ->
         raise ValueError(f"Input should be greater than {_show(gt)}")
 
 
-def _field(check: Callable[[Any], Any], default: Any, optional: bool) -> Any:
-    def rule(value: Any) -> Any:
+def rule(check: Callable[[Any], Any], default: Any = _MISSING, *, optional: bool = False) -> Any:
+    """A field that `check` coerces or refuses (ValueError); None passes when `optional`."""
+    def checked(value: Any) -> Any:
         return None if optional and value is None else check(value)
 
-    return dataclasses.field(default=default, metadata={"check": rule})
+    return dataclasses.field(default=default, metadata={"check": checked})
 
 
 def number(default: Any = _MISSING, *, ge: float | None = None, gt: float | None = None,
@@ -131,7 +132,7 @@ def number(default: Any = _MISSING, *, ge: float | None = None, gt: float | None
         _bounds(x, ge, gt, le, lt, None)
         return x
 
-    return _field(check, default, optional)
+    return rule(check, default, optional=optional)
 
 
 def integer(default: Any = _MISSING, *, ge: int | None = None, gt: int | None = None, le: int | None = None,
@@ -142,7 +143,7 @@ def integer(default: Any = _MISSING, *, ge: int | None = None, gt: int | None = 
         _bounds(x, ge, gt, le, lt, multiple_of)
         return x
 
-    return _field(check, default, optional)
+    return rule(check, default, optional=optional)
 
 
 def text(default: Any = _MISSING, *, min_length: int | None = None, max_length: int | None = None,
@@ -168,7 +169,7 @@ def text(default: Any = _MISSING, *, min_length: int | None = None, max_length: 
             raise ValueError(f"String should match pattern '{pattern}'")
         return value
 
-    return _field(check, default, optional)
+    return rule(check, default, optional=optional)
 
 
 def data(default: Any = _MISSING, *, min_length: int | None = None, max_length: int | None = None) -> Any:
@@ -185,7 +186,7 @@ def data(default: Any = _MISSING, *, min_length: int | None = None, max_length: 
             raise ValueError(f"Data should have at most {max_length} byte{'s' * (max_length != 1)}")
         return value
 
-    return _field(check, default, False)
+    return rule(check, default, optional=False)
 
 
 def choice(*values: Any, default: Any = _MISSING) -> Any:
@@ -201,7 +202,7 @@ def choice(*values: Any, default: Any = _MISSING) -> Any:
                 return v
         raise ValueError(f"Input should be {words}")
 
-    return _field(check, default, False)
+    return rule(check, default, optional=False)
 
 
 def moment(default: Any = _MISSING, *, ge: datetime | None = None, le: datetime | None = None,
@@ -218,7 +219,7 @@ def moment(default: Any = _MISSING, *, ge: datetime | None = None, le: datetime 
             raise ValueError(f"Input should be greater than or equal to {_show(ge)}")
         return value
 
-    return _field(check, default, optional)
+    return rule(check, default, optional=optional)
 
 
 def _rules(cls: type) -> tuple[tuple[str, Callable[[Any], Any]], ...]:
@@ -268,6 +269,9 @@ class Checked:
             new = _apply(name, check, value)
             if new is not value:
                 object.__setattr__(self, name, new)
+        self._check_across()
+
+    def _check_across(self) -> None:
         try:
             self._check()
         except Invalid:
@@ -282,22 +286,30 @@ class Checked:
     def from_dict(cls, doc: Any) -> Self:
         """An instance from an external document: a dict with the declared fields, no others.
         The first error is reported as pydantic orders them: fields in declaration order (a
-        missing one or a refused value), then unknown keys, then the rules across fields."""
+        missing one or a refused value), then unknown keys, then the rules across fields.
+        Each field is checked once (here, not again by `__init__`)."""
         if not isinstance(doc, dict):
             raise Invalid("", f"Input should be a valid dictionary or instance of {cls.__name__}", doc)
-        names = set()
+        values: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
-            names.add(f.name)
             if f.name in doc:
-                check = f.metadata.get("check")
-                if check is not None:
-                    _apply(f.name, check, doc[f.name])
-            elif f.default is _MISSING and f.default_factory is _MISSING:
+                value = doc[f.name]
+            elif f.default is not _MISSING:
+                value = f.default
+            elif f.default_factory is not _MISSING:
+                value = f.default_factory()
+            else:
                 raise Invalid(f.name, "Field required", doc)
-        extra = next((k for k in doc if k not in names), None)
+            check = f.metadata.get("check")
+            values[f.name] = _apply(f.name, check, value) if check is not None else value
+        extra = next((k for k in doc if k not in values), None)
         if extra is not None:
             raise Invalid(str(extra), "Extra inputs are not permitted", doc[extra])
-        return cls(**doc)
+        made = object.__new__(cls)
+        for name, value in values.items():
+            object.__setattr__(made, name, value)
+        made._check_across()
+        return made
 
     def to_dict(self, *, json: bool = False, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
         """The fields in declaration order (nested Checked values as dicts)."""

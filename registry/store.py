@@ -41,16 +41,14 @@ profiles and no created_at/updated_at: use JSON for a backup or a migration.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import io
 import json
 import re
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any, Literal
 
-from core.checked import Checked, Invalid, choice, moment, text
+from core.checked import Checked, Invalid, choice, moment, rule, text
 from core.errors import BadInput
 from core.parsing import JsonTooDeep, first_error, in_utc_range, loads_json, parse_iso_time
 from core.uasid import as_heard
@@ -122,11 +120,6 @@ def _public_key(value: Any) -> bytes | None:
     return key
 
 
-def _rule(check: Callable[[Any], Any], default: Any = None) -> Any:
-    """A field `check` coerces or refuses (ValueError): core.checked runs each field's `check`."""
-    return dataclasses.field(default=default, metadata={"check": check})
-
-
 def _profile_value(value: Any) -> UavProfile:
     if not isinstance(value, UavProfile):
         raise ValueError("Input should be a UavProfile")
@@ -145,13 +138,13 @@ class NewIdentity(Checked):
     id_type: IdType = choice("serial", "caa_registration", "utm_uuid", "specific_session", default="serial")
     model: str = text(min_length=1, max_length=32)
     operator_id: str | None = text(None, max_length=20, pattern=r"^[\x20-\x7e]+$", optional=True)
-    public_key: bytes | None = _rule(_public_key)
+    public_key: bytes | None = rule(_public_key, None)
     status: Status = choice("active", "revoked", default="active")
-    valid_from: datetime | None = _rule(_utc_time)
-    valid_until: datetime | None = _rule(_utc_time)
+    valid_from: datetime | None = rule(_utc_time, None)
+    valid_until: datetime | None = rule(_utc_time, None)
     notes: str | None = text(None, max_length=NOTES_MAX, optional=True)
-    created_at: datetime | None = _rule(_utc_time)
-    updated_at: datetime | None = _rule(_utc_time)
+    created_at: datetime | None = rule(_utc_time, None)
+    updated_at: datetime | None = rule(_utc_time, None)
 
     def _check(self) -> None:
         object.__setattr__(self, "serial", validate_uas_id(self.serial, self.id_type))
@@ -173,8 +166,8 @@ class IdentityRecord(Checked):
     id_type: IdType = choice("serial", "caa_registration", "utm_uuid", "specific_session")
     operator_id: str | None = text(optional=True)
     model: str = text()
-    profile: UavProfile = _rule(_profile_value, dataclasses.MISSING)
-    public_key: bytes | None = _rule(_public_key)
+    profile: UavProfile = rule(_profile_value)
+    public_key: bytes | None = rule(_public_key, None)
     status: Status = choice("active", "revoked")
     valid_from: datetime = moment()
     valid_until: datetime | None = moment(optional=True)

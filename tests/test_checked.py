@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from core.checked import Checked, Invalid, choice, data, integer, moment, number, text
+from core.checked import Checked, Invalid, choice, data, integer, moment, number, rule, text
 
 EPOCH = datetime(2019, 1, 1, tzinfo=timezone.utc)
 
@@ -88,3 +88,25 @@ def test_from_dict_refuses_unknown_and_missing_fields_and_non_objects() -> None:
         Probe.from_dict({"rate": 1.0, "extra": 1})
     with pytest.raises(Invalid, match="valid dictionary"):
         Probe.from_dict([("rate", 1.0)])
+
+
+def test_from_dict_checks_each_field_once_and_still_runs_the_rules_across_fields() -> None:
+    seen: list[object] = []
+
+    def counted(value: object) -> str:
+        seen.append(value)
+        return str(value).strip()
+
+    @dataclass(frozen=True, kw_only=True)
+    class Counted(Checked):
+        name: str = rule(counted)
+        note: str | None = rule(counted, None, optional=True)
+
+        def _check(self) -> None:
+            if self.name == "no":
+                raise ValueError("not that name")
+
+    made = Counted.from_dict({"name": " x "})
+    assert made == Counted(name="x") and seen == [" x ", "x"]  # from_dict once, the constructor once
+    with pytest.raises(Invalid, match="not that name"):
+        Counted.from_dict({"name": "no"})
