@@ -69,7 +69,7 @@ def _shipped(name: str) -> str:
     return resources.files("authn.policies").joinpath(name).read_text()
 
 
-def _one_line(text: str) -> str:
+def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
@@ -21,6 +22,9 @@ from sqlalchemy.exc import ArgumentError, DBAPIError
 from registry.errors import DatabaseFault, RegistryError
 from registry.urls import announce_created, check_backend, prepare_sqlite, resolve_url, sqlite_file
 
+if TYPE_CHECKING:
+    from alembic.config import Config
+
 _PG_LOCK_KEY = 0x61757468_6E726567  # "authnreg": one advisory lock for migrations
 _engines: dict[str, Engine] = {}
 _engines_lock = threading.Lock()
@@ -28,7 +32,7 @@ _engines_lock = threading.Lock()
 
 def _sqlite_setup(engine: Engine) -> None:
     @event.listens_for(engine, "connect")
-    def _on_connect(dbapi_conn, _record) -> None:
+    def _on_connect(dbapi_conn: Any, _record: Any) -> None:
         dbapi_conn.isolation_level = None  # we issue BEGIN ourselves
         cur = dbapi_conn.cursor()
         cur.execute("PRAGMA busy_timeout = 30000")
@@ -48,7 +52,7 @@ _WAL_TRIES = 100
 _WAL_WAIT_S = 0.05
 
 
-def _set_wal(cur) -> None:
+def _set_wal(cur: Any) -> None:
     """PRAGMA journal_mode = WAL, retried while another connection holds the lock it needs."""
     import sqlite3
     import time
@@ -83,7 +87,7 @@ def create_db_engine(url: str | None = None, *, create: bool = False) -> Engine:
     return engine
 
 
-def alembic_config(connection: Connection | None = None):
+def alembic_config(connection: Connection | None = None) -> Config:
     """Alembic Config built in code: works from an installed package, no alembic.ini."""
     from alembic.config import Config
 

@@ -254,7 +254,10 @@ class Database:
         if not rows:
             return None
         s, id_type, model, status, vf, vu, key = rows[0]
-        return IdentityFacts(s, id_type, model, status, self.from_db_time(vf), self.from_db_time(vu),
+        valid_from = self.from_db_time(vf)
+        if valid_from is None:  # NOT NULL in the schema: a row that breaks it decides nothing
+            raise DatabaseFault(f"identity {s!r}: its row has no valid_from")
+        return IdentityFacts(s, id_type, model, status, valid_from, self.from_db_time(vu),
                              bytes(key) if key is not None else None)
 
     def registered_models(self) -> set[str]:

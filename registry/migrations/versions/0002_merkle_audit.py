@@ -25,7 +25,7 @@ down_revision = "0001"
 _NEW_TABLES = ("audit_policies", "audit_tree_heads")
 
 
-def _iso(value) -> str:
+def _iso(value: str | datetime) -> str:
     """created_at exactly as revision 0001's writer hashed it (frozen here)."""
     if isinstance(value, str):
         value = datetime.fromisoformat(value)
@@ -33,7 +33,8 @@ def _iso(value) -> str:
     return value.isoformat(timespec="microseconds")
 
 
-def _leaf_hash(seq, created_at, kind, serial, decision, payload, prev_hash) -> str:
+def _leaf_hash(seq: int, created_at: str | datetime, kind: str, serial: str | None, decision: str | None, payload: str,
+               prev_hash: str) -> str:
     body = json.dumps({"seq": int(seq), "created_at": _iso(created_at), "kind": kind, "serial": serial,
                        "decision": decision, "payload": payload, "prev_hash": prev_hash},
                       sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)

@@ -23,7 +23,7 @@ down_revision = "0007"
 _SQLITE_TIME = re.compile(r"\d{4}-\d{2}-\d{2} \d{2}:\d{2}:\d{2}\.\d{6}")
 
 
-def _iso(value) -> str | None:
+def _iso(value: object) -> str | None:
     """created_at as revisions 0001-0007 hashed it, or None for a value in no stored form."""
     if isinstance(value, str) and _SQLITE_TIME.fullmatch(value):
         return f"{value[:10]}T{value[11:]}+00:00"
@@ -32,7 +32,8 @@ def _iso(value) -> str | None:
     return None
 
 
-def _v0(seq, created_at, kind, serial, decision, payload, prev_hash) -> bytes | None:
+def _v0(seq: int, created_at: object, kind: object, serial: object, decision: object, payload: object,
+        prev_hash: object) -> bytes | None:
     when = _iso(created_at)
     if when is None or not all(isinstance(x, str) for x in (kind, payload, prev_hash)):
         return None
