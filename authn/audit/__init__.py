@@ -31,7 +31,21 @@ Modules, each with one job:
 """
 
 from importlib import import_module
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what __getattr__ loads, as type checkers should see it (a test holds the two equal)
+    from authn.audit.entries import (GENESIS, Entry, NewEntry, batch_entries, db_label, get_entry, get_policy,
+                                     list_entries)
+    from authn.audit.export import export
+    from authn.audit.heads import (HeadPlaces, KnownHead, accepted_keys, consistency_proof, known_heads,
+                                   log_origin, newest, writer_key)
+    from authn.audit.log import AuditLog
+    from authn.audit.proofs import PROOF_FORMAT, prove, verify_proof
+    from authn.audit.recover import Recovered, recover
+    from authn.audit.replay import ReplayResult, replay
+    from authn.audit.signer import checkpoint, rotate_key
+    from authn.audit.verifier import VerifyReport, verify
+    from authn.audit.writer import append
 
 #: the public API, by the module that defines it: loaded on first use (PEP 562), so a check,
 #: which needs only the writer, does not import the verifier, the prover or the witness client
@@ -53,7 +67,7 @@ _MODULE_OF = {name: module for module, names in _WHERE.items() for name in names
 __all__ = sorted(_MODULE_OF)
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     module = _MODULE_OF.get(name)
     if module is None:
         raise AttributeError(f"module 'authn.audit' has no attribute {name!r}")

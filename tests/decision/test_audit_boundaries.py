@@ -72,3 +72,13 @@ def test_the_product_records_through_audit_log() -> None:
             bad += [f"{path.relative_to(ROOT)}:{line}: imports the writer's append" for module, names, line
                     in _imports(path) if module.startswith("authn.audit") and "append" in names]
     assert not bad, "\n".join(bad)
+
+
+def test_type_checkers_see_what_the_package_loads_lazily() -> None:
+    """`authn.audit.__getattr__` loads each public name from its module (`_WHERE`); the
+    `TYPE_CHECKING` imports say the same, so a type checker sees each name's real type."""
+    tree = ast.parse((AUDIT / "__init__.py").read_text())
+    guarded = next(n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING")
+    seen = {n.module.removeprefix("authn.audit."): tuple(sorted(a.name for a in n.names))
+            for n in guarded.body if isinstance(n, ast.ImportFrom) and n.module}
+    assert seen == {m: tuple(sorted(names)) for m, names in authn.audit._WHERE.items()}
