@@ -165,19 +165,31 @@ def get_engine(url: str | None = None) -> Engine:
             target = sqlite_file(resolved)
             new_file = target is not None and not target.exists()
             engine = create_db_engine(resolved)
-            try:
-                with engine.connect() as conn:
-                    current = _is_current(conn)
-            except DBAPIError as exc:
-                raise DatabaseFault(
-                    f"cannot open database {engine.url.render_as_string()}: {_one_line(exc)}"
-                ) from None
-            if not current:
-                upgrade(engine)
+            _migrate(engine)
             _engines[resolved] = engine
             if new_file:
                 announce_created(resolved)
     return engine
+
+
+def migrate(url: str) -> None:
+    """Bring the database at `url` to the newest schema now, even if this process migrated it
+    before (its SQLite file may have been replaced since): what `registry.dbapi` calls when it
+    finds a database behind."""
+    engine = get_engine(url)
+    with _engines_lock:
+        engine.dispose()  # pooled connections may hold a file since replaced
+        _migrate(engine)
+
+
+def _migrate(engine: Engine) -> None:
+    try:
+        with engine.connect() as conn:
+            current = _is_current(conn)
+    except DBAPIError as exc:
+        raise DatabaseFault(f"cannot open database {engine.url.render_as_string()}: {_one_line(exc)}") from None
+    if not current:
+        upgrade(engine)
 
 
 def dispose_engines() -> None:

@@ -4,8 +4,9 @@
 (the check's identity row, the registry store, API keys, the audit log) runs here on stdlib
 `sqlite3` for SQLite files and `psycopg` for PostgreSQL, against the schema Alembic created,
 with named `:param` placeholders on both. A database that is not at the current revision is
-handed once to `registry.db.get_engine`, which migrates it under its lock: SQLAlchemy and
-Alembic are imported for that and nothing else.
+handed to `registry.db.migrate`, which migrates it under its lock: SQLAlchemy and Alembic are
+imported for that and nothing else. A database found current is not asked its version again by
+the same process.
 """
 
 from __future__ import annotations
@@ -74,6 +75,11 @@ def _pg_kwargs(url: str) -> dict[str, Any]:
     return kw
 
 
+#: URLs whose schema this process found at the newest revision: migrations only go forward, so
+#: a connection to one of them skips the version query (a round trip on PostgreSQL)
+_CURRENT: set[str] = set()
+
+
 class Database:
     """One driver connection, reused for every check of a process (batch mode)."""
 
@@ -128,16 +134,19 @@ class Database:
         return migrations.is_current(rows)
 
     def connection(self) -> Any:
-        """The open connection, after making sure the schema is current (migrating once if not)."""
+        """The open connection, after making sure the schema is current (migrating once if not).
+        A database this process has found current is not asked again (`_CURRENT`), unless this
+        process has just created its file."""
         if self._conn is None:
             conn = self._open()
-            if not self._current(conn):
+            if (self.url not in _CURRENT or self._new_file) and not self._current(conn):
                 conn.close()
-                from registry.db import get_engine
+                from registry.db import migrate
 
-                get_engine(self.url)  # migrates under the file lock / advisory lock
+                migrate(self.url)  # under the file lock / advisory lock
                 conn = self._open()
             self._conn = conn
+            _CURRENT.add(self.url)
             if self._new_file:
                 self._new_file = False
                 announce_created(self.url)

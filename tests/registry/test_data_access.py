@@ -121,3 +121,27 @@ def test_the_stores_columns_are_the_models() -> None:
     assert set(store._PROFILE_COLUMNS) == set(tables["model_profiles"].columns.keys())
     assert set(store._IDENTITY_COLUMNS) == set(tables["identities"].columns.keys()) - {"id"}
     assert {c.strip() for c in keys._COLUMNS.split(",")} == set(tables["api_keys"].columns.keys()) - {"key_hash"}
+
+
+def test_a_database_found_current_is_not_asked_its_version_again(tmp_path: Path, monkeypatch) -> None:
+    """The version query runs once per database and process, and again for a file this process
+    creates anew (a deleted database is migrated again, not trusted from memory)."""
+    from registry import dbapi
+
+    asked: list[str] = []
+    real = dbapi.Database._current
+
+    def counted(self: dbapi.Database, conn: object) -> bool:
+        asked.append(self.url)
+        return real(self, conn)
+
+    monkeypatch.setattr(dbapi.Database, "_current", counted)
+    url = f"sqlite:///{tmp_path / 'reg.sqlite3'}"
+    for _ in range(3):
+        with dbapi.transaction(url) as db:
+            assert db.fetch("SELECT count(*) FROM identities") == [(0,)]
+    assert len(asked) == 1
+    (tmp_path / "reg.sqlite3").unlink()
+    with dbapi.transaction(url) as db:
+        assert db.fetch("SELECT count(*) FROM identities") == [(0,)]
+    assert len(asked) == 2
