@@ -26,7 +26,7 @@ def site_sample(path: Path, model: str | None, db, recording=None):  # -> (SiteS
     from authn.kinematics import expected_from_radar
     from core.errors import AuthnException
     from core.digest import file_sha256
-    from signatures.train.enrol import EnrolError, SiteSample
+    from signatures.train.site_samples import EnrolError, SiteSample
     from signatures.features import extract
     from signatures.radar import recording_waveform
     from signatures.recording import read_recording
@@ -71,7 +71,7 @@ def on_one_waveform(read: list, base=None):  # ([(SiteSample, Preset)], Preset |
     import numpy as np
 
     from signatures.classify.carrier import CARRIER_BAND_REL, band_waveform, carrier_ratio, normalise
-    from signatures.train.enrol import EnrolError
+    from signatures.train.site_samples import EnrolError
     from signatures.features import FEATURE_NAMES
 
     waveforms = {wf.key: wf for _, wf in read}

@@ -394,7 +394,7 @@ def _print(report: dict) -> None:
 
 def _recording_files(paths: list[Path]) -> list[Path]:
     """The recordings named: files as given, directories' .h5/.hdf5/.npz files (recursively, sorted)."""
-    from signatures.train.enrol import EnrolError
+    from signatures.train.site_samples import EnrolError
     from signatures.recording import recordings_in
 
     out: list[Path] = []
@@ -416,7 +416,7 @@ def _recording_files(paths: list[Path]) -> list[Path]:
 def _labelled(files: list[Path], labels: Path | None, db) -> list[tuple[Path, str | None]]:
     """(file, model) for each recording: from LABELS.csv (every recording needs a row, and every
     row's file must be among the recordings), else None: from its Remote ID serial, later."""
-    from signatures.train.enrol import EnrolError, read_labels
+    from signatures.train.site_samples import EnrolError, read_labels
 
     if labels is None:
         return [(f, None) for f in files]
@@ -436,7 +436,7 @@ def _distinct(todo: list[tuple[Path, str | None]]) -> list[tuple[Path, str | Non
     out: a copy is the same flight, never a second one. The same bytes under two labels are bad
     input."""
     from core.digest import file_sha256
-    from signatures.train.enrol import EnrolError
+    from signatures.train.site_samples import EnrolError
 
     first: dict[str, tuple[Path, str | None]] = {}
     kept = []
@@ -506,8 +506,8 @@ def enrol_cmd(
     from authn.enrolment import on_one_waveform
     from authn.sprt import Sprt
     from registry.dbapi import Database
-    from signatures.train.enrol import (EnrolError, EnrolOptions, bundle_name_ok, check_counts, default_name, enrol,
-                                        previous_samples)
+    from signatures.train.enrol import EnrolOptions, check_counts, default_name, enrol
+    from signatures.train.site_samples import EnrolError, bundle_name_ok, previous_samples
     from signatures.classify.inference import load_classifier, models_dir, set_active
 
     t0 = time.perf_counter()
@@ -576,7 +576,7 @@ def _progress_bar(console):  # -> rich.progress.Progress
 
 def _added_to(wf) -> Path:
     """--add: the folder of the waveform's active site bundle."""
-    from signatures.train.enrol import EnrolError
+    from signatures.train.site_samples import EnrolError
     from signatures.classify.inference import active_bundle
 
     folder = active_bundle(wf)
@@ -588,7 +588,7 @@ def _added_to(wf) -> Path:
 def _enrol_profiles(samples: list, db) -> dict:  # slug -> UavProfile
     """The profiles an enrolment knows: the shipped ones, every registered one (the other side of
     the card's pairs too), and each enrolled model's registered profile (EnrolError if one is not)."""
-    from signatures.train.enrol import EnrolError
+    from signatures.train.site_samples import EnrolError
     from signatures.profiles import shipped_profiles
 
     registered = {p.slug: p for p in db.registered_profiles()}
@@ -605,7 +605,8 @@ def _estimate(wf, n_site: int, workers: int, n_sim: int, n_others: int = 0) -> f
     simulation at the pace timed on the worker pool (`signatures.train.eta`; nothing when cached), and
     the folds' and the bundle's forests, one of them timed on a small sample."""
     from signatures.train.dataset import DatasetSpec
-    from signatures.train.enrol import CV_FOLDS, N_OTHERS
+    from signatures.train.enrol import CV_FOLDS
+    from signatures.train.impostors import N_OTHERS
     from signatures.train.eta import fit_seconds, pace, seconds
     from signatures.features import FEATURE_NAMES
     from signatures.profiles import shipped_profiles
@@ -713,7 +714,7 @@ def use_cmd(
 
     Example: authn models use shipped
     """
-    from signatures.train.enrol import EnrolError
+    from signatures.train.site_samples import EnrolError
     from signatures.classify.inference import card_waveform, load_classifier, models_dir, set_active
 
     if name == "shipped":

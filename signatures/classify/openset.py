@@ -191,7 +191,7 @@ class PhysicsCheck:
 
     def with_rate_bands(self, classes: Sequence[str], bands: Mapping[str, Sequence[float]]) -> "PhysicsCheck":
         """A copy whose rate test also takes each named class's rate band (flown over nominal,
-        [lo, hi]; a site's `signatures.train.enrol.site_bands`) as consistent; the others' stay [1, 1]."""
+        [lo, hi]; a site's `signatures.train.site_bands.site_bands`) as consistent; the others' stay [1, 1]."""
         from dataclasses import replace
 
         band = np.ones((len(classes), 2))

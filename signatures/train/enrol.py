@@ -23,7 +23,7 @@ Method (fixed a priori, measured in docs/benchmarks.md "Site enrolment"):
    card's `threshold.applied`);
 5. radar-confusable pairs: enrolled pairs whose cross-validated pairwise false-accept rate at
    the applied threshold exceeds `CONFUSABLE_ERROR` (the policy then asks for a DRIP signature,
-   `radar-confusable-unsigned`), of single dwells and of tracks (`track_rates`: tracks of
+   `radar-confusable-unsigned`), of single dwells and of tracks (`separability.track_rates`: tracks of
    `TRACK_DWELLS` drawn from a model's cross-validated dwell scores, decided by the check's own
    sequential test, passed in as `sprt` since it lives above this layer), and every pair with
    fewer than `MIN_SEPARABLE_CLAIMS` cross-validated claims: too few to show radar can separate
@@ -44,11 +44,7 @@ interrupted enrolment leaves nothing half-written, and the active bundle switche
 
 from __future__ import annotations
 
-import csv
-import io
-import math
 import os
-import re
 import shutil
 import tempfile
 import time
@@ -59,164 +55,37 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from signatures.errors import SignaturesError
-from signatures.train.impostors import N_OTHERS
 from signatures.profiles import UavProfile
 from signatures.radar import Preset
+from signatures.train.impostors import N_OTHERS
+from signatures.train.separability import (CALIBRATION_GAIN, CONFUSABLE_ERROR, MIN_SEPARABLE_CLAIMS, TRACK_DRAWS,
+                                           TRACK_DWELLS, DwellScore, calibration_pays, mean_or_none, pair_cards,
+                                           rate_or_none, separation, signatures_needed, single_confusable,
+                                           threshold_at, track_confusable, track_rates)
+from signatures.train.site_bands import BAND_PRIOR_WEIGHT, site_bands
+from signatures.train.site_samples import MIN_RECORDINGS, EnrolError, SiteSample, site_arrays
 
 if TYPE_CHECKING:
     from signatures.classify.calibration import Calibration
     from signatures.train.dataset import Dataset
     from signatures.classify.openset import PhysicsCheck
 
-__all__ = ["CALIBRATION_GAIN", "CONFUSABLE_ERROR", "ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "MIN_RECORDINGS",
-           "MIN_SEPARABLE_CLAIMS", "N_OTHERS", "N_SIM", "ONE_MODEL_BANDS",
-           "SITE_SHARE", "TRACK_DWELLS", "EnrolError", "EnrolOptions", "LabelRow", "SiteSample", "bundle_name_ok",
-           "check_counts",
-           "default_name", "enrol", "site_bands", "previous_samples", "read_labels", "track_rates"]
+__all__ = ["ENROL_FORMAT", "FALSE_ACCEPT_TARGET", "N_SIM", "ONE_MODEL_BANDS", "SITE_SHARE", "EnrolOptions",
+           "check_counts", "default_name", "enrol"]
 
-#: Fewest recordings per enrolled model: below this a cross-validated error means nothing.
-MIN_RECORDINGS = 5
-#: A pair whose cross-validated pairwise false-accept rate exceeds this is radar-confusable.
-CONFUSABLE_ERROR = 0.01
-#: Fewest cross-validated claims (both directions) that can show a pair separable: with none of
-#: them accepted, the pair's false-accept rate is below 10 % at 95 % confidence (the zero-failure
-#: bound, 1 - 0.9 ** n >= 0.95); a pair with fewer is radar-confusable whatever its rate.
-MIN_SEPARABLE_CLAIMS = math.ceil(math.log(1.0 - 0.95) / math.log(1.0 - 0.10))
-#: Genuine acceptance the score calibration must add, on the site's cross-validated claims, before
-#: `authn models enrol` applies it unasked (fixed a priori: a gain the folds' noise does not make).
-CALIBRATION_GAIN = 0.05
 #: The false-accept target the reported verification threshold is chosen at.
 FALSE_ACCEPT_TARGET = 0.01
 #: Site returns' share of each enrolled model's training weight.
 SITE_SHARE = 0.8
 #: Simulated base returns (cached per waveform and profile set).
 N_SIM = 1500
-#: The longest track a site decides on (`authn check --track` in the must-show: up to 8 dwells),
-#: and how many tracks are drawn per (flown, claimed) pair for its track-level errors.
-TRACK_DWELLS = 8
-TRACK_DRAWS = 400
 #: Site physics bands (`site_bands`) by default where one model is enrolled: its recordings are the
 #: only measurement of that airframe on this radar, and no other enrolled model's band can be blurred
 #: into it (with several, measured not to help: docs/enrolment.md).
 ONE_MODEL_BANDS = True
-#: Site physics bands (`site_bands`): the prior's weight in recordings, and the narrowest band (log).
-BAND_PRIOR_WEIGHT = 10
-BAND_MIN_LOG_WIDTH = math.log(1.06)
-#: Site rates further apart than this (log) are two modes (`_modes`): 25 %, over twice the +-10 %
-#: a rotor's rate wanders in one regime (hover 143-179 Hz), under the 2-3x between idling and hover.
-MODE_GAP = math.log(1.25)
 CV_FOLDS = 5
 ENROL_FORMAT = "uav-radar-authn/site-enrolment/1"
-MAX_LABEL_ROWS = 100_000
-MAX_LABEL_BYTES = 8 << 20
-_NAME = re.compile(r"[a-z0-9][a-z0-9._-]{0,63}")
-
-
-class EnrolError(SignaturesError):
-    """Enrolment input that cannot be used (exit 2, one line)."""
-
-
-class LabelRow(BaseModel):
-    """One row of LABELS.csv: a recording (relative to the CSV's folder) and its registered model."""
-
-    model_config = ConfigDict(extra="forbid", str_strip_whitespace=True)
-
-    file: str = Field(min_length=1, max_length=4096)
-    model: str = Field(pattern=r"^[a-z0-9][a-z0-9_-]{0,31}$")
-
-
-def read_labels(path: Path) -> list[tuple[Path, str]]:
-    """(recording path, model slug) of each row of an untrusted `file,model` CSV. Paths are
-    relative to the CSV's folder and may not climb out of it ('..'); a duplicate, a bad header or a bad row
-    is an EnrolError naming its line."""
-    try:
-        if path.stat().st_size > MAX_LABEL_BYTES:
-            raise EnrolError(f"{path}: larger than {MAX_LABEL_BYTES >> 20} MiB")
-        text = path.read_bytes().decode("utf-8-sig")
-    except OSError as exc:
-        raise EnrolError(f"{path}: cannot read ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise EnrolError(f"{path}: not UTF-8 text") from None
-    rows = list(csv.reader(io.StringIO(text)))
-    if not rows or [c.strip().lower() for c in rows[0]] != ["file", "model"]:
-        raise EnrolError(f"{path}: the header must be exactly 'file,model'")
-    if len(rows) - 1 > MAX_LABEL_ROWS:
-        raise EnrolError(f"{path}: more than {MAX_LABEL_ROWS} rows")
-    root = Path(os.path.normpath(path.parent.absolute()))
-    out: list[tuple[Path, str]] = []
-    seen: set[Path] = set()
-    for line, cells in enumerate(rows[1:], start=2):
-        if not cells or all(not c.strip() for c in cells):
-            continue
-        if len(cells) != 2:
-            raise EnrolError(f"{path}:{line}: expected 2 columns (file,model), got {len(cells)}")
-        try:
-            row = LabelRow(file=cells[0], model=cells[1])
-        except ValidationError as exc:
-            err = exc.errors()[0]
-            raise EnrolError(f"{path}:{line}: {err['loc'][0]}: {err['msg']}") from None
-        rel = Path(row.file)
-        if rel.is_absolute() or "\x00" in row.file:
-            raise EnrolError(f"{path}:{line}: file must be relative to the CSV's folder")
-        lexical = Path(os.path.normpath(root / rel))  # '..' may not climb out; a symlink inside may point out
-        target = lexical.resolve()
-        if not lexical.is_relative_to(root):
-            raise EnrolError(f"{path}:{line}: file {row.file!r} is outside the CSV's folder")
-        if target in seen:
-            raise EnrolError(f"{path}:{line}: file {row.file!r} is labelled twice")
-        if not target.is_file():
-            raise EnrolError(f"{path}:{line}: file {row.file!r} does not exist")
-        seen.add(target)
-        out.append((target, row.model))
-    if not out:
-        raise EnrolError(f"{path}: no labelled recordings")
-    return out
-
-
-def bundle_name_ok(name: str) -> bool:
-    """A site bundle name: lower-case letters, digits, '.', '_', '-', at most 64, not a keyword."""
-    from signatures.radar import PRESETS
-
-    return bool(_NAME.fullmatch(name)) and name not in PRESETS and name != "shipped"
-
-
-@dataclass(frozen=True)
-class SiteSample:
-    """One enrolment recording as the bundle keeps it: its feature vector, what 1:1 verification
-    reads beside it (`physics`), its label and where it came from."""
-
-    name: str
-    sha256: str
-    model: str
-    features: np.ndarray  # the full feature vector (signatures.features.FEATURE_NAMES order)
-    physics: dict[str, float]
-    detected: bool
-
-
-def previous_samples(folder: Path) -> list[SiteSample]:
-    """The site samples an enrolment bundle keeps (`site.npz`), for `--add`."""
-    with np.load(folder / "site.npz", allow_pickle=False) as z:
-        names, digests, models = z["names"], z["sha256"], z["models"]
-        X, P, pnames, det = z["X"], z["physics"], [str(n) for n in z["physics_names"]], z["detected"]
-    return [SiteSample(str(n), str(d), str(m), X[i], {k: float(P[i, j]) for j, k in enumerate(pnames)
-                                                       if math.isfinite(P[i, j])}, bool(det[i]))
-            for i, (n, d, m) in enumerate(zip(names, digests, models))]
-
-
-def _site_arrays(samples: Sequence[SiteSample]) -> dict[str, np.ndarray]:
-    pnames = sorted({k for s in samples for k in s.physics})
-    P = np.full((len(samples), len(pnames)), np.nan)
-    for i, s in enumerate(samples):
-        for j, k in enumerate(pnames):
-            if k in s.physics:
-                P[i, j] = s.physics[k]
-    return {"names": np.array([s.name for s in samples]), "sha256": np.array([s.sha256 for s in samples]),
-            "models": np.array([s.model for s in samples]), "X": np.stack([s.features for s in samples]),
-            "physics": P, "physics_names": np.array(pnames, dtype=str),
-            "detected": np.array([s.detected for s in samples])}
 
 
 def _oof(fit: Callable[[np.ndarray], Any], predict: Callable[[Any, np.ndarray], np.ndarray],
@@ -238,101 +107,6 @@ def _oof(fit: Callable[[np.ndarray], Any], predict: Callable[[Any, np.ndarray], 
     return out, fold_of
 
 
-def _band(logs: list[float], prior: tuple[float, float]) -> tuple[float, float]:
-    """A band (ratio lo, hi) from site log-ratios and the prior band: the uniform whose 10th and 90th
-    percentiles are the site's (edges 1/8 of that span beyond them), each edge shrunk to the prior's
-    in log space with `BAND_PRIOR_WEIGHT` pseudo-recordings; at least `BAND_MIN_LOG_WIDTH` wide."""
-    lo_p, hi_p = math.log(prior[0]), math.log(prior[1])
-    if len(logs) < MIN_RECORDINGS:
-        return prior
-    q10, q90 = (float(v) for v in np.percentile(logs, [10, 90]))
-    span = q90 - q10
-    n, w = len(logs), BAND_PRIOR_WEIGHT
-    lo = (w * lo_p + n * (q10 - span / 8)) / (w + n)
-    hi = (w * hi_p + n * (q90 + span / 8)) / (w + n)
-    if hi - lo < BAND_MIN_LOG_WIDTH:
-        mid = (hi + lo) / 2
-        lo, hi = mid - BAND_MIN_LOG_WIDTH / 2, mid + BAND_MIN_LOG_WIDTH / 2
-    return math.exp(lo), math.exp(hi)
-
-
-def _modes(logs: list[float], prior: tuple[float, float]) -> list[tuple[float, float, float]]:
-    """The site's rates as a mixture (ratio lo, hi, weight): the prior band weighing
-    `BAND_PRIOR_WEIGHT` pseudo-recordings, and each mode of the site's log-ratios (neighbours at
-    most `MODE_GAP` apart; a mode of fewer than `MIN_RECORDINGS` joins its nearest) as a band of
-    its own (`_band`'s edges, no shrinkage: the prior is its own component) weighing its recordings.
-    An airframe that hovers and idles flashes at two rates 2-3x apart: one band over both would
-    spread its density over the gap between them. [] below `MIN_RECORDINGS`."""
-    if len(logs) < MIN_RECORDINGS:
-        return []
-    xs = sorted(logs)
-    groups: list[list[float]] = [[xs[0]]]
-    for x in xs[1:]:
-        if x - groups[-1][-1] <= MODE_GAP:
-            groups[-1].append(x)
-        else:
-            groups.append([x])
-    while len(groups) > 1 and min(len(g) for g in groups) < MIN_RECORDINGS:
-        i = min(range(len(groups)), key=lambda k: len(groups[k]))
-        left = groups[i][0] - groups[i - 1][-1] if i > 0 else math.inf
-        right = groups[i + 1][0] - groups[i][-1] if i + 1 < len(groups) else math.inf
-        j = i - 1 if left <= right else i + 1
-        a, b = min(i, j), max(i, j)
-        groups[a:b + 1] = [groups[a] + groups[b]]
-    total = len(xs) + BAND_PRIOR_WEIGHT
-    out = [(prior[0], prior[1], BAND_PRIOR_WEIGHT / total)]
-    for g in groups:
-        q10, q90 = (float(v) for v in np.percentile(g, [10, 90]))
-        lo, hi = q10 - (q90 - q10) / 8, q90 + (q90 - q10) / 8
-        if hi - lo < BAND_MIN_LOG_WIDTH:
-            mid = (hi + lo) / 2
-            lo, hi = mid - BAND_MIN_LOG_WIDTH / 2, mid + BAND_MIN_LOG_WIDTH / 2
-        out.append((math.exp(lo), math.exp(hi), len(g) / total))
-    return out
-
-
-def site_bands(samples: Sequence[SiteSample], profiles: dict[str, UavProfile],
-               max_tip_mps: float | None = None) -> dict[str, dict[str, Any]]:
-    """Each model's physics bands re-estimated from its site recordings (`_band`, today's
-    `signatures.classify.verify` bands the prior): the flash rate over the nominal (estimates the rate
-    term would use) as a mixture of the prior and the site's modes (`_modes`; `rate` their
-    envelope, what the open set's rate test takes), the rotors seen over the rotor count (counts
-    the rotor term would use) and the blade ratio, tip speed over flash rate over the claim's
-    (where the blade term runs: tips unaliased, the claim's tips below `max_tip_mps`)."""
-    from signatures.classify.verify import (BLADE_BAND, MAX_REL_STD, MIN_FLASH_GROUPS, RATE_BAND, ROTOR_BAND,
-                                            min_flash_score, rotors_are_lower_bound)
-
-    out: dict[str, dict[str, Any]] = {}
-    for m in sorted({s.model for s in samples}):
-        prof = profiles[m]
-        tips_fit = max_tip_mps is None or prof.tip_speed_mps * RATE_BAND[1] < max_tip_mps
-        rate: list[float] = []
-        rot: list[float] = []
-        blade: list[float] = []
-        for s in samples:
-            if s.model != m or not s.detected:
-                continue
-            f, sd = s.physics.get("flash_rate_hz", 0.0), s.physics.get("flash_rate_std_hz", 0.0)
-            if f > 0 and s.physics.get("flash_score", 0.0) >= min_flash_score(s.physics) and sd / f <= MAX_REL_STD:
-                rate.append(math.log(f) - math.log(prof.blade_flash_rate_hz))
-                tip = s.physics.get("tip_speed_mps", 0.0)
-                if tip > 0 and tips_fit and s.physics.get("tip_aliased", 0.0) < 0.5:
-                    y = math.log(tip) - math.log(f) - math.log(prof.tip_speed_mps / prof.blade_flash_rate_hz)
-                    if y >= math.log(BLADE_BAND[0]):
-                        blade.append(y)
-            seen, ssd = s.physics.get("rotors_seen", 0.0), s.physics.get("rotors_seen_std", 0.0)
-            visible = rotors_are_lower_bound(s.physics)  # rotors visible, a lower bound: no band to fit
-            if seen > 0 and ssd > 0 and ssd / seen <= 1.0 / math.sqrt(MIN_FLASH_GROUPS) + 1e-9 and not visible:
-                rot.append(math.log(seen) - math.log(prof.rotors))
-        modes = _modes(rate, RATE_BAND)
-        band = (min(b[0] for b in modes), max(b[1] for b in modes)) if modes else _band(rate, RATE_BAND)
-        out[m] = {"rate": [round(v, 6) for v in band], "rate_modes": [[round(v, 6) for v in b] for b in modes],
-                  "rotors": [round(v, 6) for v in _band(rot, ROTOR_BAND)],
-                  "blade": [round(v, 6) for v in _band(blade, BLADE_BAND)],
-                  "n_rate": len(rate), "n_rotors": len(rot), "n_blade": len(blade)}
-    return out
-
-
 def _fit_rf(X: np.ndarray, y: np.ndarray, w: np.ndarray, seed: int, n_jobs: int) -> Any:
     from signatures.train.classifiers import make_rf
 
@@ -350,11 +124,6 @@ def _weights(y_sim: np.ndarray, y_site: np.ndarray, n_cls: int) -> np.ndarray:
             n_sim = max(int(np.sum(y_sim == c)), 1)
             w[m] = SITE_SHARE / (1.0 - SITE_SHARE) * n_sim / m.sum()
     return w
-
-
-#: A dwell's cross-validated verification as a track uses it: (LLR, physics term present), or
-#: None when nothing was verified (no term: the track adds nothing for it, `authn.track`).
-DwellScore = tuple[float, bool] | None
 
 
 def _verification(samples: Sequence[SiteSample], proba: np.ndarray, known: np.ndarray, classes: tuple[str, ...],
@@ -428,63 +197,6 @@ def _calibrated(rows: Sequence[tuple[int, str, str, Any]], fold_of: np.ndarray, 
     return (cal, *scored)
 
 
-def track_rates(dwells: Sequence[DwellScore], walk: Callable[[Sequence[tuple[float, bool]]], tuple[str, int]],
-                length: int = TRACK_DWELLS, draws: int = TRACK_DRAWS, seed: int = 0) -> tuple[float, int, int]:
-    """(accepted share, tracks, dwells per track) of `draws` tracks of `length` dwells, each
-    drawn without replacement from one (flown, claimed) pair's cross-validated dwell scores and
-    decided by `walk` (`authn.sprt.Sprt.walk`: the check's own combination and bounds). An
-    inconclusive track is not accepted, as at the end of a real track. Fewer scores than
-    `length`: tracks of all of them (the card says how long)."""
-    if not dwells:
-        return float("nan"), 0, 0
-    rng = np.random.default_rng([seed, len(dwells), 91])
-    n = min(length, len(dwells))
-    accepted = 0
-    for _ in range(draws):
-        pick = rng.choice(len(dwells), size=n, replace=False)
-        track = [d for d in (dwells[j] for j in pick) if d is not None]
-        accepted += walk(track)[0] == "accept"
-    return accepted / draws, draws, n
-
-
-def _separation(genuine: Sequence[float], impostor: dict[tuple[str, str], list[float]],
-                dwells: dict[tuple[str, str], list[DwellScore]], enrolled: Sequence[str], sprt: Any,
-                seed: int) -> dict[str, Any]:
-    """How one scoring of the cross-validated claims separates them at the level checks decide at:
-    with a sequential test, the mean over enrolled models of genuine tracks accepted and the worst
-    pair's type-spoof tracks accepted (`track_rates`); without one, single dwells at LLR >= 0."""
-    if sprt is not None:
-        level = "tracks"
-        gen = [track_rates(dwells.get((m, m), []), sprt.walk, seed=seed)[0] for m in enrolled]
-        fa = [track_rates(v, sprt.walk, seed=seed)[0] for k, v in dwells.items() if k[0] != k[1]]
-    else:
-        level = "single_dwell"
-        gen = [float(np.mean(np.asarray(genuine) >= 0.0))] if len(genuine) else []
-        fa = [float(np.mean(np.asarray(v) >= 0.0)) for v in impostor.values() if len(v)]
-    gen, fa = [g for g in gen if not math.isnan(g)], [f for f in fa if not math.isnan(f)]
-    return {"level": level, "genuine_accept": _mean(gen), "worst_pair_false_accept": max(fa) if fa else None}
-
-
-def _calibration_pays(choice: dict[str, dict[str, Any]]) -> bool:
-    """Apply the score calibration where the site's own cross-validated claims say it pays: genuine
-    acceptance up by at least `CALIBRATION_GAIN` and the worst pair's false accepts no higher than
-    uncalibrated (or than `CONFUSABLE_ERROR`, whichever is larger). A tie keeps the uncalibrated
-    score: the verification every other bundle uses."""
-    u, c = choice["uncalibrated"], choice["calibrated"]
-    if u["genuine_accept"] is None or c["genuine_accept"] is None:
-        return False
-    fa_u, fa_c = u["worst_pair_false_accept"] or 0.0, c["worst_pair_false_accept"] or 0.0
-    return c["genuine_accept"] >= u["genuine_accept"] + CALIBRATION_GAIN and fa_c <= max(fa_u, CONFUSABLE_ERROR)
-
-
-def _mean(v: Sequence[float]) -> float | None:
-    return round(float(np.mean(v)), 4) if len(v) else None
-
-
-def _rate(x: float) -> float | None:
-    return None if math.isnan(x) else round(x, 6)
-
-
 def _oof_unknown(phys: Any, classes: Sequence[str], X_site: np.ndarray, pred: np.ndarray, fold_of: np.ndarray,
                  fold_bands: dict[int, dict[str, Any]]) -> np.ndarray:
     """The open set's physical verdict on each site recording, out of fold like the verification:
@@ -498,68 +210,6 @@ def _oof_unknown(phys: Any, classes: Sequence[str], X_site: np.ndarray, pred: np
     return unk
 
 
-def _pairs(enrolled: Sequence[str], det_counts: dict[str, int], n_oth: dict[str, int], cm: np.ndarray,
-           called: dict[tuple[str, str], int], index: dict[str, int], impostor: dict[tuple[str, str], list[float]],
-           dwell_scores: dict[tuple[str, str], list[DwellScore]], sprt: Any, seed: int) -> list[dict[str, Any]]:
-    """The card's pairs: each two enrolled models, and each enrolled model against each profile
-    simulated in the waveform (`simulated`: that profile); the classifier's confusion rate from the
-    cross-validated confusion matrix `cm` (rows: enrolled) and `called` (simulated b called a)."""
-    pairs: list[dict[str, Any]] = []
-    for i, a in enumerate(enrolled):
-        for b in enrolled[i + 1:]:
-            conf = int(cm[i, index[b]] + cm[enrolled.index(b), index[a]])
-            pairs.append(_pair(a, b, impostor, conf / (det_counts[a] + det_counts[b]), dwell_scores, sprt, seed))
-        for b, n in n_oth.items():
-            conf = int(cm[i, index[b]]) + called[(b, a)]
-            pairs.append({**_pair(a, b, impostor, conf / (det_counts[a] + n), dwell_scores, sprt, seed),
-                          "simulated": b})
-    return pairs
-
-
-def _pair(a: str, b: str, impostor: dict[tuple[str, str], list[float]], confusion: float,
-          dwell_scores: dict[tuple[str, str], list[DwellScore]], sprt: Any, seed: int) -> dict[str, Any]:
-    """One pair's card entry: its single-dwell false accepts at the applied threshold (0 nats), both
-    directions, the classifier's confusion rate, and its track-level false accepts."""
-    fa = impostor.get((a, b), []) + impostor.get((b, a), [])
-    n_fa = sum(v >= 0.0 for v in fa)
-    return {"models": [a, b], "single_dwell": {
-        "false_accept_rate": round(n_fa / len(fa), 6) if fa else None, "false_accepts": n_fa, "claims": len(fa),
-        "classifier_confusion_rate": round(confusion, 6)}, "tracks": _pair_tracks(dwell_scores, a, b, sprt, seed),
-        "separation": _separation_nats(dwell_scores, a, b, sprt)}
-
-
-def _separation_nats(dwell_scores: dict[tuple[str, str], list[DwellScore]], a: str, b: str,
-                     sprt: Any) -> dict[str, Any] | None:
-    """As a shipped card's `separation`: the mean capped increment (`Sprt.increment`) of a genuine
-    dwell of `a` and of a type-spoof dwell between a and b (both directions), and the dwells each
-    takes to decide (`Sprt.dwells_to_decide`; None: never)."""
-    if sprt is None:
-        return None
-
-    def mean(scores: list[DwellScore]) -> float | None:
-        inc = [sprt.increment(llr, physics) for llr, physics in (d for d in scores if d is not None)]
-        return round(float(np.mean(inc)), 3) if inc else None
-
-    g = mean(dwell_scores.get((a, a), []))
-    i = mean(dwell_scores.get((a, b), []) + dwell_scores.get((b, a), []))
-    return {"genuine_nats_per_dwell": g, "impostor_nats_per_dwell": i,
-            "dwells_to_accept": None if g is None else sprt.dwells_to_decide(g),
-            "dwells_to_reject": None if i is None else sprt.dwells_to_decide(i)}
-
-
-def _signatures(enrolled: Sequence[str], single: Sequence[Sequence[str]],
-                tracks: Sequence[Sequence[str]] | None) -> dict[str, dict[str, Any]]:
-    """Which claims need a DRIP signature: per enrolled model, the models radar cannot tell it
-    from (single dwells; tracks), so that its unsigned claims are rejected wherever one of them is
-    registered at the site too (`radar-confusable-unsigned`)."""
-    def partners(pairs: Sequence[Sequence[str]], m: str) -> list[str]:
-        return sorted({x for p in pairs if m in p for x in p if x != m})
-
-    return {m: {"single_dwell": partners(single, m), "tracks": None if tracks is None else partners(tracks, m),
-                "note": "unsigned claims of this model are rejected where one of these is registered at the site"}
-            for m in enrolled}
-
-
 def _others(wf: Preset, others: Sequence[UavProfile], n: int, seed: int, workers: int,
             cache: Path | None | bool) -> list[SiteSample]:
     """The detected simulated returns of the profiles not enrolled (`signatures.train.impostors`), as samples."""
@@ -570,49 +220,6 @@ def _others(wf: Preset, others: Sequence[UavProfile], n: int, seed: int, workers
     rows = simulate_others(wf, others, n, seed, workers, cache)
     return [SiteSample(f"simulated:{m}:{i}", "", m, x, phys, det)
             for m, rs in rows.items() for i, (x, phys, det) in enumerate(rs) if det]
-
-
-def _pair_tracks(dwell_scores: dict[tuple[str, str], list[DwellScore]], a: str, b: str, sprt: Any,
-                 seed: int) -> dict[str, Any] | None:
-    """The pair's track-level false accepts: tracks of a claimed as b and of b claimed as a."""
-    if sprt is None:
-        return None
-    ab = track_rates(dwell_scores.get((a, b), []), sprt.walk, seed=seed)
-    ba = track_rates(dwell_scores.get((b, a), []), sprt.walk, seed=seed)
-    claims = ab[1] + ba[1]
-    fa = ab[0] * ab[1] + ba[0] * ba[1] if claims else float("nan")
-    return {"false_accept_rate": _rate(fa / claims) if claims else None,
-            "false_accepts": int(round(fa)) if claims else 0, "claims": claims,
-            "dwells": min(ab[2], ba[2]), "recordings": len(dwell_scores.get((a, b), [])) +
-            len(dwell_scores.get((b, a), []))}
-
-
-def _single_confusable(pair: dict[str, Any]) -> bool:
-    """Radar-confusable for single-dwell checks: the cross-validated false-accept rate above the
-    line, or too few claims (`MIN_SEPARABLE_CLAIMS`) to show it below."""
-    sd = pair["single_dwell"]
-    if sd["claims"] < MIN_SEPARABLE_CLAIMS:
-        return True
-    return sd["false_accept_rate"] is not None and sd["false_accept_rate"] > CONFUSABLE_ERROR
-
-
-def _track_confusable(pair: dict[str, Any]) -> bool:
-    """Radar-confusable for track checks: the track-level false-accept rate above the line, or,
-    where tracks could not reach `TRACK_DWELLS` dwells (too few recordings), the single-dwell verdict.
-    Drawn tracks reuse the same recordings, so too few claims is confusable at this level too."""
-    t, sd = pair.get("tracks"), pair["single_dwell"]
-    if not t or t["false_accept_rate"] is None or t["dwells"] < TRACK_DWELLS or sd["claims"] < MIN_SEPARABLE_CLAIMS:
-        return _single_confusable(pair)
-    return t["false_accept_rate"] > CONFUSABLE_ERROR
-
-
-def _threshold(impostor: dict[tuple[str, str], list[float]], target: float) -> float | None:
-    """Lowest LLR threshold (accept at >= t) with an impostor false-accept rate <= target."""
-    scores = np.sort(np.concatenate([np.asarray(v) for v in impostor.values()])) if impostor else np.array([])
-    if not len(scores):
-        return None
-    allowed = int(math.floor(target * len(scores)))  # impostors that may still reach t
-    return float(np.nextafter(scores[len(scores) - 1 - allowed], np.inf))
 
 
 def check_counts(samples: Sequence[SiteSample], profiles: dict[str, UavProfile], duplicates: int = 0) -> None:
@@ -653,7 +260,7 @@ class EnrolOptions:
     one model is enrolled (`ONE_MODEL_BANDS`). `score_calibration`: verify with the score calibration
     fitted on the cross-validated terms (`signatures.classify.calibration`; always fitted and reported in the
     card): True applies it, False does not, None applies it where the site's cross-validated claims
-    say it pays (`_calibration_pays`). `n_others`: simulated returns of each profile not enrolled
+    say it pays (`calibration_pays`). `n_others`: simulated returns of each profile not enrolled
     (`signatures.train.impostors`), the other side of its pairs. `carriers`: the carriers the recordings
     were made at (Hz -> recordings), for the card."""
 
@@ -911,10 +518,10 @@ def _scores(run: _Run, base: _Base, folds: _Folds, vs: _OpenSetVerdicts) -> _Sco
     genuine, impostor, dwell_scores = _scored(claims)
     calibration, cal_genuine, cal_impostor, cal_dwells = _calibrated(rows, folds.fold_of, folds.n, oth_rows)
     sprt, seed, enrolled = run.opt.sprt, run.opt.seed, run.enrolled
-    choice = {"uncalibrated": _separation(genuine, impostor, dwell_scores, enrolled, sprt, seed),
-              "calibrated": _separation(cal_genuine, cal_impostor, cal_dwells, enrolled, sprt, seed)}
+    choice = {"uncalibrated": separation(genuine, impostor, dwell_scores, enrolled, sprt, seed),
+              "calibrated": separation(cal_genuine, cal_impostor, cal_dwells, enrolled, sprt, seed)}
     asked = run.opt.score_calibration
-    use_cal = _calibration_pays(choice) if asked is None else asked
+    use_cal = calibration_pays(choice) if asked is None else asked
     if use_cal:  # the card's threshold, pairwise and track figures are then the calibrated scores'
         return _Scores(cal_genuine, cal_impostor, cal_dwells, genuine, cal_genuine,
                        replace(calibration, applied=use_cal), choice, claimable)
@@ -946,7 +553,7 @@ def _write_bundle(run: _Run, base: _Base, folds: _Folds, vs: _OpenSetVerdicts, s
         openset = fit_openset(base.sim.X, base.y_sim, n_cls, base.X_site, base.y_site, vs.pred, OPENSET_QUANTILE,
                               class_cols=np.array(base.cols, dtype=np.int64), physics=vs.phys, mode=OPENSET_MODE)
         np.savez(tmp / "openset.npz", **openset.arrays())
-        np.savez(tmp / "site.npz", **_site_arrays(run.samples))
+        np.savez(tmp / "site.npz", **site_arrays(run.samples))
         files = ["knn.npz", "rf.npz", "rf_state.npz", "openset.npz", "site.npz"]
         card = _card(run, base, folds, vs, files)
         card["enrolment"] = _enrolment_card(run, base, folds, vs, scores)
@@ -1012,10 +619,10 @@ def _enrolment_card(run: _Run, base: _Base, folds: _Folds, vs: _OpenSetVerdicts,
     n_oth = {m: int(np.sum(base.y_oth == index[m])) for m in scores.claimable[len(enrolled):]}
     called = {(b, a): int(np.sum((base.y_oth == index[b]) & (vs.pred_oth == index[a]) & ~vs.unk_oth))
               for a in enrolled for b in n_oth}  # simulated returns of b the system called a
-    pairs = _pairs(enrolled, run.det_counts, n_oth, cm, called, index, scores.impostor, scores.dwell_scores, sprt,
-                   opt.seed)
-    confusable = [p["models"] for p in pairs if _single_confusable(p)]
-    confusable_tracks = [p["models"] for p in pairs if _track_confusable(p)] if sprt is not None else None
+    pairs = pair_cards(enrolled, run.det_counts, n_oth, cm, called, index, scores.impostor, scores.dwell_scores,
+                       sprt, opt.seed)
+    confusable = [p["models"] for p in pairs if single_confusable(p)]
+    confusable_tracks = [p["models"] for p in pairs if track_confusable(p)] if sprt is not None else None
     return {
         "format": ENROL_FORMAT, "name": opt.name,
         "created": datetime.now(timezone.utc).replace(microsecond=0).isoformat(), "previous": opt.previous,
@@ -1033,7 +640,7 @@ def _enrolment_card(run: _Run, base: _Base, folds: _Folds, vs: _OpenSetVerdicts,
                    "this waveform (test split of the training scenes; never trained on), each verified "
                    "against every enrolled model, the enrolled recordings against it (out of fold)"},
         "carriers_hz": {f"{f:.6g}": n for f, n in sorted((opt.carriers or {}).items())},
-        "signatures": _signatures(enrolled, confusable, confusable_tracks),
+        "signatures": signatures_needed(enrolled, confusable, confusable_tracks),
         "min_separable_claims": MIN_SEPARABLE_CLAIMS, "confusable_pairs": confusable,
         "confusable_pairs_tracks": confusable_tracks,
         "tracks": _tracks_card(run, scores),
@@ -1061,7 +668,7 @@ def _threshold_card(scores: _Scores) -> dict[str, Any]:
     """The applied threshold (the default policy's: radar-claim-inconsistent, LLR < 0 rejects), the
     one at the false-accept target, and the genuine acceptance at each."""
     applied = 0.0
-    t_fa = _threshold(scores.impostor, FALSE_ACCEPT_TARGET)
+    t_fa = threshold_at(scores.impostor, FALSE_ACCEPT_TARGET)
     g = np.asarray(scores.genuine)
     return {"applied": applied, "at_false_accept_target": t_fa, "false_accept_target": FALSE_ACCEPT_TARGET,
             "genuine_accept_at_applied": round(float(np.mean(g >= applied)), 6) if len(g) else None,
@@ -1078,7 +685,7 @@ def _calibration_card(run: _Run, scores: _Scores) -> dict[str, Any]:
         "rule": f"applied unasked when cross-validated genuine acceptance gains >= {CALIBRATION_GAIN} "
                 "and the worst pair's false accepts do not rise (above the confusable line)"},
         "evidence_per_genuine_dwell": {
-        "uncalibrated": _mean(scores.uncal_genuine), "calibrated": _mean(scores.cal_genuine),
+        "uncalibrated": mean_or_none(scores.uncal_genuine), "calibrated": mean_or_none(scores.cal_genuine),
         "note": "mean cross-validated LLR of genuine claims, nats: with calibrated scores what a "
                 "genuine dwell is worth (its expected LLR); a track of `tracks.dwells` needs the "
                 "accept bound times (1 + (n - 1) rho) / n per dwell"}}
@@ -1092,7 +699,7 @@ def _tracks_card(run: _Run, scores: _Scores) -> dict[str, Any] | None:
         return None
     return {
         "dwells": TRACK_DWELLS, "draws_per_direction": TRACK_DRAWS, "sprt": sprt.to_json(),
-        "genuine_accept": {m: _rate(track_rates(scores.dwell_scores.get((m, m), []), sprt.walk, seed=seed)[0])
+        "genuine_accept": {m: rate_or_none(track_rates(scores.dwell_scores.get((m, m), []), sprt.walk, seed=seed)[0])
                            for m in run.enrolled},
         "method": "tracks drawn without replacement from one model's cross-validated dwell scores (the "
                   "enrolment recordings are single dwells of different flights: a track of independent "

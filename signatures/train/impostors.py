@@ -6,7 +6,7 @@ radar tells its airframe from each of them. So the other registered and shipped 
 simulated in the waveform read from the site's recordings (the `models train --like` machinery:
 the training distribution's scenes, `signatures.train.dataset.draw_scene`, of the test split, never
 in the bundle's training set), and each return keeps what the 1:1 verification reads beside its
-feature vector (the physics estimates), as a site recording does (`signatures.train.enrol.SiteSample`).
+feature vector (the physics estimates), as a site recording does (`signatures.train.site_samples.SiteSample`).
 Cached beside the training datasets, keyed like them.
 """
 
@@ -28,7 +28,7 @@ from signatures.radar import Preset
 __all__ = ["N_OTHERS", "simulate_others"]
 
 #: Simulated returns per other profile: with a site's 5 recordings claiming it, more than the 29
-#: claims (`signatures.train.enrol.MIN_SEPARABLE_CLAIMS`) a pair needs before it can be shown separable.
+#: claims (`signatures.train.separability.MIN_SEPARABLE_CLAIMS`) a pair needs before it can be shown separable.
 N_OTHERS = 40
 
 

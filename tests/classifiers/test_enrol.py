@@ -19,7 +19,7 @@ import pytest
 
 from authn.cli import main
 from authn.policy import PolicyEngine
-from signatures.train.enrol import _calibration_pays
+from signatures.train.separability import calibration_pays
 from tests.decision.test_policy import ACTIVE, GOOD, SITE, sprt_record
 from tests.classifiers.conftest import own_models
 
@@ -96,7 +96,7 @@ def test_enrol_register_check_uses_the_site_bundle(site: dict, capsys) -> None:
     assert all(c >= 0 for c in cal["coef"]) and cal["fitted_on"] == {"genuine": 15, "type_spoof": 30}
     assert set(cal["evidence_per_genuine_dwell"]) >= {"calibrated", "uncalibrated"}
     # applied unasked only where the site's cross-validated claims say it pays, and the card says which
-    assert cal["choice"]["by"] == "auto" and cal["applied"] is _calibration_pays(cal["choice"])
+    assert cal["choice"]["by"] == "auto" and cal["applied"] is calibration_pays(cal["choice"])
     assert {cal["choice"][k]["level"] for k in ("calibrated", "uncalibrated")} == {"tracks"}
     assert e["method"]["score_calibration"].startswith("none") is not cal["applied"]
     assert set(e["tracks"]["genuine_accept"]) == {"m300", "m600", "phantom4"}
@@ -244,17 +244,17 @@ def test_too_few_claims_never_show_a_pair_separable() -> None:
     """A pair the cross-validation saw no false accept in is separable only with enough claims to
     bound its rate (under 10 % at 95 %: 29); with fewer it is radar-confusable at both levels,
     whatever its tracks say, so that enrolling fewer recordings never asks for fewer signatures."""
-    from signatures.train.enrol import MIN_SEPARABLE_CLAIMS, _single_confusable, _track_confusable
+    from signatures.train.separability import MIN_SEPARABLE_CLAIMS, single_confusable, track_confusable
 
     assert MIN_SEPARABLE_CLAIMS == 29 and 1 - 0.9 ** 29 >= 0.95 > 1 - 0.9 ** 28
     clean_tracks = {"false_accept_rate": 0.0, "false_accepts": 0, "claims": 800, "dwells": 8}
     for claims, confusable in ((10, True), (28, True), (29, False), (60, False)):
         pair = {"single_dwell": {"false_accept_rate": 0.0, "false_accepts": 0, "claims": claims},
                 "tracks": clean_tracks}
-        assert _single_confusable(pair) is confusable
-        assert _track_confusable(pair) is confusable
+        assert single_confusable(pair) is confusable
+        assert track_confusable(pair) is confusable
     busy = {"single_dwell": {"false_accept_rate": 2 / 60, "false_accepts": 2, "claims": 60}, "tracks": clean_tracks}
-    assert _single_confusable(busy) is True and _track_confusable(busy) is False
+    assert single_confusable(busy) is True and track_confusable(busy) is False
 
 
 def test_track_errors_separate_a_pair_single_dwells_cannot() -> None:
@@ -263,19 +263,19 @@ def test_track_errors_separate_a_pair_single_dwells_cannot() -> None:
     confusable for single-dwell checks and not for track checks. Too few dwells for a full track
     keep the single-dwell verdict; scores that keep accepting stay confusable over tracks."""
     from authn.track import Sprt
-    from signatures.train.enrol import TRACK_DWELLS, _pair_tracks, _track_confusable, track_rates
+    from signatures.train.separability import TRACK_DWELLS, _pair_tracks, track_confusable, track_rates
 
     impostor = [(0.5, True)] * 5 + [(-1.5, True)] * 15
     sd = {"false_accept_rate": 0.25, "false_accepts": 10, "claims": 40}
     t = _pair_tracks({("a", "b"): impostor, ("b", "a"): impostor}, "a", "b", Sprt(), seed=0)
     assert t["false_accept_rate"] == 0.0 and t["dwells"] == TRACK_DWELLS and t["claims"] > 0
-    assert _track_confusable({"single_dwell": sd, "tracks": t}) is False
+    assert track_confusable({"single_dwell": sd, "tracks": t}) is False
     short = _pair_tracks({("a", "b"): impostor[:6], ("b", "a"): impostor[:6]}, "a", "b", Sprt(), seed=0)
-    assert short["dwells"] == 6 and _track_confusable({"single_dwell": sd, "tracks": short}) is True
+    assert short["dwells"] == 6 and track_confusable({"single_dwell": sd, "tracks": short}) is True
     strong = [(3.0, True)] * 18 + [(-1.0, True)] * 2
     assert track_rates(strong, Sprt().walk)[0] > 0.9
     t = _pair_tracks({("a", "b"): strong, ("b", "a"): strong}, "a", "b", Sprt(), seed=0)
-    assert _track_confusable({"single_dwell": sd, "tracks": t}) is True
+    assert track_confusable({"single_dwell": sd, "tracks": t}) is True
     # no physics term: a dwell only counts against the claim, as in authn check --track
     assert track_rates([(3.0, False)] * 20, Sprt().walk)[0] == 0.0
 

@@ -15,7 +15,7 @@ import pytest
 
 from authn.track import Sprt
 from signatures.classify.calibration import Calibration, RawTerms, calibration_of, fit
-from signatures.train.enrol import CALIBRATION_GAIN, CONFUSABLE_ERROR, _calibration_pays, _separation
+from signatures.train.separability import CALIBRATION_GAIN, CONFUSABLE_ERROR, calibration_pays, separation
 from signatures.errors import SignaturesError
 from signatures.profiles import shipped_profiles
 from signatures.classify.verify import CLASSIFIER_CLIP, verify
@@ -139,12 +139,12 @@ def _choice(gen_u, fa_u, gen_c, fa_c) -> dict:
 
 
 def test_calibration_is_applied_unasked_only_where_the_site_scores_say_it_pays() -> None:
-    assert _calibration_pays(_choice(0.52, 0.0, 0.52 + CALIBRATION_GAIN, 0.0))  # a clear gain, no new false accepts
-    assert not _calibration_pays(_choice(0.52, 0.0, 0.52 + CALIBRATION_GAIN / 2, 0.0))  # within the folds' noise
-    assert not _calibration_pays(_choice(0.52, 0.0, 0.04, 0.0))  # the held-out world's case: it loses
-    assert not _calibration_pays(_choice(0.5, 0.0, 0.9, 2 * CONFUSABLE_ERROR))  # it buys genuine with false accepts
-    assert _calibration_pays(_choice(0.5, 0.03, 0.9, 0.03))  # false accepts no worse than without it
-    assert not _calibration_pays(_choice(None, None, 0.9, 0.0))  # nothing to compare
+    assert calibration_pays(_choice(0.52, 0.0, 0.52 + CALIBRATION_GAIN, 0.0))  # a clear gain, no new false accepts
+    assert not calibration_pays(_choice(0.52, 0.0, 0.52 + CALIBRATION_GAIN / 2, 0.0))  # within the folds' noise
+    assert not calibration_pays(_choice(0.52, 0.0, 0.04, 0.0))  # the held-out world's case: it loses
+    assert not calibration_pays(_choice(0.5, 0.0, 0.9, 2 * CONFUSABLE_ERROR))  # it buys genuine with false accepts
+    assert calibration_pays(_choice(0.5, 0.03, 0.9, 0.03))  # false accepts no worse than without it
+    assert not calibration_pays(_choice(None, None, 0.9, 0.0))  # nothing to compare
 
 
 def test_separation_reads_the_walk_of_each_pair() -> None:
@@ -152,9 +152,9 @@ def test_separation_reads_the_walk_of_each_pair() -> None:
     sprt = Sprt()
     dwells = {("a", "a"): [(4.0, True)] * 10, ("b", "b"): [(4.0, True)] * 10,
               ("a", "b"): [(-4.0, True)] * 10, ("b", "a"): [(1.0, True), (-4.0, True)] * 5}
-    sep = _separation([], {}, dwells, ["a", "b"], sprt, seed=0)
+    sep = separation([], {}, dwells, ["a", "b"], sprt, seed=0)
     assert sep == {"level": "tracks", "genuine_accept": 1.0, "worst_pair_false_accept": 0.0}
-    single = _separation([1.0, -1.0, 2.0, 3.0], {("a", "b"): [-1.0, 0.5], ("b", "a"): [-2.0, -3.0]}, dwells,
+    single = separation([1.0, -1.0, 2.0, 3.0], {("a", "b"): [-1.0, 0.5], ("b", "a"): [-2.0, -3.0]}, dwells,
                          ["a", "b"], None, seed=0)
     assert single == {"level": "single_dwell", "genuine_accept": 0.75, "worst_pair_false_accept": 0.5}
 

@@ -137,7 +137,7 @@ def test_carriers_outside_one_band_do_not_enrol_as_one() -> None:
 
     from authn.enrolment import on_one_waveform
     from signatures.classify.carrier import band_waveform
-    from signatures.train.enrol import EnrolError, SiteSample
+    from signatures.train.site_samples import EnrolError, SiteSample
     from signatures.features import FEATURE_NAMES
     from signatures.radar import get_preset, waveform_of
 

@@ -240,7 +240,7 @@ def test_site_bands_default_to_todays_and_narrow_or_widen_with_site_data() -> No
     a card's bands read back; too few recordings keep the prior."""
     import math
 
-    from signatures.train.enrol import BAND_PRIOR_WEIGHT, _band
+    from signatures.train.site_bands import BAND_PRIOR_WEIGHT, shrunk_band
     from signatures.profiles import shipped_profiles
     from signatures.classify.verify import RATE_BAND, ROTOR_BAND, Bands, bands_from, verify
 
@@ -250,14 +250,14 @@ def test_site_bands_default_to_todays_and_narrow_or_widen_with_site_data() -> No
     assert verify(feats, prof) == verify(feats, prof, bands=None) == verify(feats, prof, bands=Bands())
     assert Bands() == Bands(RATE_BAND, ROTOR_BAND)
     tight = [math.log(1.0 + 0.01 * k) for k in range(-5, 6)] * 3  # 33 site ratios within +-5 %
-    lo, hi = _band(tight, RATE_BAND)
+    lo, hi = shrunk_band(tight, RATE_BAND)
     assert RATE_BAND[0] < lo < 0.96 and 1.04 < hi < RATE_BAND[1]
     w = BAND_PRIOR_WEIGHT / (BAND_PRIOR_WEIGHT + len(tight))
     site_lo = math.log(0.96) - (math.log(1.04) - math.log(0.96)) / 8  # q10 less 1/8 of the q10-q90 span
     assert math.isclose(math.log(lo), w * math.log(RATE_BAND[0]) + (1 - w) * site_lo, rel_tol=0.1)
     wide = [math.log(0.4 + 0.02 * k) for k in range(30)]  # rotors read low on this site
-    assert _band(wide, ROTOR_BAND)[0] < ROTOR_BAND[0]
-    assert _band(tight[:4], RATE_BAND) == RATE_BAND
+    assert shrunk_band(wide, ROTOR_BAND)[0] < ROTOR_BAND[0]
+    assert shrunk_band(tight[:4], RATE_BAND) == RATE_BAND
     narrowed = Bands(rate=(lo, hi))
     assert verify(feats, prof, bands=narrowed).terms["physics"] != verify(feats, prof).terms["physics"]
     assert bands_from({"m300": {"rate": [lo, hi], "rotors": list(ROTOR_BAND)}}, "m300") == narrowed
