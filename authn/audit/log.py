@@ -90,11 +90,6 @@ class AuditLog:
     def record_decision(self, serial: str | None, decision: str, payload: dict[str, Any]) -> Entry:
         return self.record([self.decision(serial, decision, payload)])[0]
 
-    def record_error(self, file: str, serial: str | None, error: str, exit_code: int, *,
-                     policy_sha256: str | None, track_files: Sequence[str] | None = None) -> Entry:
-        return self.record([self.error(file, serial, error, exit_code, policy_sha256=policy_sha256,
-                                       track_files=track_files)])[0]
-
     def record_registry_change(self, serial: str, action: str, api_key_id: int, role: str,
                                detail: dict[str, Any]) -> Entry:
         """A registry change through `authn serve`, naming the acting API key and its role."""

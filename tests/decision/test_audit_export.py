@@ -60,7 +60,7 @@ def test_the_stored_leaf_bytes_are_what_is_hashed(db_url: str) -> None:
     db = Database(db_url)
     log = AuditLog(db, "permit(principal, action, resource);")
     log.record_decision("S1", "accept", {"reasons": ["é", "r"], "n": 1.5})
-    log.record_error("f.h5", None, "not a readable HDF5 file", EXIT_BAD_INPUT, policy_sha256=None)
+    log.record([AuditLog.error("f.h5", None, "not a readable HDF5 file", EXIT_BAD_INPUT, policy_sha256=None)])
     rows = db.fetch("SELECT seq, leaf_bytes, entry_hash, leaf_hash, payload FROM audit_log ORDER BY seq")
     for seq, body, entry_hash, leaf_hash, payload in rows:
         body = bytes(body)
@@ -93,8 +93,9 @@ def test_a_column_that_disagrees_with_the_bytes_is_reported(db_url: str, capsys)
 def test_audit_log_builds_the_error_payload(db_url: str) -> None:
     db = Database(db_url)
     log = AuditLog(db)
-    bad = log.record_error("a.h5", "S", "truncated", EXIT_BAD_INPUT, policy_sha256=None)
-    fault = log.record_error("b.h5", None, "disk", EXIT_SYSTEM, policy_sha256="0" * 64, track_files=["b.h5", "c.h5"])
+    bad = log.record([AuditLog.error("a.h5", "S", "truncated", EXIT_BAD_INPUT, policy_sha256=None)])[0]
+    fault = log.record([AuditLog.error("b.h5", None, "disk", EXIT_SYSTEM, policy_sha256="0" * 64,
+                                     track_files=["b.h5", "c.h5"])])[0]
     change = log.record_registry_change("S", "revoke", 7, "admin", {"reason": "x"})
     assert (bad.kind, bad.payload) == ("error", {"file": "a.h5", "error": "truncated", "error_kind": "bad-input",
                                                  "policy_sha256": None})
