@@ -23,7 +23,9 @@ Modules, each with one job:
     verifier  verify: the whole log against every head
     proofs    inclusion proofs, checked with only the public key
     replay    re-decide an entry under the policy text it was decided with
-    logkey    the Ed25519 log key and the checkpoint format
+    logkey    the Ed25519 log key: its file, path and retired keys
+    tree_head signed tree heads: C2SP checkpoints and legacy authn-sth/1 heads
+    head_files  the STH log and the latest-head file that keep heads outside the database
     witness   heads kept on another host, each proven to extend the last
     witness_http  the witness served over HTTP (uvicorn, as `authn serve`)
     merkle    RFC 9162 hashing and proofs

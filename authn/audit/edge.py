@@ -17,7 +17,8 @@ import hashlib
 import json
 from typing import TYPE_CHECKING
 
-from authn.audit.logkey import LogKey, SignedTreeHead
+from authn.audit.logkey import LogKey
+from authn.audit.tree_head import SignedTreeHead
 from core.parsing import loads_json
 
 if TYPE_CHECKING:

@@ -19,9 +19,10 @@ from typing import TYPE_CHECKING, Any
 import authn.audit.merkle as merkle
 from authn.audit._internal.headrows import HEAD_COLUMNS, KnownHead, Signed, head_of, load_key
 from authn.audit.entries import GENESIS, db_label
-from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, check_origin, \
-    create_key_file, key_path, latest_head_path, newest_in_sth_log, read_latest_head, scan_sth_log, sth_log_path, \
-    write_latest_head
+from authn.audit.head_files import (append_sth_log, latest_head_path, newest_in_sth_log, read_latest_head,
+                                    scan_sth_log, sth_log_path, write_latest_head)
+from authn.audit.logkey import LogKey, create_key_file, key_path
+from authn.audit.tree_head import SignedTreeHead, check_origin
 from core.errors import AuthnError, SystemFault, one_line
 from core.parsing import loads_json
 from core.settings import current

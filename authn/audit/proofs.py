@@ -15,7 +15,7 @@ from authn.audit._internal.headrows import load_key, when
 from authn.audit import leaf
 from authn.audit._internal.rows import COLUMNS, MalformedRow, stored_leaf, utc_text
 from authn.audit.heads import known_heads, newest
-from authn.audit.logkey import SignedTreeHead
+from authn.audit.tree_head import SignedTreeHead
 from authn.audit.signer import checkpoint
 from core.errors import AuthnError
 from registry.dbapi import Database

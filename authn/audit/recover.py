@@ -19,7 +19,8 @@ from authn.audit.edge import edge_json
 from authn.audit.entries import NewEntry, lock
 from authn.audit._internal.headrows import Signed, load_key, store_head
 from authn.audit.heads import HeadPlaces, log_origin
-from authn.audit.logkey import SignedTreeHead, canonical_json, create_key_file, load_retired_keys
+from authn.audit.logkey import create_key_file, load_retired_keys
+from authn.audit.tree_head import SignedTreeHead, canonical_json
 from authn.audit.verifier import VerifyReport, verify
 from authn.audit.writer import insert_entry
 from core.errors import AuthnError, SystemFault

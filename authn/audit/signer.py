@@ -13,8 +13,9 @@ from authn.audit.edge import edge_json
 from authn.audit.entries import lock
 from authn.audit._internal.headrows import KEYS, load_key, store_head
 from authn.audit.heads import HeadPlaces, log_origin, writer_key
-from authn.audit.logkey import LogKey, SignedTreeHead, append_sth_log, create_key_file, load_retired_keys, \
-    retired_keys_path, write_latest_head
+from authn.audit.head_files import append_sth_log, write_latest_head
+from authn.audit.logkey import LogKey, create_key_file, load_retired_keys, retired_keys_path
+from authn.audit.tree_head import SignedTreeHead
 from authn.audit.verifier import VerifyReport, verify
 from core.errors import AuthnError, SystemFault
 from registry.dbapi import Database

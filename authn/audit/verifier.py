@@ -19,7 +19,7 @@ from authn.audit._internal.headrows import HEAD_COLUMNS, head_of, when
 from authn.audit._internal.rows import ColumnsAltered, MalformedRow, rows, stored_leaf
 from authn.audit.entries import GENESIS
 from authn.audit.heads import KnownHead, accepted_keys, log_origin
-from authn.audit.logkey import SignedTreeHead
+from authn.audit.tree_head import SignedTreeHead
 from core.errors import AuthnError
 from registry.dbapi import Database
 

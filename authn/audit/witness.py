@@ -35,7 +35,8 @@ from typing import TYPE_CHECKING
 import authn.audit.merkle as merkle
 from core.errors import AuthnError, SystemFault, one_line
 from core.settings import current
-from authn.audit.logkey import SignedTreeHead, lines_from_end, parse_note
+from authn.audit.head_files import lines_from_end
+from authn.audit.tree_head import SignedTreeHead, parse_note
 
 if TYPE_CHECKING:
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey

@@ -40,7 +40,8 @@ from authn.audit._internal.headrows import HEAD_COLUMNS, Signed, check_head, hea
 from authn.audit._internal.rows import COLUMNS, ColumnsAltered, MalformedRow, stored_leaf
 from authn.audit.entries import GENESIS, Entry, NewEntry, batch_entries, lock
 from authn.audit.heads import HeadPlaces, KnownHead, log_origin, writer_key
-from authn.audit.logkey import LogKey, SignedTreeHead, canonical_json
+from authn.audit.logkey import LogKey
+from authn.audit.tree_head import SignedTreeHead, canonical_json
 from core.errors import AuthnError, SystemFault
 from core.settings import current
 from registry.dbapi import Database

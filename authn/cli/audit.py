@@ -183,7 +183,8 @@ def verify_cmd(
     Example: authn audit verify --against sth.json --witness /mnt/witness
     """
     from authn.audit import HeadPlaces, KnownHead, accepted_keys, newest, verify
-    from authn.audit.logkey import SignedTreeHead, key_path, load_retired_keys
+    from authn.audit.logkey import key_path, load_retired_keys
+    from authn.audit.tree_head import SignedTreeHead
     from core.errors import AuthnError
     from registry.dbapi import Database
 
@@ -395,7 +396,7 @@ def prove_cmd(
     """
     from authn.audit import prove
     from core.errors import AuthnError
-    from authn.audit.logkey import SignedTreeHead
+    from authn.audit.tree_head import SignedTreeHead
     from registry.dbapi import Database
 
     sth = SignedTreeHead.read(sth_file) if sth_file is not None else None

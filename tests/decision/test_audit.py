@@ -15,7 +15,8 @@ from authn.audit import (NewEntry, append, checkpoint, get_policy, known_heads, 
                          verify_proof)
 from authn.cli import main
 from core.errors import AuthnError, SystemFault
-from authn.audit.logkey import LogKey, SignedTreeHead
+from authn.audit.logkey import LogKey
+from authn.audit.tree_head import SignedTreeHead
 from registry.db import get_engine
 from registry.dbapi import Database
 
@@ -249,7 +250,8 @@ def test_newest_sth_line_read_backwards_matches_a_full_read(tmp_path: Path) -> N
     and owners, it finds the same newest line as reading every line."""
     import random
 
-    from authn.audit.logkey import append_sth_log, create_key_file, newest_in_sth_log, read_sth_log
+    from authn.audit.head_files import append_sth_log, newest_in_sth_log, read_sth_log
+    from authn.audit.logkey import create_key_file
 
     create_key_file(tmp_path / "k.pem")
     key = LogKey.load(tmp_path / "k.pem")

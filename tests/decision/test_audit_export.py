@@ -19,7 +19,7 @@ from tests.audit_tools import drop_triggers
 from tests.flights import write_m300_flight
 
 from authn.audit import AuditLog, leaf, list_entries, merkle, verify
-from authn.audit.logkey import canonical_json
+from authn.audit.tree_head import canonical_json
 from authn.cli import main
 from core.errors import EXIT_BAD_INPUT, EXIT_SYSTEM
 from registry.db import get_engine

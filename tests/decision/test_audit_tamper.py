@@ -20,7 +20,8 @@ from tests.flights import write_m300_flight
 from authn.audit import merkle
 from authn.audit import NewEntry, append, checkpoint, leaf, verify
 from core.errors import SystemFault
-from authn.audit.logkey import LogKey, SignedTreeHead
+from authn.audit.logkey import LogKey
+from authn.audit.tree_head import SignedTreeHead
 from registry.db import get_engine
 from registry.dbapi import Database
 
@@ -141,7 +142,7 @@ CASES = [(name, where) for name in TAMPERS for where in ("before", "after")]
 def _latest_head(url: str):
     """The latest signed tree head, as kept outside the database (what a verifier holds)."""
     from authn.audit import db_label
-    from authn.audit.logkey import latest_head_path, read_latest_head, sth_log_path
+    from authn.audit.head_files import latest_head_path, read_latest_head, sth_log_path
 
     db = Database(url)
     try:
@@ -478,7 +479,7 @@ def test_checkpoint_note_is_a_c2sp_signed_note(db_url: str, tmp_path: Path, caps
     import base64
 
     from authn.cli import main
-    from authn.audit.logkey import note_key_hash
+    from authn.audit.tree_head import note_key_hash
     from core.pem import raw_public as public_raw
 
     db = Database(db_url)

@@ -23,7 +23,7 @@ from tests.flights import write_m300_flight
 from sqlalchemy import text
 
 from authn.audit import NewEntry, append, db_label, leaf, list_entries, merkle
-from authn.audit.logkey import latest_head_path, sth_log_path
+from authn.audit.head_files import latest_head_path, sth_log_path
 from authn.cli import main
 from core.errors import SystemFault
 from registry.db import get_engine

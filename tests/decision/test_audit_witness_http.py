@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from authn.audit.logkey import LogKey, SignedTreeHead
+from authn.audit.logkey import LogKey
+from authn.audit.tree_head import SignedTreeHead
 from authn.audit.witness import Endpoint, WitnessStore, add_request
 from tests.service.server import free_port
 

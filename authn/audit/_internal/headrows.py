@@ -10,7 +10,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from authn.audit.logkey import CHECKPOINT_FORMAT, LogKey, SignedTreeHead, key_path
+from authn.audit.logkey import LogKey, key_path
+from authn.audit.tree_head import CHECKPOINT_FORMAT, SignedTreeHead
 from core.errors import SystemFault
 from registry.dbapi import Database
 
