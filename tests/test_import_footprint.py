@@ -30,7 +30,8 @@ PROBE = """
 import json, sys
 from authn.cli import main
 code = main(sys.argv[1:])
-print(json.dumps({"code": code, "modules": sorted(sys.modules)}), file=sys.stderr)
+pst = vars(sys.modules.get("cedarpy.pst", sys))  # loaded, or the stand-in of authn.cedarpy_tree
+print(json.dumps({"code": code, "modules": sorted(sys.modules), "policy_tree": "PolicySet" in pst}), file=sys.stderr)
 """
 
 
@@ -68,6 +69,7 @@ def test_a_check_imports_no_optional_dependency(tmp_path: Path) -> None:
     assert json.loads(out)["decision"] == "inconclusive"
     loaded = _loaded(report["modules"], OPTIONAL + HELP_ONLY + NOT_ON_CHECK + GEODESY + OTHER_COMMANDS)
     assert not loaded, f"a check imported {loaded}"
+    assert not report["policy_tree"], "a check imported cedarpy.pst (deciding never reads it)"
     assert "onnxruntime" in report["modules"] or "numpy" in report["modules"]
 
 
