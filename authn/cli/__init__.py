@@ -107,6 +107,7 @@ def _build(name: str):  # -> click Command
     _plugins_below(cmd, (name,))
     return cmd
 
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI and return the exit code (tests call this directly).
 
