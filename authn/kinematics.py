@@ -1,7 +1,7 @@
 """Remote ID claim versus radar: expected range and radial velocity, residuals, sanity.
 
-Geodesy is pymap3d (WGS-84), not hand-written: the Remote ID position (geodetic
-altitude, i.e. height above the WGS-84 ellipsoid) becomes an East-North-Up vector
+Geodesy is WGS-84 (`authn.geodesy`, held to pymap3d by its test): the Remote ID position
+(geodetic altitude, i.e. height above the WGS-84 ellipsoid) becomes an East-North-Up vector
 from the radar site, whose norm is the expected slant range and whose unit vector
 projects the declared velocity onto the line of sight (+ = receding).
 """
@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from datetime import datetime
 
 import numpy as np
+
+from authn.geodesy import geodetic2enu
 
 # F3411 accuracy enumerations -> metres / metres per second (upper bounds); unknown = None
 HORIZONTAL_ACCURACY_M = {1: 18520.0, 2: 7408.0, 3: 3704.0, 4: 1852.0, 5: 926.0, 6: 555.6, 7: 185.2,
@@ -73,9 +75,7 @@ class Expected:
 def expected_from_radar(state: DeclaredState, site_lat: float, site_lon: float, site_alt: float,
                         at: datetime) -> Expected:
     """Where the radar should see the declared aircraft at time `at` (extrapolated with its velocity)."""
-    import pymap3d
-
-    e, n, u = pymap3d.geodetic2enu(state.lat_deg, state.lon_deg, state.alt_m, site_lat, site_lon, site_alt)
+    e, n, u = geodetic2enu(state.lat_deg, state.lon_deg, state.alt_m, site_lat, site_lon, site_alt)
     pos = np.array([e, n, u], dtype=np.float64)
     vel = None
     if state.speed_horizontal_mps is not None and state.direction_deg is not None:

@@ -25,9 +25,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import cedarpy
-
+from authn.cedarpy_tree import defer
 from core.errors import AuthnError, SystemFault
+
+defer()  # cedarpy's policy-tree module, which deciding never reads, imported only if read
+import cedarpy  # noqa: E402 - after defer()
 
 ACTION = {"type": "Action", "id": "authenticate"}
 SITE_ID = "site"

@@ -1,7 +1,8 @@
-"""The `authn` command line: the root Typer app, composed here from one module per command
-or command group (the modules define their commands and sub-apps; nothing registers itself
-on import), and the commands of installed plugins (`authn.cli.plugins`: the laboratory's
-`authn bench` and `authn features accuracy|score`), loaded only when asked for.
+"""The `authn` command line: the root Typer app, its commands and command groups each defined
+in one module (`COMMANDS`, `GROUPS`; nothing registers itself on import) and imported only when
+that command runs or help lists it (`authn.cli.lazy`), and the commands of installed plugins
+(`authn.cli.plugins`: the laboratory's `authn bench` and `authn features accuracy|score`),
+loaded only when asked for.
 
 Heavy libraries (scipy, sklearn, torch, matplotlib, sqlalchemy) are imported inside the
 commands that need them, never at module level, so `authn --help` and a single
@@ -11,6 +12,7 @@ commands that need them, never at module level, so `authn --help` and a single
 from __future__ import annotations
 
 import functools
+import importlib
 import os
 import sys
 
@@ -20,8 +22,7 @@ os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
 import typer
 
-from authn.cli import (audit, check, db, demo, features, importer, inspect, keys, models, plot, registry, rid, serve,
-                       simulate)
+from authn.cli.lazy import LazyGroup
 from authn.cli.output import json_error, json_requested
 from authn.cli.plugins import PluginGroup
 from authn.cli.signals import handled, interrupted
@@ -39,7 +40,7 @@ app = typer.Typer(
     name="authn",
     help="Radar micro-Doppler + Remote ID identity authentication for UAVs.\n\nExample: authn demo",
     no_args_is_help=True,
-    cls=PluginGroup,  # `authn bench` and other commands of installed plugins (authn/cli/plugins.py)
+    cls=LazyGroup,  # commands imported when used (authn/cli/lazy.py), and installed plugins' (plugins.py)
     pretty_exceptions_enable=False,
     add_completion=True,  # --install-completion / --show-completion (bash, zsh, fish, PowerShell)
     context_settings={"help_option_names": HELP_OPTIONS},  # inherited by every subcommand
@@ -71,20 +72,40 @@ def _global_options(
     ctx.obj = CliState(db_url=db_url)
 
 
-for _name, _command in (("check", check.check), ("simulate", simulate.simulate), ("inspect", inspect.inspect_file),
-                        ("register", registry.register_cmd), ("demo", demo.demo), ("plot", plot.plot),
-                        ("serve", serve.serve)):
-    app.command(_name)(_command)
+#: Each command: its name -> (module, function), in the order help lists them.
+COMMANDS = {"check": ("authn.cli.check", "check"), "simulate": ("authn.cli.simulate", "simulate"),
+            "inspect": ("authn.cli.inspect", "inspect_file"), "register": ("authn.cli.registry", "register_cmd"),
+            "demo": ("authn.cli.demo", "demo"), "plot": ("authn.cli.plot", "plot"),
+            "serve": ("authn.cli.serve", "serve")}
+#: Each command group: its name -> (module, Typer app), listed after the commands.
+GROUPS = {"registry": ("authn.cli.registry", "registry_app"), "audit": ("authn.cli.audit", "audit_app"),
+          "rid": ("authn.cli.rid", "rid_app"), "db": ("authn.cli.db", "db_app"),
+          "features": ("authn.cli.features", "features_app"), "models": ("authn.cli.models", "models_app"),
+          "keys": ("authn.cli.keys", "keys_app"), "import": ("authn.cli.importer", "import_app")}
 #: One example per command group (each command's own examples are in its docstring).
 GROUP_EXAMPLES = {"registry": "authn registry list", "audit": "authn audit verify --json",
                   "rid": "authn rid decode --pcap odid_wifi_bcn_sample.pcap", "db": "authn db upgrade",
                   "features": "authn features show m300.h5", "models": "authn models list --json",
                   "keys": "authn keys generate --out ua.pem",
                   "import": "authn import dca1000 adc_data_Raw_0.bin --config profile.cfg"}
-for _name, _group in (("registry", registry.registry_app), ("audit", audit.audit_app), ("rid", rid.rid_app),
-                      ("db", db.db_app), ("features", features.features_app), ("models", models.models_app),
-                      ("keys", keys.keys_app), ("import", importer.import_app)):
-    app.add_typer(_group, name=_name, help=f"{_group.info.help}\n\nExample: {GROUP_EXAMPLES[_name]}")
+
+
+def _build(name: str):  # -> click Command
+    """The click command `name` as a child of `app`: its module imported, registered on a
+    parent built like `app` (so typer gives it the same settings), help styled as the rest."""
+    module, attr = {**COMMANDS, **GROUPS}[name]
+    obj = getattr(importlib.import_module(module), attr)
+    parent = typer.Typer(pretty_exceptions_enable=False, add_completion=False,
+                         context_settings={"help_option_names": HELP_OPTIONS})
+    parent.callback()(lambda: None)
+    if name in GROUPS:
+        parent.add_typer(obj, name=name, help=f"{obj.info.help}\n\nExample: {GROUP_EXAMPLES[name]}")
+    else:
+        parent.command(name)(obj)
+    cmd = typer.main.get_command(parent).commands[name]  # type: ignore[attr-defined]
+    _plain_flags(cmd)
+    _plugins_below(cmd, (name,))
+    return cmd
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -126,10 +147,12 @@ def main(argv: list[str] | None = None) -> int:
 def command():  # -> click Command
     """The click command tree of `app` (built once per process), with on/off flags shown in
     help without a `<bool>` type: a flag takes no value, and help tables that wrap prose only
-    (installed when help is first rendered: a check never imports rich's help machinery)."""
+    (installed when help is first rendered: a check never imports rich's help machinery); each
+    command and group built when first asked for (`_build`)."""
     cmd = typer.main.get_command(app)
     _plain_flags(cmd)
     _plugins_below(cmd)
+    cmd.lazy = {name: functools.partial(_build, name) for name in (*COMMANDS, *GROUPS)}
     return cmd
 
 

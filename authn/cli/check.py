@@ -85,66 +85,86 @@ def _captures(path: Path) -> dict[str, Path]:
 
 
 def _print_outcome(o: Outcome) -> None:
-    from datetime import datetime, timezone
+    """The human output of one decision: a headline, then a label/value table; as plain text
+    when rich would print it without colour (`authn.cli.plaintext`), else through rich."""
+    from authn.cli import plaintext
+    from core.textsafe import printable
 
+    headline = printable(f" {o.evidence.claim.serial} ({o.evidence.claim.source}) - {', '.join(o.reasons)}")
+    rows = _outcome_rows(o)
+    width = plaintext.console_width()
+    plain_rows = [(label, value if markup else printable(value)) for label, value, markup in rows]
+    text = None if width is None else plaintext.render(o.decision.upper() + headline, plain_rows, width)
+    if text is not None:
+        sys.stdout.write(text)
+        return
     from rich.console import Console
     from rich.table import Table
     from rich.text import Text
 
-    from core.textsafe import cell, printable
+    from core.textsafe import cell
 
-    ev = o.evidence
     console = Console()
-    colour = DECISION_COLOURS.get(o.decision, "red")
-    console.print(Text.assemble((o.decision.upper(), f"bold {colour}"),
-                                printable(f" {ev.claim.serial} ({ev.claim.source}) - {', '.join(o.reasons)}")))
+    console.print(Text.assemble((o.decision.upper(), f"bold {DECISION_COLOURS.get(o.decision, 'red')}"), headline))
     t = Table(show_header=False, box=None, pad_edge=False)
     t.add_column(style="dim")
     t.add_column()
+    for label, value, markup in rows:
+        t.add_row(label, value if markup else cell(value))
+    console.print(t)
+
+
+def _outcome_rows(o: Outcome) -> list[tuple[str, str, bool]]:
+    """(label, value, is rich markup) rows of the human output: a value that is not markup is
+    untrusted text, printed escaped (`core.textsafe`); markup values are numbers and dates."""
+    from datetime import datetime, timezone
+
+    ev = o.evidence
+    rows: list[tuple[str, str, bool]] = []
     reg = ev.registry
-    t.add_row("registry", cell(reg.status + (f", declared {reg.model}" if reg.model else "")))
+    rows.append(("registry", reg.status + (f", declared {reg.model}" if reg.model else ""), False))
     if "outside-validity-window" in o.reasons and reg.valid_from is not None:
         dwell = datetime.fromtimestamp(ev.time_s, timezone.utc).isoformat()
-        t.add_row("validity", f"dwell at {dwell}; registered valid from {reg.valid_from.isoformat()}"
-                  + (f" until {reg.valid_until.isoformat()}" if reg.valid_until else ""))
+        rows.append(("validity", f"dwell at {dwell}; registered valid from {reg.valid_from.isoformat()}"
+                     + (f" until {reg.valid_until.isoformat()}" if reg.valid_until else ""), True))
     r = ev.radar
     if r is None:
-        t.add_row("radar", "skipped (registry decided)")
+        rows.append(("radar", "skipped (registry decided)", True))
     else:
         conf = "" if r.confidence is None else f" ({r.confidence:.1%})"
         where = "" if r.radial_velocity_mps is None else (
             (f", {r.range_m:.1f} m" if r.range_m is not None else ", range not measured")
             + f", {r.radial_velocity_mps:+.2f} m/s")
-        t.add_row("radar", cell(f"{r.model}{conf}{where}" + (", gated" if r.gated else "")))
+        rows.append(("radar", f"{r.model}{conf}{where}" + (", gated" if r.gated else ""), False))
     k = ev.kinematics
     if k is not None:
         res = k.residuals
         if k.range_measured:
-            t.add_row("range residual", f"{res.range_residual_m:.1f} m (tolerance {res.range_tolerance_m:.1f} m)")
+            rows.append(("range residual",
+                         f"{res.range_residual_m:.1f} m (tolerance {res.range_tolerance_m:.1f} m)", True))
         if res.radial_velocity_residual_mps is not None:
-            t.add_row("velocity residual", f"{res.radial_velocity_residual_mps:.2f} m/s "
-                      f"(tolerance {res.radial_velocity_tolerance_mps:.2f} m/s)")
+            rows.append(("velocity residual", f"{res.radial_velocity_residual_mps:.2f} m/s "
+                         f"(tolerance {res.radial_velocity_tolerance_mps:.2f} m/s)", True))
     auth = ev.auth
     if auth.status != "absent":  # signed Remote ID: what the signature came to
         what = auth.status + (f" ({', '.join(auth.sam_types)})" if auth.sam_types else "")
         what += f", covers {len(auth.covered)} messages" if auth.status == "valid" else ""
-        t.add_row("remote id auth", cell(what + (f": {auth.reason}" if auth.reason else "")))
+        rows.append(("remote id auth", what + (f": {auth.reason}" if auth.reason else ""), False))
     if ev.remote_id_issues:
-        t.add_row("remote id issues", cell(", ".join(ev.remote_id_issues)))
+        rows.append(("remote id issues", ", ".join(ev.remote_id_issues), False))
     if o.non_cooperative:  # with --rid-capture: radar targets no broadcast explains
-        t.add_row("non-cooperative",
-                  ", ".join(f"{x['range_m']:.1f} m ({x['snr_db']:.0f} dB)" for x in o.non_cooperative))
+        rows.append(("non-cooperative",
+                     ", ".join(f"{x['range_m']:.1f} m ({x['snr_db']:.0f} dB)" for x in o.non_cooperative), True))
     v = r.verification if r is not None else None
     if v is not None and v.terms:
-        t.add_row("verification", cell(f"LLR {v.llr:+.2f} nats against {v.closest}"
-                                       + (f" (of {', '.join(sorted(v.against))})" if len(v.against) > 1 else "")))
+        rows.append(("verification", f"LLR {v.llr:+.2f} nats against {v.closest}"
+                     + (f" (of {', '.join(sorted(v.against))})" if len(v.against) > 1 else ""), False))
     if o.decision == "inconclusive":
-        t.add_row("to decide", cell(to_decide_line(ev.to_decide())))
+        rows.append(("to decide", to_decide_line(ev.to_decide()), False))
     if o.skipped:
-        t.add_row("skipped", cell(", ".join(o.skipped)))
-    t.add_row("time", f"{sum(o.timings_ms.values()):.1f} ms  audit #{o.audit_id}")
-    console.print(t)
-
+        rows.append(("skipped", ", ".join(o.skipped), False))
+    rows.append(("time", f"{sum(o.timings_ms.values()):.1f} ms  audit #{o.audit_id}", True))
+    return rows
 
 
 def check(
