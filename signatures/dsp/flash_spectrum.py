@@ -211,7 +211,8 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
     The peak is refined by a parabola through the log harmonic sum; its std is the sub-bin
     peak's half width over sqrt(harmonics). Score: log of the peak over the median of the
     harmonic sum, less SPECTRAL_NOISE_LOG (as the period search's score, >= 1 is a periodic
-    train)."""
+    train), or where higher the same with the turn's lines in the difference added
+    (`_turn_score`); the rate does not depend on it."""
     b_rows, n = slow.shape[0], slow.shape[1]
     total, diff = flash_envelope(slow, config, body_hz)
     sum_power = np.abs(np.fft.rfft(total - total.mean(axis=1, keepdims=True), axis=1)) ** 2
