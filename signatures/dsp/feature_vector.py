@@ -18,7 +18,7 @@ from signatures.radar import RadarConfig
 
 #: Bump when feature values change: training-set caches key on it, and
 #: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
-FEATURE_VERSION = "13"
+FEATURE_VERSION = "14"
 GATE_BINS = 5  # range bins of the slow-time gate (target +- 2: migration and Hann spread)
 PATCH_SHAPE = (32, 32)  # (Doppler bands, range bins) of the CNN patch
 PATCH_FLOOR_DB = -60.0

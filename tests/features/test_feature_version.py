@@ -225,6 +225,25 @@ GOLDEN_FEATURES[("13", "2")] = {
     ),
 }
 
+# FEATURE_VERSION 14: a long dwell's flash score is also read with the turn's lines in the approaching-minus-
+# receding envelope added (flash_spectrum._turn_score), the larger of the two kept; flash_score moves on
+# the CW scenes whose blades are tagged, paper and wide features unchanged
+GOLDEN_FEATURES[("14", "2")] = {
+    **GOLDEN_FEATURES[("13", "2")],
+    'm300_cw_sband_tagged_moving': (
+        0.0, 5.82, 0.0, 30.49, 32.86, 1133.0, 652.5, 71.18, 8.0, 0.7364, 0.3704, 0.0, 0.0, 5.998, 0.003134, 79.84,
+        0.3052, 39.92, 0.1526, 1.0, 0.0, 91.16, 1.996, 0.3634, 0.008077, 0.0, 3.969, 189.0, 16.52, 0.2866, 39.65,
+        0.09494, 10.84, 1.0, 0.2181, -0.2941, -0.4836, -0.3869, 0.1156, 0.7023, 0.3348, -0.157, -0.4571, -0.4158,
+        -0.01781, 0.4514, 0.4976, 0.005378, -0.4135
+    ),
+    'm300_cw_sband_tagged_accelerating': (
+        0.0, -0.02395, 0.0, 3.699, 27.59, 114.3, 75.97, 91.23, 2.0, 0.001026, 0.3467, 0.0, 0.0, 4.99, 0.006013, 80.04,
+        0.3052, 40.02, 0.1526, 1.0, 0.0, 4.242, 3.339, 0.01687, 0.01328, 0.0, 1.368, 102.0, 23.65, 0.03101, 34.7,
+        0.03281, 27.32, 1.0, 0.97, 0.9134, 0.8363, 0.7503, 0.6603, 0.5704, 0.4837, 0.402, 0.3277, 0.2583, 0.1964,
+        0.1402, 0.08995, 0.04346, 0.002309
+    ),
+}
+
 SIMULATOR_SUMMARY = ("power of chirps 0-99", "100-199", "200-299", "300-399", "400-499", "500-599",
                      "|lag-1 slow-time autocorrelation|", "its phase (rad)", "peak range bin", "peak range power")
 
