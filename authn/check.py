@@ -468,12 +468,12 @@ class Checker:
         registered models, with their site bands) and the background."""
         if claimed is None:
             return None
-        from dataclasses import asdict
-
         from signatures.classify.verify import bands_from, verify
+        from signatures.features import FEATURE_NAMES
 
         card_bands = getattr(classifier, "physics_bands", None)
-        return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
+        measured = {name: getattr(feats.features, name) for name in FEATURE_NAMES}  # asdict's deep copy: ~80 us
+        return verify({**measured, **feats.physics}, claimed, pred.probabilities,
                       rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands_from(card_bands, claimed.slug),
                       calibration=getattr(classifier, "score_calibration", None),
                       also=[(p, bands_from(card_bands, p.slug)) for p in group],
