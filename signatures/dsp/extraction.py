@@ -313,8 +313,7 @@ def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected:
         raise SignaturesError(f"IQ cube must be numeric, got dtype {iq.dtype}")
     n_chirps, n_bins = iq.shape[1:]
     config = configs[0]
-    looks = max(1, n_chirps - 1) if suppress else n_chirps
-    within = [_Chosen(e, configs[b], gate_bins, n_bins, labels[b], domain, looks) if callable(e)
+    within = [_Chosen(e, configs[b], gate_bins, n_bins, labels[b], domain) if callable(e)
               else _within(configs[b], e, gate_bins, n_bins, labels[b], domain) for b, e in enumerate(expected)]
     cube = _cube_stage(iq, within, gate_bins, suppress, domain, labels, fft_backend, device)
     live = np.flatnonzero(~cube.zero)
@@ -355,13 +354,14 @@ class _Chosen:
     """A row's gate chosen by a `Chooser` once the cube stage has its range profile."""
 
     def __init__(self, choose: Chooser, config: RadarConfig, gate_bins: int, n_bins: int, label: int,
-                 domain: str, looks: int) -> None:
+                 domain: str) -> None:
         self.choose, self.config, self.gate_bins, self.n_bins = choose, config, gate_bins, n_bins
-        self.label, self.domain, self.looks = label, domain, looks
+        self.label, self.domain = label, domain
 
-    def __call__(self, profile: np.ndarray | None) -> tuple[int, int] | None:
-        """The gate for the row's profile (None: an all-zero row, which has no targets)."""
-        found = [] if profile is None or self.domain == "cw" else _targets(profile, self.config, self.looks)
+    def __call__(self, profile: np.ndarray | None, hits: np.ndarray) -> tuple[int, int] | None:
+        """The gate for the row's profile and its CFAR hits (profile None: an all-zero row, which
+        has no targets)."""
+        found = [] if profile is None or self.domain == "cw" else _targets(profile, hits, self.config)
         with _own_workspaces():  # the chooser may extract features itself (authn.association)
             expected = self.choose(found)
         return _within(self.config, expected, self.gate_bins, self.n_bins, self.label, self.domain)
@@ -414,12 +414,13 @@ def _cube_stage(iq: np.ndarray, within: list, gate_bins: int, suppress: bool,
             spectra, out["mu"][s:e], out["log2_scale"][s:e], out["zero"][s:e], out["profile"][s:e] = (
                 torch_cube.range_spectra(iq[s:e], suppress, domain, labels[s:e], device))
             columns = torch_cube.columns
+        hits, threshold = _cfar(out["profile"][s:e], looks)
         for b in range(s, e):  # gates chosen from the rows' own targets: chosen now
             if isinstance(within[b], _Chosen):
-                within[b] = within[b](None if out["zero"][b] else out["profile"][b])
+                within[b] = within[b](None if out["zero"][b] else out["profile"][b], hits[b - s])
         lo_w = np.array([w[0] if w else 0 for w in within[s:e]])
         hi_w = np.array([w[1] if w else n_bins for w in within[s:e]])
-        det, frac, snr, peak = _detect(out["profile"][s:e], looks, lo_w, hi_w)
+        det, frac, snr, peak = _detect(out["profile"][s:e], hits, threshold, looks, lo_w, hi_w)
         g_lo = _window(peak, size, n_bins)
         p_lo = _window(peak, p_size, n_bins)
         columns(spectra, g_lo, size, out["slow"][s:e])
@@ -582,10 +583,9 @@ def _range_profile(spec: np.ndarray) -> np.ndarray:
     return (sq / np.float32(n)).astype(np.float32, copy=False)
 
 
-def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):
-    """`rd.detect` per row (median CFAR over range, detection counted within [lo, hi)):
-    (detected, peak_bin_frac, snr_db, peak_bin)."""
-    b, n = profile.shape
+def _cfar(profile: np.ndarray, looks: int) -> tuple[np.ndarray, np.ndarray]:
+    """`rd.cfar` per row (median CFAR over range), the same values: (hits, threshold), (B, bins)."""
+    n = profile.shape[1]
     g, t = rd.CFAR_GUARD, rd.CFAR_TRAIN
     offsets = np.concatenate([np.arange(-g - t, -g), np.arange(g + 1, g + t + 1)])
     idx = np.arange(n)[:, None] + offsets[None, :]
@@ -595,7 +595,15 @@ def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):
     noise = median_last(profile[:, idx]).astype(np.float32, copy=False)
     factor = rd._cfar_factor(looks, offsets.size, rd.CFAR_PFA)
     threshold = noise * np.float32(factor)
-    hits = (profile > threshold) & (profile > rd._TINY)
+    return (profile > threshold) & (profile > rd._TINY), threshold
+
+
+def _detect(profile: np.ndarray, hits: np.ndarray, threshold: np.ndarray, looks: int, lo: np.ndarray,
+            hi: np.ndarray):
+    """`rd.detect` per row from its `_cfar` (detection counted within [lo, hi)):
+    (detected, peak_bin_frac, snr_db, peak_bin)."""
+    b, n = profile.shape
+    t = rd.CFAR_TRAIN
     cols = np.arange(n)[None, :]
     sel = (cols >= lo[:, None]) & (cols < hi[:, None])
     region = hits & sel
@@ -1265,30 +1273,24 @@ def detections(recording, clutter_suppression: bool = True,
     if zero[0]:
         return []
     looks = max(1, a.shape[0] - 1) if clutter_suppression else a.shape[0]
-    return _targets(profile[0], recording.config, looks, min_snr_db)
+    hits, _ = rd.cfar(profile[0], looks)
+    return _targets(profile[0], hits, recording.config, min_snr_db)
 
 
-def _targets(profile: np.ndarray, config: RadarConfig, looks: int,
+def _targets(profile: np.ndarray, hits: np.ndarray, config: RadarConfig,
              min_snr_db: float = DETECTION_MIN_SNR_DB) -> list[tuple[float, float]]:
-    """`detections` of one row's range profile (float32, bins)."""
-    n_bins = profile.shape[0]
-    hits, _ = rd.cfar(profile, looks)
+    """`detections` of one row's range profile (float32, bins) and its CFAR hits."""
     noise = max(float(median(profile)), 1e-30)
+    edges = np.flatnonzero(np.diff(hits, prepend=False, append=False))  # each cluster's [start, end)
     peaks: list[tuple[int, float]] = []
-    k = 0
-    while k < n_bins:
-        end = k
-        while end < n_bins and hits[end]:
-            end += 1
-        if end > k:
-            peak = k + int(np.argmax(profile[k:end]))
-            snr = 10.0 * math.log10(max(float(profile[peak]) / noise, 1e-30))
-            if snr >= min_snr_db:
-                peaks.append((peak, snr))
-        k = max(end, k + 1)
+    for k, end in zip(edges[0::2].tolist(), edges[1::2].tolist()):
+        peak = k + int(np.argmax(profile[k:end]))
+        snr = 10.0 * math.log10(max(float(profile[peak]) / noise, 1e-30))
+        if snr >= min_snr_db:
+            peaks.append((peak, snr))
     kept: list[tuple[int, float]] = []
     for peak, snr in sorted(peaks, key=lambda p: -p[1]):
         if all(abs(peak - other) > F.GATE_BINS for other, _ in kept):
             kept.append((peak, snr))
-    bin_m = config.range_bin_m(n_bins)
+    bin_m = config.range_bin_m(profile.shape[0])
     return [(config.range_offset_m + rd._interp_peak(profile, peak) * bin_m, snr) for peak, snr in kept]
