@@ -33,7 +33,7 @@ from typing import Any
 
 from authn.kinematics import DeclaredState, Expected, residuals
 
-__all__ = ["Association", "associate"]
+__all__ = ["Association", "applies", "associate"]
 
 
 @dataclass(frozen=True)
@@ -56,18 +56,29 @@ class Association:
         return {"selected_by": self.by, "in_view": self.in_view, "candidates": self.candidates}
 
 
-def associate(rec: Any, expected: Expected | None, state: DeclaredState | None) -> Association:
-    """The target of `rec` (a Recording) that the claim's predicted state (`expected`, from the
-    declared `state`) matches; see the module for the rule."""
+def applies(rec: Any, expected: Expected | None, state: DeclaredState | None) -> bool:
+    """Whether the claim's target is chosen among the targets of `rec` (else: not associated,
+    see the module)."""
     lo, hi = rec.config.range_window_m
-    if expected is None or state is None or rec.domain == "cw" or not lo <= expected.range_m < hi:
-        return Association(None)
-    from signatures.features import detections
+    return expected is not None and state is not None and rec.domain != "cw" and lo <= expected.range_m < hi
 
+
+def associate(rec: Any, expected: Expected | None, state: DeclaredState | None,
+              targets: list[float] | None = None) -> Association:
+    """The target of `rec` (a Recording) that the claim's predicted state (`expected`, from the
+    declared `state`) matches; see the module for the rule. `targets`: the ranges (m) of the
+    return's `detections`, when the caller has them (the feature stage's range profile); None:
+    found here."""
+    if expected is None or state is None or not applies(rec, expected, state):
+        return Association(None)
+    if targets is None:
+        from signatures.features import detections
+
+        targets = [r for r, _ in detections(rec)]
+    lo, hi = rec.config.range_window_m
     bin_m = rec.config.range_bin_m(rec.n_samples)
     dop_m = rec.config.doppler_bin_mps(rec.n_chirps)
     v_amb = rec.config.measured_unambiguous_velocity_mps(rec.n_samples)
-    targets = [r for r, _ in detections(rec)]
 
     def within(r: float) -> bool:
         res = residuals(expected, state, r, 0.0, bin_m, dop_m, v_amb)

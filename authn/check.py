@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from authn.policy import PolicyResult
     from authn.sprt import Sprt
     from remoteid.capture import Broadcaster, CapturedMessage
+    from signatures.dsp.extraction import Chooser
     from signatures.dsp.feature_vector import FeatureResult
     from signatures.classify.inference import Classifier, Prediction
     from signatures.profiles import UavProfile
@@ -175,9 +176,10 @@ class _Timer:
             self.ms[name] = round(self.ms.get(name, 0.0) + (time.perf_counter() - t0) * 1e3, 3)  # a stage may recur
 
 
-def _shares(timers: Sequence[_Timer], name: str, t0: float) -> None:
-    """Each of `timers` its share of one call over all of them, begun at `t0`."""
-    share = round((time.perf_counter() - t0) * 1e3 / max(len(timers), 1), 3)
+def _shares(timers: Sequence[_Timer], name: str, t0: float, less_ms: float = 0.0) -> None:
+    """Each of `timers` its share of one call over all of them, begun at `t0`, less `less_ms`
+    (time inside it already counted under another stage)."""
+    share = round(max(0.0, (time.perf_counter() - t0) * 1e3 - less_ms) / max(len(timers), 1), 3)
     for t in timers:
         t.ms[name] = share
 
@@ -224,7 +226,9 @@ class _Pending:
     classifier: Classifier
     claimed: UavProfile | None  # the registered model's profile (None: no profile)
     expected: Expected | None  # the radar-frame state the Remote ID predicts (None: no position)
-    association: Association  # how the claim's target was chosen; its `gate` is the range features are gated at
+    #: how the claim's target was chosen; its `gate` is the range features are gated at (None: chosen
+    #: by the feature stage from the return's range profile, `Checker._features`)
+    association: Association | None
     #: a signed claim of a radar-confusable model: the registered models it is verified together with
     group: tuple[UavProfile, ...] = ()
     #: the other models registered at the site: the alternatives the claim must win against
@@ -240,7 +244,22 @@ class _Pending:
 
     @property
     def gate(self) -> float | None:
-        return self.association.gate
+        return None if self.association is None else self.association.gate
+
+    def expected_range(self, chosen: dict[Key, Association], key: Key) -> float | Chooser | None:
+        """What the feature stage gates at: the association's range, or a chooser that associates
+        from the return's targets (found on the feature stage's own range profile) into `chosen`."""
+        if self.association is not None:
+            return self.association.gate
+
+        def choose(targets: list[tuple[float, float]]) -> float | None:
+            from authn.association import associate
+
+            with self.timer.stage("associate"):
+                chosen[key] = associate(self.rec, self.expected, self.front.claim.state, [r for r, _ in targets])
+            return chosen[key].gate
+
+        return choose
 
 
 class _Memo:
@@ -449,12 +468,12 @@ class Checker:
         registered models, with their site bands) and the background."""
         if claimed is None:
             return None
-        from dataclasses import asdict
-
         from signatures.classify.verify import bands_from, verify
+        from signatures.features import FEATURE_NAMES
 
         card_bands = getattr(classifier, "physics_bands", None)
-        return verify({**asdict(feats.features), **feats.physics}, claimed, pred.probabilities,
+        measured = {name: getattr(feats.features, name) for name in FEATURE_NAMES}  # asdict's deep copy: ~80 us
+        return verify({**measured, **feats.physics}, claimed, pred.probabilities,
                       rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands_from(card_bands, claimed.slug),
                       calibration=getattr(classifier, "score_calibration", None),
                       also=[(p, bands_from(card_bands, p.slug)) for p in group],
@@ -507,7 +526,7 @@ class Checker:
         """What the radar stages of a return the registry did not decide need: the bundle of its
         waveform, the registered model's physics and alternatives, the claim's own target.
         `memo`: the batch's answers so far (one bundle per waveform, one registry read per question)."""
-        from authn.association import associate
+        from authn.association import Association, applies
         from signatures.classify.inference import classifier_for
         from signatures.radar import recording_waveform
 
@@ -532,8 +551,8 @@ class Checker:
         if f.claim.state is not None:
             site = f.rec.site
             expected = expected_from_radar(f.claim.state, site.lat_deg, site.lon_deg, site.alt_m, f.rec.start_time)
-        with timer.stage("associate"):  # the claim's own target: position, then velocity (CW: none, docs/format.md)
-            assoc = associate(f.rec, expected, f.claim.state)
+        # the claim's own target (position, then velocity; CW: none, docs/format.md): chosen in the feature stage
+        assoc = None if applies(f.rec, expected, f.claim.state) else Association(None)
         return _Pending(f, evidence, classifier, claimed, expected, assoc, group, alternatives)
 
     def _finish(self, p: _Pending, feats: FeatureResult, pred: Prediction | None) -> Evidence:
@@ -740,33 +759,37 @@ class Checker:
         return self.decide_one(CheckInput.recording(rec, serial, file, digest))
 
     @staticmethod
-    def _features_or_failure(p: _Pending) -> FeatureResult | Failure:
+    def _features_or_failure(p: _Pending, expected: float | Chooser | None) -> FeatureResult | Failure:
         from signatures.features import extract
 
         try:
-            return extract(p.rec, expected_range_m=p.gate)
+            return extract(p.rec, expected_range_m=expected)
         except Exception as exc:  # noqa: BLE001 - this file's failure, not the batch's
             return Failure.of(p.front.file, p.front.claim.serial, exc)
 
     def _features(self, pending: dict[Key, _Pending]) -> tuple[dict[Key, FeatureResult], dict[Key, Failure]]:
-        """Every pending return's features in one batch (each its share of the time); where the
-        batch fails, each return on its own, to find the file at fault."""
+        """Every pending return's features in one batch (each its share of the time), the claim's
+        target associated on the way (`pending` gets each association); where the batch fails,
+        each return on its own, to find the file at fault."""
         keys = list(pending)
+        chosen: dict[Key, Association] = {}
+        expected = [pending[k].expected_range(chosen, k) for k in keys]
         t0 = time.perf_counter()
         try:
             if len(keys) == 1:  # one return: a batch of one on numpy's FFT (no scipy import)
                 from signatures.features import extract
 
-                feats: list[FeatureResult | Failure] = [extract(pending[keys[0]].rec,
-                                                                expected_range_m=pending[keys[0]].gate)]
+                feats: list[FeatureResult | Failure] = [extract(pending[keys[0]].rec, expected_range_m=expected[0])]
             else:
                 from signatures.features import extract_many
 
-                feats = list(extract_many([pending[k].rec for k in keys], [pending[k].gate for k in keys]))
+                feats = list(extract_many([pending[k].rec for k in keys], expected))
         except Exception:  # noqa: BLE001 - find the file at fault: each return on its own
-            feats = [self._features_or_failure(pending[k]) for k in keys]
+            feats = [self._features_or_failure(pending[k], e) for k, e in zip(keys, expected)]
+        pending.update({k: replace(pending[k], association=a) for k, a in chosen.items()})
         found = {k: f for k, f in zip(keys, feats) if not isinstance(f, Failure)}
-        _shares([pending[k].timer for k in found], "radar_features", t0)
+        associated = sum(pending[k].timer.ms.get("associate", 0.0) for k in chosen)
+        _shares([pending[k].timer for k in found], "radar_features", t0, less_ms=associated)
         return found, {k: f for k, f in zip(keys, feats) if isinstance(f, Failure)}
 
     @staticmethod

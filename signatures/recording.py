@@ -13,17 +13,15 @@ from __future__ import annotations
 
 import io
 import json
-import lzma
 import math
 import os
 import stat
 import struct
-import zipfile
 import zlib
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,6 +29,9 @@ from core.checked import Checked, Invalid, number
 from core.parsing import parse_iso_time
 from signatures.errors import RecordingError
 from signatures.radar import RadarConfig
+
+if TYPE_CHECKING:
+    import zipfile
 
 FORMAT_TAG = "uav-radar-return/1"
 #: The tag of files whose `domain` is not `if` (docs/format.md, "Versions"): a reader of
@@ -322,13 +323,22 @@ def _check_rid_source(source: str | None, times: np.ndarray | None) -> None:
 _ATTR_NAMES = ("format", "domain", *_CONFIG_ATTRS, "range_offset_m", *_SITE_ATTRS, "start_time", "simulation",
                "remote_id_source")
 
-#: What h5py, numpy, zipfile and the OS raise on corrupt, truncated or hostile files
-#: (bit flips in HDF5 metadata give RuntimeError/ValueError/KeyError/TypeError/OSError;
-#: encrypted or unknown-method zip members RuntimeError/NotImplementedError).
-#: (MemoryError and programming errors such as AttributeError are left alone: they are
-#: system faults, not bad input.)
+#: What h5py, numpy and the OS raise on corrupt, truncated or hostile files (bit flips in HDF5
+#: metadata give RuntimeError/ValueError/KeyError/TypeError/OSError; encrypted or unknown-method
+#: zip members RuntimeError/NotImplementedError). (MemoryError and programming errors such as
+#: AttributeError are left alone: they are system faults, not bad input.)
 _READ_ERRORS = (OSError, ValueError, KeyError, IndexError, TypeError, RuntimeError, OverflowError,
-                NotImplementedError, EOFError, zipfile.BadZipFile, struct.error, zlib.error, lzma.LZMAError)
+                NotImplementedError, EOFError, struct.error, zlib.error)
+
+
+def _read_errors() -> tuple[type[Exception], ...]:
+    """`_READ_ERRORS` and what zipfile and lzma raise (an .npz read): imported here, in an
+    `except` clause that only an exception evaluates, so an HDF5 read never imports them (~4 ms
+    of a cold check)."""
+    import lzma
+    import zipfile
+
+    return _READ_ERRORS + (zipfile.BadZipFile, lzma.LZMAError)
 
 
 def _reason(exc: BaseException) -> str:
@@ -343,24 +353,39 @@ def _reason(exc: BaseException) -> str:
 def _h5_attrs(f: Any) -> dict[str, Any]:
     """The format's attributes only, into one dict, each read once: an extra attribute of an
     opaque or corrupt type is never touched, a defined one that cannot be read is named."""
-    from h5py import h5a, h5s, h5t
+    from h5py import h5a
 
     out: dict[str, Any] = {}
     attrs, fid = f.attrs, f.id
     for name in _ATTR_NAMES:
         try:
             aid = h5a.open(fid, name.encode())  # no `name in attrs` first: ~3 us per attribute saved
-            if aid.get_type().equal(h5t.IEEE_F64LE) and aid.get_space().get_simple_extent_type() == h5s.SCALAR:
-                value = np.empty((), dtype="<f8")  # the format's numbers: read as h5py would, minus its dispatch
-                aid.read(value, mtype=h5t.IEEE_F64LE)
-                out[name] = value[()]
-            else:
-                out[name] = attrs[name]
+            out[name] = _h5_attr_value(aid, attrs, name)
         except KeyError:
             continue  # absent: _metadata names it if it is required
         except _READ_ERRORS as exc:
             raise RecordingError(f"attribute '{name}': unreadable ({_reason(exc)})") from None
     return out
+
+
+def _h5_attr_value(aid: Any, attrs: Any, name: str) -> Any:
+    """The value `attrs[name]` gives, read from the attribute's open `aid`: the format's own types
+    (scalar float64, scalar variable-length string) here, minus h5py's dispatch and a second open
+    by name; any other type through h5py."""
+    from h5py import h5s, h5t
+
+    if aid.get_space().get_simple_extent_type() == h5s.SCALAR:
+        htype = aid.get_type()
+        if htype.equal(h5t.IEEE_F64LE):
+            value = np.empty((), dtype="<f8")
+            aid.read(value, mtype=h5t.IEEE_F64LE)
+            return value[()]
+        if isinstance(htype, h5t.TypeStringID) and htype.is_variable_str():
+            dtype = aid.dtype
+            text = np.zeros((), dtype=dtype)
+            aid.read(text, mtype=h5t.py_create(dtype))
+            return text[()].decode("utf-8", "surrogateescape")  # as h5py decodes a variable-length string
+    return attrs[name]
 
 
 def _h5_dataset(f: Any, name: str, required: bool = False) -> Any:
@@ -622,6 +647,8 @@ def _attr_member_check(name: str) -> Any:
 def _npz_parts(path: Path, max_cells: int, max_bytes: int, with_iq: bool) -> _Parts:
     """What `read_recording` (`with_iq`) and `read_header` (the IQ's header only) share of an .npz:
     each member's header checked before its data are read; object arrays refused."""
+    import zipfile
+
     name = "iq"
     try:
         with zipfile.ZipFile(path) as zf:
@@ -645,7 +672,7 @@ def _npz_parts(path: Path, max_cells: int, max_bytes: int, with_iq: bool) -> _Pa
                     data[name] = _npz_member(zf, members[name], lambda s, d, n=name: _check_rid_header(n, s, d))
     except RecordingError:
         raise
-    except _READ_ERRORS as exc:
+    except _read_errors() as exc:
         raise RecordingError(f"{path}: not a readable .npz file (truncated or corrupt; "
                              f"member '{name}': {_reason(exc)})") from None
     rid = None if data["remote_id"] is None else np.asarray(data["remote_id"], dtype=np.uint8)
@@ -743,7 +770,7 @@ def _by_container(path: Path, max_cells: int, max_bytes: int, max_file_bytes: in
         if "\n" in text or "\r" in text:  # a path or value with a line break: keep one line
             raise RecordingError(" ".join(text.split())) from None
         raise
-    except _READ_ERRORS as exc:  # last resort: nothing on the read path escapes unconverted
+    except _read_errors() as exc:  # last resort: nothing on the read path escapes unconverted
         raise RecordingError(f"{path}: unreadable ({_reason(exc)})") from None
     raise RecordingError(f"{path}: neither HDF5 nor .npz")
 

@@ -177,3 +177,50 @@ def test_writer_refuses_an_unknown_domain(recording, tmp_path: Path) -> None:
     with pytest.raises(RecordingError, match="domain"):
         write_recording(rec, tmp_path / "x.h5")
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_each_attribute_is_opened_once_and_read_as_h5py_reads_it(recording, tmp_path: Path, monkeypatch) -> None:
+    """An HDF5 read opens each of the format's attributes once, strings included (no second open by
+    name through h5py's attribute manager), and gets the value and type h5py's `attrs[name]` gives:
+    variable-length strings (non-ASCII too), float64s, and any other type (through h5py)."""
+    from h5py import h5a
+
+    from signatures.recording import _ATTR_NAMES, _h5_attrs
+
+    path = write_recording(recording, tmp_path / "r.h5")
+    with h5py.File(path, "a") as f:
+        f.attrs["simulation"] = '{"note": "été"}'
+    opened: list[bytes] = []
+    real = h5a.open
+
+    def counted(loc, name=None, *args, **kwargs):
+        opened.append(name)
+        return real(loc, name, *args, **kwargs)
+
+    monkeypatch.setattr(h5a, "open", counted)
+    rec = read_recording(path)
+    monkeypatch.undo()
+    assert sorted(opened) == sorted(n.encode() for n in _ATTR_NAMES)  # each tried once (an absent one fails)
+    assert rec.simulation == '{"note": "été"}'
+    with h5py.File(path, "a") as f:
+        f.attrs["remote_id_source"] = np.bytes_(b"capture")  # fixed-length: h5py's own reading
+        f.attrs["radar_alt_m"] = np.float32(12.5)
+        expected = {k: f.attrs[k] for k in f.attrs}
+    with h5py.File(path) as f:
+        got = _h5_attrs(f)
+    assert got == expected and {k: type(v) for k, v in got.items()} == {k: type(v) for k, v in expected.items()}
+    assert isinstance(got["format"], str) and isinstance(got["start_time"], str)
+
+
+def test_an_hdf5_read_imports_no_zipfile(recording, tmp_path: Path) -> None:
+    """zipfile (an .npz read's) is imported by an .npz read only: reading HDF5 in a fresh process
+    leaves it out."""
+    import subprocess
+    import sys
+
+    path = write_recording(recording, tmp_path / "r.h5")
+    probe = ("import sys; from signatures.recording import read_recording; "
+             f"read_recording({str(path)!r}); print('zipfile' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=120,
+                         cwd=Path(__file__).resolve().parents[1])
+    assert out.stdout.strip() == "False", out.stderr

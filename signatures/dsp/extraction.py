@@ -55,8 +55,8 @@ from signatures.recording import DOMAINS
 from signatures.dsp.stats import distinct, median, median_last
 from signatures.dsp.threads import blas_on_one_thread, one_blas_thread
 
-__all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "batch_size", "detections", "extract", "extract_batch", "extract_iq",
-           "extract_many"]
+__all__ = ["DEFAULT_FFT_BACKEND", "MAX_BATCH", "Chooser", "batch_size", "detections", "extract", "extract_batch",
+           "extract_iq", "extract_many"]
 
 MAX_BATCH = 1024
 #: rows of the cube stage run together while their complex128 FFT workspace fits in this (4 MiB:
@@ -137,20 +137,22 @@ def _default_budget() -> int:
     return int(min(_BUDGET_CAP, avail * _BUDGET_SHARE))
 
 
-def extract(recording, expected_range_m: float | None = None, *, quick: bool = False,
+def extract(recording, expected_range_m: float | Chooser | None = None, *, quick: bool = False,
             clutter_suppression: bool = True, fft_backend: str | None = None) -> F.FeatureResult:
     """Features of one `Recording` (see `extract_iq`)."""
     return extract_iq(recording.iq, recording.config, expected_range_m, quick=quick,
                       clutter_suppression=clutter_suppression, domain=recording.domain, fft_backend=fft_backend)
 
 
-def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | None = None, *,
+def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | Chooser | None = None, *,
                gate_bins: int = F.GATE_BINS, clutter_suppression: bool = True, quick: bool = False,
                domain: str = "if", fft_backend: str | None = None) -> F.FeatureResult:
     """Features of a bare cube (chirps x samples, any numeric dtype): a batch of one.
 
     `expected_range_m` (range at the dwell, e.g. from Remote ID) centres the gate there and
-    counts only a detection within it; it must lie inside the recorded window. `quick=True`
+    counts only a detection within it; it must lie inside the recorded window. A `Chooser`
+    instead picks it from the return's targets (`detections`, here from the range profile the
+    features compute anyway: no second range FFT). `quick=True`
     computes only `QUICK_FEATURES` (no flash estimator, cadence or CNN patch: the fast tier of
     the run-time-versus-error benchmark); the others are 0 and the patch is empty.
 
@@ -173,14 +175,15 @@ def extract_iq(iq: np.ndarray, config: RadarConfig, expected_range_m: float | No
 _WAVEFORM_FIELDS = tuple(f.name for f in dataclass_fields(RadarConfig) if f.name != "range_offset_m")
 
 
-def extract_many(recordings: Sequence, expected_range_m: Sequence[float | None] | None = None, *,
+def extract_many(recordings: Sequence, expected_range_m: Sequence[float | Chooser | None] | None = None, *,
                  quick: bool = False, memory_bytes: int | None = None, fft_backend: str = DEFAULT_FFT_BACKEND,
                  device: str | None = None) -> list[F.FeatureResult]:
     """Features of any mix of recordings, in input order: rows that share (waveform, cube shape,
     dtype, domain) run batched in chunks of `batch_size`, whatever their range offsets (only
     absolute ranges depend on it: a simulated recording's window is centred on its target).
-    A bad row raises `SignaturesError` naming its input index. `fft_backend` and `device` as
-    `extract_batch`."""
+    `expected_range_m` as `extract_iq`'s, per row (a `Chooser` sees its row's targets from this
+    batch's range profile, on `fft_backend`). A bad row raises `SignaturesError` naming its input
+    index. `fft_backend` and `device` as `extract_batch`."""
     n = len(recordings)
     expected = _expected(expected_range_m, n)
     fft_backend = _backend(fft_backend)
@@ -273,7 +276,7 @@ def _device(device: str | None):
     return torch_cube.resolve(device)
 
 
-def _expected(expected_range_m: Sequence[float | None] | None, n: int) -> list[float | None]:
+def _expected(expected_range_m: Sequence[float | Chooser | None] | None, n: int) -> list[float | Chooser | None]:
     if expected_range_m is None:
         return [None] * n
     expected = list(expected_range_m)
@@ -282,8 +285,8 @@ def _expected(expected_range_m: Sequence[float | None] | None, n: int) -> list[f
     return expected
 
 
-def _extract(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list[float | None], gate_bins: int,
-             suppress: bool, domain: str, labels: list[int], fft_backend: str = DEFAULT_FFT_BACKEND,
+def _extract(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list[float | Chooser | None],
+             gate_bins: int, suppress: bool, domain: str, labels: list[int], fft_backend: str = DEFAULT_FFT_BACKEND,
              device=None, *, quick: bool = False, labelled: bool = True) -> list[F.FeatureResult]:
     """The rows' features; `configs[b]` differ at most in their range offset. BLAS runs on one
     thread for a batch (`signatures.dsp.threads`: a batch job is one process per core; one return's
@@ -297,7 +300,7 @@ def _extract(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list
         raise SignaturesError(f"row {exc.row}: {exc.message}" if labelled else exc.message) from None
 
 
-def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list[float | None],
+def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected: list[float | Chooser | None],
                   gate_bins: int, suppress: bool, domain: str, labels: list[int], fft_backend: str,
                   device, quick: bool) -> list[F.FeatureResult]:
     if gate_bins < 1:
@@ -310,7 +313,8 @@ def _extract_rows(iq: np.ndarray | _Stack, configs: list[RadarConfig], expected:
         raise SignaturesError(f"IQ cube must be numeric, got dtype {iq.dtype}")
     n_chirps, n_bins = iq.shape[1:]
     config = configs[0]
-    within = [_within(configs[b], e, gate_bins, n_bins, labels[b], domain) for b, e in enumerate(expected)]
+    within = [_Chosen(e, configs[b], gate_bins, n_bins, labels[b], domain) if callable(e)
+              else _within(configs[b], e, gate_bins, n_bins, labels[b], domain) for b, e in enumerate(expected)]
     cube = _cube_stage(iq, within, gate_bins, suppress, domain, labels, fft_backend, device)
     live = np.flatnonzero(~cube.zero)
     results: list[F.FeatureResult | None] = [None] * iq.shape[0]
@@ -340,17 +344,50 @@ def _within(config: RadarConfig, expected: float | None, gate_bins: int, n_bins:
     return max(0, k - gate_bins // 2), min(n_bins, k + gate_bins // 2 + 1)
 
 
+#: Picks the range (m) to gate a return at from its targets (`detections`: (range m, SNR dB),
+#: strongest first), or None for the strongest target of the window: an `expected_range_m`
+#: entry the cube stage answers from the row's own range profile (no second range FFT).
+Chooser = Callable[[list[tuple[float, float]]], "float | None"]
+
+
+class _Chosen:
+    """A row's gate chosen by a `Chooser` once the cube stage has its range profile."""
+
+    def __init__(self, choose: Chooser, config: RadarConfig, gate_bins: int, n_bins: int, label: int,
+                 domain: str) -> None:
+        self.choose, self.config, self.gate_bins, self.n_bins = choose, config, gate_bins, n_bins
+        self.label, self.domain = label, domain
+
+    def __call__(self, profile: np.ndarray | None, hits: np.ndarray) -> tuple[int, int] | None:
+        """The gate for the row's profile and its CFAR hits (profile None: an all-zero row, which
+        has no targets)."""
+        found = [] if profile is None or self.domain == "cw" else _targets(profile, hits, self.config)
+        with _own_workspaces():  # the chooser may extract features itself (authn.association)
+            expected = self.choose(found)
+        return _within(self.config, expected, self.gate_bins, self.n_bins, self.label, self.domain)
+
+
+@contextlib.contextmanager
+def _own_workspaces():
+    """Fresh per-thread workspaces (`_scratch`) for a nested extraction, the caller's kept intact."""
+    kept = getattr(_local, "spaces", None)
+    _local.spaces = {}
+    try:
+        yield
+    finally:
+        _local.spaces = kept
+
+
 # --- cube stage ---------------------------------------------------------------------------------
 
-def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins: int, suppress: bool,
+def _cube_stage(iq: np.ndarray, within: list, gate_bins: int, suppress: bool,
                 domain: str, labels: list[int], fft_backend: str, device=None) -> _Cube:
     """Scale, suppress clutter, range-FFT, profile and detect in cache-sized blocks of rows (on
-    `fft_backend`, or in torch on `device`); keep each row's gate and patch columns."""
+    `fft_backend`, or in torch on `device`); keep each row's gate and patch columns. `within`:
+    each row's detection window, or a `_Chosen` replaced in place by the window it chooses."""
     n_rows, n_chirps, n_bins = iq.shape
     size = min(gate_bins, n_bins)
     p_size = min(F.PATCH_SHAPE[1], n_bins)
-    lo_w = np.array([w[0] if w else 0 for w in within])
-    hi_w = np.array([w[1] if w else n_bins for w in within])
     looks = max(1, n_chirps - 1) if suppress else n_chirps
     out = dict(log2_scale=np.zeros(n_rows, int), zero=np.zeros(n_rows, bool),
                profile=np.zeros((n_rows, n_bins), np.float32), mu=np.zeros((n_rows, n_bins), np.complex64),
@@ -377,7 +414,13 @@ def _cube_stage(iq: np.ndarray, within: list[tuple[int, int] | None], gate_bins:
             spectra, out["mu"][s:e], out["log2_scale"][s:e], out["zero"][s:e], out["profile"][s:e] = (
                 torch_cube.range_spectra(iq[s:e], suppress, domain, labels[s:e], device))
             columns = torch_cube.columns
-        det, frac, snr, peak = _detect(out["profile"][s:e], looks, lo_w[s:e], hi_w[s:e])
+        hits, threshold = _cfar(out["profile"][s:e], looks)
+        for b in range(s, e):  # gates chosen from the rows' own targets: chosen now
+            if isinstance(within[b], _Chosen):
+                within[b] = within[b](None if out["zero"][b] else out["profile"][b], hits[b - s])
+        lo_w = np.array([w[0] if w else 0 for w in within[s:e]])
+        hi_w = np.array([w[1] if w else n_bins for w in within[s:e]])
+        det, frac, snr, peak = _detect(out["profile"][s:e], hits, threshold, looks, lo_w, hi_w)
         g_lo = _window(peak, size, n_bins)
         p_lo = _window(peak, p_size, n_bins)
         columns(spectra, g_lo, size, out["slow"][s:e])
@@ -540,10 +583,9 @@ def _range_profile(spec: np.ndarray) -> np.ndarray:
     return (sq / np.float32(n)).astype(np.float32, copy=False)
 
 
-def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):
-    """`rd.detect` per row (median CFAR over range, detection counted within [lo, hi)):
-    (detected, peak_bin_frac, snr_db, peak_bin)."""
-    b, n = profile.shape
+def _cfar(profile: np.ndarray, looks: int) -> tuple[np.ndarray, np.ndarray]:
+    """`rd.cfar` per row (median CFAR over range), the same values: (hits, threshold), (B, bins)."""
+    n = profile.shape[1]
     g, t = rd.CFAR_GUARD, rd.CFAR_TRAIN
     offsets = np.concatenate([np.arange(-g - t, -g), np.arange(g + 1, g + t + 1)])
     idx = np.arange(n)[:, None] + offsets[None, :]
@@ -553,7 +595,15 @@ def _detect(profile: np.ndarray, looks: int, lo: np.ndarray, hi: np.ndarray):
     noise = median_last(profile[:, idx]).astype(np.float32, copy=False)
     factor = rd._cfar_factor(looks, offsets.size, rd.CFAR_PFA)
     threshold = noise * np.float32(factor)
-    hits = (profile > threshold) & (profile > rd._TINY)
+    return (profile > threshold) & (profile > rd._TINY), threshold
+
+
+def _detect(profile: np.ndarray, hits: np.ndarray, threshold: np.ndarray, looks: int, lo: np.ndarray,
+            hi: np.ndarray):
+    """`rd.detect` per row from its `_cfar` (detection counted within [lo, hi)):
+    (detected, peak_bin_frac, snr_db, peak_bin)."""
+    b, n = profile.shape
+    t = rd.CFAR_TRAIN
     cols = np.arange(n)[None, :]
     sel = (cols >= lo[:, None]) & (cols < hi[:, None])
     region = hits & sel
@@ -1222,27 +1272,25 @@ def detections(recording, clutter_suppression: bool = True,
         raise SignaturesError(exc.message) from None
     if zero[0]:
         return []
-    profile = profile[0]
-    config = recording.config
-    n_chirps, n_bins = a.shape
-    looks = max(1, n_chirps - 1) if clutter_suppression else n_chirps
-    hits, _ = rd.cfar(profile, looks)
+    looks = max(1, a.shape[0] - 1) if clutter_suppression else a.shape[0]
+    hits, _ = rd.cfar(profile[0], looks)
+    return _targets(profile[0], hits, recording.config, min_snr_db)
+
+
+def _targets(profile: np.ndarray, hits: np.ndarray, config: RadarConfig,
+             min_snr_db: float = DETECTION_MIN_SNR_DB) -> list[tuple[float, float]]:
+    """`detections` of one row's range profile (float32, bins) and its CFAR hits."""
     noise = max(float(median(profile)), 1e-30)
+    edges = np.flatnonzero(np.diff(hits, prepend=False, append=False))  # each cluster's [start, end)
     peaks: list[tuple[int, float]] = []
-    k = 0
-    while k < n_bins:
-        end = k
-        while end < n_bins and hits[end]:
-            end += 1
-        if end > k:
-            peak = k + int(np.argmax(profile[k:end]))
-            snr = 10.0 * math.log10(max(float(profile[peak]) / noise, 1e-30))
-            if snr >= min_snr_db:
-                peaks.append((peak, snr))
-        k = max(end, k + 1)
+    for k, end in zip(edges[0::2].tolist(), edges[1::2].tolist()):
+        peak = k + int(np.argmax(profile[k:end]))
+        snr = 10.0 * math.log10(max(float(profile[peak]) / noise, 1e-30))
+        if snr >= min_snr_db:
+            peaks.append((peak, snr))
     kept: list[tuple[int, float]] = []
     for peak, snr in sorted(peaks, key=lambda p: -p[1]):
         if all(abs(peak - other) > F.GATE_BINS for other, _ in kept):
             kept.append((peak, snr))
-    bin_m = config.range_bin_m(n_bins)
+    bin_m = config.range_bin_m(profile.shape[0])
     return [(config.range_offset_m + rd._interp_peak(profile, peak) * bin_m, snr) for peak, snr in kept]

@@ -145,3 +145,53 @@ def test_an_empty_dwell_is_no_target(checker) -> None:
     out = _check(checker, replace(carrier, iq=empty.iq))
     assert out["decision"] == "reject" and out["reasons"] == ["no-target"], out
     assert out["radar"]["target"]["in_view"] == 0
+
+
+def _scenes() -> list:
+    """Dwells of every association rule: position (two targets resolved in range), velocity (two
+    within the range tolerance), declared-range (nothing where the claim is), an empty dwell."""
+    genuine = _fly(**GENUINE)
+    near, far = _fly("uav", 407.0, -4.0, 100.0, 2, "phantom4"), _fly("uav", 420.0, -2.0, 100.0, 2, "phantom4")
+    bird = _fly("bird", 380.0, 5.0, 30.0, 3, serial=None)
+    empty = _fly("none", 400.0, 0.0, 60.0, 4, serial=None)
+    return [_scene(genuine, far), _scene(near, genuine), _scene(far, genuine, bird), _scene(genuine, near),
+            _scene(_fly(**GENUINE, offset=25.0), bird), replace(genuine, iq=empty.iq)]
+
+
+def _decided(out: dict) -> dict:
+    return {k: v for k, v in out.items() if k not in ("timings_ms", "audit_id", "dwell_start")}
+
+
+def test_a_batch_associates_each_claim_as_a_single_check_does(checker) -> None:
+    """Checked together (one feature batch on scipy's float32 transforms, the targets taken from
+    that batch's own range profiles, a velocity pick extracting features inside it), every dwell
+    is decided exactly as when it is checked alone: same decision, reasons, target and evidence."""
+    from authn.check import CheckInput
+
+    scenes = _scenes()
+    alone = [_decided(_check(checker, rec)) for rec in scenes]
+    together = checker.decide([CheckInput.recording(rec) for rec in scenes])
+    assert [_decided(o.to_json()) for o in together.items] == alone
+    assert [o["radar"]["target"]["selected_by"] for o in alone] == ["position", "velocity", "position", "velocity",
+                                                                      "declared-range", "declared-range"]
+
+
+@pytest.mark.parametrize("batch", [1, 3])
+def test_one_range_transform_per_return_associated_by_position(checker, monkeypatch, batch) -> None:
+    """The association takes its targets from the feature stage's range profile: each return's
+    cube is range-transformed once (not once more to list its targets)."""
+    from authn.check import CheckInput
+    from signatures.dsp import extraction
+
+    rows: list[int] = []
+    real = extraction._range_spectra
+
+    def counted(a, *args, **kwargs):
+        rows.append(a.shape[0])
+        return real(a, *args, **kwargs)
+
+    monkeypatch.setattr(extraction, "_range_spectra", counted)
+    scenes = [_scene(_fly(**GENUINE), _fly("uav", 420.0, -2.0, 100.0, 2, "phantom4"))] * batch
+    out = checker.decide([CheckInput.recording(rec) for rec in scenes])
+    assert [o.to_json()["radar"]["target"]["selected_by"] for o in out.items] == ["position"] * batch
+    assert sum(rows) == batch
