@@ -339,11 +339,9 @@ def evaluate(
 
 
 def _invented():  # -> tuple[UavProfile, ...]
-    from importlib import resources
+    from signatures.profiles import DATA, parse_profiles
 
-    from signatures.profiles import parse_profiles
-
-    text = resources.files("signatures.data").joinpath("openset_profiles.json").read_text()
+    text = (DATA / "openset_profiles.json").read_text(encoding="utf-8")
     return tuple(parse_profiles(json.loads(text), "openset_profiles.json").values())
 
 

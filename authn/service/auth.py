@@ -4,7 +4,6 @@ the service's Cedar policy (authn/policies/service.cedar) decides per action."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import resources
 from typing import Any
 
 import cedarpy
@@ -27,7 +26,9 @@ class Caller:
 
 
 def _text(name: str) -> str:
-    return resources.files("authn.policies").joinpath(name).read_text()
+    from authn.policy import SHIPPED_POLICIES
+
+    return (SHIPPED_POLICIES / name).read_text(encoding="utf-8")
 
 
 class RolePolicy:

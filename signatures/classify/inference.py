@@ -22,7 +22,6 @@ import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -292,7 +291,7 @@ def card_waveform(card: dict[str, Any]) -> Preset:
 
 def bundle_dir(preset: str) -> Path:
     """Folder of the shipped bundle of a preset (inside the installed package)."""
-    return Path(str(resources.files("signatures.models").joinpath(preset)))
+    return Path(__file__).resolve().parents[1] / "models" / preset
 
 
 def models_dir() -> Path:
