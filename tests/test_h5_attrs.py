@@ -36,11 +36,9 @@ def _same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(type(a[k]) is type(b[k]) and np.array_equal(a[k], b[k]) for k in a)
 
 
-def test_numbers_skip_h5py_dispatch(written: Path, monkeypatch) -> None:
-    """One read per attribute present; only the attributes that are no float64 scalar (the text
-    ones) go through h5py's `attrs[name]`."""
-    with h5py.File(written, "r") as f:
-        want = _h5py_view(f)
+def test_no_attribute_goes_through_h5py_dispatch(written: Path, monkeypatch) -> None:
+    """Each attribute is read from the one id the reader opens it by: none through h5py's
+    `attrs[name]`, which would open it again by name (text ones included)."""
     calls: list[str] = []
     real = h5py.AttributeManager.__getitem__
 
@@ -49,9 +47,8 @@ def test_numbers_skip_h5py_dispatch(written: Path, monkeypatch) -> None:
         return real(self, name)
 
     monkeypatch.setattr(h5py.AttributeManager, "__getitem__", counted)
-    read_recording(written)
-    assert sorted(calls) == sorted(n for n, v in want.items() if isinstance(v, str))
-    assert len(calls) < len(want)
+    assert read_recording(written).config is not None
+    assert calls == []
 
 
 @pytest.mark.parametrize("kind", sorted(STORED))
