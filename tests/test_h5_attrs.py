@@ -1,6 +1,6 @@
-"""A recorded return's HDF5 attributes are read into one dict once per file, the format's
-numbers (float64 scalars) on a short path that gives exactly what h5py's `attrs[name]` gives,
-and every other kind of attribute through h5py itself."""
+"""A recorded return's HDF5 attributes are read into one dict once per file, each from the one id
+it is opened by (never again by name through h5py's `attrs[name]`), giving exactly what
+`attrs[name]` gives for every kind the format stores."""
 
 from __future__ import annotations
 
