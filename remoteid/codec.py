@@ -17,7 +17,6 @@ import math
 import struct
 from collections.abc import Callable, Iterable, Iterator
 from datetime import datetime, timedelta, timezone
-from decimal import Decimal
 from typing import Any, TypeVar
 
 from core.checked import Invalid
@@ -104,6 +103,8 @@ def _dec_latlon(lat_raw: int, lon_raw: int, what: str) -> tuple[float | None, fl
 
 
 def _enc_latlon(value: float | None) -> int:
+    from decimal import Decimal  # encoding only (a decode, what a check does, never needs it)
+
     return 0 if value is None else int(Decimal(repr(value)) * 10_000_000)
 
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from statistics import NormalDist
 
 import numpy as np
 
@@ -146,6 +145,8 @@ def visible_rotors(envelope: np.ndarray, cycles_per_pulse: float, periods: int =
     if rows < 8:
         return []
     slopes = searched_slopes(rows, bins, periods, max_drift)
+    from statistics import NormalDist  # ~5 ms to import (fractions, decimal): only where lines are searched
+
     z0 = NormalDist().inv_cdf(1.0 - false_lines / (slopes.size * bins))
     z_clear = NormalDist().inv_cdf(1.0 - false_lines)  # the line is located: one test, no search over slopes
     length = PAD * (1 << int(math.ceil(math.log2(rows))))
