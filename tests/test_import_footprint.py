@@ -7,7 +7,6 @@ import json
 import os
 import subprocess
 import sys
-from datetime import datetime, timezone
 from pathlib import Path
 
 from core.errors import describe
@@ -43,19 +42,11 @@ def _check(tmp_path: Path, *options: str) -> tuple[dict, str]:
     """A cold `authn check` of a genuine m300 return, piped: (its exit code and every module it
     imported, its stdout)."""
     from authn.demo import register_examples
-    from authn.scenario import Broadcast, simulate_flight
-    from signatures.profiles import shipped_profiles
-    from signatures.radar import get_preset
-    from signatures.recording import write_recording
-    from signatures.sim.scene import Scene
+    from tests.flights import write_m300_flight
 
     url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     register_examples(url)
-    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
-                  elevation_deg=10.0)
-    rec, _ = simulate_flight(scene, get_preset("paper"), 3, Broadcast(serial="1581BDEM00000002"), azimuth_deg=60.0,
-                             start_time=datetime.now(timezone.utc))
-    genuine = write_recording(rec, tmp_path / "genuine.h5")
+    genuine = write_m300_flight(tmp_path)
     env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE")}
     proc = subprocess.run([sys.executable, "-c", PROBE, "--db", url, "check", str(genuine), *options],
                           capture_output=True, text=True, timeout=120, env=env)

@@ -89,20 +89,11 @@ def test_a_check_prints_the_same_text_as_through_rich(tmp_path: Path, monkeypatc
     import os
 
     from authn.demo import register_examples
-    from authn.scenario import Broadcast, simulate_flight
-    from signatures.profiles import shipped_profiles
-    from signatures.radar import get_preset
-    from signatures.recording import write_recording
-    from signatures.sim.scene import Scene
-    from datetime import datetime, timezone
+    from tests.flights import write_m300_flight
 
     url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
     register_examples(url)
-    scene = Scene(profile=shipped_profiles()["m300"], range_m=400.0, radial_speed_mps=3.0, snr_db=20.0,
-                  elevation_deg=10.0)
-    rec, _ = simulate_flight(scene, get_preset("paper"), 3, Broadcast(serial="1581BDEM00000002"), azimuth_deg=60.0,
-                             start_time=datetime.now(timezone.utc))
-    file = write_recording(rec, tmp_path / "genuine.h5")
+    file = write_m300_flight(tmp_path)
     env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE")}
     env.update(HOME=str(tmp_path), AUTHN_LOG_KEY=str(tmp_path / "log.pem"),
                AUTHN_AUDIT_STH_LOG=str(tmp_path / "sth.jsonl"))
