@@ -176,10 +176,14 @@ def migrate(url: str) -> None:
     """Bring the database at `url` to the newest schema now, even if this process migrated it
     before (its SQLite file may have been replaced since): what `registry.dbapi` calls when it
     finds a database behind."""
-    engine = get_engine(url)
+    resolved = resolve_url(url)
     with _engines_lock:
-        engine.dispose()  # pooled connections may hold a file since replaced
-        _migrate(engine)
+        cached = resolved in _engines
+    engine = get_engine(resolved)  # a new engine is migrated as it is made
+    if cached:
+        with _engines_lock:
+            engine.dispose()  # pooled connections may hold a file since replaced
+            _migrate(engine)
 
 
 def _migrate(engine: Engine) -> None:

@@ -16,6 +16,7 @@ import argparse
 import ast
 import sys
 from collections import deque
+from collections.abc import Container, Iterable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,15 +71,24 @@ def _targets(path: Path, package: str) -> list[str]:
 def build(root: Path = ROOT, packages: tuple[str, ...] = PACKAGES) -> Graph:
     """Module -> the modules of ours it imports (the longest existing prefix of each name)."""
     files = {module_name(p, root): p for pkg in packages for p in sorted((root / pkg).rglob("*.py"))}
-    graph: Graph = {m: set() for m in files}
-    for name, path in files.items():
-        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-        for target in _targets(path, package):
-            while target and target not in files:
-                target = target.rpartition(".")[0]
-            if target and target != name:
-                graph[name].add(target)
-    return graph
+    return {name: ours(_targets(path, _package_of(name, path)), files, name) for name, path in files.items()}
+
+
+def _package_of(name: str, path: Path) -> str:
+    """The package a relative import in the module starts from."""
+    return name if path.name == "__init__.py" else name.rpartition(".")[0]
+
+
+def ours(targets: Iterable[str], modules: Container[str], importer: str) -> set[str]:
+    """The modules of ours that imported names mean: each name's longest prefix in `modules`,
+    the importer itself left out."""
+    found: set[str] = set()
+    for target in targets:
+        while target and target not in modules:
+            target = target.rpartition(".")[0]
+        if target and target != importer:
+            found.add(target)
+    return found
 
 
 def components(graph: Graph) -> list[list[str]]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from tests.import_graph import PACKAGES, ROOT, module_name
+from tests.import_graph import PACKAGES, ROOT, module_name, ours
 
 
 #: bottom to top; a module belongs to the longest prefix listed
@@ -57,14 +57,7 @@ def _is_dynamic_import(func: ast.expr) -> bool:
 
 def _graph(module_level: bool = True) -> dict[str, set[str]]:
     modules = _modules()
-    graph: dict[str, set[str]] = {m: set() for m in modules}
-    for name, path in modules.items():
-        for target in _imports(path, module_level):
-            while target and target not in modules:
-                target = target.rpartition(".")[0]
-            if target and target != name:
-                graph[name].add(target)
-    return graph
+    return {name: ours(_imports(path, module_level), modules, name) for name, path in modules.items()}
 
 
 def layer_of(module: str) -> int:

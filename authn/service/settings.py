@@ -7,31 +7,35 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from core.settings import Settings as _Environment
 from core.settings import current, name_of
 
 if TYPE_CHECKING:
     from authn.service.clients import ClientAddress
+
+#: the defaults are the environment's (`core.settings`), written once there
+_DEFAULT = _Environment._field_defaults
 
 
 @dataclass(frozen=True)
 class Settings:
     db_url: str | None = None
     policy_path: str | None = None
-    max_upload_bytes: int = 64 * 2**20
+    max_upload_bytes: int = _DEFAULT["serve_max_upload_bytes"]
     #: most files in one POST /v1/checks:batch
-    max_batch_files: int = 64
+    max_batch_files: int = _DEFAULT["serve_max_batch_files"]
     #: most drones one `rid_capture` may name in a dwell's window (one decision each; 413 beyond)
-    max_drones: int = 64
+    max_drones: int = _DEFAULT["serve_max_drones"]
     #: seconds an upload's body may take to arrive (408 after)
-    upload_timeout_s: float = 60.0
+    upload_timeout_s: float = _DEFAULT["serve_upload_timeout_s"]
     #: largest body of a request that is not an upload (JSON; 413 beyond)
-    max_body_bytes: int = 64 * 2**10
+    max_body_bytes: int = _DEFAULT["serve_max_body_bytes"]
     #: seconds such a body may take to arrive (408 after)
-    body_timeout_s: float = 10.0
+    body_timeout_s: float = _DEFAULT["serve_body_timeout_s"]
     #: header naming the client when the peer is a trusted proxy (e.g. X-Forwarded-For); None: the peer
     trusted_proxy_header: str | None = None
     #: the proxies (CIDR,...) whose trusted_proxy_header is believed
-    trusted_proxies: str = ""
+    trusted_proxies: str = _DEFAULT["serve_trusted_proxies"]
     #: where `figure=true` checks keep their evidence figures (`<audit id>.png`); None: the
     #: user data directory's `figures`
     figures_dir: str | None = None
