@@ -60,6 +60,7 @@ class Interrupted(BaseException):
 
     def __init__(self, message: str, signum: int) -> None:
         super().__init__(message)
+        self.signum = signum
         self.exit_code = 128 + signum
 
 
