@@ -215,6 +215,8 @@ class _Front:
     digest: str
     timer: _Timer
     track: bool
+    #: a track's dwell: the rate the track's dwells so far agree on (`signatures.classify.track_rate`)
+    track_rate_hz: float | None = None
 
 
 @dataclass(frozen=True)
@@ -294,6 +296,9 @@ class CheckInput:
     #: a dwell of a track (`authn check --track`): radar-confusable models are those of the site
     #: card's track-level errors, the level the track decides at
     track: bool = False
+    #: a track's dwell: the flash rate the track's earlier dwells agree on, which this dwell is read
+    #: at where its own read shows no train there (`signatures.classify.track_rate`); None: its own
+    track_rate_hz: float | None = None
     #: this check's error targets (`authn.sprt.Sprt`; None: the Checker's)
     sprt: Sprt | None = None
 
@@ -460,12 +465,13 @@ class Checker:
     @staticmethod
     def _verify(feats: FeatureResult, pred: Prediction, claimed: UavProfile | None, rec: Recording,
                 classifier: Classifier | None = None, group: tuple[UavProfile, ...] = (),
-                alternatives: tuple[UavProfile, ...] = ()) -> Verification | None:
+                alternatives: tuple[UavProfile, ...] = (), track_rate_hz: float | None = None) -> Verification | None:
         """1:1 verification of the return against the registered model's profile (None: no profile),
         with the claimed model's site bands and the site's score calibration where a site bundle
         has them; against the claim and `group` together (a signed claim of a radar-confusable
         model, `_group`) where `group` names models; against each of `alternatives` (the other
-        registered models, with their site bands) and the background."""
+        registered models, with their site bands) and the background. A track's dwell is read at
+        `track_rate_hz` where its own read shows no train there (`track_rate.read_at_track_rate`)."""
         if claimed is None:
             return None
         from signatures.classify.verify import bands_from, verify
@@ -473,7 +479,12 @@ class Checker:
 
         card_bands = getattr(classifier, "physics_bands", None)
         measured = {name: getattr(feats.features, name) for name in FEATURE_NAMES}  # asdict's deep copy: ~80 us
-        return verify({**measured, **feats.physics}, claimed, pred.probabilities,
+        estimates = {**measured, **feats.physics}
+        if track_rate_hz is not None and feats.flash_curve is not None:
+            from signatures.classify.track_rate import read_at_track_rate
+
+            estimates.update(read_at_track_rate(estimates, feats.flash_curve, track_rate_hz))
+        return verify(estimates, claimed, pred.probabilities,
                       rec.config.unambiguous_velocity_mps, known=pred.known, bands=bands_from(card_bands, claimed.slug),
                       calibration=getattr(classifier, "score_calibration", None),
                       also=[(p, bands_from(card_bands, p.slug)) for p in group],
@@ -502,7 +513,7 @@ class Checker:
 
     def _front(self, rec: Recording, serial: str | None, file: str, digest: str, timer: _Timer,
                captured: bool = False, track: bool = False, heard: Broadcaster | None = None,
-               sprt: Sprt | None = None) -> _Front:
+               sprt: Sprt | None = None, track_rate_hz: float | None = None) -> _Front:
         """Everything before the radar: the claim, the registry, DRIP, and the request of the policy
         with the radar not run (asked once per batch: `_early`).
         `captured`: the return's Remote ID was replaced by a capture's (`RidCapture.claims`), the
@@ -520,7 +531,7 @@ class Checker:
             claim = claim.signed_only(auth.covered, rec.start_time, mid)
         evidence = Evidence(claim, facts, int(rec.start_time.timestamp()), _issues(claim, auth, mid, None), auth=auth,
                             range_measured=rec.domain != "cw", sprt=sprt or self.sprt)
-        return _Front(rec, claim, auth, evidence, evidence.policy_input(), file, digest, timer, track)
+        return _Front(rec, claim, auth, evidence, evidence.policy_input(), file, digest, timer, track, track_rate_hz)
 
     def _prepare(self, f: _Front, memo: _Memo) -> _Pending:
         """What the radar stages of a return the registry did not decide need: the bundle of its
@@ -566,7 +577,7 @@ class Checker:
                             radial_velocity_mps=round(float(feats.radial_velocity_mps), 4),
                             operational_state=pred.operational_state, used_cnn=pred.used_cnn, nearest=pred.nearest,
                             verification=self._verify(feats, pred, p.claimed, rec, p.classifier, p.group,
-                                                      p.alternatives))
+                                                      p.alternatives, p.front.track_rate_hz))
         kin = None
         if p.expected is not None and radar.detected:
             with p.timer.stage("kinematics"):  # CW: the range part is computed on the expected range, never shown
@@ -667,7 +678,8 @@ class Checker:
             with timer.stage("read"):
                 rec, digest = item.load()
             if item.rid_capture is None:
-                return [self._front(rec, item.serial, item.name, digest, timer, track=item.track, sprt=item.sprt)]
+                return [self._front(rec, item.serial, item.name, digest, timer, track=item.track, sprt=item.sprt,
+                                    track_rate_hz=item.track_rate_hz)]
             with timer.stage("rid_capture"):  # one claim per drone heard: each its own decision (and audit entry)
                 claims = item.rid_capture.claims(rec, item.serial)
             fronts = [self._front(r, s, item.name, digest, _Timer() if j else timer, captured=True, heard=b,

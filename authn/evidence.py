@@ -378,19 +378,20 @@ class Evidence:
         incs = self.increments() if increments is None else increments
         record = sprt.record(incs)
         llr, refute = record["llr_cn"] / 100.0, record["refute_llr_cn"] / 100.0
-        from authn.sprt import alternative_sums
+        from authn.sprt import alternative_sums, observations
 
         v = self.radar.verification if self.radar is not None else None
         raw = v.against if v is not None else {}
         sums = alternative_sums(incs)
         # the least capped sum; among ties the least uncapped LLR (the verification's own `closest`)
         closest = min(sums, key=lambda k: (sums[k], raw.get(k, 0.0))) if sums else None
-        own = sums[closest] / len(incs) if closest else None
+        seen = observations(incs)
+        own = sums[closest] / seen if closest and seen else None
         # evidence for the claim goes on at a genuine claim's measured pace; evidence against, at its own
         measured = (self.separation or {}).get(closest) if closest and llr > 0 else None
         step = measured if measured is not None else own
         start = llr if step is not None and step > 0 else refute  # accepting reads the least, refuting the mixture
-        more = sprt.dwells_to_decide(step, start, len(incs)) if step is not None else None
+        more = sprt.dwells_to_decide(step, start, seen) if step is not None else None
         doc: dict[str, Any] = {"llr_nats": round(llr, 4), "refute_llr_nats": round(refute, 4),
                                "accept_nats": round(record["accept_cn"] / 100.0, 2),
                                "reject_nats": round(record["reject_cn"] / 100.0, 2), "dwells": len(incs),

@@ -5,9 +5,11 @@ rejected), accept at LLR >= log((1 - beta) / alpha), refute at LLR <= log(beta /
 Wald's rates hold for independent, calibrated increments; the dwells' verification LLRs are
 neither, so each dwell counts at most `DWELL_CAP_NATS` either way, the sum is discounted for the
 dwells' correlation (n dwells count as n / (1 + (n - 1) rho)), a dwell whose physics term
-abstained counts only against the claim, and increments given per alternative are summed per
-alternative, the least sum counting (docs/tracks.md). A single check is a track of one dwell: the
-policy gets the same `record` (docs/policies.md). Math only: this runs on every check.
+abstained counts only against the claim, a dwell that moves no sum (nothing for or against the
+claim, as such a dwell's with the classifier for it) is no observation and leaves n alone, and
+increments given per alternative are summed per alternative, the least sum counting
+(docs/tracks.md). A single check is a track of one dwell: the policy gets the same `record`
+(docs/policies.md). Math only: this runs on every check.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from core.errors import AuthnError
 from signatures.classify.verify import UNKNOWN  # a bare (not per-alternative) LLR is against the background
 
 __all__ = ["DEFAULT_FALSE_ACCEPT", "DEFAULT_FALSE_REJECT", "DWELL_CAP_NATS", "DWELL_CORRELATION",
-           "MAX_DWELLS_TO_DECIDE", "Sprt", "alternative_sums"]
+           "MAX_DWELLS_TO_DECIDE", "Sprt", "alternative_sums", "observations"]
 #: Target rate of accepting an impostor's track (alpha): Wald's accept bound log((1-b)/a) = 6.9 nats.
 DEFAULT_FALSE_ACCEPT = 1e-3
 #: Target rate of rejecting a genuine track (beta): Wald's reject bound log(b/(1-a)) = -4.6 nats.
@@ -86,7 +88,7 @@ class Sprt:
         least sum counts: the claim must win against every alternative, each on all its dwells.
         A dwell that lacks an alternative counts its least increment for it."""
         sums = alternative_sums(increments)
-        return min(sums.values()) / self._discount(len(increments)) if sums else 0.0
+        return min(sums.values()) / self._discount(observations(increments)) if sums else 0.0
 
     def refute_llr(self, increments: Sequence[float | Mapping[str, float]]) -> float:
         """What refutes the claim: its LLR against the alternatives together, an equal-prior mixture
@@ -99,10 +101,10 @@ class Sprt:
             return 0.0
         top = min(sums)
         mixture = top - math.log(sum(math.exp(top - s) for s in sums) / len(sums))
-        return mixture / self._discount(len(increments))
+        return mixture / self._discount(observations(increments))
 
     def _discount(self, n: int) -> float:
-        return 1.0 + (n - 1) * self.correlation
+        return 1.0 + (max(n, 1) - 1) * self.correlation
 
     def bounds_cn(self) -> tuple[int, int]:
         """(accept, reject) bounds in centinats as the policy reads them: rounded away from 0."""
@@ -157,6 +159,14 @@ class Sprt:
         return {"false_accept": self.false_accept, "false_reject": self.false_reject,
                 "accept_nats": round(self.accept_nats, 4), "reject_nats": round(self.reject_nats, 4),
                 "dwell_correlation": self.correlation, "dwell_cap_nats": self.cap_nats}
+
+
+def observations(increments: Sequence[float | Mapping[str, float]]) -> int:
+    """How many of the dwells' increments observe the claim: those that move some alternative's sum.
+    A dwell whose physics term abstained and whose classifier favoured the claim adds 0 to every sum
+    (the classifier never carries a claim): it says nothing, and counted in the discount it would
+    only dilute what the other dwells measured."""
+    return sum(1 for d in increments if any(v != 0.0 for v in (d.values() if isinstance(d, Mapping) else (d,))))
 
 
 def alternative_sums(increments: Sequence[float | Mapping[str, float]]) -> dict[str, float]:

@@ -25,6 +25,10 @@ beta (false reject), accept at LLR >= log((1 - beta) / alpha) and reject at LLR 
 * a dwell whose physics term abstained (the classifier alone) counts only against the claim: the
   classifier may count against a claim, never carry it.
 
+A long dwell whose own flash train is too weak to read (or read at a multiple) is read at the rate the
+track's own trains agree on, once they do, the dwells before that included (`_Reads`; docs/tracks.md,
+"A track's rate"): nothing in it comes from the claim.
+
 A single check is a track of one dwell: the same test, bounds, cap and policy rules decide it
 (`Evidence.context` sends the same `track` record), so one dwell alone, capped below both default
 bounds, is `inconclusive` unless a signature or another forbid decides. Each dwell's LLR is the least
@@ -177,13 +181,18 @@ class DwellTerm:
     reasons: list[str]
     #: the increment against each alternative (`Sprt.increments`); None: nothing verified
     against: dict[str, float] | None = None
+    #: the flash rate the physics term compared (`Verification.compared`: measured, claimed, and
+    #: `track_rate` where the dwell was read at the track's rate); None: no physics term
+    flash_rate: dict[str, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {"file": self.file, "file_sha256": self.file_sha256, "dwell_start": self.dwell_start,
                 "radar_model": self.radar_model, "llr": None if self.llr is None else round(self.llr, 4),
                 "increment": None if self.increment is None else round(self.increment, 4),
                 "terms": {k: round(v, 4) for k, v in self.terms.items()}, "kinematics": self.kinematics,
-                "dwell_decision": self.decision, "dwell_reasons": list(self.reasons)}
+                "dwell_decision": self.decision, "dwell_reasons": list(self.reasons),
+                **({"against": {k: round(v, 4) for k, v in self.against.items()}} if self.against is not None else {}),
+                **({"flash_rate": {k: round(v, 3) for k, v in self.flash_rate.items()}} if self.flash_rate else {})}
 
 
 @dataclass
@@ -261,10 +270,11 @@ def _term(o: Any, sprt: Sprt) -> DwellTerm:
     llr = v.llr if v is not None and v.terms else None
     kin = o.evidence.kinematics
     per = next(iter(o.evidence.increments(sprt)), None)
+    rate = v.compared.get("flash_rate_hz") if v is not None else None
     return DwellTerm(o.file, o.file_sha256, o.evidence.report()["dwell_start"],
                      None if radar is None else radar.model, llr, None if per is None else min(per.values()),
                      dict(v.terms) if v is not None else {}, None if kin is None else kin.to_json(),
-                     o.decision, list(o.reasons), per)
+                     o.decision, list(o.reasons), per, dict(rate) if rate else None)
 
 
 def _typical(kinematics: list[Any]) -> Any:
@@ -299,6 +309,78 @@ def _track_evidence(outcomes: list[Any], sprt: Sprt | None = None) -> Any:
                    sprt=sprt or last.sprt)
 
 
+class _Reads:
+    """A track's dwells as read so far: each one's outcome and term, and the track's rate it was
+    read at (None: its own read). Once the dwells' own trains agree on a rate
+    (`signatures.classify.track_rate.consensus_rate`; a dwell read at the track's rate does not
+    vote), every dwell so far whose own read is no train there, and that was not read at about
+    that rate yet, is read again at it (`CheckInput.track_rate_hz`), the earlier ones included:
+    the test then weighs them all as read at the track's rate (docs/tracks.md, "A track's rate")."""
+
+    def __init__(self, checker: Any, claim: str, serial: str | None, sprt: Sprt, timings: dict[str, float]) -> None:
+        self.checker, self.claim, self.serial, self.sprt, self.timings = checker, claim, serial, sprt, timings
+        self.dwells: list[Dwell] = []
+        self.outcomes: list[Any] = []
+        self.terms: list[DwellTerm] = []
+        self.read_at: list[float | None] = []
+
+    def add(self, d: Dwell) -> Any:
+        """Read the next dwell (at the track's rate so far), then any dwell a new track rate reads
+        again; returns the new dwell's outcome."""
+        rate = self.rate()
+        o = self._decide(d, rate)
+        self.dwells.append(d)
+        self.outcomes.append(o)
+        self.terms.append(_term(o, self.sprt))
+        self.read_at.append(rate)
+        if o.evidence.radar is not None:
+            self._read_again()
+        return o
+
+    def rate(self) -> float | None:
+        """The flash rate the dwells' own trains agree on (None: not yet)."""
+        from signatures.classify.track_rate import consensus_rate
+
+        return consensus_rate([t.flash_rate["measured"] for t in self.terms
+                               if t.flash_rate and "track_rate" not in t.flash_rate])
+
+    def increments(self) -> list[dict[str, float]]:
+        return [t.against for t in self.terms if t.against is not None]
+
+    def _read_again(self) -> None:
+        from signatures.dsp.flash_spectrum import TRACK_RATE_WINDOW
+
+        rate = self.rate()
+        if rate is None:
+            return
+        near = TRACK_RATE_WINDOW * rate
+        for i, t in enumerate(self.terms):
+            own = t.flash_rate if t.flash_rate and "track_rate" not in t.flash_rate else None
+            at = self.read_at[i]
+            if (self.outcomes[i].evidence.radar is None or (own is not None and abs(own["measured"] - rate) <= near)
+                    or (at is not None and abs(at - rate) <= near)):
+                continue
+            self.outcomes[i] = self._decide(self.dwells[i], rate)
+            self.terms[i] = _term(self.outcomes[i], self.sprt)
+            self.read_at[i] = rate
+
+    def _decide(self, d: Dwell, rate: float | None) -> Any:
+        from authn.check import CheckInput, Failure
+
+        batch = self.checker.decide([CheckInput(d.name, self.claim if self.serial is not None else None, d.load,
+                                                track=True, track_rate_hz=rate)])
+        if batch.fault is not None:
+            raise batch.fault
+        o = batch.items[0]
+        if isinstance(o, Failure):
+            o.raise_()
+        for k, v in o.timings_ms.items():
+            self.timings[k] = round(self.timings.get(k, 0.0) + v, 3)
+        if o.serial != self.claim:  # validated from the header; the full read must agree
+            raise AuthnError(f"{d.name}: claims {o.serial!r}, the track claims {self.claim!r}")
+        return o
+
+
 def _request(ev: Any, sprt: Sprt, increments: Sequence[Mapping[str, float]]) -> dict[str, Any]:
     """The Cedar request of the track: the evidence's, with the `track` record over its dwells in
     place of a single dwell's (the same record a single check sends: one rule, docs/policies.md)."""
@@ -314,55 +396,39 @@ def decide_track(checker: Any, dwells: Sequence[Dwell], serial: str | None = Non
     """Decide a track (not recorded): validate it whole from the headers, then one dwell at a time
     until the policy decides (module docstring). Bad input anywhere in the track raises (exit 2),
     naming the dwell; a database or engine fault raises SystemFault."""
-    from authn.check import CheckInput, Failure
-
     sprt = sprt or Sprt()
     t0 = time.perf_counter()
     claim = _validate(dwells, serial)
     timings = {"validate": round((time.perf_counter() - t0) * 1e3, 3)}
-    outcomes: list[Any] = []
-    terms: list[DwellTerm] = []
-    increments: list[dict[str, float]] = []
+    reads = _Reads(checker, claim, serial, sprt, timings)
     result = request = None
     for d in dwells:
-        batch = checker.decide([CheckInput(d.name, claim if serial is not None else None, d.load, track=True)])
-        if batch.fault is not None:
-            raise batch.fault
-        o = batch.items[0]
-        if isinstance(o, Failure):
-            o.raise_()
-        for k, v in o.timings_ms.items():
-            timings[k] = round(timings.get(k, 0.0) + v, 3)
-        if o.serial != claim:  # validated from the header; the full read must agree
-            raise AuthnError(f"{d.name}: claims {o.serial!r}, the track claims {claim!r}")
-        outcomes.append(o)
-        terms.append(_term(o, sprt))
+        o = reads.add(d)
         if o.evidence.radar is None:  # the registry decided before any radar: final, whatever follows
             from authn.policy import PolicyResult
 
             request = o.request  # the request that decided it, as sent
             result = PolicyResult(o.decision, list(o.reasons), list(o.policy_errors), request)
             break
-        if terms[-1].against is not None:
-            increments.append(terms[-1].against)
-        ev = _track_evidence(outcomes, sprt)
-        request = _request(ev, sprt, increments)
+        ev = _track_evidence(reads.outcomes, sprt)
+        request = _request(ev, sprt, reads.increments())
         t1 = time.perf_counter()
         result = checker.policy.decide(claim, request["principal"], request["resource"], request["context"])
         request = result.request
         timings["policy_track"] = round(timings.get("policy_track", 0.0) + (time.perf_counter() - t1) * 1e3, 3)
-        judged = sum(1 for o in outcomes if o.evidence.kinematics is not None)
-        liftable = GOES_ON | KINEMATIC if judged < KINEMATIC_DWELLS and len(outcomes) < len(dwells) else GOES_ON
+        judged = sum(1 for o in reads.outcomes if o.evidence.kinematics is not None)
+        liftable = GOES_ON | KINEMATIC if judged < KINEMATIC_DWELLS and len(reads.outcomes) < len(dwells) else GOES_ON
         if request["context"].get("track", {}).get("llr_cn", 0) < 0:
             liftable |= {CONFUSABLE}
         if result.decision == "accept" or not set(result.reasons) <= liftable:
             break  # accepted, or a forbid more dwells cannot lift
     if result is None or request is None:  # unreachable: _validate refuses an empty track
         raise AuthnError("a track needs at least one dwell")
+    outcomes = reads.outcomes
     radar_used = sum(1 for o in outcomes if o.evidence.radar is not None)
     return TrackOutcome(decision=result.decision, reasons=list(result.reasons),
                         evidence=_track_evidence(outcomes, sprt) if radar_used else outcomes[-1].evidence,
-                        policy_input=request, sprt=sprt, llr=sprt.track_llr(increments), dwells=terms,
+                        policy_input=request, sprt=sprt, llr=sprt.track_llr(reads.increments()), dwells=reads.terms,
                         dwells_used=radar_used, skipped=[d.name for d in dwells[len(outcomes):]],
                         policy_sha256=checker.policy.sha256, policy_errors=list(result.errors), timings_ms=timings)
 

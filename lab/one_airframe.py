@@ -117,13 +117,19 @@ def check_tracks(checker, scenes: list[int], n_dwells: int, world: str, seed: in
 
     tracks: dict[str, Counter] = {m: Counter() for m in SERIALS}
     single: dict[str, Counter] = {m: Counter() for m in SERIALS}
+    rates: dict[str, Counter] = {m: Counter() for m in SERIALS}  # dwells used: own train, at the track's rate
     for k in scenes:
         for model, serial in SERIALS.items():
             recs = dwells(k, n_dwells, world, serial, seed)
             out = decide_track(checker, [Dwell.recording(r, f"scene-{k}-{j}") for j, r in enumerate(recs)])
             tracks[model][out.decision] += 1
+            for d in out.dwells:
+                rates[model]["used"] += 1
+                rates[model]["own_train" if d.flash_rate and "track_rate" not in d.flash_rate else
+                             "at_track_rate" if d.flash_rate else "no_rate"] += 1
             single[model][checker.evaluate_recording(recs[0]).decision] += 1
-    return {"tracks": {m: dict(c) for m, c in tracks.items()}, "single_dwells": {m: dict(c) for m, c in single.items()}}
+    return {"tracks": {m: dict(c) for m, c in tracks.items()}, "single_dwells": {m: dict(c) for m, c in single.items()},
+            "dwell_rates": {m: dict(c) for m, c in rates.items()}}
 
 
 def run(world: str, n_enrol: int, n_tracks: int, n_dwells: int, seed: int = 0, base_samples: int = 1500,

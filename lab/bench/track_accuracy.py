@@ -689,15 +689,18 @@ def term_increments(rs: list[dict[str, Any]], cap: float) -> list[tuple[float, f
 
 def walk_terms(incs: list[tuple[float, float]], rho_physics: float, rho_classifier: float) -> tuple[str, int]:
     """A per-term discount, sum_phys / (1 + (n-1) rho_phys) + sum_clf / (1 + (n-1) rho_clf), at the
-    default bounds as `_walk` decides them: (accept | reject | inconclusive, dwells used)."""
+    default bounds as `_walk` decides them: (accept | reject | inconclusive, dwells used); n counts
+    the dwells that move a sum, as `authn.sprt.observations` does."""
     from authn.sprt import Sprt
 
     sprt = Sprt()
     acc, rej = math.ceil(sprt.accept_nats * 100), math.floor(sprt.reject_nats * 100)
     sp = sk = 0.0
+    seen = 0
     for n, (p, k) in enumerate(incs, 1):
-        sp, sk = sp + p, sk + k
-        cn = round((sp / (1 + (n - 1) * rho_physics) + sk / (1 + (n - 1) * rho_classifier)) * 100)
+        sp, sk, seen = sp + p, sk + k, seen + (p != 0.0 or k != 0.0)
+        m = max(seen, 1)
+        cn = round((sp / (1 + (m - 1) * rho_physics) + sk / (1 + (m - 1) * rho_classifier)) * 100)
         if cn >= acc:
             return "accept", n
         if cn <= rej:

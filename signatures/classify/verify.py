@@ -74,7 +74,7 @@ from signatures.profiles import NON_UAV_CLASSES, UavProfile
 
 __all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "PHYSICS_READS", "RATE_BAND", "ROTOR_BAND", "UNKNOWN",
            "Bands", "Verification",
-           "bands_from", "min_flash_score", "rotors_are_lower_bound", "verify"]
+           "bands_from", "min_flash_score", "rate_from_track", "rotors_are_lower_bound", "verify"]
 
 #: Flown rotor rate over the profile's nominal rate (hover to climb, payload, battery sag).
 #: every estimate the physics term reads (`authn features show` prints these as the physics the
@@ -206,9 +206,17 @@ def rotors_are_lower_bound(estimates: Mapping[str, float]) -> bool:
     return float(estimates.get("rotors_lower_bound", 0.0)) >= 0.5
 
 
+def rate_from_track(estimates: Mapping[str, float]) -> bool:
+    """Whether `estimates`' rate was read at a track's rate (`signatures.classify.track_rate`)."""
+    return float(estimates.get("flash_track_rate_hz", 0.0)) > 0.0
+
+
 def min_flash_score(estimates: Mapping[str, float]) -> float:
     """The flash score from which `estimates`' rate is read: a long dwell's (its rotors counted as a
-    lower bound: the mark the long-dwell path sets) or the period search's."""
+    lower bound: the mark the long-dwell path sets) or the period search's; 0 for a rate read at a
+    track's rate, whose reader held it to its own bar (`flash_spectrum.TRACK_READ_SCORE`)."""
+    if rate_from_track(estimates):
+        return 0.0
     return MIN_SPECTRAL_SCORE if rotors_are_lower_bound(estimates) else MIN_FLASH_SCORE
 
 
@@ -256,6 +264,8 @@ def _physics(features: Mapping[str, float], claimed: UavProfile, max_tip_mps: fl
     rotors = _rotors(features, claimed, (bands.rotors[0], (claimed.rotors + VISIBLE_SLACK) / claimed.rotors) if veto
                      else bands.rotors)
     compared = {"flash_rate_hz": {"measured": f, "claimed": F}}
+    if rate_from_track(features):  # read near the rate the track's own trains agree on
+        compared["flash_rate_hz"]["track_rate"] = float(features["flash_track_rate_hz"])
     if blade is not None:  # tip speed over flash rate, over the claim's 2 pi L / N: at most 1.05
         # capped for the report: a tip estimate against a near-zero rate can exceed a float's range
         compared["blade_ratio"] = {"measured": math.exp(min(blade[0], MAX_REPORTED_LOG)), "claimed_max": bands.blade[1]}

@@ -859,6 +859,9 @@ class _Rotors(NamedTuple):
     seen: np.ndarray
     seen_std: np.ndarray
     known: np.ndarray
+    #: a long dwell's score at every candidate rate (rows, candidates) and the candidates (Hz)
+    curve: np.ndarray | None = None
+    curve_hz: np.ndarray | None = None
 
 
 def _flash_columns(cube: _Cube, live: np.ndarray, slow: np.ndarray, config: RadarConfig, n_bins: int,
@@ -882,7 +885,8 @@ def _flash_columns(cube: _Cube, live: np.ndarray, slow: np.ndarray, config: Rada
         train = flash_spectrum.spectral_flash_rate(centre_cols, config, body_hz)
         flash, flash_std, score = train.rate_hz, train.rate_std_hz, train.score
         rotors = _Rotors(train.rotors_seen, train.rotors_seen_std,
-                         train.rotors_known if train.rotors_known is not None else rotors.known)
+                         train.rotors_known if train.rotors_known is not None else rotors.known,
+                         train.curve, train.curve_hz)
         if domain == "cw":  # a periodic flash train is a target even where no Doppler line stands out
             train_found = score >= flash_spectrum.SPECTRAL_DETECT_SCORE
             cols["detected"] = np.asarray(cols["detected"], dtype=bool) | train_found
@@ -937,9 +941,11 @@ def _results(cube: _Cube, live: np.ndarray, config: RadarConfig, fft_backend: st
     for j, b in enumerate(live.tolist()):
         make = _patch_maker(cube.patch_row, b, config, int(cube.peak_bin[b] - cube.patch_lo[b]), float(body_idx[j]),
                             fft_backend)
+        curve = (None if rotors.curve is None or rotors.curve_hz is None
+                 else flash_spectrum.FlashCurve(rotors.curve_hz, rotors.curve[j]))
         out.append(F.FeatureResult(detected_rows[j], F.Features(*table[j]), make, (gates[j], gates[j] + size),
                                    physics=F.physics_estimates(seen_rows[j], seen_std_rows[j], long_dwell,
-                                                               known_rows[j])))
+                                                               known_rows[j]), flash_curve=curve))
     return out
 
 

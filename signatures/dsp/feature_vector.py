@@ -10,11 +10,15 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from signatures.dsp import timefreq as tf
 from signatures.radar import RadarConfig
+
+if TYPE_CHECKING:
+    from signatures.dsp.flash_spectrum import FlashCurve
 
 #: Bump when feature values change: training-set caches key on it, and
 #: tests/features/test_feature_version.py fails until it is bumped and its golden values updated.
@@ -133,6 +137,9 @@ class FeatureResult:
     #: physical estimates only 1:1 verification reads (`signatures.classify.verify`), not classifier
     #: inputs: the bundles' feature vector stays as trained. Empty where not measured.
     physics: Mapping[str, float] = field(default_factory=dict)
+    #: a long dwell's flash score at every candidate rate (`flash_spectrum.FlashCurve`): a track
+    #: reads its dwells at the track's rate from it; None where the dwell had no envelope search
+    flash_curve: "FlashCurve | None" = None
 
     @cached_property
     def rd_patch(self) -> np.ndarray:

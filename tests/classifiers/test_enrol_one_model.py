@@ -111,6 +111,29 @@ def test_genuine_tracks_are_accepted_on_evidence_alone(site: dict, card: dict, m
                                                 for d in out.dwells), out.reasons
 
 
+#: held-out scenes whose tracks read weak dwells at the track's rate (seed 0: dwells 4 and 6)
+READ_AT_TRACK_RATE = (17, 39)
+
+
+def test_weak_dwells_are_read_at_the_tracks_rate_and_spoofs_gain_nothing(site: dict, card: dict) -> None:
+    """Held-out tracks of the drone: a dwell whose own read shows no train at the rate the track's
+    trains agree on is read at it (`signatures.classify.track_rate`), within 5 % of it; the same
+    tracks claiming another registered model are still not accepted."""
+    from authn.track import Dwell, decide_track
+
+    checker = _checker(site)
+    read = []
+    for k in READ_AT_TRACK_RATE:
+        for claimed in (DJI, "m300", "phantom4"):
+            recs = dwells(k, 8, "heldout", SERIALS[claimed])
+            out = decide_track(checker, [Dwell.recording(r, f"scene-{k}-{j}") for j, r in enumerate(recs)])
+            if claimed == DJI:
+                read += [d.flash_rate for d in out.dwells if d.flash_rate and "track_rate" in d.flash_rate]
+            else:
+                assert out.decision != "accept", (k, claimed)
+    assert read and all(abs(r["measured"] / r["track_rate"] - 1) <= 0.05 for r in read), read
+
+
 @pytest.mark.parametrize("claimed", ["m300", "m600", "phantom4"])
 def test_the_drone_claiming_another_registered_model_is_not_accepted(site: dict, card: dict, claimed: str) -> None:
     checker = _checker(site)

@@ -78,6 +78,10 @@ def test_a_genuine_track_is_accepted_at_the_bound_and_the_rest_skipped(setup, ca
     assert all(abs(x) <= DWELL_CAP_NATS for x in increments)
     assert [Path(f).name for f in out["skipped_files"]] == [f"dwell_{i:06d}.h5" for i in range(used, DWELLS)]
     assert out["sprt"]["accept_nats"] == round(math.log(0.99 / 0.001), 4)
+    for d in out["dwells"]:  # what each dwell added against each alternative, and the rate it compared
+        assert d["increment"] == min(d["against"].values())
+        rate = d["flash_rate"]
+        assert rate["measured"] > 0 and rate["claimed"] > 0 and "track_rate" not in rate
     payload = _entry(db, out["audit_id"])
     assert [d["file_sha256"] for d in payload["dwells"]] == [d["file_sha256"] for d in out["dwells"]]
     assert all(len(d["file_sha256"]) == 64 for d in payload["dwells"])
@@ -281,6 +285,23 @@ def test_sprt_bounds_discount_and_cap() -> None:
     for bad in ({"false_accept": 0.0}, {"false_reject": 0.5}, {"correlation": 1.0}, {"false_accept": float("nan")}):
         with pytest.raises(ValueError):
             Sprt(**bad)
+
+
+def test_a_dwell_that_moves_no_sum_does_not_dilute_the_track() -> None:
+    """A dwell whose physics term abstained and whose classifier favoured the claim adds 0 to every
+    sum: no observation, so it leaves the discount's n alone (before, five such dwells took three
+    dwells of +4 nats from an accept at 8.57 to an inconclusive 5.0)."""
+    from authn.sprt import observations
+
+    s = Sprt()
+    three = [{"unknown": 4.0, "m300": 4.0}] * 3
+    quiet = [{"unknown": 0.0, "m300": 0.0}] * 5
+    assert s.walk([(4.0, True), (2.0, False), (4.0, True), (2.0, False), (4.0, True)]) == ("accept", 5)
+    assert math.isclose(s.track_llr(three + quiet), s.track_llr(three)) and s.track_llr(three) >= s.accept_nats
+    assert math.isclose(s.refute_llr(quiet + three), s.refute_llr(three))
+    assert s.track_llr(three + [{"unknown": 0.0, "m300": -0.5}]) < s.track_llr(three)  # against the claim: counted
+    assert observations([{"a": 0.0, "b": 0.0}, {"a": 0.0, "b": -1.0}, 2.0, 0.0, math.nan]) == 3
+    assert s.track_llr(quiet) == 0.0 and s.refute_llr(quiet) == 0.0
 
 
 def test_icc_of_known_groups() -> None:
