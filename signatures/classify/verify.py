@@ -80,7 +80,7 @@ __all__ = ["ALT_LOG_SPAN", "BLADE_BAND", "CLASSIFIER_CLIP", "PHYSICS_READS", "RA
 #: every estimate the physics term reads (`authn features show` prints these as the physics the
 #: decision uses); the rotor count it reads is `rotors_seen`, never the feature `rotor_count`
 PHYSICS_READS = ("flash_rate_hz", "flash_rate_std_hz", "flash_score", "tip_speed_mps", "tip_speed_std_mps",
-                 "tip_aliased", "rotors_seen", "rotors_seen_std", "rotors_lower_bound")
+                 "tip_aliased", "rotors_seen", "rotors_seen_std", "rotors_lower_bound", "flash_track_rate_hz")
 RATE_BAND = (0.80, 1.20)
 #: Tip-speed / flash-rate over the claim's 2 pi L / N: cos(elevation) (0.45 = 63 deg) up to +5 %.
 BLADE_BAND = (0.05, 1.05)
