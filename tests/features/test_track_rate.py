@@ -61,6 +61,23 @@ def test_a_dwell_is_read_within_the_window_of_the_track_rate():
     assert FlashCurve(curve.rates_hz, np.full(curve.rates_hz.size, np.nan, dtype=np.float32)).read_near(130.0) is None
 
 
+@given(st.lists(st.floats(-3.0, 3.0), min_size=50, max_size=50), st.floats(35.0, 75.0), st.floats(-5.0, 5.0))
+def test_a_read_is_the_best_score_in_the_window_whatever_the_floor(scores, rate, shift):
+    """The read is the window's best candidate, within the window, at its score; adding a constant to
+    every score (a floor the whitening sets) moves the bar, never which candidate is read (one of the
+    best, within float32 rounding)."""
+    hz = np.arange(30.0, 80.0, 1.0, dtype=np.float32)
+    curve, lifted = FlashCurve(hz, np.float32(scores)), FlashCurve(hz, np.float32(scores) + np.float32(shift))
+    near = np.abs(hz - rate) <= max(TRACK_RATE_WINDOW * rate, 1.0)
+    best = float(np.max(np.float32(scores)[near]))
+    got, moved = curve.read_near(rate), lifted.read_near(rate)
+    assert (got is None) == (best < TRACK_READ_SCORE)
+    if got is not None:
+        assert abs(got[0] - rate) <= max(TRACK_RATE_WINDOW * rate, 1.0) and got[2] == pytest.approx(best)
+    if got is not None and moved is not None:
+        assert float(np.float32(scores)[int(np.argmin(np.abs(hz - moved[0])))]) == pytest.approx(best, abs=1e-5)
+
+
 def test_only_a_dwell_without_a_train_at_the_track_rate_is_read_there():
     curve = _curve(131.0, 0.3)
     own = {"flash_rate_hz": 129.0, "flash_score": 0.9, "rotors_lower_bound": 1.0}
