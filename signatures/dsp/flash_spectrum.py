@@ -294,10 +294,10 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
             & (_turn_line(rate / df, asym, diff_power, sum_power) | ~_one_sided(rate / df, diff_power, sum_power)))
     rate = np.where(turn, 2.0 * rate, rate)
     rate = _turned(rate / df, asym, diff_power, sum_power, lo) * df
-    with_turn = _with_turn_lines(harm, asym, cand, own)
-    score = np.maximum(np.maximum(_log_peak(harm, best) - SPECTRAL_NOISE_LOG,
-                                  _turn_score(with_turn, cand, rate / df)), 0.0)
-    curve = np.maximum(_log_curve(harm) - SPECTRAL_NOISE_LOG, _log_curve(with_turn) - SPECTRAL_TURN_NOISE_LOG)
+    sum_curve, turn_curve = _log_curve(harm), _log_curve(_with_turn_lines(harm, asym, cand, own))
+    score = np.maximum(np.maximum(sum_curve[rows, best] - SPECTRAL_NOISE_LOG,
+                                  _turn_score(turn_curve, cand, rate / df)), 0.0)
+    curve = np.maximum(sum_curve - SPECTRAL_NOISE_LOG, turn_curve - SPECTRAL_TURN_NOISE_LOG)
     live = harm[rows, best] > 0.0
     rate = np.where(live, rate, 0.0)
     std = np.where(live, np.where(turn, 2.0, 1.0) * 0.5 * df / math.sqrt(SPECTRAL_HARMONICS), 0.0)
@@ -307,12 +307,6 @@ def spectral_flash_rate(slow: np.ndarray, config: RadarConfig, body_hz: np.ndarr
                      for b in range(b_rows)])
     return FlashTrain(rate, std, np.where(live, score, 0.0), seen, np.where(seen > 0.0, VISIBLE_STD, 0.0),
                       known | ~live, curve.astype(np.float32), (cand * df).astype(np.float32))
-
-
-def _log_peak(stat: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """ln of each row's statistic (B, candidates) at candidate index `at` over its median."""
-    rows = np.arange(stat.shape[0])
-    return np.log(np.maximum(stat[rows, at], 1e-300) / np.maximum(median_last(stat), 1e-300))
 
 
 def _log_curve(stat: np.ndarray) -> np.ndarray:
@@ -337,12 +331,13 @@ def _with_turn_lines(harm: np.ndarray, asym: np.ndarray, cand: np.ndarray, own: 
     return total
 
 
-def _turn_score(total: np.ndarray, cand: np.ndarray, rate: np.ndarray) -> np.ndarray:
-    """Each row's score of its flash rate `rate` (fractional bins) from the harmonic sum with the
-    turn's lines (`_with_turn_lines`), read within a bin of the rate, as a log peak-to-median less
-    SPECTRAL_TURN_NOISE_LOG."""
+def _turn_score(turn_curve: np.ndarray, cand: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """Each row's score of its flash rate `rate` (fractional bins) from the log peak-to-median curve of
+    the harmonic sum with the turn's lines (`_with_turn_lines`, `_log_curve`), read within a bin of
+    the rate, less SPECTRAL_TURN_NOISE_LOG."""
     at = np.rint(rate).astype(int) - cand[0]
-    peak = np.max([_log_peak(total, np.clip(at + d, 0, cand.size - 1)) for d in (-1, 0, 1)], axis=0)
+    rows = np.arange(turn_curve.shape[0])
+    peak = np.max([turn_curve[rows, np.clip(at + d, 0, cand.size - 1)] for d in (-1, 0, 1)], axis=0)
     return np.where((at >= -1) & (at <= cand.size), peak - SPECTRAL_TURN_NOISE_LOG, 0.0)
 
 
