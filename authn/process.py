@@ -1,7 +1,7 @@
 """How an `authn` process runs: settings that belong to the application, not to the library.
 
 `signatures` and the other packages leave process-wide state alone; the console entry point
-(`authn.cli.run`) applies `tune()` once, before any command, and `authn serve --workers`
+(`authn.__main__`) applies `tune()` once, before the command line is imported, and `authn serve --workers`
 applies it in each spawned worker (`authn.service.workers`). Scripts that time the CLI's work
 (benchmarks/batch_stages.py) apply it too, so they time what a user's `authn` process does.
 """

@@ -25,12 +25,17 @@ def test_tune_sets_the_gc_threshold() -> None:
     assert out == "True True"
 
 
-def test_the_console_entry_point_tunes_the_process() -> None:
-    out = _python("import gc, sys\nimport authn.cli as cli\nfrom authn.process import GC_THRESHOLD0\n"
+def test_the_console_entry_point_tunes_the_process_before_importing_the_command_line() -> None:
+    """`authn.__main__.main` (the console script) sets the threshold before `authn.cli` and its
+    libraries are imported: an import hook records the threshold when `authn.cli` is imported."""
+    out = _python("import gc, sys\nseen = []\n"
+                  "sys.addaudithook(lambda event, args: seen.append(gc.get_threshold()[0])"
+                  " if event == 'import' and args[0] == 'authn.cli' else None)\n"
+                  "from authn.__main__ import main\nfrom authn.process import GC_THRESHOLD0\n"
                   "sys.argv = ['authn', '--help']\n"
-                  "try:\n    cli.run()\nexcept SystemExit:\n    pass\n"
-                  "print('threshold', gc.get_threshold()[0] == GC_THRESHOLD0)")
-    assert out.splitlines()[-1] == "threshold True"
+                  "try:\n    main()\nexcept SystemExit:\n    pass\n"
+                  "print('threshold', seen[:1] == [GC_THRESHOLD0], gc.get_threshold()[0] == GC_THRESHOLD0)")
+    assert out.splitlines()[-1] == "threshold True True"
 
 
 @glibc

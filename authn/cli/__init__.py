@@ -279,8 +279,9 @@ def _raise_interrupted(signum: int, _frame: object) -> None:
 
 
 def run() -> None:
-    """Console-script entry point: the process's settings (`authn.process.tune`), then the command,
-    then an exit that skips the collector's last full pass (`authn.process.exit_quickly`)."""
+    """The command as a process (`authn.__main__`, the console script): the process's settings
+    (`authn.process.tune`, idempotent), then the command, then an exit that skips the
+    collector's last full pass (`authn.process.exit_quickly`)."""
     tune()
     code = main()
     exit_quickly()
