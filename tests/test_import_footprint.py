@@ -25,6 +25,8 @@ HUMAN_ON_A_PIPE = ("rich",)
 PACKAGE_DATA = ("importlib.resources", "importlib.readers")
 #: what only an encoder or a long dwell's rotor-line search needs (`decimal`; `statistics`, ~5 ms)
 NOT_ON_A_PAPER_CHECK = ("decimal", "statistics")
+#: what only an option of `check` needs: --trust-registry (the UA keys), --claims (a CSV)
+ONLY_WITH_THEIR_OPTION = ("authn.uakeys", "csv")
 #: the command modules a check does not run (`authn.cli.lazy`: each imported when its command is)
 OTHER_COMMANDS = tuple(f"authn.cli.{m}" for m in ("audit", "db", "demo", "features", "importer", "inspect", "keys",
                                                    "models", "plot", "registry", "rid", "serve", "simulate"))
@@ -63,7 +65,7 @@ def test_a_check_imports_no_optional_dependency(tmp_path: Path) -> None:
     assert report["code"] == 4, report  # the whole radar path ran: one unsigned dwell is inconclusive
     assert json.loads(out)["decision"] == "inconclusive"
     loaded = _loaded(report["modules"], OPTIONAL + HELP_ONLY + NOT_ON_CHECK + GEODESY + OTHER_COMMANDS + PACKAGE_DATA
-                     + NOT_ON_A_PAPER_CHECK)
+                     + NOT_ON_A_PAPER_CHECK + ONLY_WITH_THEIR_OPTION)
     assert not loaded, f"a check imported {loaded}"
     assert not report["policy_tree"], "a check imported cedarpy.pst (deciding never reads it)"
     assert "onnxruntime" in report["modules"] or "numpy" in report["modules"]

@@ -9,7 +9,6 @@ a signed log), and the hand-over rule for retired keys.
 
 from __future__ import annotations
 
-import secrets
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -61,6 +60,8 @@ def log_origin(db: Database, *, create: bool = False) -> str | None:
         return str(rows[0][0])
     if not create:
         return None
+    import secrets  # once per log: a check that appends to an existing one never imports it
+
     origin = current().audit_origin or f"authn.invalid/audit/{secrets.token_hex(8)}"
     try:
         check_origin(origin)

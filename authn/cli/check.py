@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import signal
 import sys
@@ -48,6 +47,8 @@ def _files(paths: list[Path]) -> list[Path]:
 def _claims(path: Path) -> dict[str, str]:
     """file,serial CSV -> {file name or path: serial}; a row with a rid_capture column may leave
     the serial empty (every drone heard in the capture is then a claim)."""
+    import csv
+
     from core.errors import AuthnError
 
     try:
@@ -72,6 +73,8 @@ def _claims(path: Path) -> dict[str, str]:
 def _captures(path: Path) -> dict[str, Path]:
     """The optional rid_capture column of the claims CSV -> {file: capture path}; a relative
     capture path is taken from the CSV's folder."""
+    import csv
+
     try:
         rows = list(csv.DictReader(path.read_text().splitlines()))
     except (OSError, UnicodeDecodeError, csv.Error):
@@ -226,9 +229,11 @@ def check(
     state = ctx.obj
     track_started = False
     try:
-        from authn.uakeys import load_trusted_registries
+        trusted = None
+        if trust_registry:
+            from authn.uakeys import load_trusted_registries
 
-        trusted = load_trusted_registries(trust_registry) if trust_registry else None
+            trusted = load_trusted_registries(trust_registry)
         from authn.sprt import Sprt
 
         sprt = Sprt(false_accept, false_reject)
