@@ -27,7 +27,7 @@ from authn.cli.output import json_error, json_requested
 from authn.cli.plugins import PluginGroup
 from authn.cli.signals import handled, interrupted
 from authn.cli.state import CliState
-from authn.process import exit_quickly, tune
+from authn.process import exit_quickly
 from core.errors import AuthnException, Interrupted, describe, exit_code_for
 from core.textsafe import printable
 
@@ -279,10 +279,9 @@ def _raise_interrupted(signum: int, _frame: object) -> None:
 
 
 def run() -> None:
-    """The command as a process (`authn.__main__`, the console script): the process's settings
-    (`authn.process.tune`, idempotent), then the command, then an exit that skips the
-    collector's last full pass (`authn.process.exit_quickly`)."""
-    tune()
+    """The command as a process (`authn.__main__`, the console script, which has tuned it before
+    importing this module: `authn.process.tune`), then an exit that skips the collector's last
+    full pass (`authn.process.exit_quickly`)."""
     code = main()
     exit_quickly()
     sys.exit(code)

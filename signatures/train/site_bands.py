@@ -26,7 +26,9 @@ MODE_GAP = math.log(1.25)
 def shrunk_band(logs: list[float], prior: tuple[float, float]) -> tuple[float, float]:
     """A band (ratio lo, hi) from site log-ratios and the prior band: the uniform whose 10th and 90th
     percentiles are the site's (edges 1/8 of that span beyond them), each edge shrunk to the prior's
-    in log space with `BAND_PRIOR_WEIGHT` pseudo-recordings; at least `BAND_MIN_LOG_WIDTH` wide."""
+    in log space with `BAND_PRIOR_WEIGHT` pseudo-recordings; at least `BAND_MIN_LOG_WIDTH` wide.
+    Percentiles, not `uniform_support`'s extremes: per-dwell rotor counts and blade ratios have
+    outliers that no mode split sets aside, as `rate_modes` does for rates."""
     lo_p, hi_p = math.log(prior[0]), math.log(prior[1])
     if len(logs) < MIN_RECORDINGS:
         return prior
